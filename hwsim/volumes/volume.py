@@ -1,0 +1,107 @@
+"""The one in-memory volume type every reader and phantom returns.
+
+Axis order is ``(z, y, x)`` (C order, x fastest), voxel centres sit at integer index
+coordinates, and ``spacing`` is the world size of one voxel step along each of those
+axes, in the same ``(z, y, x)`` order (millimetres for medical data, 1.0 for phantoms).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hwsim.errors import InputError
+
+__all__ = ["Volume", "SUPPORTED_DTYPES"]
+
+#: Voxel types a volume may hold.  Integer data keeps its type; ``bits`` says how many of
+#: its bits are significant (8, 12 or 16 for the hardware's voxel formats).
+SUPPORTED_DTYPES = (
+    np.dtype(np.uint8),
+    np.dtype(np.int8),
+    np.dtype(np.uint16),
+    np.dtype(np.int16),
+    np.dtype(np.float32),
+    np.dtype(np.float64),
+)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Volume:
+    """A scalar volume.
+
+    Parameters
+    ----------
+    data : numpy.ndarray
+        3-D array, axis order ``(z, y, x)``, one of :data:`SUPPORTED_DTYPES`, every
+        value finite, no axis of length zero.
+    spacing : tuple of float
+        World size of one voxel step along ``(z, y, x)``; each > 0 and finite.
+    name : str
+        Short label used in reports (file stem or phantom name).
+    source : str
+        Where the data came from (path, or phantom spec such as ``"ball:size=64"``).
+    units : str
+        Units of the voxel values, e.g. ``"HU"`` for CT; empty when unknown.
+    bits : int
+        Significant bits of integer data (8, 12 or 16); 0 for float data.
+    """
+
+    data: np.ndarray
+    spacing: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    name: str = "volume"
+    source: str = ""
+    units: str = ""
+    bits: int = 0
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        where = self.source or self.name
+        data = self.data
+        if not isinstance(data, np.ndarray) or data.ndim != 3:
+            raise InputError("volume data must be a 3-D array", source=where, key="shape")
+        if data.dtype not in SUPPORTED_DTYPES:
+            raise InputError(
+                f"voxel type {data.dtype} is not supported",
+                source=where,
+                key="dtype",
+                allowed=", ".join(str(d) for d in SUPPORTED_DTYPES),
+            )
+        if min(data.shape) == 0:
+            raise InputError(f"axis of length zero in shape {data.shape}", source=where, key="shape",
+                             allowed="every axis >= 1")
+        if data.dtype.kind == "f" and not np.isfinite(data).all():
+            bad = int(np.count_nonzero(~np.isfinite(data)))
+            raise InputError(f"{bad} voxels are NaN or Inf", source=where, key="data",
+                             allowed="finite values")
+        spacing = tuple(float(s) for s in self.spacing)
+        if len(spacing) != 3 or not all(np.isfinite(s) and s > 0 for s in spacing):
+            raise InputError(f"spacing {self.spacing} is invalid", source=where, key="spacing",
+                             allowed="three finite numbers > 0")
+        object.__setattr__(self, "spacing", spacing)
+        if data.dtype.kind in "iu" and self.bits == 0:
+            object.__setattr__(self, "bits", data.dtype.itemsize * 8)
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """Voxel counts along ``(z, y, x)``."""
+        return tuple(int(n) for n in self.data.shape)  # type: ignore[return-value]
+
+    @property
+    def extent(self) -> np.ndarray:
+        """World size of the volume's box along ``(z, y, x)``: ``shape * spacing``.
+
+        The box spans half a voxel beyond the outer voxel centres on every side.
+        """
+        return np.asarray(self.shape, dtype=np.float64) * np.asarray(self.spacing)
+
+    @property
+    def value_range(self) -> tuple[float, float]:
+        """Smallest and largest voxel value actually present."""
+        return float(self.data.min()), float(self.data.max())
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of voxel data."""
+        return int(self.data.nbytes)

@@ -1,0 +1,1 @@
+"""The hardware being modelled: unit arithmetic (``models.units``) and assemblies (``models.arch``)."""

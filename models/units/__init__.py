@@ -1,0 +1,1 @@
+"""One module per hardware unit: bit-exact arithmetic, latency, initiation interval."""

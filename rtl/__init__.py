@@ -1,0 +1,1 @@
+"""Amaranth RTL of the key units, one module per ``models.units`` module."""
