@@ -162,7 +162,8 @@ def check_number(value: Any, source: str, key: str, lo: float | None = None,
     """Validate one number: finite, inside ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``)."""
     allowed = _range_text(lo, hi, lo_open=lo_open)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"must be a number, got {value!r}", source=source, key=key, allowed=allowed)
+        raise InputError(f"must be a number, got {value!r}", source=source, key=key,
+                         allowed=allowed)
     value = float(value)
     if not math.isfinite(value):
         raise InputError(f"{value} is not finite", source=source, key=key, allowed=allowed)

@@ -1,0 +1,240 @@
+"""The ``hwsim`` command: parse, load, call the library, print a short summary.
+
+Exit status: 0 on success, 2 for bad input (one line on stderr naming the file, key
+and allowed range), 1 for an internal fault (``HWSIM_DEBUG=1`` shows the traceback).
+The command-line contract is design section 9; docs/cli.md documents it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from hwsim.errors import HwsimError, InputError, NotAvailableError
+
+__all__ = ["main", "build_parser"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage mistake as one line and exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from hwsim.fidelity import FIDELITIES, SAMPLINGS
+    from hwsim.scene import MODES, PROJECTIONS
+
+    parser = _Parser(prog="hwsim", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=_version())
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    r = sub.add_parser("render", help="render a scene at a fidelity; writes image + stats.json")
+    r.add_argument("scene", nargs="?", help="scene TOML file or built-in name (default: head)")
+    src = r.add_mutually_exclusive_group()
+    src.add_argument("--volume", metavar="PATH", help="volume file or DICOM folder")
+    src.add_argument("--phantom", metavar="NAME[:key=value,...]", help="built-in phantom")
+    r.add_argument("--shape", metavar="Z,Y,X", help="shape of a headerless .raw volume")
+    r.add_argument("--dtype", help="voxel type of a .raw volume (e.g. uint16)")
+    r.add_argument("--mode", choices=MODES)
+    r.add_argument("--view", metavar="AZ,EL", help="azimuth,elevation in degrees")
+    r.add_argument("--image", metavar="W[xH]", help="image size in pixels")
+    r.add_argument("--projection", choices=PROJECTIONS)
+    r.add_argument("--arch", metavar="NAME|FILE.toml", help="architecture (from issue 3 on)")
+    r.add_argument("--fidelity", choices=FIDELITIES, default="golden")
+    r.add_argument("--sampling", choices=SAMPLINGS, default="ray",
+                   help="golden sample positions: ideal rays or an architecture's order")
+    r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
+    r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+    sub.add_parser("scenes", help="list built-in scenes")
+    sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
+    sub.add_parser("archs", help="list built-in architectures")
+    for name, text in (("trade", "measure the fidelity ladder"), ("sweep", "design-space sweep"),
+                       ("report", "human report of runs"), ("bench", "speed of every rung"),
+                       ("rtl", "Verilog and synthesis statistics")):
+        p = sub.add_parser(name, help=f"{text} (not yet available)")
+        p.add_argument("args", nargs=argparse.REMAINDER)
+    return parser
+
+
+def _version() -> str:
+    from hwsim import __version__
+
+    return f"hwsim {__version__}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return _COMMANDS[args.command](args)
+    except InputError as exc:
+        print(f"hwsim: error: {exc}", file=sys.stderr)
+        return 2
+    except HwsimError as exc:
+        print(f"hwsim: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("hwsim: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal fault: say so in one line, keep the exit code 1
+        if os.environ.get("HWSIM_DEBUG"):
+            raise
+        print(f"hwsim: internal error: {type(exc).__name__}: {exc} "
+              "(set HWSIM_DEBUG=1 for the traceback)", file=sys.stderr)
+        return 1
+
+
+# ---------------------------------------------------------------------------- commands
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from hwsim.fidelity import render
+    from hwsim.report import write_render
+    from hwsim.scene import load_scene
+
+    scene = _apply_overrides(load_scene(args.scene), args)
+    with _progress_bar(args.quiet, "render") as progress:
+        run = render(scene, fidelity=args.fidelity, arch=args.arch, sampling=args.sampling,
+                     progress=progress)
+    paths = write_render(run, args.out)
+    if not args.quiet:
+        vol = run.volume
+        print(f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
+              f"{scene.render.mode}, {run.fidelity}/{run.sampling}, "
+              f"image {run.image.shape[1]}x{run.image.shape[0]}")
+        print(f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
+              f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)")
+        print(f"  wrote {paths['png']}, {paths['npy'].name}, {paths['stats'].name}")
+    return 0
+
+
+def _cmd_scenes(args: argparse.Namespace) -> int:
+    from hwsim.scene import DEFAULT_SCENE, builtin_scenes
+
+    for name, text in builtin_scenes().items():
+        mark = " (default)" if name == DEFAULT_SCENE else ""
+        print(f"{name:<20} {text}{mark}")
+    return 0
+
+
+def _cmd_phantoms(args: argparse.Namespace) -> int:
+    from hwsim.volumes import PHANTOMS
+
+    for name, info in PHANTOMS.items():
+        print(f"{name:<16} {info}")
+    return 0
+
+
+def _cmd_archs(args: argparse.Namespace) -> int:
+    print("no architectures are available yet: cube4, cube4-teramac, em-cube, volumepro500, "
+          "volumepro1000 and vizard2 are planned", file=sys.stderr)
+    return 0
+
+
+def _not_yet(args: argparse.Namespace) -> int:
+    raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
+
+
+_COMMANDS = {"render": _cmd_render, "scenes": _cmd_scenes, "phantoms": _cmd_phantoms,
+             "archs": _cmd_archs, "trade": _not_yet, "sweep": _not_yet, "report": _not_yet,
+             "bench": _not_yet, "rtl": _not_yet}
+
+
+# ---------------------------------------------------------------------------- helpers
+
+
+def _apply_overrides(scene, args: argparse.Namespace):
+    """Every flag given on the command line overrides the scene's value."""
+    import dataclasses
+
+    from hwsim.config import check_number
+    from hwsim.scene import MAX_IMAGE, VolumeSpec
+    from hwsim.volumes import parse_phantom_spec
+
+    if args.volume:
+        shape = _ints(args.shape, "--shape", 3) if args.shape else None
+        spec = VolumeSpec(path=str(Path(args.volume).resolve()), shape=shape, dtype=args.dtype)
+        scene = scene.replace(volume=spec)
+    elif args.shape or args.dtype:
+        raise InputError("only valid with --volume FILE.raw", key="--shape/--dtype")
+    if args.phantom:
+        name, params = parse_phantom_spec(args.phantom)
+        scene = scene.replace(volume=VolumeSpec(phantom=name, params=tuple(sorted(params.items()))))
+    render_spec, view = scene.render, scene.view
+    if args.mode:
+        render_spec = dataclasses.replace(render_spec, mode=args.mode)
+    if args.view:
+        parts = args.view.split(",")
+        if len(parts) != 2:
+            raise InputError(f"expected AZ,EL, got {args.view!r}", key="--view",
+                             allowed="-360 .. 360, -90 .. 90")
+        az = check_number(_float(parts[0], "--view"), "--view", "azimuth", -360, 360)
+        el = check_number(_float(parts[1], "--view"), "--view", "elevation", -90, 90)
+        view = dataclasses.replace(view, azimuth=az, elevation=el)
+    if args.image:
+        text = args.image.lower()
+        w, h = (text.split("x", 1) if "x" in text else (text, text))
+        width = _int_in(w, "--image", 1, MAX_IMAGE)
+        height = _int_in(h, "--image", 1, MAX_IMAGE)
+        view = dataclasses.replace(view, width=width, height=height)
+    if args.projection:
+        view = dataclasses.replace(view, projection=args.projection)
+    return scene.replace(render=render_spec, view=view)
+
+
+def _float(text: str, flag: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{text!r} is not a number", key=flag) from None
+
+
+def _int_in(text: str, flag: str, lo: int, hi: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise InputError(f"{text!r} is not an integer", key=flag, allowed=f"{lo} .. {hi}") from None
+    if not lo <= value <= hi:
+        raise InputError(f"{value} is out of range", key=flag, allowed=f"{lo} .. {hi}")
+    return value
+
+
+def _ints(text: str, flag: str, count: int) -> tuple[int, ...]:
+    parts = text.split(",")
+    if len(parts) != count:
+        raise InputError(f"expected {count} comma-separated integers, got {text!r}", key=flag)
+    return tuple(_int_in(p, flag, 1, 1 << 16) for p in parts)
+
+
+class _progress_bar:
+    """A tqdm bar that appears only when the work takes over a second."""
+
+    def __init__(self, quiet: bool, label: str) -> None:
+        self.quiet, self.label, self.bar = quiet, label, None
+
+    def __enter__(self):
+        if self.quiet:
+            return None
+        return self._update
+
+    def _update(self, done: int, total: int) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=self.label, unit="step", delay=1.0,
+                            leave=False, file=sys.stderr)
+        self.bar.update(done - self.bar.n)  # tqdm's delay keeps short renders silent
+
+    def __exit__(self, *exc) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,127 @@
+"""The fidelity ladder: one entry point, five rungs (design section 3).
+
+``render(scene, fidelity=...)`` loads the scene's volume and transfer function, runs the
+requested rung and returns a :class:`RenderRun` holding the image and the raw numbers
+``stats.json`` is written from.  Rungs that are not built yet raise
+:class:`~hwsim.errors.NotAvailableError` (exit status 2 at the CLI).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction, resolve_transfer
+from hwsim.volumes import load_volume
+from hwsim.volumes.volume import Volume
+
+__all__ = ["FIDELITIES", "AVAILABLE_FIDELITIES", "SAMPLINGS", "RenderRun", "render"]
+
+FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
+AVAILABLE_FIDELITIES = ("golden",)
+SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
+
+#: Golden stages, in pipeline order, and what each needs from the scene.
+_GOLDEN_STAGES = ("sample", "gradient", "classify", "shade", "composite", "crop", "cut")
+
+Progress = Callable[[int, int], None]
+
+
+@dataclass(kw_only=True)
+class RenderRun:
+    """Everything one render produced: image, volume facts and raw counters."""
+
+    scene: Scene
+    volume: Volume
+    transfer: TransferFunction
+    fidelity: str
+    arch: str | None
+    sampling: str
+    image: np.ndarray
+    samples: int
+    rays: int
+    wall_seconds: float
+    cycles: int | None = None
+    clock_hz: float | None = None
+    elaborated_units: list[str] = field(default_factory=list)
+    elided_units: list[str] = field(default_factory=list)
+    counters: dict[str, Any] = field(default_factory=dict)
+
+
+def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
+    """Which stages a scene needs (design section 3, "model only what a scene requires")."""
+    mode = scene.render.mode
+    modulated = mode == "composite" and scene.transfer.gradient_opacity is not None
+    needs = {
+        "sample": True,
+        "gradient": scene.lit or modulated,
+        "classify": mode == "composite",
+        "shade": scene.lit,
+        "composite": True,
+        "crop": scene.crop is not None,
+        "cut": bool(scene.cut_planes),
+    }
+    used = [s for s in _GOLDEN_STAGES if needs[s]]
+    return used, [s for s in _GOLDEN_STAGES if not needs[s]]
+
+
+def render(
+    scene: Scene,
+    *,
+    fidelity: str = "golden",
+    arch: str | None = None,
+    sampling: str = "ray",
+    volume: Volume | None = None,
+    progress: Progress | None = None,
+) -> RenderRun:
+    """Render ``scene`` at ``fidelity``.
+
+    Parameters
+    ----------
+    scene : Scene
+        The validated scene.
+    fidelity : str
+        One of :data:`FIDELITIES`; only :data:`AVAILABLE_FIDELITIES` run today.
+    arch : str, optional
+        Architecture name or file; not available yet.
+    sampling : str
+        Sample positions of the golden rung: the ideal ``ray`` caster or an
+        architecture's (``shear-warp``, ``shear-image``, ``slice-parallel``).
+    volume : Volume, optional
+        An already loaded volume (skips loading ``scene.volume``).
+    progress : callable, optional
+        ``progress(done, total)`` called as the render advances.
+    """
+    if fidelity not in FIDELITIES:
+        raise InputError(f"unknown fidelity {fidelity!r}", key="--fidelity",
+                         allowed=", ".join(FIDELITIES))
+    if fidelity not in AVAILABLE_FIDELITIES:
+        raise NotAvailableError(f"fidelity {fidelity!r} is not yet available", key="--fidelity",
+                                allowed=", ".join(AVAILABLE_FIDELITIES))
+    if arch is not None:
+        raise NotAvailableError(f"architecture {arch!r}: no architectures are available yet",
+                                key="--arch", allowed="none yet; omit --arch")
+    if sampling not in SAMPLINGS:
+        raise InputError(f"unknown sampling {sampling!r}", key="--sampling",
+                         allowed=", ".join(SAMPLINGS))
+    from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
+
+    if volume is None:
+        volume = load_volume(scene.volume, scene.base_dir)
+    transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
+    used, elided = elaboration(scene)
+    start = time.perf_counter()
+    result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
+    wall = time.perf_counter() - start
+    return RenderRun(
+        scene=scene, volume=volume, transfer=transfer, fidelity=fidelity, arch=arch,
+        sampling=sampling, image=result.image, samples=int(result.samples),
+        rays=int(result.rays), wall_seconds=wall, elaborated_units=used, elided_units=elided,
+        counters={"golden.samples": int(result.samples), "golden.rays": int(result.rays)},
+    )
