@@ -46,17 +46,25 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--projection", choices=PROJECTIONS)
     r.add_argument("--arch", metavar="NAME|FILE.toml", help="architecture (from issue 3 on)")
     r.add_argument("--fidelity", choices=FIDELITIES, default="golden")
-    r.add_argument("--sampling", choices=SAMPLINGS, default="ray",
-                   help="golden sample positions: ideal rays or an architecture's order")
+    r.add_argument(
+        "--sampling",
+        choices=SAMPLINGS,
+        default="ray",
+        help="golden sample positions: ideal rays or an architecture's order",
+    )
     r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
     sub.add_parser("archs", help="list built-in architectures")
-    for name, text in (("trade", "measure the fidelity ladder"), ("sweep", "design-space sweep"),
-                       ("report", "human report of runs"), ("bench", "speed of every rung"),
-                       ("rtl", "Verilog and synthesis statistics")):
+    for name, text in (
+        ("trade", "measure the fidelity ladder"),
+        ("sweep", "design-space sweep"),
+        ("report", "human report of runs"),
+        ("bench", "speed of every rung"),
+        ("rtl", "Verilog and synthesis statistics"),
+    ):
         p = sub.add_parser(name, help=f"{text} (not yet available)")
         p.add_argument("args", nargs=argparse.REMAINDER)
     return parser
@@ -85,8 +93,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:  # an internal fault: say so in one line, keep the exit code 1
         if os.environ.get("HWSIM_DEBUG"):
             raise
-        print(f"hwsim: internal error: {type(exc).__name__}: {exc} "
-              "(set HWSIM_DEBUG=1 for the traceback)", file=sys.stderr)
+        print(
+            f"hwsim: internal error: {type(exc).__name__}: {exc} "
+            "(set HWSIM_DEBUG=1 for the traceback)",
+            file=sys.stderr,
+        )
         return 1
 
 
@@ -100,16 +111,21 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
     scene = _apply_overrides(load_scene(args.scene), args)
     with _progress_bar(args.quiet, "render") as progress:
-        run = render(scene, fidelity=args.fidelity, arch=args.arch, sampling=args.sampling,
-                     progress=progress)
+        run = render(
+            scene, fidelity=args.fidelity, arch=args.arch, sampling=args.sampling, progress=progress
+        )
     paths = write_render(run, args.out)
     if not args.quiet:
         vol = run.volume
-        print(f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
-              f"{scene.render.mode}, {run.fidelity}/{run.sampling}, "
-              f"image {run.image.shape[1]}x{run.image.shape[0]}")
-        print(f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
-              f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)")
+        print(
+            f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
+            f"{scene.render.mode}, {run.fidelity}/{run.sampling}, "
+            f"image {run.image.shape[1]}x{run.image.shape[0]}"
+        )
+        print(
+            f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
+            f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"
+        )
         print(f"  wrote {paths['png']}, {paths['npy'].name}, {paths['stats'].name}")
     return 0
 
@@ -132,8 +148,11 @@ def _cmd_phantoms(args: argparse.Namespace) -> int:
 
 
 def _cmd_archs(args: argparse.Namespace) -> int:
-    print("no architectures are available yet: cube4, cube4-teramac, em-cube, volumepro500, "
-          "volumepro1000 and vizard2 are planned", file=sys.stderr)
+    print(
+        "no architectures are available yet: cube4, cube4-teramac, em-cube, volumepro500, "
+        "volumepro1000 and vizard2 are planned",
+        file=sys.stderr,
+    )
     return 0
 
 
@@ -141,9 +160,17 @@ def _not_yet(args: argparse.Namespace) -> int:
     raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
 
 
-_COMMANDS = {"render": _cmd_render, "scenes": _cmd_scenes, "phantoms": _cmd_phantoms,
-             "archs": _cmd_archs, "trade": _not_yet, "sweep": _not_yet, "report": _not_yet,
-             "bench": _not_yet, "rtl": _not_yet}
+_COMMANDS = {
+    "render": _cmd_render,
+    "scenes": _cmd_scenes,
+    "phantoms": _cmd_phantoms,
+    "archs": _cmd_archs,
+    "trade": _not_yet,
+    "sweep": _not_yet,
+    "report": _not_yet,
+    "bench": _not_yet,
+    "rtl": _not_yet,
+}
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -172,14 +199,15 @@ def _apply_overrides(scene, args: argparse.Namespace):
     if args.view:
         parts = args.view.split(",")
         if len(parts) != 2:
-            raise InputError(f"expected AZ,EL, got {args.view!r}", key="--view",
-                             allowed="-360 .. 360, -90 .. 90")
+            raise InputError(
+                f"expected AZ,EL, got {args.view!r}", key="--view", allowed="-360 .. 360, -90 .. 90"
+            )
         az = check_number(_float(parts[0], "--view"), "--view", "azimuth", -360, 360)
         el = check_number(_float(parts[1], "--view"), "--view", "elevation", -90, 90)
         view = dataclasses.replace(view, azimuth=az, elevation=el)
     if args.image:
         text = args.image.lower()
-        w, h = (text.split("x", 1) if "x" in text else (text, text))
+        w, h = text.split("x", 1) if "x" in text else (text, text)
         width = _int_in(w, "--image", 1, MAX_IMAGE)
         height = _int_in(h, "--image", 1, MAX_IMAGE)
         view = dataclasses.replace(view, width=width, height=height)
@@ -227,8 +255,9 @@ class _progress_bar:
         if self.bar is None:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, desc=self.label, unit="step", delay=1.0,
-                            leave=False, file=sys.stderr)
+            self.bar = tqdm(
+                total=total, desc=self.label, unit="step", delay=1.0, leave=False, file=sys.stderr
+            )
         self.bar.update(done - self.bar.n)  # tqdm's delay keeps short renders silent
 
     def __exit__(self, *exc) -> None:

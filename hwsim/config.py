@@ -101,8 +101,9 @@ class Table:
         value = self.raw(name, default)
         return check_number(value, self.source, self.key(name), lo, hi, lo_open=lo_open)
 
-    def integer(self, name: str, default: Any = _MISSING, lo: int | None = None,
-                hi: int | None = None) -> int:
+    def integer(
+        self, name: str, default: Any = _MISSING, lo: int | None = None, hi: int | None = None
+    ) -> int:
         value = self.raw(name, default)
         allowed = _range_text(lo, hi, integer=True)
         if isinstance(value, bool) or not isinstance(value, int):
@@ -130,13 +131,21 @@ class Table:
             raise self.error(name, f"unknown value {value!r}", ", ".join(choices))
         return value
 
-    def vector(self, name: str, length: int, default: Any = _MISSING,
-               lo: float | None = None, hi: float | None = None) -> tuple[float, ...]:
+    def vector(
+        self,
+        name: str,
+        length: int,
+        default: Any = _MISSING,
+        lo: float | None = None,
+        hi: float | None = None,
+    ) -> tuple[float, ...]:
         value = self.raw(name, default)
         if not isinstance(value, (list, tuple)) or len(value) != length:
             raise self.error(name, f"must be a list of {length} numbers, got {value!r}")
-        return tuple(check_number(v, self.source, f"{self.key(name)}[{i}]", lo, hi)
-                     for i, v in enumerate(value))
+        return tuple(
+            check_number(v, self.source, f"{self.key(name)}[{i}]", lo, hi)
+            for i, v in enumerate(value)
+        )
 
     def finish(self) -> None:
         """Refuse keys nobody asked for (typos must not pass silently)."""
@@ -145,8 +154,9 @@ class Table:
             raise self.error(unknown[0], "unknown key", ", ".join(sorted(self._seen)) or "none")
 
 
-def _range_text(lo: float | None, hi: float | None, *, integer: bool = False,
-                lo_open: bool = False) -> str:
+def _range_text(
+    lo: float | None, hi: float | None, *, integer: bool = False, lo_open: bool = False
+) -> str:
     kind = "integer" if integer else "number"
     if lo is not None and hi is not None:
         return f"{'> ' if lo_open else ''}{lo:g} .. {hi:g}"
@@ -157,13 +167,21 @@ def _range_text(lo: float | None, hi: float | None, *, integer: bool = False,
     return f"finite {kind}"
 
 
-def check_number(value: Any, source: str, key: str, lo: float | None = None,
-                 hi: float | None = None, *, lo_open: bool = False) -> float:
+def check_number(
+    value: Any,
+    source: str,
+    key: str,
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+) -> float:
     """Validate one number: finite, inside ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``)."""
     allowed = _range_text(lo, hi, lo_open=lo_open)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"must be a number, got {value!r}", source=source, key=key,
-                         allowed=allowed)
+        raise InputError(
+            f"must be a number, got {value!r}", source=source, key=key, allowed=allowed
+        )
     value = float(value)
     if not math.isfinite(value):
         raise InputError(f"{value} is not finite", source=source, key=key, allowed=allowed)
@@ -180,7 +198,8 @@ def check_points(value: Any, source: str, key: str, width: int) -> list[Sequence
     out = []
     for i, row in enumerate(value):
         if not isinstance(row, list) or len(row) != width:
-            raise InputError(f"point {row!r} must have {width} numbers", source=source,
-                             key=f"{key}[{i}]")
+            raise InputError(
+                f"point {row!r} must have {width} numbers", source=source, key=f"{key}[{i}]"
+            )
         out.append([check_number(v, source, f"{key}[{i}][{j}]") for j, v in enumerate(row)])
     return out

@@ -99,17 +99,25 @@ def render(
         ``progress(done, total)`` called as the render advances.
     """
     if fidelity not in FIDELITIES:
-        raise InputError(f"unknown fidelity {fidelity!r}", key="--fidelity",
-                         allowed=", ".join(FIDELITIES))
+        raise InputError(
+            f"unknown fidelity {fidelity!r}", key="--fidelity", allowed=", ".join(FIDELITIES)
+        )
     if fidelity not in AVAILABLE_FIDELITIES:
-        raise NotAvailableError(f"fidelity {fidelity!r} is not yet available", key="--fidelity",
-                                allowed=", ".join(AVAILABLE_FIDELITIES))
+        raise NotAvailableError(
+            f"fidelity {fidelity!r} is not yet available",
+            key="--fidelity",
+            allowed=", ".join(AVAILABLE_FIDELITIES),
+        )
     if arch is not None:
-        raise NotAvailableError(f"architecture {arch!r}: no architectures are available yet",
-                                key="--arch", allowed="none yet; omit --arch")
+        raise NotAvailableError(
+            f"architecture {arch!r}: no architectures are available yet",
+            key="--arch",
+            allowed="none yet; omit --arch",
+        )
     if sampling not in SAMPLINGS:
-        raise InputError(f"unknown sampling {sampling!r}", key="--sampling",
-                         allowed=", ".join(SAMPLINGS))
+        raise InputError(
+            f"unknown sampling {sampling!r}", key="--sampling", allowed=", ".join(SAMPLINGS)
+        )
     from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
 
     if volume is None:
@@ -120,8 +128,17 @@ def render(
     result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
     wall = time.perf_counter() - start
     return RenderRun(
-        scene=scene, volume=volume, transfer=transfer, fidelity=fidelity, arch=arch,
-        sampling=sampling, image=result.image, samples=int(result.samples),
-        rays=int(result.rays), wall_seconds=wall, elaborated_units=used, elided_units=elided,
+        scene=scene,
+        volume=volume,
+        transfer=transfer,
+        fidelity=fidelity,
+        arch=arch,
+        sampling=sampling,
+        image=result.image,
+        samples=int(result.samples),
+        rays=int(result.rays),
+        wall_seconds=wall,
+        elaborated_units=used,
+        elided_units=elided,
         counters={"golden.samples": int(result.samples), "golden.rays": int(result.rays)},
     )

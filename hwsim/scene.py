@@ -20,10 +20,26 @@ from hwsim.config import Table, check_points, read_toml
 from hwsim.errors import InputError
 
 __all__ = [
-    "MODES", "PROJECTIONS", "INTERPOLATIONS", "GRADIENT_SOURCES", "CLASSIFICATION_ORDERS",
-    "TF_PRESETS", "VolumeSpec", "TransferSpec", "ViewSpec", "Light", "Material", "RenderSpec",
-    "CropSpec", "CutPlane", "Scene", "load_scene", "parse_scene", "builtin_scenes",
-    "DEFAULT_SCENE", "SCHEMA",
+    "MODES",
+    "PROJECTIONS",
+    "INTERPOLATIONS",
+    "GRADIENT_SOURCES",
+    "CLASSIFICATION_ORDERS",
+    "TF_PRESETS",
+    "VolumeSpec",
+    "TransferSpec",
+    "ViewSpec",
+    "Light",
+    "Material",
+    "RenderSpec",
+    "CropSpec",
+    "CutPlane",
+    "Scene",
+    "load_scene",
+    "parse_scene",
+    "builtin_scenes",
+    "DEFAULT_SCENE",
+    "SCHEMA",
 ]
 
 SCHEMA = 1
@@ -229,8 +245,9 @@ def load_scene(name_or_path: str | Path | None = None) -> Scene:
     if not text.endswith(".toml") and "/" not in text:
         item = resources.files("hwsim.scenes") / f"{text}.toml"
         if not item.is_file():
-            raise InputError(f"unknown built-in scene {text!r}", key="scene",
-                             allowed=", ".join(builtin_scenes()))
+            raise InputError(
+                f"unknown built-in scene {text!r}", key="scene", allowed=", ".join(builtin_scenes())
+            )
         return parse_scene(read_toml(Path(str(item))), source=f"<built-in {text}>", name=text)
     path = Path(text)
     return parse_scene(read_toml(path), source=str(path), name=path.stem)
@@ -260,9 +277,14 @@ def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "s
 
 
 def _volume(t: Table) -> VolumeSpec:
+    if not t.data:  # no [volume] table: the default phantom
+        return VolumeSpec(phantom="head")
     if t.has("path") == t.has("phantom"):
-        raise t.error("path", "give exactly one of volume.path or volume.phantom",
-                      "path = \"file\" or phantom = \"ball\"")
+        raise t.error(
+            "path",
+            "give exactly one of volume.path or volume.phantom",
+            'path = "file" or phantom = "ball"',
+        )
     params = t.table("params")
     items = tuple(sorted((k, params.raw(k)) for k in list(params.data)))
     shape = t.raw("shape", None)
@@ -286,8 +308,11 @@ def _volume(t: Table) -> VolumeSpec:
 def _transfer(t: Table) -> TransferSpec:
     sources = [k for k in ("points", "table", "preset") if t.has(k)]
     if len(sources) > 1:
-        raise t.error(sources[1], f"give only one of transfer.{', transfer.'.join(sources)}",
-                      "points, table or preset")
+        raise t.error(
+            sources[1],
+            f"give only one of transfer.{', transfer.'.join(sources)}",
+            "points, table or preset",
+        )
     points = None
     if t.has("points"):
         rows = check_points(t.raw("points"), t.source, t.key("points"), 5)
@@ -296,8 +321,9 @@ def _transfer(t: Table) -> TransferSpec:
                 if not 0.0 <= row[j] <= 1.0:
                     raise t.error(f"points[{i}][{j}]", f"{row[j]:g} is out of range", "0 .. 1")
             if i and row[0] < rows[i - 1][0]:
-                raise t.error(f"points[{i}][0]", "values must be ascending",
-                              f">= {rows[i - 1][0]:g}")
+                raise t.error(
+                    f"points[{i}][0]", "values must be ascending", f">= {rows[i - 1][0]:g}"
+                )
         points = tuple(tuple(r) for r in rows)
     table_range = t.vector("table_range", 2) if t.has("table_range") else None
     if table_range is not None and not table_range[1] > table_range[0]:
@@ -344,18 +370,23 @@ def _light(t: Table) -> Light:
     direction = t.vector("direction", 3, d.direction)
     if not any(direction):
         raise t.error("direction", "must not be the zero vector", "any non-zero [x, y, z]")
-    light = Light(direction=direction, intensity=t.number("intensity", d.intensity, 0, 100),
-                  space=t.choice("space", ("view", "world"), d.space))
+    light = Light(
+        direction=direction,
+        intensity=t.number("intensity", d.intensity, 0, 100),
+        space=t.choice("space", ("view", "world"), d.space),
+    )
     t.finish()
     return light
 
 
 def _material(t: Table) -> Material:
     d = Material()
-    m = Material(ambient=t.number("ambient", d.ambient, 0, 1),
-                 diffuse=t.number("diffuse", d.diffuse, 0, 1),
-                 specular=t.number("specular", d.specular, 0, 1),
-                 shininess=t.number("shininess", d.shininess, 1, 1024))
+    m = Material(
+        ambient=t.number("ambient", d.ambient, 0, 1),
+        diffuse=t.number("diffuse", d.diffuse, 0, 1),
+        specular=t.number("specular", d.specular, 0, 1),
+        shininess=t.number("shininess", d.shininess, 1, 1024),
+    )
     t.finish()
     return m
 
@@ -369,8 +400,7 @@ def _render(t: Table) -> RenderSpec:
         gradient=t.choice("gradient", GRADIENT_SOURCES, d.gradient),
         sample_spacing=t.number("sample_spacing", d.sample_spacing, 0.0625, 16),
         supersampling=t.number("supersampling", d.supersampling, 0.125, 16),
-        early_termination=t.number("early_termination", d.early_termination, 0, 1,
-                                   lo_open=True),
+        early_termination=t.number("early_termination", d.early_termination, 0, 1, lo_open=True),
         iso_value=t.number("iso_value") if t.has("iso_value") else None,
         iso_color=t.vector("iso_color", 3, d.iso_color, 0, 1),  # type: ignore[arg-type]
     )
@@ -396,9 +426,12 @@ def _cut_plane(t: Table) -> CutPlane:
     normal = t.vector("normal", 3, d.normal)
     if not any(normal):
         raise t.error("normal", "must not be the zero vector", "any non-zero [x, y, z]")
-    plane = CutPlane(normal=normal, offset=t.number("offset", d.offset),
-                     thickness=t.number("thickness", d.thickness, 0),
-                     falloff=t.number("falloff", d.falloff, 0),
-                     invert=t.boolean("invert", d.invert))
+    plane = CutPlane(
+        normal=normal,
+        offset=t.number("offset", d.offset),
+        thickness=t.number("thickness", d.thickness, 0),
+        falloff=t.number("falloff", d.falloff, 0),
+        invert=t.boolean("invert", d.invert),
+    )
     t.finish()
     return plane

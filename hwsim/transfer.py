@@ -55,8 +55,9 @@ class TransferFunction:
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "rgba", rgba)
         if self.gradient_points is not None:
-            object.__setattr__(self, "gradient_points",
-                               np.asarray(self.gradient_points, dtype=np.float64))
+            object.__setattr__(
+                self, "gradient_points", np.asarray(self.gradient_points, dtype=np.float64)
+            )
 
     @property
     def modulates(self) -> bool:
@@ -116,45 +117,53 @@ def preset_points(name: str, volume: Volume) -> np.ndarray:
     if name == "auto":
         name = "ct" if volume.units == "HU" else "warm"
     if name == "ct":
-        return np.array([
-            [-1024.0, 0.0, 0.0, 0.0, 0.0],
-            [-400.0, 0.75, 0.45, 0.35, 0.0],
-            [-150.0, 0.85, 0.55, 0.45, 0.02],
-            [150.0, 0.90, 0.62, 0.52, 0.02],
-            [250.0, 0.95, 0.88, 0.78, 0.0],
-            [450.0, 0.96, 0.92, 0.84, 0.45],
-            [1200.0, 1.0, 0.98, 0.92, 0.85],
-            [3072.0, 1.0, 1.0, 1.0, 0.9],
-        ])
+        return np.array(
+            [
+                [-1024.0, 0.0, 0.0, 0.0, 0.0],
+                [-400.0, 0.75, 0.45, 0.35, 0.0],
+                [-150.0, 0.85, 0.55, 0.45, 0.02],
+                [150.0, 0.90, 0.62, 0.52, 0.02],
+                [250.0, 0.95, 0.88, 0.78, 0.0],
+                [450.0, 0.96, 0.92, 0.84, 0.45],
+                [1200.0, 1.0, 0.98, 0.92, 0.85],
+                [3072.0, 1.0, 1.0, 1.0, 0.9],
+            ]
+        )
     if name == "mr":
         data = volume.data
         nonzero = data[data > lo]
-        p40, p995 = (np.percentile(nonzero, [40, 99.5]) if nonzero.size else (lo, hi))
+        p40, p995 = np.percentile(nonzero, [40, 99.5]) if nonzero.size else (lo, hi)
         p995 = max(float(p995), float(p40) + 1e-6 * (hi - lo) + 1e-12)
         mid = 0.5 * (p40 + p995)
-        return np.array([
-            [lo, 0.0, 0.0, 0.0, 0.0],
-            [p40, 0.8, 0.45, 0.3, 0.0],
-            [mid, 0.95, 0.75, 0.6, 0.08],
-            [p995, 1.0, 0.95, 0.9, 0.6],
-            [max(hi, p995), 1.0, 1.0, 1.0, 0.6],
-        ])
+        return np.array(
+            [
+                [lo, 0.0, 0.0, 0.0, 0.0],
+                [p40, 0.8, 0.45, 0.3, 0.0],
+                [mid, 0.95, 0.75, 0.6, 0.08],
+                [p995, 1.0, 0.95, 0.9, 0.6],
+                [max(hi, p995), 1.0, 1.0, 1.0, 0.6],
+            ]
+        )
     if name == "ramp":
         return np.array([[lo, 0.0, 0.0, 0.0, 0.0], [hi, 1.0, 1.0, 1.0, 0.5]])
     if name == "warm":
         span = hi - lo
-        return np.array([
-            [lo, 0.0, 0.0, 0.0, 0.0],
-            [lo + 0.2 * span, 0.9, 0.5, 0.3, 0.0],
-            [lo + 0.6 * span, 1.0, 0.85, 0.7, 0.35],
-            [hi, 1.0, 1.0, 1.0, 0.8],
-        ])
-    raise InputError(f"unknown transfer preset {name!r}", key="transfer.preset",
-                     allowed="auto, ct, mr, ramp")
+        return np.array(
+            [
+                [lo, 0.0, 0.0, 0.0, 0.0],
+                [lo + 0.2 * span, 0.9, 0.5, 0.3, 0.0],
+                [lo + 0.6 * span, 1.0, 0.85, 0.7, 0.35],
+                [hi, 1.0, 1.0, 1.0, 0.8],
+            ]
+        )
+    raise InputError(
+        f"unknown transfer preset {name!r}", key="transfer.preset", allowed="auto, ct, mr, ramp"
+    )
 
 
-def resolve_transfer(spec: TransferSpec, volume: Volume,
-                     base_dir: Path | None = None) -> TransferFunction:
+def resolve_transfer(
+    spec: TransferSpec, volume: Volume, base_dir: Path | None = None
+) -> TransferFunction:
     """Build the :class:`TransferFunction` a scene's ``[transfer]`` table describes."""
     grad = np.asarray(spec.gradient_opacity) if spec.gradient_opacity else None
     if spec.points is not None:
@@ -163,8 +172,9 @@ def resolve_transfer(spec: TransferSpec, volume: Volume,
         pts = _table_points(spec, volume, base_dir or Path.cwd())
     else:
         pts = preset_points(spec.preset or "auto", volume)
-    return TransferFunction(values=pts[:, 0], rgba=pts[:, 1:], gradient_points=grad,
-                            order=spec.order)
+    return TransferFunction(
+        values=pts[:, 0], rgba=pts[:, 1:], gradient_points=grad, order=spec.order
+    )
 
 
 def _table_points(spec: TransferSpec, volume: Volume, base_dir: Path) -> np.ndarray:
@@ -177,15 +187,24 @@ def _table_points(spec: TransferSpec, volume: Volume, base_dir: Path) -> np.ndar
     except FileNotFoundError:
         raise InputError("file not found", source=source, key="transfer.table") from None
     except ValueError as exc:
-        raise InputError(f"not a readable .npy table: {exc}", source=source,
-                         key="transfer.table") from None
+        raise InputError(
+            f"not a readable .npy table: {exc}", source=source, key="transfer.table"
+        ) from None
     if table.ndim != 2 or table.shape[1] != 4 or not 2 <= table.shape[0] <= 65536:
-        raise InputError(f"table shape {table.shape} is invalid", source=source,
-                         key="transfer.table", allowed="(N, 4) with 2 <= N <= 65536")
+        raise InputError(
+            f"table shape {table.shape} is invalid",
+            source=source,
+            key="transfer.table",
+            allowed="(N, 4) with 2 <= N <= 65536",
+        )
     table = table.astype(np.float64)
     if not (np.isfinite(table).all() and table.min() >= 0 and table.max() <= 1):
-        raise InputError("table entries must be finite and in 0 .. 1", source=source,
-                         key="transfer.table", allowed="0 .. 1")
+        raise InputError(
+            "table entries must be finite and in 0 .. 1",
+            source=source,
+            key="transfer.table",
+            allowed="0 .. 1",
+        )
     if spec.table_range is not None:
         lo, hi = spec.table_range
     elif volume.data.dtype.kind in "iu":

@@ -41,9 +41,14 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "sampling": run.sampling,
         "scene": run.scene.to_dict(),
         "volume": {
-            "name": vol.name, "source": vol.source, "shape_zyx": list(vol.shape),
-            "spacing_zyx": list(vol.spacing), "dtype": str(vol.data.dtype), "bits": vol.bits,
-            "units": vol.units, "value_range": list(vol.value_range),
+            "name": vol.name,
+            "source": vol.source,
+            "shape_zyx": list(vol.shape),
+            "spacing_zyx": list(vol.spacing),
+            "dtype": str(vol.data.dtype),
+            "bits": vol.bits,
+            "units": vol.units,
+            "value_range": list(vol.value_range),
         },
         "image": {"shape": list(run.image.shape), "dtype": str(run.image.dtype)},
         "samples": run.samples,
@@ -57,8 +62,11 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "elaborated_units": run.elaborated_units,
         "elided_units": run.elided_units,
         "counters": run.counters,
-        "host": {"python": platform.python_version(), "numpy": np.__version__,
-                 "machine": platform.machine()},
+        "host": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "machine": platform.machine(),
+        },
     }
 
 
@@ -94,10 +102,12 @@ def write_render(run: RenderRun, out_dir: str | Path) -> dict[str, Path]:
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise InputError(f"cannot create output folder: {exc.strerror}", source=str(out),
-                         key="--out") from None
+        raise InputError(
+            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
+        ) from None
     paths = {"npy": out / "image.npy", "png": out / "image.png", "stats": out / "stats.json"}
     try:
+
         def save_npy(p: Path) -> None:
             with open(p, "wb") as fh:
                 np.save(fh, run.image, allow_pickle=False)
@@ -110,8 +120,9 @@ def write_render(run: RenderRun, out_dir: str | Path) -> dict[str, Path]:
         text = json.dumps(stats, indent=2, default=_json_default)
         _atomic_write(paths["stats"], lambda p: p.write_text(text + "\n"))
     except OSError as exc:
-        raise InputError(f"cannot write output: {exc.strerror}", source=str(out),
-                         key="--out") from None
+        raise InputError(
+            f"cannot write output: {exc.strerror}", source=str(out), key="--out"
+        ) from None
     return paths
 
 

@@ -69,16 +69,25 @@ class Volume:
                 allowed=", ".join(str(d) for d in SUPPORTED_DTYPES),
             )
         if min(data.shape) == 0:
-            raise InputError(f"axis of length zero in shape {data.shape}", source=where, key="shape",
-                             allowed="every axis >= 1")
+            raise InputError(
+                f"axis of length zero in shape {data.shape}",
+                source=where,
+                key="shape",
+                allowed="every axis >= 1",
+            )
         if data.dtype.kind == "f" and not np.isfinite(data).all():
             bad = int(np.count_nonzero(~np.isfinite(data)))
-            raise InputError(f"{bad} voxels are NaN or Inf", source=where, key="data",
-                             allowed="finite values")
+            raise InputError(
+                f"{bad} voxels are NaN or Inf", source=where, key="data", allowed="finite values"
+            )
         spacing = tuple(float(s) for s in self.spacing)
         if len(spacing) != 3 or not all(np.isfinite(s) and s > 0 for s in spacing):
-            raise InputError(f"spacing {self.spacing} is invalid", source=where, key="spacing",
-                             allowed="three finite numbers > 0")
+            raise InputError(
+                f"spacing {self.spacing} is invalid",
+                source=where,
+                key="spacing",
+                allowed="three finite numbers > 0",
+            )
         object.__setattr__(self, "spacing", spacing)
         if data.dtype.kind in "iu" and self.bits == 0:
             object.__setattr__(self, "bits", data.dtype.itemsize * 8)
