@@ -1,0 +1,126 @@
+"""Architecture configs: one versioned TOML file per machine, kept apart from scenes.
+
+# Ref: shared/docs/reference/architectures.md (published figures, each tagged
+#      verified / recalled / inferred; the built-in files cite the tag per value).
+
+The core only validates the generic shape of a machine (pipelines, clock, processing
+order, limits, features).  The ``[formats]`` and ``[memory]`` tables are handed to the
+models layer, which owns their meaning; the application layer (``hwsim.fidelity``)
+looks built-in names up in ``models/arch/*.toml``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hwsim.config import Table, read_toml
+
+__all__ = ["ArchConfig", "parse_arch", "load_arch_file", "ORDERS", "SCHEMA"]
+
+SCHEMA = 1
+#: Processing orders, named by the sample positions they produce (hwsim.golden plans).
+ORDERS = ("shear-warp", "slice-parallel", "shear-image", "ray")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ArchConfig:
+    """One machine.
+
+    Parameters
+    ----------
+    name, description : str
+        Identity and a one-line summary.
+    order : str
+        Processing order, one of :data:`ORDERS` (selects the sample positions).
+    pipelines : int
+        Parallel rendering pipelines, each one sample per clock at best.
+    clock_hz : float
+        Pipeline clock.
+    voxel_bits : tuple of int
+        Voxel widths the machine accepts (e.g. ``(8, 12)`` for VolumePro 500).
+    max_volume : tuple of int
+        Largest volume ``(z, y, x)`` rendered in one pass.
+    perspective : bool
+        Whether the hardware renders perspective views.
+    early_termination, space_leaping : bool
+        Acceleration features the machine has.
+    supersampling : tuple of float
+        Allowed z-supersampling range ``(lo, hi)``.
+    formats, memory : dict
+        Raw tables for the unit formats and the memory system (models layer).
+    published : dict
+        Headline figures to compare against (samples/s, fps at a size), with sources.
+    """
+
+    name: str
+    description: str = ""
+    source: str = "<built-in>"
+    order: str = "slice-parallel"
+    pipelines: int = 4
+    clock_hz: float = 125e6
+    voxel_bits: tuple[int, ...] = (8, 12, 16)
+    max_volume: tuple[int, int, int] = (256, 256, 256)
+    perspective: bool = False
+    early_termination: bool = False
+    space_leaping: bool = False
+    supersampling: tuple[float, float] = (1.0, 1.0)
+    formats: dict[str, Any] = field(default_factory=dict)
+    memory: dict[str, Any] = field(default_factory=dict)
+    published: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def peak_samples_per_second(self) -> float:
+        """Pipelines x clock: one sample per pipeline per clock."""
+        return self.pipelines * self.clock_hz
+
+    def to_dict(self) -> dict[str, Any]:
+        import dataclasses
+
+        return dataclasses.asdict(self)
+
+
+def load_arch_file(path: str | Path, name: str | None = None) -> ArchConfig:
+    """Read and validate an architecture TOML file."""
+    path = Path(path)
+    return parse_arch(read_toml(path), source=str(path), name=name or path.stem)
+
+
+def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
+    """Validate parsed TOML into an :class:`ArchConfig`."""
+    top = Table(data, source)
+    schema = top.integer("schema", SCHEMA)
+    if schema != SCHEMA:
+        raise top.error("schema", f"unsupported schema {schema}", str(SCHEMA))
+    p = top.table("pipeline", required=True)
+    limits = top.table("limits")
+    features = top.table("features")
+    bits = limits.raw("voxel_bits", [8, 12, 16])
+    if not isinstance(bits, list) or not bits or any(b not in (8, 12, 16) for b in bits):
+        raise limits.error("voxel_bits", f"invalid {bits!r}", "a list of 8, 12, 16")
+    max_volume = tuple(int(v) for v in limits.vector("max_volume", 3, [256] * 3, 1, 1 << 16))
+    ss = features.vector("supersampling", 2, [1.0, 1.0], 0.125, 16)
+    if ss[1] < ss[0]:
+        raise features.error("supersampling", "empty range", "[lo, hi] with lo <= hi")
+    cfg = ArchConfig(
+        name=top.string("name", name),
+        description=top.string("description", ""),
+        source=source,
+        order=p.choice("order", ORDERS),
+        pipelines=p.integer("count", lo=1, hi=4096),
+        clock_hz=p.number("clock_hz", lo=1.0, hi=10e9),
+        voxel_bits=tuple(bits),
+        max_volume=max_volume,  # type: ignore[arg-type]
+        perspective=features.boolean("perspective", False),
+        early_termination=features.boolean("early_termination", False),
+        space_leaping=features.boolean("space_leaping", False),
+        supersampling=ss,  # type: ignore[arg-type]
+        formats=dict(top.raw("formats", {})),
+        memory=dict(top.raw("memory", {})),
+        published=dict(top.raw("published", {})),
+    )
+    for t in (p, limits, features):
+        t.finish()
+    top.finish()
+    return cfg
