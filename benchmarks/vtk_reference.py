@@ -136,6 +136,9 @@ class VtkRayCaster:
         Light intensity.
     zoom : float
         1 = the volume's bounding sphere fills the shorter image side.
+    threads : int, optional
+        Ray-casting threads; default ``vtkMultiThreader``'s global default (the number
+        of CPUs).
     """
 
     def __init__(
@@ -154,6 +157,7 @@ class VtkRayCaster:
         light_direction: Sequence[float] = (-0.4, 0.5, 1.0),
         light_intensity: float = 1.0,
         zoom: float = 1.0,
+        threads: int | None = None,
     ) -> None:
         if data_zyx.ndim != 3:
             raise ValueError(f"volume must be 3-D, got shape {data_zyx.shape}")
@@ -198,6 +202,8 @@ class VtkRayCaster:
         mapper.SetSampleDistance(float(sample_distance))
         mapper.SetInteractiveSampleDistance(float(sample_distance))
         mapper.SetImageSampleDistance(1.0)
+        if threads is not None:
+            mapper.SetNumberOfThreads(int(threads))
         mapper.SetMinimumImageSampleDistance(1.0)
         mapper.SetMaximumImageSampleDistance(1.0)
 
@@ -295,6 +301,7 @@ def render_vtk(
     light_direction: Sequence[float] = (-0.4, 0.5, 1.0),
     light_intensity: float = 1.0,
     zoom: float = 1.0,
+    threads: int | None = None,
     stats: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray, float]:
     """Render ``data_zyx`` with VTK's CPU ray caster offscreen and time it.
@@ -305,7 +312,7 @@ def render_vtk(
     Parameters
     ----------
     data_zyx, spacing_zyx, tf_points, width, height, azimuth, elevation, shading, \
-material, sample_distance, light_direction, light_intensity, zoom
+material, sample_distance, light_direction, light_intensity, zoom, threads
         See :class:`VtkRayCaster`.
     frames : int
         Timed frames after the warm-up; the median is returned.
@@ -337,6 +344,7 @@ material, sample_distance, light_direction, light_intensity, zoom
         light_direction=light_direction,
         light_intensity=light_intensity,
         zoom=zoom,
+        threads=threads,
     )
     try:
         first = caster.render()
