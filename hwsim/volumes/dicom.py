@@ -1,0 +1,179 @@
+"""DICOM series reader: one folder of single-frame slices of one series -> a Volume.
+
+Slices are sorted by their position along the slice normal (``ImagePositionPatient``
+dotted with the cross product of the two ``ImageOrientationPatient`` directions),
+falling back to ``InstanceNumber`` when positions are missing.  ``RescaleSlope`` /
+``RescaleIntercept`` are applied per slice; CT comes out as int16 Hounsfield units.
+
+# Ref: DICOM PS3.3 C.7.6.2 (Image Plane module) and C.11.1.1.2 (Modality LUT / rescale).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hwsim.errors import InputError
+from hwsim.volumes.readers import make_volume
+from hwsim.volumes.volume import Volume
+
+__all__ = ["read_dicom_series"]
+
+_SAME_POSITION = 1e-4  # mm: two slices closer than this along the normal are duplicates
+
+
+def read_dicom_series(folder: Path) -> Volume:
+    """Read every DICOM image in ``folder`` (not recursive) as one ``(z, y, x)`` volume.
+
+    Files that are not DICOM (a README, a DICOMDIR, files without pixel data) are skipped
+    unless they are named ``*.dcm``.  Raises :class:`InputError` naming the offending
+    file on a second series, differing rows/columns or orientation, duplicate slice
+    positions, multi-frame images or unreadable pixel data.
+
+    Returns
+    -------
+    Volume
+        ``z`` runs along the slice normal (ascending position), ``y`` down the rows,
+        ``x`` along the columns.  Spacing ``(median slice distance, PixelSpacing[0],
+        PixelSpacing[1])``.  ``bits`` is ``BitsStored`` when the rescaled values still fit
+        that many bits, else the type's width.
+    """
+    import pydicom
+    from pydicom.errors import InvalidDicomError
+
+    folder = Path(folder)
+    slices: list[tuple[Path, Any]] = []
+    for path in sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")):
+        try:
+            ds = pydicom.dcmread(path)
+        except InvalidDicomError:
+            if path.suffix.lower() == ".dcm":
+                raise InputError("not a DICOM file", source=str(path)) from None
+            continue
+        except Exception as exc:  # pydicom raises many types for damaged files
+            raise InputError(f"cannot read DICOM: {exc}", source=str(path)) from None
+        if "PixelData" in ds:
+            slices.append((path, ds))
+    if not slices:
+        raise InputError("no DICOM images in folder", source=str(folder), key="DICOM series")
+    _check_consistent(slices)
+    slices, positions, how = _sort(slices)
+    first = slices[0][1]
+    planes, slopes, inters = [], [], []
+    for path, ds in slices:
+        try:
+            planes.append(np.asarray(ds.pixel_array))
+        except Exception as exc:  # missing decoder, truncated pixel data
+            raise InputError(f"cannot decode pixel data: {exc}", source=str(path)) from None
+        slopes.append(float(ds.get("RescaleSlope", 1) or 1))
+        inters.append(float(ds.get("RescaleIntercept", 0) or 0))
+    raw = np.stack(planes)
+    data = _rescale(raw, np.array(slopes), np.array(inters))
+    row_mm, col_mm = (float(v) for v in first.get("PixelSpacing", (1.0, 1.0)))
+    if len(positions) > 1:
+        z_mm = float(np.median(np.diff(positions)))
+    else:
+        z_mm = float(first.get("SpacingBetweenSlices", 0) or first.get("SliceThickness", 0) or 1)
+    modality = str(first.get("Modality", ""))
+    units = "HU" if modality == "CT" and str(first.get("RescaleType", "HU")) == "HU" else ""
+    meta = {
+        "modality": modality,
+        "series_uid": str(first.get("SeriesInstanceUID", "")),
+        "slice_order": how,
+        "slice_positions": [float(p) for p in positions],
+        "bits_stored": int(first.get("BitsStored", raw.dtype.itemsize * 8)),
+        "files": [str(p) for p, _ in slices],
+    }
+    return make_volume(
+        data,
+        str(folder),
+        spacing=(z_mm, row_mm, col_mm),
+        name=folder.name or "dicom",
+        units=units,
+        bits=meta["bits_stored"],
+        meta=meta,
+    )
+
+
+def _check_consistent(slices: list[tuple[Path, Any]]) -> None:
+    first_path, first = slices[0]
+    keys = ("SeriesInstanceUID", "Rows", "Columns", "ImageOrientationPatient")
+    want = {k: first.get(k) for k in keys}
+    for path, ds in slices:
+        frames = int(ds.get("NumberOfFrames", 1) or 1)
+        if frames != 1:
+            raise InputError(
+                f"multi-frame image ({frames} frames)",
+                source=str(path),
+                key="NumberOfFrames",
+                allowed="single-frame slices",
+            )
+        for key in keys:
+            got = ds.get(key)
+            same = got == want[key]
+            if key == "ImageOrientationPatient" and got is not None and want[key] is not None:
+                same = np.allclose(np.asarray(got, float), np.asarray(want[key], float), atol=1e-4)
+            if not same:
+                raise InputError(
+                    f"{key} {got} differs from {want[key]} in {first_path.name}",
+                    source=str(path),
+                    key=key,
+                    allowed="one series per folder, all slices the same size and orientation",
+                )
+
+
+def _sort(slices: list[tuple[Path, Any]]) -> tuple[list, np.ndarray, str]:
+    """Slices in ascending position along the normal (or InstanceNumber) and positions."""
+    have_pos = all(
+        "ImagePositionPatient" in ds and "ImageOrientationPatient" in ds for _, ds in slices
+    )
+    if have_pos:
+        iop = np.asarray(slices[0][1].ImageOrientationPatient, dtype=np.float64)
+        normal = np.cross(iop[:3], iop[3:])
+        keys = [
+            float(np.dot(np.asarray(ds.ImagePositionPatient, float), normal)) for _, ds in slices
+        ]
+        how = "position"
+    else:
+        missing = [p for p, ds in slices if "InstanceNumber" not in ds]
+        if missing:
+            raise InputError(
+                "no ImagePositionPatient and no InstanceNumber: cannot order slices",
+                source=str(missing[0]),
+                key="InstanceNumber",
+            )
+        keys = [float(ds.InstanceNumber) for _, ds in slices]
+        how = "instance"
+    order = np.argsort(keys, kind="stable")
+    slices = [slices[i] for i in order]
+    keys_sorted = np.asarray(keys)[order]
+    gaps = np.diff(keys_sorted)
+    if gaps.size and gaps.min() < _SAME_POSITION:
+        i = int(np.argmin(gaps))
+        raise InputError(
+            f"same slice {how} as {slices[i][0].name}",
+            source=str(slices[i + 1][0]),
+            key="ImagePositionPatient" if how == "position" else "InstanceNumber",
+            allowed="one slice per position",
+        )
+    return slices, (keys_sorted if how == "position" else np.zeros(0)), how
+
+
+def _rescale(raw: np.ndarray, slopes: np.ndarray, inters: np.ndarray) -> np.ndarray:
+    """Apply per-slice rescale; integer results keep the stored type or the first of
+    int16/uint16 that holds them exactly, non-integer rescales give float32."""
+    if np.all(slopes == 1) and np.all(inters == 0):
+        return raw
+    integral = np.all(slopes == np.round(slopes)) and np.all(inters == np.round(inters))
+    if integral and raw.dtype.kind in "iu":
+        values = raw.astype(np.int64) * slopes.astype(np.int64)[:, None, None]
+        values += inters.astype(np.int64)[:, None, None]
+        lo, hi = int(values.min()), int(values.max())
+        for target in (raw.dtype, np.dtype(np.int16), np.dtype(np.uint16)):
+            info = np.iinfo(target)
+            if info.min <= lo and hi <= info.max:
+                return values.astype(target)
+    out = raw.astype(np.float64) * slopes[:, None, None] + inters[:, None, None]
+    return out.astype(np.float32)
