@@ -44,7 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--view", metavar="AZ,EL", help="azimuth,elevation in degrees")
     r.add_argument("--image", metavar="W[xH]", help="image size in pixels")
     r.add_argument("--projection", choices=PROJECTIONS)
-    r.add_argument("--arch", metavar="NAME|FILE.toml", help="architecture (from issue 3 on)")
+    r.add_argument(
+        "--arch",
+        metavar="NAME|FILE.toml",
+        help="architecture (golden: render at its sample positions)",
+    )
     r.add_argument("--fidelity", choices=FIDELITIES, default="golden")
     r.add_argument(
         "--sampling",

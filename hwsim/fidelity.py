@@ -11,17 +11,28 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.volume import Volume
 
-__all__ = ["FIDELITIES", "AVAILABLE_FIDELITIES", "SAMPLINGS", "RenderRun", "render"]
+__all__ = [
+    "FIDELITIES",
+    "AVAILABLE_FIDELITIES",
+    "SAMPLINGS",
+    "RenderRun",
+    "render",
+    "builtin_archs",
+    "resolve_arch",
+]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
 AVAILABLE_FIDELITIES = ("golden",)
@@ -52,6 +63,50 @@ class RenderRun:
     elaborated_units: list[str] = field(default_factory=list)
     elided_units: list[str] = field(default_factory=list)
     counters: dict[str, Any] = field(default_factory=dict)
+
+
+def builtin_archs() -> dict[str, ArchConfig]:
+    """The built-in machines of ``models/arch``, by name."""
+    folder = resources.files("models.arch")
+    out = {}
+    for item in sorted(folder.iterdir(), key=lambda p: p.name):
+        if item.name.endswith(".toml"):
+            cfg = load_arch_file(Path(str(item)))
+            out[cfg.name] = cfg
+    return out
+
+
+def resolve_arch(name_or_path: str) -> ArchConfig:
+    """An architecture by built-in name or from a user's TOML file."""
+    if name_or_path.endswith(".toml") or "/" in name_or_path:
+        return load_arch_file(name_or_path)
+    archs = builtin_archs()
+    if name_or_path not in archs:
+        raise InputError(
+            f"unknown architecture {name_or_path!r}",
+            key="--arch",
+            allowed=", ".join(archs) + " or a FILE.toml",
+        )
+    return archs[name_or_path]
+
+
+def check_scene_fits(scene: Scene, arch: ArchConfig) -> None:
+    """Refuse what the machine cannot render, as the machine did."""
+    if scene.view.projection == "perspective" and not arch.perspective:
+        raise InputError(
+            f"{arch.name} renders parallel projection only",
+            source=arch.source,
+            key="view.projection",
+            allowed="parallel",
+        )
+    lo, hi = arch.supersampling
+    if not lo <= scene.render.supersampling <= hi:
+        raise InputError(
+            f"{arch.name} supersamples by {lo:g} .. {hi:g} only",
+            source=arch.source,
+            key="render.supersampling",
+            allowed=f"{lo:g} .. {hi:g}",
+        )
 
 
 def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
@@ -89,10 +144,11 @@ def render(
     fidelity : str
         One of :data:`FIDELITIES`; only :data:`AVAILABLE_FIDELITIES` run today.
     arch : str, optional
-        Architecture name or file; not available yet.
+        Architecture name or file.  At the golden rung it selects the machine's sample
+        positions (so golden vs. a timed rung differs only numerically).
     sampling : str
-        Sample positions of the golden rung: the ideal ``ray`` caster or an
-        architecture's (``shear-warp``, ``shear-image``, ``slice-parallel``).
+        Sample positions of the golden rung without ``arch``: the ideal ``ray`` caster
+        or an architecture's (``shear-warp``, ``shear-image``, ``slice-parallel``).
     volume : Volume, optional
         An already loaded volume (skips loading ``scene.volume``).
     progress : callable, optional
