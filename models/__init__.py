@@ -1,1 +1,4 @@
-"""The hardware being modelled: unit arithmetic (``models.units``) and assemblies (``models.arch``)."""
+"""The hardware being modelled.
+
+``models.units``: unit arithmetic; ``models.arch``: assemblies and machine configs.
+"""

@@ -1,1 +1,4 @@
-"""Architecture assemblies and their configs (cube4, em-cube, volumepro500, volumepro1000, vizard2)."""
+"""Architecture assemblies and their configs.
+
+Built-in machines: cube4, cube4-teramac, em-cube, volumepro500, volumepro1000, vizard2.
+"""
