@@ -33,7 +33,7 @@ __all__ = [
 
 ML_FM = 6.0  #: Marschner-Lobb modulation frequency f_M
 ML_ALPHA = 0.25  #: Marschner-Lobb weight alpha
-BALL_SUBSAMPLES = 4  #: sub-rows per voxel along y and along z for the ball's coverage
+BALL_SUBSAMPLES = 8  #: sub-rows per voxel along y and along z for the ball's coverage
 _DTYPES = ("uint8", "int8", "uint16", "int16", "float32", "float64")
 
 
@@ -151,11 +151,12 @@ def _ball(source: str, size: int, radius: float, value: float, dtype: str) -> Vo
     cover = np.zeros((n, n, n), dtype=np.float64)
     for iz in range(n):
         h2 = r * r - sq[iz][:, None, None] - sq[None, :, :]  # (sub z, y, sub y)
-        if h2.max() <= 0:
+        rows = np.flatnonzero((h2 > 0).any(axis=(0, 2)))
+        if rows.size == 0:
             continue
-        h = np.sqrt(np.maximum(h2, 0.0))[..., None]  # half chord of each sub-row
+        h = np.sqrt(np.maximum(h2[:, rows], 0.0))[..., None]  # half chord of each sub-row
         overlap = np.clip(np.minimum(x_hi, h) - np.maximum(x_lo, -h), 0.0, 1.0)
-        cover[iz] = overlap.mean(axis=(0, 2))
+        cover[iz, rows] = overlap.mean(axis=(0, 2))
     data = cover * value
     if dt.kind in "iu":
         data = np.rint(data)
