@@ -321,7 +321,7 @@ def make_phantom(name: str, **params: Any) -> Volume:
     Volume
         ``source`` is the spec string (``"ball:size=32"``), ``name`` the phantom name.
     """
-    info = _info(name)
+    info = _info(name, source=name)
     source = name + (":" + ",".join(f"{k}={v}" for k, v in params.items()) if params else "")
     values = info.defaults
     for key, value in params.items():

@@ -3,6 +3,9 @@ determinism, and the NAME:key=value spec parser."""
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -248,3 +251,10 @@ def test_phantom_listing_has_descriptions_and_defaults():
         "value": 200.0,
         "dtype": "uint8",
     }
+
+
+def test_docs_python_example_runs():
+    """The ```python block of docs/volumes.md runs as written."""
+    docs = Path(__file__).resolve().parents[2] / "docs" / "volumes.md"
+    (example,) = re.findall(r"```python\n(.*?)```", docs.read_text(), flags=re.S)
+    exec(compile(example, str(docs), "exec"), {})
