@@ -33,6 +33,7 @@ __all__ = [
 
 ML_FM = 6.0  #: Marschner-Lobb modulation frequency f_M
 ML_ALPHA = 0.25  #: Marschner-Lobb weight alpha
+_HEAD_SLAB = 32  # z slices per slab of the head's layer evaluation
 BALL_SUBSAMPLES = 8  #: sub-rows per voxel along y and along z for the ball's coverage
 _DTYPES = ("uint8", "int8", "uint16", "int16", "float32", "float64")
 
@@ -184,21 +185,10 @@ def _marschner_lobb(source: str, size: int, dtype: str) -> Volume:
     )
 
 
-def _head(source: str, size: int, noise: float, seed: int, z_spacing: float) -> Volume:
-    """CT-like head, crown toward +y, face toward -z, in a box of ``size`` voxels along x
-    and y (and ``round(size / z_spacing)`` slices along z) with the head filling ~80%.
-
-    Layers are painted in order with a partial-volume blend ``coverage = clip(0.5 - d/h)``
-    of an approximate signed distance ``d`` (``h`` = one voxel), then noise is added.
-    """
-    n, nz = size, max(1, round(size / z_spacing))
-    half = n / 2.0
-    z = ((np.arange(nz) - (nz - 1) / 2.0) * z_spacing / half).astype(np.float32)
-    y = ((np.arange(n) - (n - 1) / 2.0) / half).astype(np.float32)
-    x = y.copy()
+def _head_tissue(z: np.ndarray, y: np.ndarray, x: np.ndarray, h: np.float32) -> np.ndarray:
+    """Noise-free HU of the head at normalised coordinates ``z`` x ``y`` x ``x``."""
     Z, Y, X = z[:, None, None], y[None, :, None], x[None, None, :]
-    h = np.float32(2.0 / n)
-    shape = (nz, n, n)
+    shape = (len(z), len(y), len(x))
 
     def cover(d):  # fraction of the voxel inside the shape whose signed distance is d
         return np.clip(0.5 - d / h, 0.0, 1.0)
@@ -264,10 +254,27 @@ def _head(source: str, size: int, noise: float, seed: int, z_spacing: float) -> 
     paint(y_cylinder(0.0, 0.3, 0.08, -0.22), 900.0)  # cervical spine
     paint(y_cylinder(0.0, 0.3, 0.045, -0.24), 300.0)  # marrow
     paint(y_cylinder(0.0, 0.0, 0.06, -0.35), -1000.0)  # airway
-    if noise > 0:
-        rng = np.random.default_rng(seed)
-        vol += np.float32(noise) * rng.standard_normal(shape, dtype=np.float32)
-    data = np.clip(np.rint(vol), -1024, 3071).astype(np.int16)
+    return vol
+
+
+def _head(source: str, size: int, noise: float, seed: int, z_spacing: float) -> Volume:
+    """CT-like head, crown toward +y, face toward -z, in a box of ``size`` voxels along x
+    and y (and ``round(size / z_spacing)`` slices along z) with the head filling ~80%.
+
+    Layers are painted in order with a partial-volume blend ``coverage = clip(0.5 - d/h)``
+    of an approximate signed distance ``d`` (``h`` = one voxel), then noise is added.
+    """
+    n, nz = size, max(1, round(size / z_spacing))
+    half = n / 2.0
+    z = ((np.arange(nz) - (nz - 1) / 2.0) * z_spacing / half).astype(np.float32)
+    y = ((np.arange(n) - (n - 1) / 2.0) / half).astype(np.float32)
+    rng = np.random.default_rng(seed)
+    data = np.empty((nz, n, n), dtype=np.int16)
+    for k in range(0, nz, _HEAD_SLAB):  # slabs bound the temporaries' memory
+        slab = _head_tissue(z[k : k + _HEAD_SLAB], y, y, np.float32(2.0 / n))
+        if noise > 0:
+            slab += np.float32(noise) * rng.standard_normal(slab.shape, dtype=np.float32)
+        data[k : k + _HEAD_SLAB] = np.clip(np.rint(slab), -1024, 3071)
     meta = {"seed": seed, "noise": noise, "orientation": "crown +y, face -z"}
     return Volume(
         data=data, spacing=(z_spacing, 1.0, 1.0), name="head", source=source, units="HU", meta=meta
