@@ -43,7 +43,7 @@ if __package__ in (None, ""):  # run as a script: make `benchmarks` and `hwsim` 
 
 from hwsim.scene import Light, Material, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import TransferFunction, resolve_transfer
-from hwsim.volumes.volume import Volume
+from hwsim.volumes import Volume, make_phantom
 
 __all__ = [
     "GOAL_RATIO",
@@ -67,49 +67,8 @@ SCRIPT = Path(__file__).resolve()
 # --------------------------------------------------------------------------- the scene
 
 
-def _standin_head(size: int) -> Volume:
-    """A CT-like head (int16 HU) used until ``hwsim.volumes.make_phantom`` exists.
-
-    Air -1000 HU outside an ellipsoid of skin and soft tissue (40 HU) around a skull
-    shell (1100 HU) around brain (35 HU) with two ventricles (5 HU); boundaries ramp
-    over about two voxels.
-    """
-    half = size / 2.0
-    axis = (np.arange(size, dtype=np.float32) - (size - 1) / 2.0) / half
-    z, y, x = axis[:, None, None], axis[None, :, None], axis[None, None, :]
-    r = np.sqrt((z / 0.80) ** 2 + (y / 0.90) ** 2 + (x / 0.74) ** 2)
-    ramp = np.float32(2.0 / (half * 0.8))
-    profile_r = [0.0, 0.86, 0.86 + ramp, 0.96, 0.96 + ramp, 1.0, 1.0 + ramp, 10.0]
-    profile_v = [35.0, 35.0, 1100.0, 1100.0, 40.0, 40.0, -1000.0, -1000.0]
-    hu = np.interp(r, profile_r, profile_v).astype(np.float32)
-    del r
-    for side in (-1.0, 1.0):
-        v = np.sqrt(
-            ((z - 0.05) / 0.25) ** 2 + ((y - 0.1) / 0.12) ** 2 + ((x - 0.12 * side) / 0.07) ** 2
-        )
-        inside = np.clip((1.0 - v) / ramp, 0.0, 1.0)
-        hu += inside * np.float32(5.0 - 35.0)
-        del v, inside
-    data = np.rint(hu).astype(np.int16)
-    return Volume(
-        data=data,
-        spacing=(1.0, 1.0, 1.0),
-        name="head",
-        source=f"benchmarks stand-in head:size={size}",
-        units="HU",
-    )
-
-
 def load_head(size: int) -> tuple[Volume, str]:
-    """The head phantom at ``size^3`` and where it came from.
-
-    ``hwsim.volumes.make_phantom("head", size=size)`` when it exists, else the local
-    stand-in :func:`_standin_head`.
-    """
-    try:
-        from hwsim.volumes import make_phantom  # type: ignore[attr-defined]
-    except ImportError:
-        return _standin_head(size), "benchmarks stand-in (hwsim.volumes.make_phantom missing)"
+    """The CT-like head phantom at ``size^3`` and where it came from."""
     return make_phantom("head", size=size), "hwsim.volumes.make_phantom"
 
 
