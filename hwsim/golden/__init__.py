@@ -1,0 +1,27 @@
+"""The float64 NumPy golden renderer (design section 4) and the sample plans it shares.
+
+Conventions are stated in ``docs/numerics.md`` and in each module's docstring.
+"""
+
+from hwsim.golden.camera import Camera, index_to_world, view_vectors, world_to_index
+from hwsim.golden.positions import SAMPLINGS, SamplePlan, Step, make_plan
+from hwsim.golden.render import GoldenResult, render_golden
+from hwsim.golden.sampling import Taps, sample, taps, trilinear, voxel_gradients
+
+__all__ = [
+    "SAMPLINGS",
+    "Camera",
+    "GoldenResult",
+    "SamplePlan",
+    "Step",
+    "Taps",
+    "index_to_world",
+    "make_plan",
+    "render_golden",
+    "sample",
+    "taps",
+    "trilinear",
+    "view_vectors",
+    "voxel_gradients",
+    "world_to_index",
+]
