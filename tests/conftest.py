@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -25,3 +26,9 @@ def shared_data() -> Path:
             pytest.fail(reason + "; CI must have ../shared beside the clone")
         pytest.skip(reason)
     return SHARED_DATA
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    """A seeded generator: every randomised test is reproducible."""
+    return np.random.default_rng(20261122)
