@@ -1,0 +1,41 @@
+"""Examples in the docs are run: TOML blocks parse, shell examples succeed."""
+
+from __future__ import annotations
+
+import re
+import shlex
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from hwsim.cli import main
+from hwsim.scene import parse_scene
+
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+pytestmark = pytest.mark.system
+
+
+def blocks(doc: str, lang: str) -> list[str]:
+    text = (DOCS / doc).read_text()
+    return re.findall(rf"```{lang}\n(.*?)```", text, flags=re.S)
+
+
+def test_scene_reference_example_is_a_valid_scene():
+    (example,) = blocks("scenes.md", "toml")
+    scene = parse_scene(tomllib.loads(example), source="docs/scenes.md")
+    assert scene.name == "skull" and scene.cut_planes and scene.crop is not None
+
+
+def test_cli_examples_run(tmp_path):
+    commands = [
+        line
+        for block in blocks("cli.md", "sh")
+        for line in block.splitlines()
+        if line.startswith("hwsim ")
+    ]
+    assert len(commands) >= 3
+    for line in commands:
+        argv = shlex.split(line)[1:]
+        argv[argv.index("--out") + 1] = str(tmp_path / argv[argv.index("--out") + 1])
+        assert main([*argv, "--quiet"]) == 0, line
