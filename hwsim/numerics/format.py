@@ -1,0 +1,187 @@
+"""Fixed-point formats: signedness, integer and fraction bits, rounding and overflow rule.
+
+# Ref: design.md section 5 (every datapath value has a named format, rounding mode and
+#      overflow rule; no NaN, no silent wrap).
+
+A value is held as an ``int64`` *raw* integer; its real value is ``raw * 2**-frac_bits``.
+Overflow is ``saturate`` (clamp to the representable range and count it) or ``error``
+(raise); there is no silent wrap.  Rounding modes, applied whenever fraction bits are
+dropped:
+
+``nearest-up``   round to nearest, ties toward +inf (``floor(x + 1/2)``: one adder)
+``nearest-even`` round to nearest, ties to even
+``truncate``     toward zero
+``floor``        toward -inf (an arithmetic right shift)
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "ROUNDINGS",
+    "OVERFLOWS",
+    "FixedFormat",
+    "OverflowError_",
+    "SaturationLog",
+    "round_shift",
+    "rescale",
+    "mul",
+    "SATURATIONS",
+]
+
+ROUNDINGS = ("nearest-up", "nearest-even", "truncate", "floor")
+OVERFLOWS = ("saturate", "error")
+
+
+class OverflowError_(ArithmeticError):
+    """A value left its format whose overflow rule is ``error``."""
+
+
+class SaturationLog(Counter):
+    """How many values each named format clipped (format name -> count)."""
+
+
+#: The process-wide log units add to; renderers reset and read it per run.
+SATURATIONS = SaturationLog()
+
+
+@dataclass(frozen=True, kw_only=True)
+class FixedFormat:
+    """A named fixed-point format.
+
+    Parameters
+    ----------
+    name : str
+        What the value is (``"interp.weight"``); used in saturation logs and docs.
+    signed : bool
+        Two's complement with one sign bit beyond ``int_bits``.
+    int_bits, frac_bits : int
+        Integer and fraction bits (``frac_bits`` may be 0; ``int_bits`` may be 0).
+    rounding : str
+        One of :data:`ROUNDINGS`, used when this format receives a finer value.
+    overflow : str
+        One of :data:`OVERFLOWS`.
+    """
+
+    name: str
+    signed: bool
+    int_bits: int
+    frac_bits: int
+    rounding: str = "nearest-up"
+    overflow: str = "saturate"
+
+    def __post_init__(self) -> None:
+        if self.int_bits < 0 or self.frac_bits < 0 or self.width < 1 or self.width > 62:
+            raise ValueError(f"{self.name}: bad widths {self.int_bits}.{self.frac_bits}")
+        if self.rounding not in ROUNDINGS or self.overflow not in OVERFLOWS:
+            raise ValueError(f"{self.name}: bad rounding/overflow {self.rounding}/{self.overflow}")
+
+    @property
+    def width(self) -> int:
+        """Total bits, sign included."""
+        return int(self.signed) + self.int_bits + self.frac_bits
+
+    @property
+    def raw_min(self) -> int:
+        return -(1 << (self.int_bits + self.frac_bits)) if self.signed else 0
+
+    @property
+    def raw_max(self) -> int:
+        return (1 << (self.int_bits + self.frac_bits)) - 1
+
+    @property
+    def lsb(self) -> float:
+        """Value of one raw step."""
+        return 2.0**-self.frac_bits
+
+    @property
+    def min_value(self) -> float:
+        return self.raw_min * self.lsb
+
+    @property
+    def max_value(self) -> float:
+        return self.raw_max * self.lsb
+
+    def describe(self) -> str:
+        """E.g. ``"u4.8 nearest-up saturate"`` (``s`` for signed)."""
+        kind = "s" if self.signed else "u"
+        return f"{kind}{self.int_bits}.{self.frac_bits} {self.rounding} {self.overflow}"
+
+    def saturate(self, raw: np.ndarray) -> np.ndarray:
+        """Apply the overflow rule to raw integers (count or raise)."""
+        raw = np.asarray(raw, dtype=np.int64)
+        low, high = raw < self.raw_min, raw > self.raw_max
+        clipped = int(np.count_nonzero(low) + np.count_nonzero(high))
+        if clipped:
+            if self.overflow == "error":
+                raise OverflowError_(
+                    f"{self.name} ({self.describe()}): {clipped} values out of "
+                    f"range {self.min_value:g} .. {self.max_value:g}"
+                )
+            SATURATIONS[self.name] += clipped
+            raw = np.clip(raw, self.raw_min, self.raw_max)
+        return raw
+
+    def quantize(self, x: np.ndarray) -> np.ndarray:
+        """Real values to raw integers with this format's rounding and overflow rule.
+
+        NaN or Inf input raises ``ValueError``: nothing downstream may see it.
+        """
+        x = np.asarray(x, dtype=np.float64)
+        if not np.isfinite(x).all():
+            raise ValueError(f"{self.name}: NaN or Inf cannot be quantised")
+        scaled = x * (2.0**self.frac_bits)
+        limit = 2.0**62
+        scaled = np.clip(scaled, -limit, limit)
+        if self.rounding == "nearest-up":
+            raw = np.floor(scaled + 0.5)
+        elif self.rounding == "nearest-even":
+            raw = np.round(scaled)
+        elif self.rounding == "truncate":
+            raw = np.trunc(scaled)
+        else:
+            raw = np.floor(scaled)
+        return self.saturate(raw.astype(np.int64))
+
+    def to_float(self, raw: np.ndarray) -> np.ndarray:
+        """Raw integers to their real values (float64, exact for widths <= 53)."""
+        return np.asarray(raw, dtype=np.float64) * self.lsb
+
+
+def round_shift(raw: np.ndarray, shift: int, rounding: str) -> np.ndarray:
+    """Divide raw integers by ``2**shift`` with ``rounding`` (``shift <= 0`` multiplies)."""
+    raw = np.asarray(raw, dtype=np.int64)
+    if shift <= 0:
+        return raw << (-shift)
+    if rounding == "floor":
+        return raw >> shift
+    half = np.int64(1) << (shift - 1)
+    if rounding == "nearest-up":
+        return (raw + half) >> shift
+    floor = raw >> shift
+    rem = raw - (floor << shift)
+    if rounding == "truncate":
+        return np.where((raw < 0) & (rem != 0), floor + 1, floor)
+    # nearest-even
+    up = (rem > half) | ((rem == half) & ((floor & 1) == 1))
+    return floor + up.astype(np.int64)
+
+
+def rescale(raw: np.ndarray, src: FixedFormat, dst: FixedFormat) -> np.ndarray:
+    """Re-express ``raw`` of ``src`` in ``dst``: shift with ``dst``'s rounding, then its
+    overflow rule."""
+    return dst.saturate(round_shift(raw, src.frac_bits - dst.frac_bits, dst.rounding))
+
+
+def mul(
+    a: np.ndarray, fa: FixedFormat, b: np.ndarray, fb: FixedFormat, out: FixedFormat
+) -> np.ndarray:
+    """Exact product of two raw arrays, rounded and saturated into ``out``."""
+    prod = np.asarray(a, dtype=np.int64) * np.asarray(b, dtype=np.int64)
+    return out.saturate(
+        round_shift(prod, fa.frac_bits + fb.frac_bits - out.frac_bits, out.rounding)
+    )
