@@ -166,11 +166,15 @@ def machine_info() -> dict[str, Any]:
 
 
 def psnr(reference: np.ndarray, test: np.ndarray) -> float:
-    """PSNR in dB of ``test`` against ``reference``, colour channels, peak 1.0."""
+    """PSNR in dB of ``test`` against ``reference``, colour channels clipped to [0, 1].
+
+    The metric is :func:`hwsim.numerics.metrics.psnr` (peak 1.0).
+    """
+    from hwsim.numerics.metrics import psnr as psnr_db
+
     a = np.clip(np.asarray(reference, dtype=np.float64)[..., :3], 0.0, 1.0)
     b = np.clip(np.asarray(test, dtype=np.float64)[..., :3], 0.0, 1.0)
-    mse = float(np.mean((a - b) ** 2))
-    return float("inf") if mse == 0.0 else 10.0 * float(np.log10(1.0 / mse))
+    return psnr_db(a, b)
 
 
 def _time_golden(
