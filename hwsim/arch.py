@@ -50,6 +50,9 @@ class ArchConfig:
         Allowed z-supersampling range ``(lo, hi)``.
     formats, memory : dict
         Raw tables for the unit formats and the memory system (models layer).
+    slice_overhead_cycles, section_width, section_overhead_cycles : int
+        Closed-form timing overheads: cycles lost per slice, the width of a section in
+        base-plane pixels (0: no sectioning) and cycles lost per section.
     published : dict
         Headline figures to compare against (samples/s, fps at a size), with sources.
     """
@@ -69,6 +72,9 @@ class ArchConfig:
     formats: dict[str, Any] = field(default_factory=dict)
     memory: dict[str, Any] = field(default_factory=dict)
     published: dict[str, Any] = field(default_factory=dict)
+    slice_overhead_cycles: int = 0
+    section_width: int = 0
+    section_overhead_cycles: int = 0
 
     @property
     def peak_samples_per_second(self) -> float:
@@ -96,6 +102,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     p = top.table("pipeline", required=True)
     limits = top.table("limits")
     features = top.table("features")
+    overheads = top.table("overheads")
     bits = limits.raw("voxel_bits", [8, 12, 16])
     if not isinstance(bits, list) or not bits or any(b not in (8, 12, 16) for b in bits):
         raise limits.error("voxel_bits", f"invalid {bits!r}", "a list of 8, 12, 16")
@@ -119,8 +126,11 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         formats=dict(top.raw("formats", {})),
         memory=dict(top.raw("memory", {})),
         published=dict(top.raw("published", {})),
+        slice_overhead_cycles=overheads.integer("slice_cycles", 0, 0, 1 << 20),
+        section_width=overheads.integer("section_width", 0, 0, 1 << 16),
+        section_overhead_cycles=overheads.integer("section_cycles", 0, 0, 1 << 24),
     )
-    for t in (p, limits, features):
+    for t in (p, limits, features, overheads):
         t.finish()
     top.finish()
     return cfg

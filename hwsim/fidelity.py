@@ -35,11 +35,13 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-AVAILABLE_FIDELITIES = ("golden",)
+AVAILABLE_FIDELITIES = ("golden", "functional")
+#: The machine a timed rung models when no --arch is given.
+DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
 
-#: Golden stages, in pipeline order, and what each needs from the scene.
-_GOLDEN_STAGES = ("sample", "gradient", "classify", "shade", "composite", "crop", "cut")
+#: Pipeline units, in order; elaboration keeps only those a scene needs.
+_UNITS = ("interp", "gradient", "classify", "shade", "composite", "crop")
 
 Progress = Callable[[int, int], None]
 
@@ -114,16 +116,15 @@ def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
     mode = scene.render.mode
     modulated = mode == "composite" and scene.transfer.gradient_opacity is not None
     needs = {
-        "sample": True,
+        "interp": True,
         "gradient": scene.lit or modulated,
         "classify": mode == "composite",
         "shade": scene.lit,
         "composite": True,
-        "crop": scene.crop is not None,
-        "cut": bool(scene.cut_planes),
+        "crop": scene.crop is not None or bool(scene.cut_planes),
     }
-    used = [s for s in _GOLDEN_STAGES if needs[s]]
-    return used, [s for s in _GOLDEN_STAGES if not needs[s]]
+    used = [s for s in _UNITS if needs[s]]
+    return used, [s for s in _UNITS if not needs[s]]
 
 
 def render(
@@ -164,37 +165,54 @@ def render(
             key="--fidelity",
             allowed=", ".join(AVAILABLE_FIDELITIES),
         )
-    if arch is not None:
-        raise NotAvailableError(
-            f"architecture {arch!r}: no architectures are available yet",
-            key="--arch",
-            allowed="none yet; omit --arch",
-        )
+    if arch is None and fidelity != "golden":
+        arch = DEFAULT_ARCH
+    machine = resolve_arch(arch) if arch is not None else None
+    if machine is not None:
+        check_scene_fits(scene, machine)
+        if sampling not in ("ray", machine.order):
+            raise InputError(
+                f"{machine.name} samples in {machine.order} order",
+                key="--sampling",
+                allowed=f"{machine.order} (or omit it)",
+            )
+        sampling = machine.order
     if sampling not in SAMPLINGS:
         raise InputError(
             f"unknown sampling {sampling!r}", key="--sampling", allowed=", ".join(SAMPLINGS)
         )
-    from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
+    from hwsim.golden import make_plan, render_golden  # deferred: keeps `hwsim scenes` fast
 
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene)
+    cycles = clock = None
     start = time.perf_counter()
-    result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
+    if fidelity == "golden":
+        result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
+        counters = {"golden.samples": int(result.samples), "golden.rays": int(result.rays)}
+    else:
+        from models.functional import render_functional
+
+        plan = make_plan(scene, volume, sampling)
+        result = render_functional(scene, volume, transfer, machine, plan, progress=progress)
+        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
     wall = time.perf_counter() - start
     return RenderRun(
         scene=scene,
         volume=volume,
         transfer=transfer,
         fidelity=fidelity,
-        arch=arch,
+        arch=machine.name if machine else None,
         sampling=sampling,
         image=result.image,
         samples=int(result.samples),
         rays=int(result.rays),
         wall_seconds=wall,
+        cycles=cycles,
+        clock_hz=clock,
         elaborated_units=used,
         elided_units=elided,
-        counters={"golden.samples": int(result.samples), "golden.rays": int(result.rays)},
+        counters=counters,
     )

@@ -140,7 +140,11 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--phantom", "teapot"], "teapot"),
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
         (["render", "--fidelity", "cycle"], "not yet available"),
-        (["render", "--arch", "volumepro500"], "--arch"),
+        (["render", "--arch", "cray-1"], "--arch: unknown architecture 'cray-1'"),
+        (
+            ["render", "--arch", "volumepro500", "--projection", "perspective"],
+            "volumepro500 renders parallel projection only",
+        ),
         (["render", "no-such-scene"], "unknown built-in scene"),
         (["trade"], "not yet available"),
     ],
