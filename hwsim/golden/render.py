@@ -17,6 +17,7 @@ zero skip gradient and shading work; that never changes the image.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -31,6 +32,17 @@ from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 
 __all__ = ["GoldenResult", "render_golden"]
+
+#: Per-volume derived arrays (float64 copy, voxel gradients), kept while the volume lives,
+#: so successive frames of one volume do not recompute them (as VTK's mapper does not).
+_DERIVED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _derived(volume: Volume, key: str, make: Callable[[], object]):
+    cache = _DERIVED.setdefault(volume, {})
+    if key not in cache:
+        cache[key] = make()
+    return cache[key]
 
 
 @dataclass(frozen=True)
@@ -52,7 +64,9 @@ class _Renderer:
         self.scene, self.volume, self.transfer, self.plan = scene, volume, transfer, plan
         self.mode = scene.render.mode
         self.kind = scene.render.interpolation
-        self.flat = np.ascontiguousarray(volume.data, dtype=np.float64).ravel()
+        self.flat = _derived(
+            volume, "flat", lambda: np.ascontiguousarray(volume.data, dtype=np.float64).ravel()
+        )
         self.ref = min(volume.spacing)
         self.lights = [
             (plan.camera.light_to_world(light.direction, light.space), light.intensity)
@@ -62,7 +76,9 @@ class _Renderer:
         self.need_grad = scene.lit or (composite and transfer.modulates)
         self.grads = None
         if self.need_grad and scene.render.gradient == "voxel":
-            self.grads = voxel_gradients(volume.data, volume.spacing)
+            self.grads = _derived(
+                volume, "grads", lambda: voxel_gradients(volume.data, volume.spacing)
+            )
         self.pre = None
         if composite and transfer.order == "pre":
             rgba = transfer.classify(self.flat)

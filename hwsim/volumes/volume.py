@@ -35,7 +35,8 @@ class Volume:
     ----------
     data : numpy.ndarray
         3-D array, axis order ``(z, y, x)``, one of :data:`SUPPORTED_DTYPES`, every
-        value finite, no axis of length zero.
+        value finite, no axis of length zero.  It is made read-only: renderers cache
+        arrays derived from it.
     spacing : tuple of float
         World size of one voxel step along ``(z, y, x)``; each > 0 and finite.
     name : str
@@ -89,6 +90,9 @@ class Volume:
                 allowed="three finite numbers > 0",
             )
         object.__setattr__(self, "spacing", spacing)
+        # Renderers cache arrays derived from a volume (float copy, gradients), so its data
+        # must not change under them: the array is made read-only (copy it to edit).
+        data.flags.writeable = False
         if data.dtype.kind in "iu" and self.bits == 0:
             object.__setattr__(self, "bits", data.dtype.itemsize * 8)
 
