@@ -1,0 +1,117 @@
+"""Trilinear interpolation in fixed point.
+
+# Ref: architectures.md sections 1.3, 6.4 and 9.1 (TriLin; weights constant per slice in
+#      parallel projection); Lacroute & Levoy 1994.
+
+Positions follow the golden renderer (clamp to ``[0, n - 1]``; ``i0 = min(floor(p),
+n - 2)``).  The fraction ``f = p - i0`` is quantised to ``weight_bits`` (format
+``interp.weight``, UQ1.W: 1.0 is representable).  Voxels are promoted by ``S =
+sample_frac_bits`` and combined by seven lerps, x first, then y, then z::
+
+    lerp(a, b, f) = a + round((b - a) f / 2**W)        (rounding: ``rounding``)
+
+The result carries ``in_frac_bits + S`` fraction bits.  In parallel projection every
+sample of a slice has the same fractional offsets, so the weights are constant per
+slice by construction (the plan guarantees it).
+
+Error bound against float64 trilinear interpolation of the same voxels, in voxel units:
+``3 * (D * 2**-(W+1) + 2**-(S+1))``, with ``D`` the largest difference between the
+voxels of the cell (each axis: weight error times the local difference plus one
+rounding; lerps are convex, so errors do not grow).  Property-tested.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hwsim.numerics import FixedFormat, round_shift
+
+__all__ = [
+    "InterpConfig",
+    "InterpTaps",
+    "interp_taps",
+    "interpolate",
+    "error_bound",
+    "LATENCY",
+    "II",
+]
+
+LATENCY = 4  # cycles, [I] architectures.md 9.3 (TriLin 3-4)
+II = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class InterpConfig:
+    """Widths of the interpolator (defaults: VolumePro 500, [I])."""
+
+    weight_bits: int = 8
+    sample_frac_bits: int = 4
+    rounding: str = "nearest-up"
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.weight_bits <= 16 or not 1 <= self.sample_frac_bits <= 12:
+            raise ValueError("interp widths: weight_bits 1..16, sample_frac_bits 1..12")
+
+    @property
+    def weight(self) -> FixedFormat:
+        return FixedFormat(
+            name="interp.weight",
+            signed=False,
+            int_bits=1,
+            frac_bits=self.weight_bits,
+            rounding=self.rounding,
+        )
+
+
+@dataclass(frozen=True)
+class InterpTaps:
+    """``idx (8, n)`` flat voxel indices, corner ``c = 4 dz + 2 dy + dx``; ``frac (3, n)``
+    raw UQ1.W fractions along ``(z, y, x)``."""
+
+    idx: np.ndarray
+    frac: np.ndarray
+
+
+def interp_taps(zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig) -> InterpTaps:
+    """Voxel indices and quantised weights of the cells holding positions ``zyx (n, 3)``."""
+    lows, highs, fracs = [], [], []
+    for axis in range(3):
+        n = shape[axis]
+        p = np.clip(zyx[:, axis], 0.0, n - 1.0)
+        i0 = np.minimum(np.floor(p), max(n - 2, 0)).astype(np.int64)
+        fracs.append(cfg.weight.quantize(p - i0))
+        lows.append(i0)
+        highs.append(np.minimum(i0 + 1, n - 1))
+    ny, nx = shape[1], shape[2]
+    idx = np.empty((8, zyx.shape[0]), dtype=np.int64)
+    for c in range(8):
+        z = highs[0] if c & 4 else lows[0]
+        y = highs[1] if c & 2 else lows[1]
+        x = highs[2] if c & 1 else lows[2]
+        idx[c] = (z * ny + y) * nx + x
+    return InterpTaps(idx, np.stack(fracs))
+
+
+def interpolate(
+    flat: np.ndarray, t: InterpTaps, cfg: InterpConfig, in_frac_bits: int = 0
+) -> np.ndarray:
+    """Interpolate a raveled raw array (any sign) at the taps: ``(n,)`` int64 with
+    ``in_frac_bits + sample_frac_bits`` fraction bits."""
+    w, r = cfg.weight_bits, cfg.rounding
+    v = flat[t.idx].astype(np.int64) << cfg.sample_frac_bits
+    fz, fy, fx = t.frac
+
+    def lerp(a: np.ndarray, b: np.ndarray, f: np.ndarray) -> np.ndarray:
+        return a + round_shift((b - a) * f, w, r)
+
+    x = [lerp(v[c], v[c + 1], fx) for c in (0, 2, 4, 6)]
+    y = [lerp(x[0], x[1], fy), lerp(x[2], x[3], fy)]
+    return lerp(y[0], y[1], fz)
+
+
+def error_bound(max_difference: float, cfg: InterpConfig) -> float:
+    """Worst-case |fixed - float| in input units for a cell whose voxels differ by at most
+    ``max_difference``."""
+    return 3 * (max_difference * 2.0 ** -(cfg.weight_bits + 1) + 2.0 ** -(cfg.sample_frac_bits + 1))

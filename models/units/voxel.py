@@ -1,0 +1,58 @@
+"""Voxel conversion: a volume's values into the machine's unsigned voxel format (host side).
+
+# Ref: architectures.md section 3 (VolumePro 500: 8-bit and 12-bit voxels; 8-bit data
+#      indexes the 4096-entry LUT as value x 16, as VTK's VG500 mapper fills it).
+
+Rules, in order:
+
+1. unsigned integer data of ``d <= bits`` significant bits: ``raw = value << (bits - d)``
+   (offset 0, scale ``2**-(bits - d)``);
+2. signed integer data whose range fits: ``raw = value - min`` (offset ``min``, scale 1);
+3. anything else (float data, too-wide integers): the value range ``[min, max]`` maps
+   linearly onto ``[0, 2**bits - 1]``, rounding half up (a constant volume maps to 0).
+
+``value = offset + scale * raw`` holds exactly for rules 1 and 2; rule 3 costs at most
+half a raw step.  Nothing wraps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hwsim.volumes.volume import Volume
+
+__all__ = ["VoxelMap", "convert_volume", "LATENCY", "II"]
+
+LATENCY = 0  # host-side conversion, no pipeline stage
+II = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class VoxelMap:
+    """``value = offset + scale * raw`` for raw voxels of ``bits`` bits."""
+
+    bits: int
+    offset: float
+    scale: float
+
+    def to_value(self, raw: np.ndarray) -> np.ndarray:
+        return self.offset + self.scale * np.asarray(raw, dtype=np.float64)
+
+
+def convert_volume(volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
+    """The volume as raw ``int64`` voxels ``(z, y, x)`` in ``[0, 2**bits - 1]`` and its map."""
+    data = volume.data
+    top = (1 << bits) - 1
+    lo, hi = volume.value_range
+    if data.dtype.kind == "u" and volume.bits <= bits and hi <= (1 << volume.bits) - 1:
+        shift = bits - volume.bits
+        return data.astype(np.int64) << shift, VoxelMap(bits=bits, offset=0.0, scale=2.0**-shift)
+    if data.dtype.kind in "iu" and hi - lo <= top:
+        return data.astype(np.int64) - int(lo), VoxelMap(bits=bits, offset=lo, scale=1.0)
+    if hi <= lo:
+        return np.zeros(data.shape, np.int64), VoxelMap(bits=bits, offset=lo, scale=1.0)
+    scale = (hi - lo) / top
+    raw = np.floor((data.astype(np.float64) - lo) / scale + 0.5).astype(np.int64)
+    return np.clip(raw, 0, top), VoxelMap(bits=bits, offset=lo, scale=scale)
