@@ -1,0 +1,169 @@
+"""Shading: Phong per sample, or diffuse and specular reflectance maps (VolumePro 500).
+
+# Ref: architectures.md section 3 (reflectance maps: a diffuse and a specular map looked
+#      up by gradient direction, any number of lights) and 5 (per-sample Phong, VIZARD II);
+#      Phong 1975, Blinn 1977.
+
+``colour = clamp(ka c + sum_l I_l (kd max(N.L, 0) c + ks spec(max(N.H, 0))), 0, 1)`` with
+``spec(x) = x**n`` from a table, white specular light, in UQ1.12.  Light and half vectors
+are SQ1.F like the normals; coefficients and intensities UQ4.8.  ``N = 0`` (a zero
+gradient) gives exactly ``ka c``.
+
+Phong error against float64: each dot product is off by at most ``3 * 2**-F`` (normal
+and light quantisation) plus a rounding; ``x**n`` amplifies that by up to ``n`` near
+``x = 1`` and the table index adds ``n / (2 entries)``; coefficient quantisation adds
+``2**-9`` each.  Reflectance maps replace ``N`` by the centre of its cube-map cell: an
+angle of up to ``sqrt(2) / map_size`` radians, so diffuse moves by up to ``kd I`` times
+that and specular by ``ks I n`` times that.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hwsim.numerics import round_shift
+
+__all__ = ["ShadeConfig", "Shader", "setup", "shade", "LATENCY", "II"]
+
+LATENCY = 4  # cycles, [I] architectures.md 9.3 (shader 3-5)
+II = 1
+ONE = 1 << 12
+_COEF = 8
+
+
+@dataclass(frozen=True, kw_only=True)
+class ShadeConfig:
+    """Shading method and widths."""
+
+    method: str = "phong"
+    normal_frac_bits: int = 10
+    spec_table_entries: int = 1024
+    map_size: int = 64
+
+    def __post_init__(self) -> None:
+        if self.method not in ("phong", "reflectance-map"):
+            raise ValueError("shade.method: phong | reflectance-map")
+        if not 4 <= self.spec_table_entries <= 65536 or not 2 <= self.map_size <= 1024:
+            raise ValueError("shade: spec_table_entries 4..65536, map_size 2..1024")
+
+
+@dataclass(frozen=True)
+class Shader:
+    """Host-quantised lighting state."""
+
+    cfg: ShadeConfig
+    light: np.ndarray  # (k, 3) SQ1.F
+    half: np.ndarray  # (k, 3) or (n, k, 3) SQ1.F
+    intensity: np.ndarray  # (k,) UQ4.8
+    ka: int
+    kd: int
+    ks: int
+    spec: np.ndarray  # (entries + 1,) UQ1.12
+    maps: tuple[np.ndarray, np.ndarray] | None  # diffuse, specular (6*R*R + 1,) UQ4.12
+
+
+def _q(x: np.ndarray | float, bits: int) -> np.ndarray:
+    return np.floor(np.asarray(x, dtype=np.float64) * (1 << bits) + 0.5).astype(np.int64)
+
+
+def setup(
+    lights: list[tuple[np.ndarray, float]],
+    toward_viewer: np.ndarray,
+    material: tuple[float, float, float, float],
+    cfg: ShadeConfig,
+) -> Shader:
+    """Quantise lights, half vectors, coefficients; build the specular table and maps."""
+    f = cfg.normal_frac_bits
+    ka, kd, ks, shininess = material
+    dirs = np.array([np.asarray(d, dtype=np.float64) for d, _ in lights]).reshape(-1, 3)
+    v = np.asarray(toward_viewer, dtype=np.float64)
+    h = dirs + (v[..., None, :] if v.ndim == 2 else v)
+    norm = np.linalg.norm(h, axis=-1, keepdims=True)
+    h = np.divide(h, norm, out=np.zeros_like(h), where=norm > 1e-12)
+    x = np.arange(cfg.spec_table_entries + 1) / cfg.spec_table_entries
+    spec = _q(x**shininess, 12)
+    shader = Shader(
+        cfg,
+        _q(dirs, f),
+        _q(h, f),
+        _q([i for _, i in lights], _COEF),
+        int(_q(ka, _COEF)),
+        int(_q(kd, _COEF)),
+        int(_q(ks, _COEF)),
+        spec,
+        None,
+    )
+    if cfg.method == "reflectance-map":
+        if v.ndim == 2:
+            raise ValueError("reflectance maps need one view direction (parallel projection)")
+        centres = np.vstack([_cell_normals(cfg.map_size), np.zeros((1, 3))])
+        q = _q(centres, f)
+        d, s = _lighting_terms(shader, q, shader.half)
+        shader = Shader(**{**shader.__dict__, "maps": (d, s)})
+    return shader
+
+
+def _cell_normals(r: int) -> np.ndarray:
+    """Unit normals at the centres of a cube map's cells: face-major, row, column."""
+    c = (np.arange(r) + 0.5) / r * 2 - 1
+    u, w = np.meshgrid(c, c, indexing="ij")
+    out = []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            p = np.empty((r, r, 3))
+            p[..., axis] = sign
+            others = [a for a in range(3) if a != axis]
+            p[..., others[0]], p[..., others[1]] = u, w
+            out.append(p.reshape(-1, 3))
+    n = np.vstack(out)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def _cell_index(normals: np.ndarray, r: int) -> np.ndarray:
+    """Cube-map cell of each SQ1.F normal; the zero normal maps to the last entry."""
+    a = np.abs(normals)
+    axis = np.argmax(a, axis=1)
+    rows = np.arange(normals.shape[0])
+    major = a[rows, axis]
+    sign = normals[rows, axis] < 0
+    others = np.array([[1, 2], [0, 2], [0, 1]])[axis]
+    u = normals[rows, others[:, 0]]
+    w = normals[rows, others[:, 1]]
+    safe = np.maximum(major, 1)
+    iu = np.clip(((u + safe) * r) // (2 * safe), 0, r - 1)
+    iw = np.clip(((w + safe) * r) // (2 * safe), 0, r - 1)
+    idx = ((axis * 2 + sign) * r + iu) * r + iw
+    return np.where(major == 0, 6 * r * r, idx)
+
+
+def _lighting_terms(sh: Shader, normals: np.ndarray, half: np.ndarray):
+    """Diffuse factor and specular term (both UQ4.12) of SQ1.F normals."""
+    f = sh.cfg.normal_frac_bits
+    diffuse = np.zeros(normals.shape[0], dtype=np.int64)
+    specular = np.zeros(normals.shape[0], dtype=np.int64)
+    for k in range(sh.light.shape[0]):
+        ndl = np.maximum(round_shift(normals @ sh.light[k], 2 * f - 12, "nearest-up"), 0)
+        hk = half[:, k] if half.ndim == 3 else half[k]
+        ndh = np.einsum("ij,ij->i", normals, np.broadcast_to(hk, normals.shape))
+        ndh = np.clip(round_shift(ndh, 2 * f - 12, "nearest-up"), 0, ONE)
+        e = sh.cfg.spec_table_entries
+        s = sh.spec[round_shift(ndh * e, 12, "nearest-up")]
+        diffuse += round_shift(
+            sh.intensity[k] * sh.kd * np.minimum(ndl, ONE), 2 * _COEF, "nearest-up"
+        )
+        specular += round_shift(sh.intensity[k] * sh.ks * s, 2 * _COEF, "nearest-up")
+    return diffuse, specular
+
+
+def shade(sh: Shader, rgb: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Shade UQ1.12 colours ``(n, 3)`` with SQ1.F normals ``(n, 3)``: UQ1.12 ``(n, 3)``."""
+    if sh.maps is not None:
+        i = _cell_index(normals, sh.cfg.map_size)
+        diffuse, specular = sh.maps[0][i], sh.maps[1][i]
+    else:
+        diffuse, specular = _lighting_terms(sh, normals, sh.half)
+    ambient = round_shift(sh.ka * rgb, _COEF, "nearest-up")
+    lit = ambient + round_shift(diffuse[:, None] * rgb, 12, "nearest-up") + specular[:, None]
+    return np.clip(lit, 0, ONE)
