@@ -1,0 +1,90 @@
+"""One architecture's fixed-point datapath: the unit configs its ``[formats]`` table sets.
+
+# Ref: shared/docs/reference/architectures.md section 9.1 (suggested widths);
+#      docs/numerics.md (every format, rounding and bound).
+
+``[formats]`` keys are ``<unit>.<field>`` (``interp.weight_bits = 9``); anything absent
+takes the unit's default (VolumePro 500 values).  An unknown key or a value outside the
+unit's range is refused with the file and key named.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from hwsim.arch import ArchConfig
+from hwsim.errors import InputError
+from models.units.classify import ClassifyConfig
+from models.units.composite import CompositeConfig
+from models.units.gradient import GradientConfig
+from models.units.interp import InterpConfig
+from models.units.shade import ShadeConfig
+
+__all__ = ["Datapath", "UNIT_CONFIGS"]
+
+UNIT_CONFIGS = {
+    "interp": InterpConfig,
+    "gradient": GradientConfig,
+    "classify": ClassifyConfig,
+    "shade": ShadeConfig,
+    "composite": CompositeConfig,
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Datapath:
+    """Voxel width and the config of every unit, as one architecture sets them."""
+
+    voxel_bits: int = 12
+    interp: InterpConfig = field(default_factory=InterpConfig)
+    gradient: GradientConfig = field(default_factory=GradientConfig)
+    classify: ClassifyConfig = field(default_factory=ClassifyConfig)
+    shade: ShadeConfig = field(default_factory=ShadeConfig)
+    composite: CompositeConfig = field(default_factory=CompositeConfig)
+
+    @classmethod
+    def from_arch(
+        cls, arch: ArchConfig, data_bits: int, overrides: dict[str, Any] | None = None
+    ) -> Datapath:
+        """The datapath of ``arch`` for data of ``data_bits`` (0 for float data).
+
+        The voxel width is the narrowest the machine accepts that holds the data, else its
+        widest.  ``overrides`` (``{"interp.weight_bits": 6}``) win over the file, for
+        bit-width sweeps.
+        """
+        fitting = [b for b in sorted(arch.voxel_bits) if data_bits and b >= data_bits]
+        voxel_bits = fitting[0] if fitting else max(arch.voxel_bits)
+        table = {**arch.formats, **(overrides or {})}
+        units: dict[str, dict[str, Any]] = {name: {} for name in UNIT_CONFIGS}
+        for key, value in table.items():
+            unit, _, name = key.partition(".")
+            if unit == "voxel" and name == "bits":
+                voxel_bits = int(value)
+                continue
+            fields = (
+                {f.name for f in dataclasses.fields(UNIT_CONFIGS.get(unit, object))}
+                if unit in UNIT_CONFIGS
+                else set()
+            )
+            if name not in fields:
+                allowed = ", ".join(
+                    f"{u}.{f.name}" for u, c in UNIT_CONFIGS.items() for f in dataclasses.fields(c)
+                )
+                raise InputError(
+                    "unknown format key", source=arch.source, key=f"formats.{key}", allowed=allowed
+                )
+            units[unit][name] = value
+        try:
+            configs = {unit: UNIT_CONFIGS[unit](**kw) for unit, kw in units.items()}
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"invalid format: {exc}", source=arch.source, key="formats") from None
+        return cls(voxel_bits=voxel_bits, **configs)
+
+    def describe(self) -> dict[str, Any]:
+        """Plain data for stats.json."""
+        out: dict[str, Any] = {"voxel_bits": self.voxel_bits}
+        for unit in UNIT_CONFIGS:
+            out[unit] = dataclasses.asdict(getattr(self, unit))
+        return out
