@@ -62,8 +62,24 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
     sub.add_parser("archs", help="list built-in architectures")
+    t = sub.add_parser("trade", help="measure accuracy trades (today: --widths)")
+    t.add_argument(
+        "--widths",
+        action="store_true",
+        help="bit-width trade: PSNR vs golden as each datapath width shrinks",
+    )
+    t.add_argument(
+        "--volume",
+        metavar="PATH",
+        action="append",
+        default=[],
+        help="add a volume file to the scene set (repeatable)",
+    )
+    t.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
+    t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
+    t.add_argument("--out", metavar="DIR", required=True)
+    t.add_argument("--quiet", action="store_true")
     for name, text in (
-        ("trade", "measure the fidelity ladder"),
         ("sweep", "design-space sweep"),
         ("report", "human report of runs"),
         ("bench", "speed of every rung"),
@@ -160,6 +176,33 @@ def _cmd_archs(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_trade(args: argparse.Namespace) -> int:
+    from hwsim.fidelity import resolve_arch
+    from hwsim.trade import default_cases, width_trade, write_width_trade
+
+    if not args.widths:
+        raise NotAvailableError(
+            "the fidelity-ladder trade is not yet available", key="trade", allowed="--widths"
+        )
+    if not 8 <= args.image <= 1024:
+        raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")
+    arch = resolve_arch(args.arch)
+    cases = default_cases(args.volume, args.image)
+    with _progress_bar(args.quiet, "widths") as progress:
+        rows = width_trade(cases, arch, progress=progress)
+    paths = write_width_trade(rows, args.out)
+    if not args.quiet:
+        print(f"{'knob':<26} {'value':>6} " + " ".join(f"{c.label[:14]:>14}" for c in cases))
+        for knob_value in dict.fromkeys((r["knob"], r["value"]) for r in rows):
+            cells = [r["psnr_db"] for r in rows if (r["knob"], r["value"]) == knob_value]
+            print(
+                f"{knob_value[0]:<26} {knob_value[1]:>6} "
+                + " ".join(f"{c:>11.1f} dB" for c in cells)
+            )
+        print(f"wrote {paths['csv']}, {paths['json'].name}, {paths['png'].name}")
+    return 0
+
+
 def _not_yet(args: argparse.Namespace) -> int:
     raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
 
@@ -169,7 +212,7 @@ _COMMANDS = {
     "scenes": _cmd_scenes,
     "phantoms": _cmd_phantoms,
     "archs": _cmd_archs,
-    "trade": _not_yet,
+    "trade": _cmd_trade,
     "sweep": _not_yet,
     "report": _not_yet,
     "bench": _not_yet,

@@ -1,0 +1,132 @@
+"""Functional-rung speed against the golden renderer on the same scene, in one run.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_functional.py [--sizes 64 128] [--arch volumepro500]
+                                                    [--out FILE.json]
+
+For each size the CT-like head phantom is rendered (composite + Phong, ``ct`` preset,
+256x256) by the float64 golden renderer at the architecture's sample positions and by
+the fixed-point functional rung at the same positions; both are timed (median of
+``--repeats``, after one warm-up render that fills the golden renderer's per-volume
+cache) and their samples per wall second and ratio are printed and written as JSON.
+The issue's goal is a ratio (functional / golden speed) of at least 2.  Nothing here is
+asserted: benchmarks are not tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan, render_golden
+from hwsim.numerics import psnr
+from hwsim.scene import Scene, TransferSpec, ViewSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+
+__all__ = ["GOAL_RATIO", "run", "main"]
+
+GOAL_RATIO = 2.0
+
+
+def _median_seconds(repeats: int, fn, *args, **kwargs) -> tuple[float, Any]:
+    fn(*args, **kwargs)  # warm-up
+    times, result = [], None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = fn(*args, **kwargs)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), result
+
+
+def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[str, Any]:
+    """Measure every size; returns the JSON report."""
+    from models.functional import render_functional
+
+    arch = resolve_arch(arch_name)
+    cases = []
+    for n in sizes:
+        volume = make_phantom("head", size=n)
+        scene = Scene(
+            transfer=TransferSpec(preset="ct"),
+            view=ViewSpec(azimuth=30, elevation=15, width=image, height=image, zoom=1.3),
+        )
+        tf = resolve_transfer(scene.transfer, volume)
+        plan = make_plan(scene, volume, arch.order)
+        g_s, golden = _median_seconds(
+            repeats, render_golden, scene, volume, tf, sampling=arch.order
+        )
+        f_s, fixed = _median_seconds(repeats, render_functional, scene, volume, tf, arch, plan)
+        cases.append(
+            {
+                "size": n,
+                "image": image,
+                "arch": arch.name,
+                "samples": fixed.samples,
+                "golden_seconds": g_s,
+                "golden_samples_per_second": golden.samples / g_s,
+                "functional_seconds": f_s,
+                "functional_samples_per_second": fixed.samples / f_s,
+                "ratio": g_s / f_s,
+                "goal_ratio": GOAL_RATIO,
+                "goal_met": g_s / f_s >= GOAL_RATIO,
+                "psnr_db": psnr(golden.image, fixed.image),
+                "simulated_fps": arch.clock_hz / fixed.cycles,
+            }
+        )
+    return {
+        "schema": 1,
+        "benchmark": "functional-vs-golden",
+        "machine": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "processor": platform.processor() or platform.machine(),
+        },
+        "cases": cases,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=[64, 128])
+    parser.add_argument("--arch", default="volumepro500")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--image", type=int, default=256)
+    parser.add_argument("--out", type=Path)
+    args = parser.parse_args(argv)
+    report = run(args.sizes, args.arch, args.repeats, args.image)
+    print(
+        f"{'case':<22}{'golden s':>10}{'Msamp/s':>9}{'funct s':>10}{'Msamp/s':>9}"
+        f"{'ratio':>8}{'goal':>6}{'PSNR':>7}"
+    )
+    for c in report["cases"]:
+        print(
+            f"{c['size']}^3 {c['arch']:<15}{c['golden_seconds']:>10.3f}"
+            f"{c['golden_samples_per_second'] / 1e6:>9.2f}{c['functional_seconds']:>10.3f}"
+            f"{c['functional_samples_per_second'] / 1e6:>9.2f}{c['ratio']:>8.2f}"
+            f"{'yes' if c['goal_met'] else 'no':>6}{c['psnr_db']:>7.1f}"
+        )
+    print("ratio = golden seconds / functional seconds (goal >= 2)")
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(report, indent=2) + "\n")
+        print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

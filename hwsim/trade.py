@@ -1,0 +1,172 @@
+"""The bit-width trade: image error against golden as each datapath width shrinks.
+
+``width_trade`` renders every scene with the functional datapath once per value of each
+width knob (the others at the architecture's defaults) and compares against the float64
+golden renderer at the *same* sample positions, so the error is purely numerical.  It
+writes ``widths.csv``, ``widths.json`` and ``widths.png`` (PSNR against bits, one panel
+per knob).  The full fidelity-ladder trade (speed against error per rung) grows here too.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hwsim.arch import ArchConfig
+from hwsim.errors import InputError
+from hwsim.golden import make_plan, render_golden
+from hwsim.numerics import max_abs_error, psnr, rmse
+from hwsim.scene import Scene
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes.volume import Volume
+
+__all__ = [
+    "WIDTH_KNOBS",
+    "WidthCase",
+    "default_cases",
+    "width_trade",
+    "write_width_trade",
+]
+
+#: Knob -> values swept (each list includes the VolumePro 500 default).
+WIDTH_KNOBS: dict[str, list[int]] = {
+    "interp.weight_bits": [2, 3, 4, 6, 8, 10],
+    "gradient.normal_frac_bits": [3, 4, 6, 8, 10, 12],
+    "classify.alpha_bits": [4, 6, 8, 10, 12],
+    "classify.entries": [64, 256, 1024, 4096],
+    "composite.acc_frac_bits": [12, 13, 14, 16, 20],
+}
+
+
+@dataclass(frozen=True)
+class WidthCase:
+    """One scene of the trade: a label, the scene and its loaded volume."""
+
+    label: str
+    scene: Scene
+    volume: Volume
+
+
+def default_cases(volumes: Sequence[str] = (), size: int = 64) -> list[WidthCase]:
+    """Marschner-Lobb (composite + Phong, an opaque shell at rho = 0.5) plus each file."""
+    from hwsim.scene import TransferSpec, ViewSpec
+    from hwsim.volumes import make_phantom, read_volume
+
+    view = ViewSpec(azimuth=30, elevation=20, width=size, height=size, zoom=1.2)
+    ml_tf = TransferSpec(
+        preset=None,
+        points=(
+            (0.0, 0.0, 0.0, 0.0, 0.0),
+            (0.45, 1.0, 0.8, 0.6, 0.0),
+            (0.5, 1.0, 0.9, 0.8, 0.8),
+            (1.0, 1.0, 1.0, 1.0, 0.8),
+        ),
+    )
+    cases = [
+        WidthCase(
+            "marschner-lobb",
+            Scene(transfer=ml_tf, view=view),
+            make_phantom("marschner-lobb", size=40),
+        )
+    ]
+    for path in volumes:
+        volume = read_volume(path)
+        cases.append(WidthCase(volume.name, Scene(view=view), volume))
+    return cases
+
+
+def width_trade(
+    cases: Sequence[WidthCase],
+    arch: ArchConfig,
+    knobs: dict[str, list[int]] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """One row per (knob, value, scene): PSNR, RMSE, max abs error, functional seconds."""
+    from models.datapath import Datapath
+    from models.functional import render_functional
+
+    knobs = WIDTH_KNOBS if knobs is None else knobs
+    rows: list[dict[str, Any]] = []
+    total = len(cases) * sum(len(v) for v in knobs.values())
+    done = 0
+    for case in cases:
+        tf = resolve_transfer(case.scene.transfer, case.volume, case.scene.base_dir)
+        plan = make_plan(case.scene, case.volume, arch.order)
+        golden = render_golden(case.scene, case.volume, tf, sampling=arch.order).image
+        bits = case.volume.bits if case.volume.data.dtype.kind in "iu" else 0
+        for knob, values in knobs.items():
+            for value in values:
+                dp = Datapath.from_arch(arch, bits, {knob: value})
+                start = time.perf_counter()
+                image = render_functional(
+                    case.scene, case.volume, tf, arch, plan, datapath=dp
+                ).image
+                seconds = time.perf_counter() - start
+                rows.append(
+                    {
+                        "knob": knob,
+                        "value": value,
+                        "scene": case.label,
+                        "arch": arch.name,
+                        "psnr_db": psnr(golden, image),
+                        "rmse": rmse(golden, image),
+                        "max_abs_error": max_abs_error(golden, image),
+                        "functional_seconds": seconds,
+                    }
+                )
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+    return rows
+
+
+def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[str, Path]:
+    """Write ``widths.csv``, ``widths.json`` and ``widths.png`` into ``out_dir``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(
+            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
+        ) from None
+    paths = {"csv": out / "widths.csv", "json": out / "widths.json", "png": out / "widths.png"}
+    with open(paths["csv"], "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    finite = [
+        {**r, "psnr_db": r["psnr_db"] if r["psnr_db"] != float("inf") else None} for r in rows
+    ]
+    paths["json"].write_text(json.dumps({"schema": 1, "rows": finite}, indent=2) + "\n")
+    knobs = list(dict.fromkeys(r["knob"] for r in rows))
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(1, len(knobs), figsize=(3.2 * len(knobs), 3.0), squeeze=False)
+    for ax, knob in zip(axes[0], knobs, strict=True):
+        for scene in scenes:
+            pts = [
+                (r["value"], r["psnr_db"])
+                for r in rows
+                if r["knob"] == knob and r["scene"] == scene
+            ]
+            ax.plot([p[0] for p in pts], [min(p[1], 99.0) for p in pts], "o-", label=scene)
+        ax.axhline(40.0, color="grey", lw=0.8, ls="--")
+        if knob == "classify.entries":
+            ax.set_xscale("log", base=2)
+        ax.set_title(knob, fontsize=9)
+        ax.set_xlabel("value")
+        ax.set_ylabel("PSNR vs golden (dB)")
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(paths["png"], dpi=110)
+    plt.close(fig)
+    return paths
