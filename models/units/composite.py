@@ -148,25 +148,28 @@ class CompositeConfig:
     @property
     def out(self) -> FixedFormat:
         """``composite.out``: the unorm pixel as raw integers (0 .. 2**bits - 1)."""
-        return FixedFormat(name="composite.out", signed=False, int_bits=self.output_bits,
-                           frac_bits=0)
+        return FixedFormat(
+            name="composite.out", signed=False, int_bits=self.output_bits, frac_bits=0
+        )
 
 
 DEFAULT = CompositeConfig()
 
 
 def _saturate_unit(raw: np.ndarray, fmt: FixedFormat) -> np.ndarray:
-    """Apply ``fmt``'s overflow rule with the ceiling at exactly 1.0 (``2**frac_bits``)."""
-    raw = fmt.saturate(raw)
+    """Apply ``fmt``'s overflow rule with the ceiling at exactly 1.0 (``2**frac_bits``):
+    values outside the format are clipped and counted by :meth:`FixedFormat.saturate`,
+    values inside it but above 1.0 here, each counted once under ``fmt.name``."""
+    raw = np.asarray(raw, dtype=np.int64)
     one = 1 << fmt.frac_bits
-    over = raw > one
+    over = (raw > one) & (raw <= fmt.raw_max)
     count = int(np.count_nonzero(over))
+    raw = fmt.saturate(raw)
     if count:
         if fmt.overflow == "error":
             raise OverflowError_(f"{fmt.name}: {count} values above 1.0")
         SATURATIONS[fmt.name] += count
-        raw = np.minimum(raw, one)
-    return raw
+    return np.minimum(raw, one)
 
 
 @lru_cache(maxsize=4096)
