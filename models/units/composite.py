@@ -336,8 +336,8 @@ def xray(
     sample : array of int
         ``(n,)`` non-negative raw samples with S fraction bits.
     dt : float or array of float
-        World step length, quantised nearest-up to UQ8.F (negative raises via the format's
-        saturation to 0 being wrong: it is rejected).
+        World step length, quantised nearest-up to UQ8.F; negative values raise
+        ``ValueError``, values above 256 saturate (counted).
     cfg : CompositeConfig
 
     Notes
