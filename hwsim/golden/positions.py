@@ -6,7 +6,8 @@
 A :class:`SamplePlan` says *where* samples are taken and how the accumulated rays become
 the final image; it knows nothing of classification or shading, so the float64 golden
 renderer and the fixed-point renderers iterate the same plan and differ only in
-arithmetic.  Kinds:
+arithmetic.  Positions are index coordinates ``(z, y, x)`` (voxel centres at integers,
+box ``[-0.5, n - 0.5]``), float64.  Kinds:
 
 ``ray``
     Rays through the image's pixel centres, samples every ``dt`` world units on a lattice
@@ -15,7 +16,8 @@ arithmetic.  Kinds:
     and exit of the box; half-open, so no face is counted twice).
 ``shear-image`` (VolumePro 1000)
     Rays through the image's pixel centres, sampled where they cross the slice planes of
-    the principal axis (voxel slices, plus ``1/supersampling`` sub-slices).
+    the principal axis (voxel slices, plus ``1/supersampling`` sub-slices), kept inside
+    the box (inclusive, to 1e-9 index units).
 ``shear-warp`` (VolumePro 500, EM-Cube; parallel only)
     Rays from the integer pixels of a base plane parallel to the slices (the front
     slice), sampled on every slice at a shear offset that is the same for the whole
@@ -24,18 +26,22 @@ arithmetic.  Kinds:
     ``shear-warp`` for parallel views, ``shear-image`` for perspective.
 
 The principal axis is the index axis with the largest ``|d / spacing|`` component (ties
-go to z, then y, then x).
+go to z, then y, then x).  Every kind is one engine: ray ``r`` takes a sample at each
+global step ``j`` in ``[j_lo[r], j_hi[r]]``, at a position linear in ``j``.  Given an
+:class:`~hwsim.golden.occupancy.Occupancy`, the plan shortens those ranges from both
+ends past blocks that cannot be visible (:meth:`SamplePlan.leap`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 
 from hwsim.errors import InputError
 from hwsim.golden.camera import Camera, world_to_index
+from hwsim.golden.occupancy import Occupancy
+from hwsim.golden.steps import Step, bilinear_2d, linear_range, run_steps
 from hwsim.scene import Scene
 from hwsim.volumes.volume import Volume
 
@@ -45,35 +51,27 @@ SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
 _TINY = 1e-12
 
 
-@dataclass(frozen=True)
-class Step:
-    """One front-to-back step: a sample for each listed ray.
+class SamplePlan:
+    """Where samples go, in what order, and how ray results become the image.
 
-    ``rays`` are flat indices into the accumulation image (row-major ``shape``); ``zyx``
-    are index coordinates ``(n, 3)``; ``dt`` is the world distance each sample stands
-    for (a float, or ``(n,)`` when it varies per ray).
+    Attributes: ``shape`` (rows, cols of the accumulation image), ``ray_ids`` (flat
+    indices of rays that take a sample), ``j_lo``/``j_hi`` (their inclusive step
+    ranges), ``n_steps``, ``principal_axis`` (slice kinds; None for ``ray``).
     """
 
-    rays: np.ndarray
-    zyx: np.ndarray
-    dt: float | np.ndarray
-
-
-class SamplePlan:
-    """Where samples go, in what order, and how ray results become the image."""
-
-    def __init__(self, kind: str, scene: Scene, volume: Volume) -> None:
-        self.kind = kind
-        self.scene = scene
-        self.volume = volume
-        self.camera = Camera.from_view(scene.view, volume)
+    def __init__(
+        self, kind: str, scene: Scene, volume: Volume, occupancy: Occupancy | None = None
+    ) -> None:
+        self.kind, self.scene, self.volume = kind, scene, volume
+        self.camera = cam = Camera.from_view(scene.view, volume)
         self.step_length = scene.render.step * min(volume.spacing)  # world units
         self.n = np.asarray(volume.shape, dtype=np.float64)
         self.lo, self.hi = -0.5, self.n - 0.5
-        cam = self.camera
         self.origins = world_to_index(cam.origins, volume)  # (R, 3) zyx
         self.dirs = cam.directions[..., ::-1] / np.asarray(volume.spacing)  # index per world
         self.principal_axis: int | None = None
+        self.leap_block: int | None = None
+        self._per_ray = ["ray_ids", "j_lo", "j_hi"]
         if kind == "ray":
             self.shape = (cam.height, cam.width)
             self._setup_ray()
@@ -81,31 +79,36 @@ class SamplePlan:
             central = cam.d[::-1] / np.asarray(volume.spacing)
             self.principal_axis = int(np.argmax(np.abs(central)))
             ss = scene.render.supersampling
-            count = int(np.floor((self.n[self.principal_axis] - 1) * ss + 1e-9)) + 1
-            self.slices = np.arange(count) / ss  # slice coordinates along the principal axis
+            self.slice_count = int(np.floor((self.n[self.principal_axis] - 1) * ss + 1e-9)) + 1
             if kind == "shear-image":
                 self.shape = (cam.height, cam.width)
                 self._setup_shear_image()
             else:
                 self._setup_shear_warp()
+        if cam.perspective and kind != "shear-warp":
+            self._view = -cam.directions[self.ray_ids]
+            self._per_ray.append("_view")
+        else:
+            self._view = -cam.d
+        self._keep(self.j_lo <= self.j_hi)
+        if occupancy is not None:
+            self.leap(occupancy)
 
-    # ------------------------------------------------------------------ ray caster
+    # ------------------------------------------------------------------ kinds
 
     def _box_interval(self) -> tuple[np.ndarray, np.ndarray]:
-        """Entry and exit ray parameters ``t`` of every ray through the box."""
+        """Entry and exit ray parameters ``t`` of every image ray through the box."""
         o = self.origins
         d = np.broadcast_to(self.dirs, o.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = (self.lo - o) / d
-            t2 = (self.hi - o) / d
+            t1, t2 = (self.lo - o) / d, (self.hi - o) / d
         # A ray parallel to an axis's faces is unconstrained on that axis when it lies
         # between them and misses the box when it does not.
         flat = np.abs(d) < _TINY
         inside = (o >= self.lo) & (o <= self.hi)
         near = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2))
         far = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2))
-        t_in = near.max(axis=1)
-        t_out = far.min(axis=1)
+        t_in, t_out = near.max(axis=1), far.min(axis=1)
         if self.camera.perspective:
             t_in = np.maximum(t_in, 0.0)
         return t_in, t_out
@@ -118,51 +121,36 @@ class SamplePlan:
             # when its faces fall on the lattice.
             k_lo = np.ceil(t_in / dt - 1e-9)
             k_hi = np.ceil(t_out / dt - 1e-9) - 1
-        hit = np.isfinite(k_lo) & np.isfinite(k_hi) & (k_lo <= k_hi)
-        self.hit_rays = np.flatnonzero(hit)
-        self.k_lo = k_lo[hit].astype(np.int64)
-        self.k_hi = k_hi[hit].astype(np.int64)
-        self.k_range = (int(self.k_lo.min()), int(self.k_hi.max())) if hit.any() else (0, -1)
-        self.n_steps = self.k_range[1] - self.k_range[0] + 1
-
-    def _steps_ray(self) -> Iterator[Step]:
-        dt = self.step_length
-        o = self.origins[self.hit_rays]
-        d = self.dirs if self.dirs.ndim == 1 else self.dirs[self.hit_rays]
-        for k in range(self.k_range[0], self.k_range[1] + 1):
-            sel = np.flatnonzero((self.k_lo <= k) & (k <= self.k_hi))
-            dd = d if d.ndim == 1 else d[sel]
-            yield Step(self.hit_rays[sel], o[sel] + (k * dt) * dd, dt)
-
-    # ------------------------------------------------------------------ shear-image
+        hit = np.flatnonzero(np.isfinite(k_lo) & np.isfinite(k_hi) & (k_lo <= k_hi))
+        self.k_min = int(k_lo[hit].min()) if hit.size else 0
+        self.ray_ids = hit
+        self.j_lo = k_lo[hit].astype(np.int64) - self.k_min
+        self.j_hi = k_hi[hit].astype(np.int64) - self.k_min
+        self.n_steps = int(self.j_hi.max()) + 1 if hit.size else 0
+        self._o = self.origins[hit]
+        self._d = self.dirs if self.dirs.ndim == 1 else self.dirs[hit]
+        self._dt = dt
+        self._delta = dt * self._d
+        self._per_ray += ["_o"] + (["_d", "_delta"] if self._d.ndim == 2 else [])
 
     def _setup_shear_image(self) -> None:
-        t_in, t_out = self._box_interval()
-        kp = self.principal_axis
+        kp, ss = self.principal_axis, self.scene.render.supersampling
         d = np.broadcast_to(self.dirs, self.origins.shape)
-        ok = (t_in <= t_out) & (np.abs(d[:, kp]) > _TINY)
-        self.hit_rays = np.flatnonzero(ok)
-        self.n_steps = self.slices.size
-
-    def _steps_shear_image(self) -> Iterator[Step]:
-        kp = self.principal_axis
-        rays = self.hit_rays
-        o = self.origins[rays]
-        d = np.broadcast_to(self.dirs, self.origins.shape)[rays]
-        forward = d[:, kp] > 0
-        spacing_t = (1.0 / self.scene.render.supersampling) / np.abs(d[:, kp])
-        last = self.slices.size - 1
-        for j in range(self.slices.size):
-            q = np.where(forward, self.slices[j], self.slices[last - j])
-            t = (q - o[:, kp]) / d[:, kp]
-            pos = o + t[:, None] * d
-            keep = np.all((pos >= self.lo) & (pos <= self.hi), axis=1)
-            if self.camera.perspective:
-                keep &= t >= 0.0
-            sel = np.flatnonzero(keep)
-            yield Step(rays[sel], pos[sel], spacing_t[sel])
-
-    # ------------------------------------------------------------------ shear-warp
+        rays = np.flatnonzero(np.abs(d[:, kp]) > _TINY)
+        self._o, self._d = self.origins[rays], d[rays]
+        self._sign = np.where(self._d[:, kp] > 0, 1.0, -1.0)  # slices front to back
+        self._q0 = np.where(self._sign > 0, 0.0, (self.slice_count - 1) / ss)
+        tstep = self._sign / ss / self._d[:, kp]  # > 0: ray parameter per step
+        self._dt, self._delta = tstep, tstep[:, None] * self._d
+        self._delta[:, kp] = self._sign / ss
+        self.ray_ids = rays
+        self.n_steps = self.slice_count
+        self._per_ray += ["_o", "_d", "_sign", "_q0", "_dt", "_delta"]
+        j_lo, j_hi = linear_range(self._position_all(0), self._delta, self.lo, self.hi)
+        if self.camera.perspective:  # t = t0 + j tstep >= 0
+            t0 = (self._q0 - self._o[:, kp]) / self._d[:, kp]
+            j_lo = np.maximum(j_lo, np.ceil(-t0 / tstep - 1e-9))
+        self._set_ranges(j_lo, j_hi)
 
     def _setup_shear_warp(self) -> None:
         if self.camera.perspective:
@@ -171,55 +159,107 @@ class SamplePlan:
                 key="view.projection",
                 allowed="parallel (or sampling ray / shear-image)",
             )
-        kp = self.principal_axis
+        kp, ss = self.principal_axis, self.scene.render.supersampling
         self.other_axes = tuple(a for a in range(3) if a != kp)
         d = self.dirs
-        forward = d[kp] > 0
-        self.order = self.slices if forward else self.slices[::-1]
+        slices = np.arange(self.slice_count) / ss
+        self.order = slices if d[kp] > 0 else slices[::-1]
         self.q_ref = float(self.order[0])  # the base plane is the front slice
         self.shear = np.array([d[a] / d[kp] for a in self.other_axes])
-        offsets = np.outer(self.order - self.q_ref, self.shear)  # (slices, 2)
-        lo = np.ceil(self.lo - offsets.max(axis=0) - 1e-9)
-        hi = np.floor(self.hi[list(self.other_axes)] - offsets.min(axis=0) + 1e-9)
+        self.offsets = np.outer(self.order - self.q_ref, self.shear)  # (slices, 2)
+        lo = np.ceil(self.lo - self.offsets.max(axis=0) - 1e-9)
+        hi = np.floor(self.hi[list(self.other_axes)] - self.offsets.min(axis=0) + 1e-9)
         self.base_origin = lo  # base-plane integer coordinates of pixel (0, 0)
         self.shape = (int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1)
-        self.offsets = offsets
-        self.n_steps = self.order.size
-        self.dt_slice = (1.0 / self.scene.render.supersampling) / abs(d[kp])
+        self.n_steps = self.slice_count
+        self._dt = (1.0 / ss) / abs(d[kp])
+        self._delta = np.zeros(3)
+        self._delta[kp] = np.sign(d[kp]) / ss
+        self._delta[list(self.other_axes)] = self.shear * self._delta[kp]
+        self.ray_ids = np.arange(self.shape[0] * self.shape[1])
+        self._set_ranges(*linear_range(self._position_all(0), self._delta, self.lo, self.hi))
 
-    def _steps_shear_warp(self) -> Iterator[Step]:
+    def _set_ranges(self, j_lo: np.ndarray, j_hi: np.ndarray) -> None:
+        j_lo, j_hi = np.maximum(j_lo, 0.0), np.minimum(j_hi, self.n_steps - 1.0)
+        ok = j_lo <= j_hi
+        self.j_lo = np.where(ok, j_lo, 0).astype(np.int64)
+        self.j_hi = np.where(ok, j_hi, -1).astype(np.int64)
+
+    def position(self, j: int | np.ndarray, sel: np.ndarray) -> np.ndarray:
+        """Index positions ``(len(sel), 3)`` of plan rays ``sel`` at step(s) ``j``."""
+        if self.kind == "ray":
+            t = (self.k_min + j) * self._dt
+            d = self._d if self._d.ndim == 1 else self._d[sel]
+            return self._o[sel] + (t * d if np.isscalar(t) else t[:, None] * d)
         kp = self.principal_axis
+        if self.kind == "shear-image":
+            q = self._q0[sel] + self._sign[sel] * (np.asarray(j) / self.scene.render.supersampling)
+            o, d = self._o[sel], self._d[sel]
+            pos = o + ((q - o[:, kp]) / d[:, kp])[:, None] * d
+            pos[:, kp] = q  # exactly on the slice
+            return pos
         a_ax, b_ax = self.other_axes
-        rows, cols = self.shape
-        for q, (da, db) in zip(self.order, self.offsets, strict=True):
-            # Base-plane pixels whose ray lies inside the box on this slice: a rectangle.
-            a0 = max(0, int(np.ceil(self.lo - da - self.base_origin[0] - 1e-9)))
-            a1 = min(rows - 1, int(np.floor(self.hi[a_ax] - da - self.base_origin[0] + 1e-9)))
-            b0 = max(0, int(np.ceil(self.lo - db - self.base_origin[1] - 1e-9)))
-            b1 = min(cols - 1, int(np.floor(self.hi[b_ax] - db - self.base_origin[1] + 1e-9)))
-            if a1 < a0 or b1 < b0:
-                yield Step(np.empty(0, np.int64), np.empty((0, 3)), self.dt_slice)
-                continue
-            ia, ib = np.meshgrid(np.arange(a0, a1 + 1), np.arange(b0, b1 + 1), indexing="ij")
-            pos = np.empty((ia.size, 3))
-            pos[:, kp] = q
-            pos[:, a_ax] = ia.ravel() + self.base_origin[0] + da
-            pos[:, b_ax] = ib.ravel() + self.base_origin[1] + db
-            yield Step((ia * cols + ib).ravel(), pos, self.dt_slice)
+        ids = self.ray_ids[sel]
+        off = self.offsets[j]
+        pos = np.empty((ids.size, 3))
+        pos[:, kp] = self.order[j]
+        pos[:, a_ax] = ids // self.shape[1] + self.base_origin[0] + off[..., 0]
+        pos[:, b_ax] = ids % self.shape[1] + self.base_origin[1] + off[..., 1]
+        return pos
+
+    def _position_all(self, j: int) -> np.ndarray:
+        return self.position(np.full(self.ray_ids.size, j), np.arange(self.ray_ids.size))
 
     # ------------------------------------------------------------------ public
 
-    def steps(self) -> Iterator[Step]:
-        """Front-to-back steps (deterministic: the same plan yields the same samples)."""
-        if self.kind == "ray":
-            return self._steps_ray()
-        if self.kind == "shear-image":
-            return self._steps_shear_image()
-        return self._steps_shear_warp()
+    def _keep(self, keep: np.ndarray) -> None:
+        """Keep only the plan rays where ``keep`` is True (per-ray arrays filtered)."""
+        for name in self._per_ray:
+            setattr(self, name, getattr(self, name)[keep])
+
+    def leap(self, occupancy: Occupancy) -> None:
+        """Shorten every ray's step range past blocks that ``occupancy`` marks empty.
+
+        Exact: a skipped sample lies in a block at chessboard distance >= 1 from every
+        occupied block.  Leaps are ``floor((c - 1) block / |delta|_inf)`` steps (at least
+        one) from a block at distance ``c``; ``delta`` is the per-step displacement.
+        """
+        self.leap_block = occupancy.block
+        if occupancy.empty:
+            self._keep(np.zeros(self.ray_ids.size, dtype=bool))
+            return
+        reach = np.max(np.abs(np.broadcast_to(self._delta, (self.ray_ids.size, 3))), axis=1)
+        for sign in (1, -1):
+            j = (self.j_lo if sign > 0 else self.j_hi).copy()
+            march = np.arange(self.ray_ids.size)
+            while march.size:
+                c = occupancy.distance_at(self.position(j[march], march), self.volume.shape)
+                skip = np.floor(((c - 1) * occupancy.block - 1e-6) / reach[march])
+                j[march] += sign * np.where(c > 0, np.maximum(skip, 1), 0).astype(np.int64)
+                inside = (j[march] <= self.j_hi[march]) & (j[march] >= self.j_lo[march])
+                march = march[(c > 0) & inside]
+            if sign > 0:
+                self.j_lo = j
+            else:
+                self.j_hi = j
+            self._keep(self.j_lo <= self.j_hi)
+
+    def steps(self, alive: np.ndarray | None = None) -> Iterator[Step]:
+        """Front-to-back steps, one per ``j`` in ``range(n_steps)`` (possibly empty).
+
+        ``alive`` (optional, bool per accumulation ray) is read at every step: rays set
+        False stop being yielded (early termination).  Deterministic.
+        """
+        return run_steps(self, alive)
 
     @property
     def n_rays(self) -> int:
         return self.shape[0] * self.shape[1]
+
+    @property
+    def samples(self) -> int:
+        """Samples the plan holds (before any early termination)."""
+        return int(np.sum(self.j_hi - self.j_lo + 1))
 
     def toward_viewer(self, rays: np.ndarray) -> np.ndarray:
         """Unit world vectors toward the viewer for ``rays`` (``(3,)`` when shared)."""
@@ -238,13 +278,12 @@ class SamplePlan:
         base = acc.reshape(self.shape + acc.shape[1:])
         if self.kind != "shear-warp":
             return base
-        cam = self.camera
-        kp = self.principal_axis
-        a_ax, b_ax = self.other_axes
+        kp, (a_ax, b_ax) = self.principal_axis, self.other_axes
         t = (self.q_ref - self.origins[:, kp]) / self.dirs[kp]
         a = self.origins[:, a_ax] + t * self.dirs[a_ax] - self.base_origin[0]
         b = self.origins[:, b_ax] + t * self.dirs[b_ax] - self.base_origin[1]
-        return bilinear_2d(base, a, b, background).reshape((cam.height, cam.width) + acc.shape[1:])
+        image = bilinear_2d(base, a, b, background)
+        return image.reshape((self.camera.height, self.camera.width) + acc.shape[1:])
 
     def describe(self) -> dict:
         """Plain-data summary for reports."""
@@ -253,35 +292,27 @@ class SamplePlan:
             "shape": list(self.shape),
             "steps": self.n_steps,
             "step_length": self.step_length,
+            "rays": int(self.ray_ids.size),
+            "samples": self.samples,
+            "leap_block": self.leap_block,
         }
         if self.principal_axis is not None:
             out["principal_axis"] = "zyx"[self.principal_axis]
         return out
 
 
-def bilinear_2d(image: np.ndarray, a: np.ndarray, b: np.ndarray, background: float) -> np.ndarray:
-    """Sample ``image[a, b, ...]`` bilinearly; points off the image blend to ``background``."""
-    rows, cols = image.shape[:2]
-    pad = np.full((rows + 2, cols + 2) + image.shape[2:], background, dtype=np.float64)
-    pad[1:-1, 1:-1] = image
-    a = np.clip(a + 1.0, 0.0, rows + 1.0)
-    b = np.clip(b + 1.0, 0.0, cols + 1.0)
-    a0 = np.minimum(np.floor(a).astype(np.int64), rows)
-    b0 = np.minimum(np.floor(b).astype(np.int64), cols)
-    fa, fb = a - a0, b - b0
-    if image.ndim == 3:
-        fa, fb = fa[:, None], fb[:, None]
-    return (1 - fa) * ((1 - fb) * pad[a0, b0] + fb * pad[a0, b0 + 1]) + fa * (
-        (1 - fb) * pad[a0 + 1, b0] + fb * pad[a0 + 1, b0 + 1]
-    )
+def make_plan(
+    scene: Scene, volume: Volume, sampling: str = "ray", *, occupancy: Occupancy | None = None
+) -> SamplePlan:
+    """The :class:`SamplePlan` of ``sampling`` for ``scene`` on ``volume``.
 
-
-def make_plan(scene: Scene, volume: Volume, sampling: str = "ray") -> SamplePlan:
-    """The :class:`SamplePlan` of ``sampling`` for ``scene`` on ``volume``."""
+    ``occupancy`` (optional) shortens rays past empty blocks; without it every sample in
+    the box is planned (what a machine without space leaping visits).
+    """
     if sampling not in SAMPLINGS:
         raise InputError(
             f"unknown sampling {sampling!r}", key="sampling", allowed=", ".join(SAMPLINGS)
         )
     if sampling == "slice-parallel":
         sampling = "shear-image" if scene.view.projection == "perspective" else "shear-warp"
-    return SamplePlan(sampling, scene, volume)
+    return SamplePlan(sampling, scene, volume, occupancy)

@@ -11,8 +11,9 @@ Front-to-back compositing with premultiplied accumulation::
 A ray stops once ``A >= early_termination`` (1.0 disables it).  mip / minip keep the
 largest / smallest interpolated value (volume units; rays with no sample hold the
 volume's minimum / maximum); xray sums ``value * dt`` (world units; 0 without samples);
-iso shades the first sample whose value reaches ``iso_value``.  Samples whose opacity is
-zero skip gradient and shading work; that never changes the image.
+iso shades the first sample whose value reaches ``iso_value``.  Composite and iso rays
+leap over blocks that cannot be visible (:mod:`hwsim.golden.occupancy`), and samples of
+zero opacity skip gradient and shading work; neither changes the image by a bit.
 """
 
 from __future__ import annotations
@@ -23,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwsim.golden import occupancy as occ
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import SamplePlan, Step, make_plan
-from hwsim.golden.sampling import Taps, sample, sample_gradients, taps, voxel_gradients
+from hwsim.golden.sampling import interleave, sample, sample_gradients, taps, trilinear_rows
 from hwsim.golden.shading import crop_keep, cut_factor, phong
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
@@ -33,8 +35,9 @@ from hwsim.volumes.volume import Volume
 
 __all__ = ["GoldenResult", "render_golden"]
 
-#: Per-volume derived arrays (float64 copy, voxel gradients), kept while the volume lives,
-#: so successive frames of one volume do not recompute them (as VTK's mapper does not).
+#: Per-volume derived arrays (float64 values, interleaved value + voxel gradient rows,
+#: block value ranges), kept while the volume lives so successive frames of one volume
+#: do not recompute them (as VTK's mapper keeps its gradients).
 _DERIVED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -49,12 +52,28 @@ def _derived(volume: Volume, key: str, make: Callable[[], object]):
 class GoldenResult:
     """A golden render: ``image`` is ``(H, W, 4)`` premultiplied RGBA (composite, iso) or
     ``(H, W)`` (mip, minip, xray), float64; ``samples`` evaluated; ``rays`` that took at
-    least one sample."""
+    least one sample; the ``plan`` whose positions were used."""
 
     image: np.ndarray
     samples: int
     rays: int
     plan: SamplePlan
+
+
+def occupancy_for(scene: Scene, volume: Volume, transfer: TransferFunction):
+    """The :class:`~hwsim.golden.occupancy.Occupancy` of a composite or iso render, or
+    None where leaping does not apply (other modes, cubic filtering)."""
+    mode = scene.render.mode
+    if mode not in ("composite", "iso") or scene.render.interpolation == "cubic":
+        return None
+    lo, hi = _derived(volume, "blocks", lambda: occ.block_ranges(volume.data))
+    if mode == "iso":
+        v_lo, v_hi = volume.value_range
+        iso = scene.render.iso_value
+        occupied = hi >= (0.5 * (v_lo + v_hi) if iso is None else iso)
+    else:
+        occupied = occ.opacity_can_be_positive(lo, hi, transfer.values, transfer.rgba[:, 3])
+    return occ.occupancy_from_ranges(occupied)
 
 
 class _Renderer:
@@ -64,9 +83,6 @@ class _Renderer:
         self.scene, self.volume, self.transfer, self.plan = scene, volume, transfer, plan
         self.mode = scene.render.mode
         self.kind = scene.render.interpolation
-        self.flat = _derived(
-            volume, "flat", lambda: np.ascontiguousarray(volume.data, dtype=np.float64).ravel()
-        )
         self.ref = min(volume.spacing)
         self.lights = [
             (plan.camera.light_to_world(light.direction, light.space), light.intensity)
@@ -74,20 +90,41 @@ class _Renderer:
         ]
         composite = self.mode == "composite"
         self.need_grad = scene.lit or (composite and transfer.modulates)
-        self.grads = None
+        self.rows = None  # (N, 4) value and voxel gradient, interleaved
         if self.need_grad and scene.render.gradient == "voxel":
-            self.grads = _derived(
-                volume, "grads", lambda: voxel_gradients(volume.data, volume.spacing)
+            self.rows = _derived(volume, "rows", lambda: interleave(volume.data, volume.spacing))
+            self.flat = self.rows[:, 0]
+        else:
+            self.flat = _derived(
+                volume, "flat", lambda: np.ascontiguousarray(volume.data, np.float64).ravel()
             )
         self.pre = None
         if composite and transfer.order == "pre":
-            rgba = transfer.classify(self.flat)
-            self.pre = [np.ascontiguousarray(rgba[:, c]) for c in range(4)]
+            self.pre = transfer.classify(self.flat)  # (N, 4): classified voxels
 
-    def gradient(self, t: Taps, zyx: np.ndarray) -> np.ndarray:
-        if self.grads is not None:
-            return np.stack([sample(g, t) for g in self.grads], axis=1)
-        return sample_gradients(self.flat, zyx, self.volume.shape, self.volume.spacing, self.kind)
+    def values(self, zyx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Interpolated values ``(n,)`` and, with voxel gradients, gradients ``(n, 3)``."""
+        if self.kind == "trilinear":
+            if self.rows is not None:
+                s = trilinear_rows(self.rows, self.volume.shape, zyx)
+                return s[:, 0], s[:, 1:]
+            return trilinear_rows(self.flat, self.volume.shape, zyx), None
+        t = taps(zyx, self.volume.shape, self.kind)
+        g = None
+        if self.rows is not None:
+            g = np.stack([sample(self.rows[:, c], t) for c in (1, 2, 3)], axis=1)
+        return sample(self.flat, t), g
+
+    def filtered(self, field: np.ndarray, zyx: np.ndarray) -> np.ndarray:
+        """Any per-voxel rows ``(N, C)`` filtered at ``zyx``: ``(n, C)``."""
+        if self.kind == "trilinear":
+            return trilinear_rows(field, self.volume.shape, zyx)
+        t = taps(zyx, self.volume.shape, self.kind)
+        return np.stack([sample(np.ascontiguousarray(field[:, c]), t) for c in range(4)], 1)
+
+    def sample_gradient(self, zyx: np.ndarray) -> np.ndarray:
+        v = self.volume
+        return sample_gradients(self.flat, zyx, v.shape, v.spacing, self.kind)
 
     def mask(self, step: Step) -> tuple[Step, np.ndarray | None]:
         """Apply crop (drop samples) and cut planes (a factor per sample)."""
@@ -121,24 +158,22 @@ class _Renderer:
         iso = self.scene.render.iso_value
         iso = 0.5 * (lo + hi) if iso is None else iso
         samples = 0
-        for j, step in enumerate(plan.steps()):
-            if mode in ("composite", "iso"):
-                step = _subset(step, alive[step.rays])
+        feedback = alive if mode in ("composite", "iso") else None
+        for j, step in enumerate(plan.steps(feedback)):
             step, factor = self.mask(step)
             if step.rays.size:
                 samples += step.rays.size
                 touched[step.rays] = True
-                t = taps(step.zyx, self.volume.shape, self.kind)
                 if mode == "composite":
-                    self.composite(step, t, factor, acc, alive, ert)
+                    self.composite(step, factor, acc, alive, ert)
                 elif mode == "iso":
-                    self.iso(step, t, iso, acc, alive)
+                    self.iso(step, iso, acc, alive)
                 else:
-                    v = sample(self.flat, t)
+                    v = self.values(step.zyx)[0]
                     if mode == "mip":
-                        _max_into(acc, step.rays, v)
+                        acc[step.rays] = np.maximum(acc[step.rays], v)  # once per step
                     elif mode == "minip":
-                        _min_into(acc, step.rays, v)
+                        acc[step.rays] = np.minimum(acc[step.rays], v)
                     else:
                         w = v * step.dt if factor is None else v * factor * step.dt
                         acc[step.rays] += w
@@ -150,29 +185,33 @@ class _Renderer:
         image = plan.to_image(acc, background)
         return GoldenResult(image, samples, int(touched.sum()), plan)
 
-    def composite(self, step: Step, t: Taps, factor, acc, alive, ert: float) -> None:
+    def composite(self, step: Step, factor, acc, alive, ert: float) -> None:
+        zyx = step.zyx
         if self.pre is not None:
-            a = sample(self.pre[3], t)
+            rgba = self.filtered(self.pre, zyx)
+            a, g = rgba[:, 3], None
         else:
-            v = sample(self.flat, t)
+            v, g = self.values(zyx)
             a = self.transfer.opacity(v)
         if factor is not None:
             a = a * factor
-        vis = a > 0
-        if not vis.any():
+        vis = np.flatnonzero(a > 0)
+        if vis.size == 0:
             return
-        rays, a = step.rays[vis], a[vis]
-        tv = Taps(t.idx[:, vis], t.w[:, vis])
-        if self.pre is not None:
-            rgb = np.stack([sample(self.pre[c], tv) for c in range(3)], axis=1)
-        else:
-            rgb = self.transfer.classify(v[vis])[:, :3]
+        rays, a, zyx = step.rays[vis], a[vis], zyx[vis]
+        rgb = rgba[vis, :3] if self.pre is not None else self.transfer.classify(v[vis])[:, :3]
         if self.need_grad:
-            g = self.gradient(tv, step.zyx[vis])
+            if self.rows is None:
+                g = self.sample_gradient(zyx)
+            elif g is None:
+                g = self.values(zyx)[1]
+            else:
+                g = g[vis]
             if self.transfer.modulates:
                 a = a * self.transfer.gradient_factor(np.linalg.norm(g, axis=1))
             if self.scene.lit:
-                rgb = phong(rgb, g, self.lights, self.plan.toward_viewer(rays), self.scene.material)
+                view = _view(step, vis)
+                rgb = phong(rgb, g, self.lights, view, self.scene.material)
         dt = step.dt if np.isscalar(step.dt) else step.dt[vis]
         a = 1.0 - (1.0 - a) ** (dt / self.ref)
         weight = (1.0 - acc[rays, 3]) * a
@@ -181,34 +220,31 @@ class _Renderer:
         if ert < 1.0:
             alive[rays] = acc[rays, 3] < ert
 
-    def iso(self, step: Step, t: Taps, iso: float, acc, alive) -> None:
-        v = sample(self.flat, t)
-        hit = v >= iso
-        if not hit.any():
+    def iso(self, step: Step, iso: float, acc, alive) -> None:
+        v, g = self.values(step.zyx)
+        hit = np.flatnonzero(v >= iso)
+        if hit.size == 0:
             return
         rays = step.rays[hit]
         rgb = np.broadcast_to(np.asarray(self.scene.render.iso_color), (rays.size, 3))
         if self.scene.lit:
-            g = self.gradient(Taps(t.idx[:, hit], t.w[:, hit]), step.zyx[hit])
-            rgb = phong(rgb, g, self.lights, self.plan.toward_viewer(rays), self.scene.material)
+            g = self.sample_gradient(step.zyx[hit]) if self.rows is None else g[hit]
+            rgb = phong(rgb, g, self.lights, _view(step, hit), self.scene.material)
         acc[rays, :3] = rgb
         acc[rays, 3] = 1.0
         alive[rays] = False
+
+
+def _view(step: Step, sel: np.ndarray) -> np.ndarray:
+    return step.view if step.view.ndim == 1 else step.view[sel]
 
 
 def _subset(step: Step, keep: np.ndarray) -> Step:
     if keep.all():
         return step
     dt = step.dt if np.isscalar(step.dt) else step.dt[keep]
-    return Step(step.rays[keep], step.zyx[keep], dt)
-
-
-def _max_into(acc: np.ndarray, rays: np.ndarray, v: np.ndarray) -> None:
-    acc[rays] = np.maximum(acc[rays], v)  # a ray appears at most once per step
-
-
-def _min_into(acc: np.ndarray, rays: np.ndarray, v: np.ndarray) -> None:
-    acc[rays] = np.minimum(acc[rays], v)
+    view = step.view if step.view is None or step.view.ndim == 1 else step.view[keep]
+    return Step(step.rays[keep], step.zyx[keep], dt, view)
 
 
 def render_golden(
@@ -218,6 +254,7 @@ def render_golden(
     *,
     sampling: str = "ray",
     progress: Callable[[int, int], None] | None = None,
+    leap: bool = True,
 ) -> GoldenResult:
     """Render ``scene`` on ``volume`` in float64.
 
@@ -226,17 +263,22 @@ def render_golden(
     scene : Scene
         View, lights, material and render settings (``scene.volume`` is not read).
     volume : Volume
-        The data, ``(z, y, x)``.
+        The data, ``(z, y, x)``, voxel centres at integer index coordinates.
     transfer : TransferFunction
         Classification (used by composite mode).
     sampling : str
         Sample positions: "ray" (ideal), "shear-warp", "shear-image", "slice-parallel".
     progress : callable, optional
-        ``progress(done_steps, total_steps)``.
+        ``progress(done_steps, total_steps)`` after every plan step.
+    leap : bool
+        Leap over blocks that cannot be visible (composite, iso; never changes the
+        image, only ``samples`` and speed).  False plans every sample in the box.
 
     Returns
     -------
     GoldenResult
+        float64 image, sample and ray counts, and the plan.
     """
-    plan = make_plan(scene, volume, sampling)
+    occupancy = occupancy_for(scene, volume, transfer) if leap else None
+    plan = make_plan(scene, volume, sampling, occupancy=occupancy)
     return _Renderer(scene, volume, transfer, plan).run(progress)
