@@ -48,6 +48,8 @@ class ArchConfig:
         Acceleration features the machine has.
     supersampling : tuple of float
         Allowed z-supersampling range ``(lo, hi)``.
+    cut_planes : int
+        Most thick cut planes the machine applies at once.
     formats, memory : dict
         Raw tables for the unit formats and the memory system (models layer).
     slice_overhead_cycles, section_width, section_overhead_cycles : int
@@ -69,6 +71,7 @@ class ArchConfig:
     early_termination: bool = False
     space_leaping: bool = False
     supersampling: tuple[float, float] = (1.0, 1.0)
+    cut_planes: int = 4
     formats: dict[str, Any] = field(default_factory=dict)
     memory: dict[str, Any] = field(default_factory=dict)
     published: dict[str, Any] = field(default_factory=dict)
@@ -123,6 +126,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         early_termination=features.boolean("early_termination", False),
         space_leaping=features.boolean("space_leaping", False),
         supersampling=ss,  # type: ignore[arg-type]
+        cut_planes=features.integer("cut_planes", 4, 0, 64),
         formats=dict(top.raw("formats", {})),
         memory=dict(top.raw("memory", {})),
         published=dict(top.raw("published", {})),

@@ -101,6 +101,13 @@ def check_scene_fits(scene: Scene, arch: ArchConfig) -> None:
             key="view.projection",
             allowed="parallel",
         )
+    if len(scene.cut_planes) > arch.cut_planes:
+        raise InputError(
+            f"{arch.name} applies {arch.cut_planes} cut plane(s) at most",
+            source=arch.source,
+            key="cut_planes",
+            allowed=f"0 .. {arch.cut_planes}",
+        )
     lo, hi = arch.supersampling
     if not lo <= scene.render.supersampling <= hi:
         raise InputError(

@@ -150,7 +150,9 @@ class _Functional:
             keep = crop_unit.crop_keep(step.zyx, self.scene.crop)
         if self.scene.cut_planes:
             factor = crop_unit.cut_factor(
-                index_to_world(step.zyx, self.volume), self.scene.cut_planes
+                index_to_world(step.zyx, self.volume),
+                self.scene.cut_planes,
+                crop_unit.CutConfig(max_planes=max(1, self.arch.cut_planes)),
             )
             keep = factor > 0 if keep is None else keep & (factor > 0)
         if keep is not None:

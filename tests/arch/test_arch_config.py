@@ -65,3 +65,12 @@ def test_perspective_is_refused_on_a_parallel_only_machine():
     check_scene_fits(scene, resolve_arch("volumepro1000"))  # VP1000 renders perspective
     with pytest.raises(InputError, match="render.supersampling"):
         check_scene_fits(Scene(render=RenderSpec(supersampling=0.5)), resolve_arch("volumepro500"))
+
+
+def test_a_machine_refuses_more_cut_planes_than_it_has():
+    from hwsim.scene import CutPlane
+
+    two = Scene(cut_planes=(CutPlane(), CutPlane(normal=(1.0, 0.0, 0.0))))
+    with pytest.raises(InputError, match=r"volumepro500 applies 1 cut plane\(s\) at most"):
+        check_scene_fits(two, resolve_arch("volumepro500"))
+    check_scene_fits(two, resolve_arch("volumepro1000"))  # up to 4 [V]
