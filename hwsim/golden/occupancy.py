@@ -53,8 +53,13 @@ class Occupancy:
     def distance_at(self, zyx: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
         """Distance of the block holding each position ``(n, 3)`` (clamped to the volume)."""
         hi = np.asarray(shape, dtype=np.float64) - 1.0
-        b = (np.clip(zyx, 0.0, hi) // self.block).astype(np.int64)
-        return self.distance[b[:, 0], b[:, 1], b[:, 2]]
+        return self.distance_of(np.clip(zyx, 0.0, hi) // self.block)
+
+    def distance_of(self, block: np.ndarray) -> np.ndarray:
+        """Distance of blocks given by their (float or int) indices ``(n, 3)``."""
+        b = block.astype(np.int64)
+        nb = self.distance.shape
+        return self.distance.ravel()[(b[:, 0] * nb[1] + b[:, 1]) * nb[2] + b[:, 2]]
 
 
 def block_ranges(data: np.ndarray, block: int = BLOCK) -> tuple[np.ndarray, np.ndarray]:

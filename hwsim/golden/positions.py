@@ -222,20 +222,34 @@ class SamplePlan:
 
         Exact: a skipped sample lies in a block at chessboard distance >= 1 from every
         occupied block.  Leaps are ``floor((c - 1) block / |delta|_inf)`` steps (at least
-        one) from a block at distance ``c``; ``delta`` is the per-step displacement.
+        one) from a block at distance ``c``, or to the first sample outside the current
+        block when that is farther; ``delta`` is the per-step displacement.
         """
         self.leap_block = occupancy.block
         if occupancy.empty:
             self._keep(np.zeros(self.ray_ids.size, dtype=bool))
             return
-        reach = np.max(np.abs(np.broadcast_to(self._delta, (self.ray_ids.size, 3))), axis=1)
+        delta = np.broadcast_to(self._delta, (self.ray_ids.size, 3))
+        reach = np.maximum(
+            np.maximum(np.abs(delta[:, 0]), np.abs(delta[:, 1])), np.abs(delta[:, 2])
+        )
+        b = occupancy.block
         for sign in (1, -1):
             j = (self.j_lo if sign > 0 else self.j_hi).copy()
             march = np.arange(self.ray_ids.size)
             while march.size:
-                c = occupancy.distance_at(self.position(j[march], march), self.volume.shape)
-                skip = np.floor(((c - 1) * occupancy.block - 1e-6) / reach[march])
-                j[march] += sign * np.where(c > 0, np.maximum(skip, 1), 0).astype(np.int64)
+                p = self.position(j[march], march)
+                block = np.clip(p, 0.0, self.n - 1.0) // b
+                c = occupancy.distance_of(block)
+                skip = np.floor(((c - 1) * b - 1e-6) / reach[march])
+                # Or to the first sample that leaves the current (empty) block.
+                step = sign * delta[march]
+                face = np.where(step > 0, (block + 1) * b - p, p - block * b)
+                moving = np.abs(step) > _TINY
+                along = np.divide(face, np.abs(step), out=np.full(face.shape, np.inf), where=moving)
+                along = np.minimum(np.minimum(along[:, 0], along[:, 1]), along[:, 2])
+                skip = np.maximum(np.maximum(skip, np.ceil(along - 1e-6)), 1)
+                j[march] += sign * np.where(c > 0, skip, 0).astype(np.int64)
                 inside = (j[march] <= self.j_hi[march]) & (j[march] >= self.j_lo[march])
                 march = march[(c > 0) & inside]
             if sign > 0:

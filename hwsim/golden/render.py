@@ -28,7 +28,7 @@ from hwsim.golden import occupancy as occ
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import SamplePlan, Step, make_plan
 from hwsim.golden.sampling import interleave, sample, sample_gradients, taps, trilinear_rows
-from hwsim.golden.shading import crop_keep, cut_factor, phong
+from hwsim.golden.shading import crop_keep, cut_factor, magnitude, phong
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
@@ -208,7 +208,7 @@ class _Renderer:
             else:
                 g = g[vis]
             if self.transfer.modulates:
-                a = a * self.transfer.gradient_factor(np.linalg.norm(g, axis=1))
+                a = a * self.transfer.gradient_factor(magnitude(g))
             if self.scene.lit:
                 view = _view(step, vis)
                 rgb = phong(rgb, g, self.lights, view, self.scene.material)

@@ -100,8 +100,8 @@ def trilinear_rows(fields: np.ndarray, shape: tuple[int, int, int], zyx: np.ndar
     if fields.ndim == 2:
         f = f[:, :, None]
     stride = np.array([shape[1] * shape[2], shape[2], 1])
-    dz, dy, dx = np.where(n > 1, stride, 0)
-    base = i0 @ stride
+    dz, dy, dx = (int(v) for v in np.where(n > 1, stride, 0))
+    base = (i0[:, 0] * shape[1] + i0[:, 1]) * shape[2] + i0[:, 2]
     c = [np.take(fields, base + off, axis=0) for off in (0, dx, dy, dy + dx)]
     fx = f[:, 2]
     y0 = c[0] + fx * (c[1] - c[0])

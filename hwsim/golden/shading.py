@@ -15,16 +15,30 @@ import numpy as np
 
 from hwsim.scene import CropSpec, CutPlane, Material
 
-__all__ = ["normals", "phong", "crop_keep", "cut_factor"]
+__all__ = ["magnitude", "normals", "phong", "crop_keep", "cut_factor"]
 
 _TINY = 1e-12
 
 
+def magnitude(g: np.ndarray) -> np.ndarray:
+    """``|g|`` of vectors ``(n, 3)``: ``(n,)`` float64."""
+    return np.sqrt(g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + g[:, 2] * g[:, 2])
+
+
 def normals(g: np.ndarray) -> np.ndarray:
     """Unit normals ``-g/|g|`` of gradients ``(n, 3)``; zero where ``|g|`` is zero."""
-    mag = np.linalg.norm(g, axis=1)
+    mag = magnitude(g)
     scale = np.divide(-1.0, mag, out=np.zeros_like(mag), where=mag > _TINY)
     return g * scale[:, None]
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """Rows (or one vector) scaled to unit length; zero vectors stay zero."""
+    if v.ndim == 1:
+        norm = float(np.linalg.norm(v))
+        return v / norm if norm > _TINY else np.zeros(3)
+    norm = magnitude(v)[:, None]
+    return np.divide(v, norm, out=np.zeros_like(v), where=norm > _TINY)
 
 
 def phong(
@@ -37,20 +51,21 @@ def phong(
     """Shade colours ``rgb (n, 3)`` with gradients ``g (n, 3)`` (world xyz).
 
     ``lights`` are (unit direction toward the light, intensity) pairs in world space;
-    ``toward_viewer`` is ``(3,)`` or ``(n, 3)`` unit vectors.
+    ``toward_viewer`` is ``(3,)`` (parallel: one half vector per light) or ``(n, 3)``
+    unit vectors.  Returns float64 ``(n, 3)`` clipped to ``[0, 1]``.
     """
     n = normals(g)
     out = material.ambient * rgb
-    v = np.broadcast_to(toward_viewer, n.shape)
     for direction, intensity in lights:
         ndl = np.maximum(n @ direction, 0.0)
-        h = v + direction
-        hn = np.linalg.norm(h, axis=1, keepdims=True)
-        h = np.divide(h, hn, out=np.zeros_like(h), where=hn > _TINY)
-        ndh = np.maximum(np.einsum("ij,ij->i", n, h), 0.0)
-        spec = material.specular * ndh**material.shininess
-        out = out + intensity * (material.diffuse * ndl[:, None] * rgb + spec[:, None])
-    return np.clip(out, 0.0, 1.0)
+        h = _unit(toward_viewer + direction)
+        if h.ndim == 1:
+            ndh = n @ h
+        else:
+            ndh = n[:, 0] * h[:, 0] + n[:, 1] * h[:, 1] + n[:, 2] * h[:, 2]
+        spec = material.specular * np.maximum(ndh, 0.0) ** material.shininess
+        out += intensity * (material.diffuse * ndl[:, None] * rgb + spec[:, None])
+    return np.clip(out, 0.0, 1.0, out=out)
 
 
 def crop_keep(zyx: np.ndarray, crop: CropSpec) -> np.ndarray:
