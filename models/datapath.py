@@ -89,6 +89,12 @@ class Datapath:
             raise InputError(f"invalid format: {exc}", source=arch.source, key="formats") from None
         return cls(voxel_bits=voxel_bits, **configs)
 
+    @classmethod
+    def for_volume(cls, arch: ArchConfig, volume) -> Datapath:
+        """The datapath of ``arch`` for ``volume``'s data (integer bits; 0 for float data)."""
+        bits = volume.bits if volume.data.dtype.kind in "iu" else 0
+        return cls.from_arch(arch, bits)
+
     def describe(self) -> dict[str, Any]:
         """Plain data for stats.json."""
         out: dict[str, Any] = {"voxel_bits": self.voxel_bits}

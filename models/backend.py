@@ -1,0 +1,301 @@
+"""The pipeline back end every bit-exact rung shares: set-up, per-sample stages, finishing.
+
+# Ref: design.md section 3 (one description of the hardware, many rungs);
+#      architectures.md section 9.1 (classifier, gradient, shader, compositor units).
+
+A rung differs from another in *where its samples come from*: the ``functional`` rung
+interpolates a flat voxel array at each sample's taps, the ``cycle`` rung reads the
+voxels out of its modelled memory modules, ring links and delay FIFOs.  Both hand a
+:class:`SampleSource` for each step's samples to :meth:`Backend.process`, which runs the
+rest of the pipeline (classification, gradient-magnitude modulation, shading, opacity
+correction, compositing, crop and cut masks) with the units of ``models.units`` -- one
+copy of that arithmetic for every rung.
+
+Host-side set-up (classification LUT, pre-classified voxels, gradient-magnitude table,
+shader reflectance set-up) and the host-side finish (output format to float, the 2-D
+warp of a base-plane image) live here too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.golden.camera import index_to_world
+from hwsim.golden.positions import SamplePlan, Step
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction
+from hwsim.volumes.volume import Volume
+from models.datapath import Datapath
+from models.units import classify as classify_unit
+from models.units import composite as composite_unit
+from models.units import crop as crop_unit
+from models.units import gradient as gradient_unit
+from models.units import shade as shade_unit
+from models.units.voxel import convert_volume
+
+__all__ = ["Backend", "RayState", "SampleSource", "subset_step", "ONE"]
+
+ONE = 1 << 12  # 1.0 in UQ1.12
+
+
+class SampleSource(Protocol):
+    """Interpolated samples of one step, however a rung obtains them.
+
+    ``value()`` is the raw sample of every step sample (``in_frac_bits = 0`` plus
+    ``S = interp.sample_frac_bits`` fraction bits); ``channels()`` the four interpolated
+    pre-classified channels (RGBA, S fraction bits); ``gradient(sel)`` the raw central
+    differences ``(len(sel), 3)`` in ``(x, y, z)`` of the samples ``sel`` (index array),
+    before :func:`~models.units.gradient.to_world`.
+    """
+
+    def value(self) -> np.ndarray: ...
+
+    def channels(self) -> list[np.ndarray]: ...
+
+    def gradient(self, sel: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass
+class RayState:
+    """Per-ray accumulators of one frame (the compositing buffers' contents)."""
+
+    acc: np.ndarray
+    alive: np.ndarray
+    touched: np.ndarray
+    dt_sum: np.ndarray | None = None
+    samples: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def subset_step(step: Step, keep: np.ndarray) -> Step:
+    """The samples of ``step`` where ``keep`` is True (the same step when all are)."""
+    if keep.all():
+        return step
+    dt = step.dt if np.isscalar(step.dt) else step.dt[keep]
+    return Step(step.rays[keep], step.zyx[keep], dt)
+
+
+class Backend:
+    """Set-up and per-sample stages of one scene on one datapath."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        volume: Volume,
+        transfer: TransferFunction,
+        arch: ArchConfig,
+        plan: SamplePlan,
+        datapath: Datapath,
+    ) -> None:
+        self.scene, self.volume, self.transfer, self.arch, self.plan = (
+            scene,
+            volume,
+            transfer,
+            arch,
+            plan,
+        )
+        self.dp = dp = datapath
+        self.mode = scene.render.mode
+        self.raw, self.vmap = convert_volume(volume, dp.voxel_bits)
+        self.S = dp.interp.sample_frac_bits
+        self.ref = min(volume.spacing)
+        composite = self.mode == "composite"
+        self.need_grad = scene.lit or (composite and transfer.modulates)
+        if composite or self.mode == "iso":
+            self.lut = classify_unit.build_lut(
+                transfer, self.vmap.to_value, dp.voxel_bits, dp.classify
+            )
+        self.pre_classified = composite and transfer.order == "pre"
+        if self.need_grad and transfer.modulates:
+            # Largest |gradient| the data can have, in value units per world unit.
+            span = float(self.raw.max() - self.raw.min()) * self.vmap.scale
+            self.gm_max = np.sqrt(3.0) * span / self.ref
+            self.gm_table = classify_unit.build_gm_table(transfer, self.gm_max, dp.classify)
+            # An integer magnitude m stands for m * scale / (2 * 2**S * min spacing).
+            per_unit = self.vmap.scale / (2.0 * (1 << self.S) * self.ref)
+            self.gm_scale = classify_unit.gm_scale(per_unit, self.gm_max, dp.classify)
+        if scene.lit:
+            lights = [
+                (plan.camera.light_to_world(light.direction, light.space), light.intensity)
+                for light in scene.lights
+            ]
+            m = scene.material
+            material = (m.ambient, m.diffuse, m.specular, m.shininess)
+            view = plan.camera.toward_viewer
+            self.shader = None
+            if view.ndim == 1 or plan.kind == "shear-warp":
+                self.shader = shade_unit.setup(lights, -plan.camera.d, material, dp.shade)
+            else:
+                self.lights, self.material = lights, material
+        self.iso_rgb = np.round(np.asarray(scene.render.iso_color) * ONE).astype(np.int64)
+        lo, hi = volume.value_range
+        iso = scene.render.iso_value
+        iso = 0.5 * (lo + hi) if iso is None else iso
+        self.iso_raw = int(np.ceil((iso - self.vmap.offset) / self.vmap.scale * (1 << self.S)))
+        self.ert = scene.render.early_termination
+
+    def classified_voxels(self, raw: np.ndarray) -> list[np.ndarray]:
+        """Pre-classification: the LUT applied to raw voxels (any shape), RGBA UQ1.12."""
+        return classify_unit.classify_voxels(raw, self.lut, self.dp.voxel_bits, self.dp.classify)
+
+    # ------------------------------------------------------------------ state
+
+    def new_state(self, n_rays: int) -> RayState:
+        """Cleared accumulators for ``n_rays`` rays (each mode's identity element)."""
+        mode = self.mode
+        dt_sum = None
+        if mode in ("composite", "iso"):
+            acc = np.zeros((n_rays, 4), dtype=np.int64)
+        elif mode == "mip":
+            acc = np.full(n_rays, -1, dtype=np.int64)
+        elif mode == "minip":
+            acc = np.full(n_rays, np.iinfo(np.int64).max, dtype=np.int64)
+        else:
+            acc = np.zeros(n_rays, dtype=np.int64)
+            dt_sum = np.zeros(n_rays, dtype=np.int64)
+        return RayState(
+            acc=acc,
+            alive=np.ones(n_rays, dtype=bool),
+            touched=np.zeros(n_rays, dtype=bool),
+            dt_sum=dt_sum,
+        )
+
+    def cleared_acc(self, rays: np.ndarray, state: RayState) -> None:
+        """Reset the accumulators of ``rays`` to the mode's identity (a lost hand-off)."""
+        fresh = self.new_state(1)
+        state.acc[rays] = fresh.acc[0]
+        if state.dt_sum is not None:
+            state.dt_sum[rays] = 0
+
+    # ------------------------------------------------------------------ per step
+
+    def masks(self, step: Step) -> tuple[Step, np.ndarray | None]:
+        """Crop box and cut planes: the samples kept and their cut-plane factors."""
+        keep, factor = None, None
+        if self.scene.crop is not None:
+            keep = crop_unit.crop_keep(step.zyx, self.scene.crop)
+        if self.scene.cut_planes:
+            factor = crop_unit.cut_factor(
+                index_to_world(step.zyx, self.volume),
+                self.scene.cut_planes,
+                crop_unit.CutConfig(max_planes=max(1, self.arch.cut_planes)),
+            )
+            keep = factor > 0 if keep is None else keep & (factor > 0)
+        if keep is not None:
+            step = subset_step(step, keep)
+            factor = factor[keep] if factor is not None else None
+        return step, factor
+
+    def process(
+        self, step: Step, make_source: Callable[[Step], SampleSource], state: RayState
+    ) -> Step:
+        """Run one step's samples through the back end; returns the samples processed."""
+        mode, dp = self.mode, self.dp
+        if mode in ("composite", "iso"):
+            step = subset_step(step, state.alive[step.rays])
+        step, factor = self.masks(step)
+        if not step.rays.size:
+            return step
+        state.samples += step.rays.size
+        state.touched[step.rays] = True
+        src = make_source(step)
+        acc = state.acc
+        if mode == "composite":
+            self._composite(step, src, factor, state)
+        elif mode == "iso":
+            s = src.value()
+            hit = composite_unit.iso_hit(s, self.iso_raw)
+            if hit.any():
+                rays = step.rays[hit]
+                rgb = np.broadcast_to(self.iso_rgb, (rays.size, 3))
+                if self.scene.lit:
+                    g = self._to_world(src.gradient(np.flatnonzero(hit)))
+                    rgb = self._shade(rgb, g, rays)
+                acc[rays, :3] = rgb.astype(np.int64) << (dp.composite.acc_frac_bits - 12)
+                acc[rays, 3] = 1 << dp.composite.acc_frac_bits
+                state.alive[rays] = False
+        else:
+            s = src.value()
+            if mode == "mip":
+                composite_unit.mip(acc, step.rays, s)
+            elif mode == "minip":
+                composite_unit.minip(acc, step.rays, s)
+            else:
+                if factor is not None:
+                    s = (s * factor + (1 << 11)) >> 12
+                composite_unit.xray(acc, step.rays, s, step.dt, dp.composite)
+                composite_unit.xray(
+                    state.dt_sum, step.rays, np.full(s.size, 1, np.int64), step.dt, dp.composite
+                )
+        return step
+
+    def _to_world(self, g: np.ndarray) -> np.ndarray:
+        return gradient_unit.to_world(g, self.volume.spacing, self.S, self.dp.gradient)
+
+    def _shade(self, rgb: np.ndarray, g: np.ndarray, rays: np.ndarray) -> np.ndarray:
+        normals = gradient_unit.normals(g, self.dp.gradient)
+        if self.shader is not None:
+            return shade_unit.shade(self.shader, rgb, normals)
+        shader = shade_unit.setup(
+            self.lights, self.plan.toward_viewer(rays), self.material, self.dp.shade
+        )
+        return shade_unit.shade(shader, rgb, normals)
+
+    def _composite(self, step: Step, src: SampleSource, factor, state: RayState) -> None:
+        dp = self.dp
+        if self.pre_classified:
+            chans = src.channels()
+            alpha = (chans[3] + (1 << (self.S - 1))) >> self.S
+        else:
+            s = src.value()
+            rgb, alpha = classify_unit.classify(s, self.lut, dp.voxel_bits, self.S, dp.classify)
+        if factor is not None:
+            alpha = (alpha * factor + (1 << 11)) >> 12
+        vis = alpha > 0
+        if not vis.any():
+            return
+        sel = np.flatnonzero(vis)
+        rays, alpha = step.rays[sel], alpha[sel]
+        if self.pre_classified:
+            rgb = np.stack([(c[sel] + (1 << (self.S - 1))) >> self.S for c in chans[:3]], axis=1)
+        else:
+            rgb = rgb[sel]
+        if self.need_grad:
+            g = self._to_world(src.gradient(sel))
+            if self.transfer.modulates:
+                index = classify_unit.gm_index(
+                    gradient_unit.magnitude(g), self.gm_scale, dp.classify
+                )
+                alpha = classify_unit.modulate(alpha, index, self.gm_table)
+            if self.scene.lit:
+                rgb = self._shade(rgb, g, rays)
+        dt = step.dt if np.isscalar(step.dt) else step.dt[sel]
+        alpha = composite_unit.correct_opacity(alpha, np.asarray(dt) / self.ref, dp.composite)
+        composite_unit.front_to_back(state.acc, rays, rgb, alpha, dp.composite)
+        if self.ert < 1.0:
+            state.alive[rays] = ~composite_unit.terminated(
+                state.acc[rays], self.ert, dp.composite
+            )
+
+    # ------------------------------------------------------------------ host side
+
+    def finish(self, acc: np.ndarray, touched: np.ndarray, dt_sum) -> np.ndarray:
+        """Host side: accumulators to the final float image (output format, then warp)."""
+        mode, plan, vmap = self.mode, self.plan, self.vmap
+        lo, hi = self.volume.value_range
+        if mode in ("composite", "iso"):
+            out = composite_unit.to_output(acc, self.dp.composite)
+            return plan.to_image(composite_unit.output_to_float(out, self.dp.composite), 0.0)
+        if mode in ("mip", "minip"):
+            values = vmap.offset + vmap.scale * acc.astype(np.float64) / (1 << self.S)
+            values[~touched] = lo if mode == "mip" else hi
+            return plan.to_image(values, lo if mode == "mip" else hi)
+        scale = 1.0 / ((1 << self.S) * (1 << self.dp.composite.xray_frac_bits))
+        dts = dt_sum.astype(np.float64) / (1 << self.dp.composite.xray_frac_bits)
+        values = vmap.offset * dts + vmap.scale * acc.astype(np.float64) * scale
+        return plan.to_image(values, 0.0)
