@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
         default="ray",
         help="golden sample positions: ideal rays or an architecture's order",
     )
+    r.add_argument(
+        "--trace", metavar="FILE.vcd", help="cycle rung: VCD waveform of the modelled hardware"
+    )
     r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
@@ -132,7 +135,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
     scene = _apply_overrides(load_scene(args.scene), args)
     with _progress_bar(args.quiet, "render") as progress:
         run = render(
-            scene, fidelity=args.fidelity, arch=args.arch, sampling=args.sampling, progress=progress
+            scene,
+            fidelity=args.fidelity,
+            arch=args.arch,
+            sampling=args.sampling,
+            progress=progress,
+            trace=args.trace,
         )
     paths = write_render(run, args.out)
     if not args.quiet:
@@ -146,6 +154,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
             f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
             f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"
         )
+        if run.cycles is not None:
+            fps = run.clock_hz / run.cycles if run.cycles else 0.0
+            print(
+                f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
+                f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
+                f"{run.samples / run.cycles:.2f} samples/cycle"
+            )
         print(f"  wrote {paths['png']}, {paths['npy'].name}, {paths['stats'].name}")
     return 0
 
@@ -168,11 +183,16 @@ def _cmd_phantoms(args: argparse.Namespace) -> int:
 
 
 def _cmd_archs(args: argparse.Namespace) -> int:
-    print(
-        "no architectures are available yet: cube4, cube4-teramac, em-cube, volumepro500, "
-        "volumepro1000 and vizard2 are planned",
-        file=sys.stderr,
-    )
+    from hwsim.fidelity import builtin_archs
+    from models.cycle import CYCLE_ORDERS
+
+    print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
+    for name, arch in builtin_archs().items():
+        rungs = "golden functional" + (" cycle" if arch.order in CYCLE_ORDERS else "")
+        print(
+            f"{name:<15} {arch.order:<15} {arch.pipelines:>3} {arch.clock_hz / 1e6:>6.2f} MHz "
+            f"{arch.peak_samples_per_second / 1e6:>7.0f} MS/s  {rungs}"
+        )
     return 0
 
 

@@ -35,7 +35,7 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-AVAILABLE_FIDELITIES = ("golden", "functional")
+AVAILABLE_FIDELITIES = ("golden", "functional", "cycle")
 #: The machine a timed rung models when no --arch is given.
 DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
@@ -65,6 +65,7 @@ class RenderRun:
     elaborated_units: list[str] = field(default_factory=list)
     elided_units: list[str] = field(default_factory=list)
     counters: dict[str, Any] = field(default_factory=dict)
+    derived: dict[str, Any] = field(default_factory=dict)
 
 
 def builtin_archs() -> dict[str, ArchConfig]:
@@ -142,6 +143,7 @@ def render(
     sampling: str = "ray",
     volume: Volume | None = None,
     progress: Progress | None = None,
+    trace: str | Path | None = None,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -161,6 +163,8 @@ def render(
         An already loaded volume (skips loading ``scene.volume``).
     progress : callable, optional
         ``progress(done, total)`` called as the render advances.
+    trace : path, optional
+        ``cycle`` rung only: write a VCD waveform of the modelled hardware there.
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -172,6 +176,8 @@ def render(
             key="--fidelity",
             allowed=", ".join(AVAILABLE_FIDELITIES),
         )
+    if trace is not None and fidelity != "cycle":
+        raise InputError("a waveform needs --fidelity cycle", key="--trace", allowed="cycle")
     if arch is None and fidelity != "golden":
         arch = DEFAULT_ARCH
     machine = resolve_arch(arch) if arch is not None else None
@@ -195,10 +201,20 @@ def render(
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene)
     cycles = clock = None
+    derived: dict[str, Any] = {}
     start = time.perf_counter()
     if fidelity == "golden":
         result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
         counters = {"golden.samples": int(result.samples), "golden.rays": int(result.rays)}
+    elif fidelity == "cycle":
+        from models.cycle import render_cycle
+
+        plan = make_plan(scene, volume, sampling)
+        result = render_cycle(
+            scene, volume, transfer, machine, plan, trace=trace, progress=progress
+        )
+        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
+        used, elided, derived = result.elaborated_units, result.elided_units, result.derived
     else:
         from models.functional import render_functional
 
@@ -222,4 +238,5 @@ def render(
         elaborated_units=used,
         elided_units=elided,
         counters=counters,
+        derived=derived,
     )

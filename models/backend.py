@@ -278,9 +278,7 @@ class Backend:
         alpha = composite_unit.correct_opacity(alpha, np.asarray(dt) / self.ref, dp.composite)
         composite_unit.front_to_back(state.acc, rays, rgb, alpha, dp.composite)
         if self.ert < 1.0:
-            state.alive[rays] = ~composite_unit.terminated(
-                state.acc[rays], self.ert, dp.composite
-            )
+            state.alive[rays] = ~composite_unit.terminated(state.acc[rays], self.ert, dp.composite)
 
     # ------------------------------------------------------------------ host side
 

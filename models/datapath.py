@@ -77,14 +77,18 @@ class Datapath:
                 )
             units[unit][name] = value
         if "normal_frac_bits" in units["shade"]:
-            raise InputError("the shader reads the gradient unit's normals",
-                             source=arch.source, key="formats.shade.normal_frac_bits",
-                             allowed="set gradient.normal_frac_bits instead")
+            raise InputError(
+                "the shader reads the gradient unit's normals",
+                source=arch.source,
+                key="formats.shade.normal_frac_bits",
+                allowed="set gradient.normal_frac_bits instead",
+            )
         try:
             configs = {unit: UNIT_CONFIGS[unit](**kw) for unit, kw in units.items()}
             # One source of truth: the shader's input format is the gradient's output.
             configs["shade"] = dataclasses.replace(
-                configs["shade"], normal_frac_bits=configs["gradient"].normal_frac_bits)
+                configs["shade"], normal_frac_bits=configs["gradient"].normal_frac_bits
+            )
         except (TypeError, ValueError) as exc:
             raise InputError(f"invalid format: {exc}", source=arch.source, key="formats") from None
         return cls(voxel_bits=voxel_bits, **configs)

@@ -62,6 +62,7 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "elaborated_units": run.elaborated_units,
         "elided_units": run.elided_units,
         "counters": run.counters,
+        "derived": run.derived,
         "host": {
             "python": platform.python_version(),
             "numpy": np.__version__,
@@ -119,6 +120,9 @@ def write_render(run: RenderRun, out_dir: str | Path) -> dict[str, Path]:
         stats["image"].update(display)
         text = json.dumps(stats, indent=2, default=_json_default)
         _atomic_write(paths["stats"], lambda p: p.write_text(text + "\n"))
+        from hwsim.report.csvs import write_csvs
+
+        paths.update(write_csvs(run, out))
     except OSError as exc:
         raise InputError(
             f"cannot write output: {exc.strerror}", source=str(out), key="--out"

@@ -33,6 +33,8 @@ __all__ = [
     "InterpTaps",
     "interp_taps",
     "interpolate",
+    "lerp",
+    "bilinear",
     "error_bound",
     "LATENCY",
     "II",
@@ -99,16 +101,26 @@ def interpolate(
 ) -> np.ndarray:
     """Interpolate a raveled raw array (any sign) at the taps: ``(n,)`` int64 with
     ``in_frac_bits + sample_frac_bits`` fraction bits."""
-    w, r = cfg.weight_bits, cfg.rounding
     v = flat[t.idx].astype(np.int64) << cfg.sample_frac_bits
     fz, fy, fx = t.frac
+    x = [lerp(v[c], v[c + 1], fx, cfg) for c in (0, 2, 4, 6)]
+    y = [lerp(x[0], x[1], fy, cfg), lerp(x[2], x[3], fy, cfg)]
+    return lerp(y[0], y[1], fz, cfg)
 
-    def lerp(a: np.ndarray, b: np.ndarray, f: np.ndarray) -> np.ndarray:
-        return a + round_shift((b - a) * f, w, r)
 
-    x = [lerp(v[c], v[c + 1], fx) for c in (0, 2, 4, 6)]
-    y = [lerp(x[0], x[1], fy), lerp(x[2], x[3], fy)]
-    return lerp(y[0], y[1], fz)
+def lerp(a: np.ndarray, b: np.ndarray, f: np.ndarray, cfg: InterpConfig) -> np.ndarray:
+    """One linear interpolation step: ``a + round((b - a) f / 2**W)`` (``f`` raw UQ1.W)."""
+    return a + round_shift((b - a) * f, cfg.weight_bits, cfg.rounding)
+
+
+def bilinear(v00, v01, v10, v11, fa, fb, cfg: InterpConfig) -> np.ndarray:
+    """In-slice interpolation of promoted corners: along ``b`` first, then ``a``.
+
+    ``v<i><j>`` is the corner ``(a0 + i, b0 + j)``.  With ``b`` the faster-varying in-slice
+    axis this is exactly :func:`interpolate` of a sample lying on a voxel slice (the
+    principal-axis weight 0 or 1 selects one slice exactly), the lerp order x, y, z.
+    """
+    return lerp(lerp(v00, v01, fb, cfg), lerp(v10, v11, fb, cfg), fa, cfg)
 
 
 def error_bound(max_difference: float, cfg: InterpConfig) -> float:

@@ -37,6 +37,7 @@ __all__ = [
     "SkewConfig",
     "beam_is_conflict_free",
     "cube4_address",
+    "cube4_address_zyx",
     "cube4_module",
     "cube4_voxel",
     "vp500_miniblock",
@@ -169,3 +170,11 @@ def beam_is_conflict_free(P: int, n: int, axis: int) -> bool:
     runs = np.lib.stride_tricks.sliding_window_view(mods, m, axis=1)
     runs = np.sort(runs, axis=-1)
     return bool(np.all(np.diff(runs, axis=-1) != 0))
+
+
+def cube4_address_zyx(z, y, x, shape: tuple[int, int, int], P: int) -> np.ndarray:
+    """:func:`cube4_address` for a box ``shape = (nz, ny, nx)``: ``((z ny + y) nxp + x) div P``
+    with row pitch ``nxp = ceil(nx / P) P``; a bijection with :func:`cube4_module` per row."""
+    x, y, z = _i64(x, y, z)
+    _, ny, nx = shape
+    return ((z * ny + y) * _pitch(nx, P) + x) // P

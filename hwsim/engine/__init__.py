@@ -1,0 +1,20 @@
+"""The cycle kernel: counters, ready/valid channels, delay lines and FIFOs, stages, VCD.
+
+# Ref: design.md sections 2 and 3 (engine/, the ``cycle`` rung); conventions.md items 2,
+#      3 and 7 (latency and II as interface, one ready/valid contract, raw counters).
+
+The kernel is vectorised: a component advances over a *block* of cycles at once (a beam,
+a slice) with NumPy arrays indexed by ``(lane, cycle)``, and every cycle inside the block
+stays exact -- a delay line of depth D returns exactly what entered D cycles earlier, a
+channel transfers exactly where ``valid & ready``.  Nothing here knows about volume
+rendering; ``models.arch`` assembles machines from it.
+"""
+
+from hwsim.engine.channel import Channel
+from hwsim.engine.counters import Counters
+from hwsim.engine.delay import DelayLine
+from hwsim.engine.fifo import DeadlockError, DrainFifo
+from hwsim.engine.stage import Stage
+from hwsim.engine.trace import VcdTrace
+
+__all__ = ["Channel", "Counters", "DeadlockError", "DelayLine", "DrainFifo", "Stage", "VcdTrace"]

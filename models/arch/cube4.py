@@ -1,0 +1,431 @@
+"""The Cube-4 machine at cycle fidelity: skewed memory, ring links, delay FIFOs, pixel bus.
+
+# Ref: architectures.md sections 1.1-1.4 (Pfister & Kaufman, VolVis 1996: slice-parallel
+#      ray casting, skewed memory, only local neighbour links plus a pixel bus) and 9.1-9.3
+#      (units, buffer sizes, latencies [I]).
+
+A frame reads the volume slice by slice along the principal axis, one voxel per module
+per clock (:mod:`models.arch.cube4_memory`).  Each slice's stream passes the slice delay
+FIFOs (two, when the scene needs z-neighbours for gradients), the ring links and the
+beam FIFO (:mod:`models.arch.cube4_slice`), which deliver every sample cell's corners.
+The plan's rays (the geometry unit: :class:`hwsim.golden.SamplePlan`) say which samples
+of a slice belong to which base-plane pixel; :class:`HardwareSource` interpolates them
+from the delivered corners with ``models.units.interp``, and the shared back end
+(:class:`models.backend.Backend`) classifies, shades and composites them into the
+compositing buffers.  A ray's accumulator is handed to the next pipeline whenever its
+sample's voxel moves to another module; a finished ray leaves over the pixel bus, a FIFO
+drained one pixel per clock, and the host assembles the base-plane image only from what
+the bus delivered, then warps it (parallel) as the functional rung does.
+
+Timing (every cycle counted, nothing fitted): one slice takes ``n_a ceil(n_b / P)``
+clocks plus the arch's ``slice_cycles``; one more slice primes the slice FIFOs; lanes
+that owe more samples than a slice has clocks (perspective) stretch the slice; a full
+pixel FIFO stalls the compositors; the pipeline latency (sum of the unit ``LATENCY``
+constants plus the beam alignment ``C + 1``) and the final pixel-bus drain are added.
+The hardware is the same whatever the scene: elision only skips *simulating* units whose
+results a scene does not use, so it never changes a cycle count.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hwsim.engine import Counters, DelayLine, DrainFifo, Stage, VcdTrace
+from hwsim.engine.metrics import derive
+from hwsim.errors import InputError
+from hwsim.golden.positions import SamplePlan, Step
+from models.arch.cube4_memory import Cube4Memory
+from models.arch.cube4_slice import SliceDatapath, SlicePath
+from models.backend import Backend
+from models.units import classify as classify_unit
+from models.units import composite as composite_unit
+from models.units import crop as crop_unit
+from models.units import gradient as gradient_unit
+from models.units import interp as interp_unit
+from models.units import shade as shade_unit
+from models.units import skew as skew_unit
+
+__all__ = ["Faults", "CycleResult", "Cube4Machine", "UNITS"]
+
+#: The units of every Cube-4 pipeline, in dataflow order, with their models.
+UNITS = {
+    "interp": interp_unit,
+    "gradient": gradient_unit,
+    "classify": classify_unit,
+    "shade": shade_unit,
+    "composite": composite_unit,
+    "crop": crop_unit,
+}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Faults:
+    """Fault injection (tests): each field breaks one modelled structure.
+
+    ``stuck_module = (k, value)``: memory module ``k`` returns ``value``;
+    ``dropped_link = k``: ring link from pipeline ``k + 1`` to ``k`` delivers zeros;
+    ``dropped_handoff = k``: accumulators handed to pipeline ``k`` are lost;
+    ``beam_fifo_adjust`` / ``slice_fifo_adjust``: entries added to (negative: removed
+    from) the beam and slice delay FIFOs; ``pixel_fifo_depth``: the pixel-bus FIFO depth.
+    """
+
+    stuck_module: tuple[int, int] | None = None
+    dropped_link: int | None = None
+    dropped_handoff: int | None = None
+    beam_fifo_adjust: int = 0
+    slice_fifo_adjust: int = 0
+    pixel_fifo_depth: int | None = None
+
+
+@dataclass
+class CycleResult:
+    """What the cycle rung returns: image, exact cycles, raw counters, elaboration."""
+
+    image: np.ndarray
+    samples: int
+    rays: int
+    cycles: int
+    counters: dict[str, Any] = field(default_factory=dict)
+    elaborated_units: list[str] = field(default_factory=list)
+    elided_units: list[str] = field(default_factory=list)
+    derived: dict[str, Any] = field(default_factory=dict)
+
+
+class HardwareSource:
+    """Samples of one step interpolated from the corners the slice datapath delivered."""
+
+    def __init__(self, machine: Cube4Machine, step: Step, q: int) -> None:
+        self.m, self.q = machine, q
+        self.pa = step.zyx[:, machine.a_ax]
+        self.pb = step.zyx[:, machine.b_ax]
+        self._cells = machine.cell(self.pa), machine.cell(self.pb)
+
+    def _bilinear(self, planes: np.ndarray, cells_a, cells_b) -> np.ndarray:
+        (ca, fa), (cb, fb) = cells_a, cells_b
+        idx = (ca + 2) * planes.shape[2] + (cb + 2)
+        flat = planes.reshape(4, -1)
+        return interp_unit.bilinear(
+            flat[0, idx], flat[1, idx], flat[2, idx], flat[3, idx], fa, fb, self.m.dp.interp
+        )
+
+    def value(self) -> np.ndarray:
+        return self._bilinear(self.m.planes(self.q, "value"), *self._cells)
+
+    def channels(self) -> list[np.ndarray]:
+        return [self._bilinear(self.m.planes(self.q, c), *self._cells) for c in "rgba"]
+
+    def gradient(self, sel: np.ndarray) -> np.ndarray:
+        m = self.m
+        (ca, fa), (cb, fb) = self._cells
+        cells_a, cells_b = (ca[sel], fa[sel]), (cb[sel], fb[sel])
+        pa, pb = self.pa[sel], self.pb[sel]
+        cur = m.planes(self.q, "value")
+        g = np.empty((pa.size, 3), dtype=np.int64)
+        ahead = m.planes(min(self.q + 1, m.n_kp - 1), "value")
+        behind = m.planes(max(self.q - 1, 0), "value")
+        g[:, 2 - m.kp] = self._bilinear(ahead, cells_a, cells_b) - self._bilinear(
+            behind, cells_a, cells_b
+        )
+        g[:, 2 - m.a_ax] = self._bilinear(cur, m.cell(pa + 1.0), cells_b) - self._bilinear(
+            cur, m.cell(pa - 1.0), cells_b
+        )
+        g[:, 2 - m.b_ax] = self._bilinear(cur, cells_a, m.cell(pb + 1.0)) - self._bilinear(
+            cur, cells_a, m.cell(pb - 1.0)
+        )
+        return g
+
+
+class Cube4Machine:
+    """P Cube-4 pipelines rendering one frame of ``plan`` for ``backend``'s scene."""
+
+    def __init__(
+        self,
+        backend: Backend,
+        plan: SamplePlan,
+        *,
+        faults: Faults | None = None,
+        elaborate_all: bool = False,
+        trace: VcdTrace | None = None,
+    ) -> None:
+        self.be, self.plan, self.dp = backend, plan, backend.dp
+        self.faults = faults or Faults()
+        self.arch = arch = backend.arch
+        self.P = P = arch.pipelines
+        self.trace = trace
+        if backend.scene.render.supersampling != 1.0:
+            raise InputError(
+                "the Cube-4 model samples once per slice",
+                source=arch.source,
+                key="render.supersampling",
+                allowed="1",
+            )
+        if backend.dp.gradient.source != "sample":
+            raise InputError(
+                "Cube-4 estimates gradients from samples",
+                source=arch.source,
+                key="formats.gradient.source",
+                allowed="sample",
+            )
+        self.kp = kp = plan.principal_axis
+        self.a_ax, self.b_ax = (ax for ax in range(3) if ax != kp)
+        shape = backend.volume.shape
+        self.n_kp, self.n_a, self.n_b = shape[kp], shape[self.a_ax], shape[self.b_ax]
+        self.C = -(-self.n_b // P)
+        self.T = self.n_a * self.C
+        self.forward = self._direction()
+        self.counters = Counters()
+        self.elaborated, self.elided = self._elaborate(elaborate_all)
+        self.need_slices = "gradient" in self.elaborated
+        self.memory = Cube4Memory(backend.raw, P, self.counters, self.faults.stuck_module)
+        self.datapath = SliceDatapath(
+            SlicePath(
+                pipelines=P,
+                beam_fifo_adjust=self.faults.beam_fifo_adjust,
+                dropped_link=self.faults.dropped_link,
+            ),
+            (self.n_a, self.n_b),
+            self.counters,
+        )
+        self._cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
+        self._current: dict[int, dict[str, np.ndarray]] = {}
+
+    # ------------------------------------------------------------------ set-up
+
+    def _direction(self) -> bool:
+        """True when slices are processed in increasing index order."""
+        if self.plan.kind == "shear-warp":
+            return bool(self.plan.order[0] <= self.plan.order[-1])
+        signs = np.unique(self.plan._sign) if self.plan.ray_ids.size else np.array([1.0])
+        if signs.size > 1:
+            raise InputError(
+                "Cube-4 processes slices in one order: the eye must not sit between the "
+                "volume's first and last slice along the principal axis",
+                key="view",
+                allowed="a view from outside the volume's slab",
+            )
+        return bool(signs[0] > 0)
+
+    def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
+        be, mode = self.be, self.be.mode
+        needs = {
+            "interp": True,
+            "gradient": be.need_grad,
+            "classify": mode in ("composite", "iso"),
+            "shade": be.scene.lit,
+            "composite": True,
+            "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
+        }
+        if everything:
+            needs = dict.fromkeys(needs, True)
+        units = ["memory", "ring"] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
+        return units, [u for u in UNITS if not needs[u]]
+
+    def cell(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cell index and quantised fraction of in-slice positions (the geometry unit)."""
+        c = np.floor(p)
+        return c.astype(np.int64), self.dp.interp.weight.quantize(p - c)
+
+    # ------------------------------------------------------------------ slices
+
+    def slice_of(self, j: int) -> int:
+        return j if self.forward else self.n_kp - 1 - j
+
+    def _corners(self, stream: np.ndarray, q: int) -> dict[str, np.ndarray]:
+        """Corner planes of every payload channel of slice ``q`` (promoted by S)."""
+        S = self.dp.interp.sample_frac_bits
+        payloads = {}
+        if self.be.pre_classified:
+            rgba = self.be.classified_voxels(stream)
+            payloads.update(zip("rgba", rgba, strict=True))
+        if not self.be.pre_classified or self.be.need_grad or "gradient" in self.elaborated:
+            payloads["value"] = stream
+        return {k: self.datapath.corners(v, q) << S for k, v in payloads.items()}
+
+    def _planes_for(self, stream: np.ndarray, q: int) -> dict[str, np.ndarray]:
+        cached = self._cache.get(q)
+        if cached is not None and np.array_equal(cached[0], stream):
+            return cached[1]
+        planes = self._corners(stream, q)
+        self._cache[q] = (stream, planes)
+        return planes
+
+    def planes(self, q: int, channel: str) -> np.ndarray:
+        return self._current[q][channel]
+
+    def _read(self, j: int) -> np.ndarray:
+        q = self.slice_of(j)
+        stream, sched = self.memory.read_slice(self.kp, q)
+        self._reads = sched.valid.sum(axis=1)
+        self.counters.add("ring.link_transfers", 2 * int(sched.valid.sum()))
+        if self.trace is not None:
+            self._trace_memory(stream, sched.valid)
+        return stream
+
+    # ------------------------------------------------------------------ frame
+
+    def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
+        be, plan, P, T = self.be, self.plan, self.P, self.T
+        c = self.counters
+        state = be.new_state(plan.n_rays)
+        depth = self.faults.pixel_fifo_depth
+        pixel_fifo = DrainFifo("pixel_bus.fifo", self.n_a * self.n_b if depth is None else depth)
+        c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
+        self.memory_stage = Stage("memory", skew_unit.LATENCY, skew_unit.II, P, c)
+        stages = {
+            u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
+        }
+        slice_depth = T + self.faults.slice_fifo_adjust
+        fifo1 = DelayLine(slice_depth, P) if self.need_slices else None
+        fifo2 = DelayLine(slice_depth, P) if self.need_slices else None
+        if self.need_slices:
+            c.set("slice_fifo.depth", slice_depth)
+        bus = {
+            "acc": be.new_state(plan.n_rays).acc,
+            "touched": np.zeros(plan.n_rays, dtype=bool),
+            "dt_sum": None if state.dt_sum is None else np.zeros_like(state.dt_sum),
+        }
+        finishing = _finishing_rays(plan)
+        prev_lane = np.full(plan.n_rays, -1, dtype=np.int64)
+        self.now = 0
+        idle = np.zeros(P, dtype=np.int64)
+        # Prime: the first slice is read one slice ahead of its samples (fixed hardware).
+        self._reads = idle
+        if self.need_slices:
+            fifo1.push(self._read(0))
+        self.memory_stage.account(self._reads, T)
+        for stage in stages.values():
+            stage.account(idle, T)
+        self.now = T
+        steps = plan.steps()
+        for j, step in enumerate(steps):
+            q = self.slice_of(j)
+            if self.need_slices:
+                self._reads = idle
+                nxt = self._read(j + 1) if j + 1 < self.n_kp else np.zeros((P, T), np.int64)
+                cur_stream = fifo1.push(nxt)
+                prev_stream = fifo2.push(cur_stream)
+                self._current = {q: self._planes_for(cur_stream, q)}
+                if j + 1 < self.n_kp:
+                    self._current[self.slice_of(j + 1)] = self._planes_for(
+                        nxt, self.slice_of(j + 1)
+                    )
+                if j >= 1:
+                    self._current[self.slice_of(j - 1)] = self._planes_for(
+                        prev_stream, self.slice_of(j - 1)
+                    )
+                for old in [k for k in self._cache if abs(k - q) > 1]:
+                    del self._cache[old]
+            else:
+                self._current = {q: self._corners(self._read(j), q)}
+            lanes = self._lanes(step, q)
+            busy = np.bincount(lanes, minlength=P)
+            extra = max(0, int(busy.max(initial=0)) - T)
+            self._hand_off(step.rays, lanes, prev_lane, state)
+            if step.rays.size:
+                be.process(step, lambda s, q=q: HardwareSource(self, s, q), state)
+            rays = finishing(j)
+            if rays.size:
+                bus["acc"][rays] = state.acc[rays]
+                bus["touched"][rays] = state.touched[rays]
+                if bus["dt_sum"] is not None:
+                    bus["dt_sum"][rays] = state.dt_sum[rays]
+            block = T + self.arch.slice_overhead_cycles + extra
+            stall = pixel_fifo.advance(block, int(rays.size), self.now)
+            self.memory_stage.account(self._reads, block + stall, stall)
+            for stage in stages.values():
+                stage.account(busy, block + stall, stall)
+            if self.trace is not None:
+                self._trace_samples(step, q, lanes, rays.size)
+            self.now += block + stall
+            if progress is not None:
+                progress(j + 1, plan.n_steps)
+        latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
+        drain = pixel_fifo.flush()
+        cycles = self.now + latency + drain
+        for stage in [self.memory_stage, *stages.values()]:
+            stage.account(idle, latency + drain)
+        c.set("pixel_bus.pixels", pixel_fifo.pushed)
+        c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
+        c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)
+        c.set("pixel_bus.drain_cycles", drain)
+        c.set("pipeline.latency_cycles", latency)
+        c.set("frame.cycles", cycles)
+        c.set("frame.samples", state.samples)
+        image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
+        raw = c.as_dict()
+        derived = derive(
+            raw, cycles=cycles, samples=state.samples, pipelines=P, clock_hz=self.arch.clock_hz
+        )
+        return CycleResult(
+            image=image,
+            samples=state.samples,
+            rays=int(state.touched.sum()),
+            cycles=int(cycles),
+            counters=raw,
+            elaborated_units=list(self.elaborated),
+            elided_units=list(self.elided),
+            derived=derived,
+        )
+
+    def _lanes(self, step: Step, q: int) -> np.ndarray:
+        """Pipeline evaluating each sample: the module of its nearest voxel."""
+        if not step.rays.size:
+            return np.zeros(0, dtype=np.int64)
+        a = np.clip(np.floor(step.zyx[:, self.a_ax] + 0.5), 0, self.n_a - 1).astype(np.int64)
+        b = np.clip(np.floor(step.zyx[:, self.b_ax] + 0.5), 0, self.n_b - 1).astype(np.int64)
+        return (q + a + b) % self.P
+
+    def _hand_off(self, rays: np.ndarray, lanes: np.ndarray, prev_lane: np.ndarray, state) -> None:
+        """Move accumulators to the pipeline of their ray's new sample (ring hand-off)."""
+        before = prev_lane[rays]
+        moved = (before >= 0) & (before != lanes)
+        self.counters.add("composite.handoffs", int(moved.sum()))
+        k = self.faults.dropped_handoff
+        if k is not None:
+            lost = rays[moved & (lanes == k)]
+            if lost.size:
+                self.be.cleared_acc(lost, state)
+                self.counters.add("composite.lost_handoffs", int(lost.size))
+        prev_lane[rays] = lanes
+
+    # ------------------------------------------------------------------ trace
+
+    def _trace_memory(self, stream: np.ndarray, valid: np.ndarray) -> None:
+        cycles = self.now + np.arange(stream.shape[1])
+        bits = self.dp.voxel_bits
+        for m in range(self.P):
+            scope = f"pipeline[{m}].memory"
+            self.trace.record(scope, "o__valid", 1, cycles, valid[m])
+            self.trace.record(scope, "o__payload", bits, cycles, stream[m])
+
+    def _trace_samples(self, step: Step, q: int, lanes: np.ndarray, finished: int) -> None:
+        if step.rays.size:
+            a = np.clip(np.floor(step.zyx[:, self.a_ax] + 0.5), 0, self.n_a - 1).astype(np.int64)
+            b = np.clip(np.floor(step.zyx[:, self.b_ax] + 0.5), 0, self.n_b - 1).astype(np.int64)
+            t = self.now + a * self.C + b // self.P + self.C + 1 + skew_unit.LATENCY
+            for m in range(self.P):
+                on = lanes == m
+                cyc = np.concatenate([t[on], t[on] + 1])
+                val = np.concatenate([np.ones(on.sum(), np.int64), np.zeros(on.sum(), np.int64)])
+                self.trace.record(f"pipeline[{m}].interp", "i__valid", 1, cyc, val)
+        if finished:
+            end = self.now + self.T
+            cyc = end + np.arange(finished + 1)
+            val = np.r_[np.ones(finished, np.int64), 0]
+            self.trace.record("pixel_bus", "o__valid", 1, cyc, val)
+
+
+def _finishing_rays(plan: SamplePlan) -> Callable[[int], np.ndarray]:
+    """``f(j)``: the rays whose last sample is at step ``j`` (they leave on the pixel bus)."""
+    order = np.argsort(plan.j_hi, kind="stable")
+    bounds = np.searchsorted(plan.j_hi[order], np.arange(plan.n_steps + 1), side="left")
+    ids = plan.ray_ids[order]
+
+    def finishing(j: int) -> np.ndarray:
+        return ids[bounds[j] : bounds[j + 1]]
+
+    return finishing

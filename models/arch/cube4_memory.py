@@ -1,0 +1,120 @@
+"""Cube-4's skewed volume memory: P modules, voxel (x, y, z) in module (x + y + z) mod P.
+
+# Ref: architectures.md sections 1.2 (skew, conflict-free beams, in-module address [I])
+#      and 1.3 (slice-by-slice, beam-by-beam order); models/units/skew.py (the formulas).
+
+The host writes each voxel into the word ``cube4_address_zyx`` of module
+``cube4_module``.  A frame reads the volume slice by slice along the principal axis
+``kp`` and beam by beam inside a slice (beams run along the last in-slice axis ``b``).
+Pipeline ``m`` reads only module ``m``: at cycle ``t = a C + g`` of a slice
+(``C = ceil(n_b / P)`` cycles per beam) it receives the voxel
+``b = g P + ((m - s - a) mod P)`` of beam ``a`` of slice ``s`` -- the beam arrives
+cyclically rotated, which the ring links undo downstream.  Slots with ``b >= n_b``
+(P not dividing the beam) are idle.  :meth:`Cube4Memory.read_slice` checks, every
+read, that the module the schedule asks equals the module that holds the voxel and that
+each module serves exactly one voxel per clock: the skew property as a counter
+(``memory.conflicts``), which the tests require to be 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hwsim.engine import Counters
+from models.units.skew import cube4_address_zyx, cube4_module
+
+__all__ = ["Cube4Memory", "SliceSchedule"]
+
+
+@dataclass(frozen=True)
+class SliceSchedule:
+    """Which voxel each pipeline reads at each cycle of one slice.
+
+    ``a``, ``b`` are ``(P, T)`` in-slice coordinates (``b >= n_b`` marks an idle slot),
+    ``valid`` the slots that read a voxel, ``zyx`` the ``(3, P, T)`` volume coordinates.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    valid: np.ndarray
+    zyx: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class Cube4Memory:
+    """P skewed memory modules holding one volume.
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        ``(z, y, x)`` raw voxels (any integer dtype); copied into the modules.
+    pipelines : int
+        P, one module per pipeline.
+    counters : Counters
+    stuck_module : (int, int), optional
+        Fault injection: module ``k`` returns ``value`` for every read.
+    """
+
+    def __init__(
+        self,
+        raw: np.ndarray,
+        pipelines: int,
+        counters: Counters,
+        stuck_module: tuple[int, int] | None = None,
+    ) -> None:
+        self.shape = tuple(int(n) for n in raw.shape)
+        self.P = P = int(pipelines)
+        self.counters = counters
+        self.stuck = stuck_module
+        nz, ny, nx = self.shape
+        words = -(-(nz * ny * (-(-nx // P) * P)) // P)
+        self.modules = np.zeros((P, max(words, 1)), dtype=np.uint16)  # voxels <= 16 bits
+        z, y, x = np.indices(self.shape, sparse=True)
+        module = cube4_module(x, y, z, P)
+        address = cube4_address_zyx(z, y, x, self.shape, P)
+        self.modules[module, address] = raw
+        counters.set("memory.words_per_module", words)
+        self._schedules: dict[tuple[int, int], tuple] = {}
+
+    def schedule(self, kp: int, s: int) -> SliceSchedule:
+        """The read schedule of slice ``s`` along axis ``kp`` (cached per ``s mod P``)."""
+        P = self.P
+        axes = [ax for ax in range(3) if ax != kp]
+        n_a, n_b = self.shape[axes[0]], self.shape[axes[1]]
+        C = -(-n_b // P)
+        key = (kp, s % P)
+        if key not in self._schedules:
+            m = np.arange(P)[:, None]
+            t = np.arange(n_a * C)[None, :]
+            a = np.broadcast_to(t // C, (P, n_a * C))
+            b = (t % C) * P + (m - s - a) % P
+            self._schedules[key] = (a, b)
+        a, b = self._schedules[key]
+        valid = b < n_b
+        coords: list[np.ndarray] = [None, None, None]  # type: ignore[list-item]
+        coords[kp] = np.full(a.shape, s, dtype=np.int64)
+        coords[axes[0]] = a
+        coords[axes[1]] = np.where(valid, b, 0)
+        return SliceSchedule(a, b, valid, (coords[0], coords[1], coords[2]))
+
+    def read_slice(self, kp: int, s: int) -> tuple[np.ndarray, SliceSchedule]:
+        """Read slice ``s``: the ``(P, T)`` voxel stream (0 in idle slots) and its schedule."""
+        sched = self.schedule(kp, s)
+        z, y, x = sched.zyx
+        P = self.P
+        holder = cube4_module(x, y, z, P)
+        lane = np.arange(P)[:, None]
+        conflicts = int(np.count_nonzero(sched.valid & (holder != lane)))
+        self.counters.add("memory.conflicts", conflicts)
+        if conflicts:
+            raise AssertionError(f"skew violated: {conflicts} reads of slice {s} hit a busy module")
+        address = cube4_address_zyx(z, y, x, self.shape, P)
+        stream = np.where(sched.valid, self.modules[lane, address], 0).astype(np.int64)
+        if self.stuck is not None:
+            k, value = self.stuck
+            stream[k] = np.where(sched.valid[k], value, 0)
+        reads = sched.valid.sum(axis=1)
+        self.counters.add_lanes("memory.module[{}].reads", reads)
+        self.counters.add_lanes("memory.module[{}].idle_slots", (~sched.valid).sum(axis=1))
+        return stream, sched

@@ -1,0 +1,131 @@
+"""One Cube-4 slice on its way from the memory modules to the interpolators.
+
+# Ref: architectures.md sections 1.2-1.3 (the beam arrives rotated; x-neighbours come from
+#      pipeline k+1 over the ring, y-neighbours from a one-beam delay FIFO, z-neighbours
+#      from slice delay FIFOs) and 9.2 (beam delay n/P, slice delay n^2/P per pipeline).
+
+Pipeline ``m`` holds voxel ``(a, b)`` of slice ``s`` at cycle ``t = a C + b div P`` when
+``(s + a + b) mod P = m``.  The sample cell whose origin is that voxel needs its three
+other corners, which live in modules ``m + 1`` and ``m + 2``:
+
+* ``(a, b + 1)``: pipeline ``m + 1`` over ring link ``m`` -- the same cycle, or the next
+  when ``b`` ends a group of P (``b mod P = P - 1``);
+* ``(a + 1, b)``: pipeline ``m + 1``, one beam (``C`` cycles) later;
+* ``(a + 1, b + 1)``: pipeline ``m + 2`` over two links, ``C`` or ``C + 1`` cycles later.
+
+So the cell is evaluated at ``t + C + 1`` with its corners taken from delay lines of
+depth ``C + 1`` (the beam FIFO), ``C + 1`` / ``C``, ``1`` and ``1`` / ``0``.  Ring link
+``k`` carries data from pipeline ``k + 1`` to ``k``; a dropped link delivers zeros.
+Cells on the far edges replicate their own voxels (the golden renderer's clamp), and the
+cell grid is extended to ``[-2, n]`` the same way, so sample positions in
+``[-0.5, n - 0.5]`` and their gradient neighbours one voxel away all find their cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hwsim.engine import Counters, DelayLine
+
+__all__ = ["SliceCorners", "SlicePath", "extend_axis"]
+
+
+@dataclass
+class SliceCorners:
+    """Promoted corner planes ``(4, n_a + 3, n_b + 3)`` of cells ``[-2, n]`` of one slice,
+    per payload channel (``value``, or the pre-classified ``r g b a``)."""
+
+    slice_index: int
+    planes: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SlicePath:
+    """Depths and faults of the ring links and beam FIFO of every pipeline.
+
+    ``beam_fifo_depth`` defaults to ``C + 1``; ``dropped_link`` is the ring link (from
+    pipeline ``k + 1`` to ``k``) that delivers nothing, or None.
+    """
+
+    pipelines: int
+    beam_fifo_adjust: int = 0
+    dropped_link: int | None = None
+
+
+def extend_axis(v0: np.ndarray, v1: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """Corner-0 / corner-1 planes of cells ``[0, n)`` extended to cells ``[-2, n]``.
+
+    Cell ``c`` has corners ``clamp(c)`` and ``clamp(c + 1)``: cells ``-2, -1`` take
+    voxel 0 twice, cell ``n`` voxel ``n - 1`` twice (``v1[n - 1]`` already is it).
+    """
+    n = v0.shape[axis]
+    idx0 = np.clip(np.arange(-2, n + 1), 0, n - 1)
+    e0 = np.take(v0, idx0, axis=axis)
+    head = np.take(v0, [0, 0], axis=axis)
+    tail = np.take(v1, [n - 1], axis=axis)
+    e1 = np.concatenate([head, v1, tail], axis=axis)
+    return e0, e1
+
+
+class SliceDatapath:
+    """Ring links and beam delay FIFOs of all pipelines, applied to one slice's stream."""
+
+    def __init__(self, path: SlicePath, shape_ab: tuple[int, int], counters: Counters) -> None:
+        self.path, self.counters = path, counters
+        self.P = P = path.pipelines
+        self.n_a, self.n_b = shape_ab
+        self.C = -(-self.n_b // P)
+        self.beam_depth = self.C + 1 + path.beam_fifo_adjust
+        if self.beam_depth < 0:
+            raise ValueError(f"beam FIFO depth {self.beam_depth} < 0")
+        a = np.arange(self.n_a)[:, None]
+        b = np.arange(self.n_b)[None, :]
+        self._cell_t = a * self.C + b // P + self.C + 1  # evaluation cycle of each cell
+        self._wrap = np.broadcast_to(b % P == P - 1, (self.n_a, self.n_b))
+        self._b = b
+        self._a = a
+        counters.set("ring.beam_fifo_depth", self.beam_depth)
+
+    def _link(self, stream: np.ndarray) -> np.ndarray:
+        """What every pipeline receives over its ring link: pipeline ``k + 1``'s stream."""
+        out = np.roll(stream, -1, axis=0)
+        if self.path.dropped_link is not None:
+            out[self.path.dropped_link] = 0
+        return out
+
+    def corners(self, stream: np.ndarray, s: int) -> np.ndarray:
+        """The four corner planes ``(4, n_a + 3, n_b + 3)`` of slice ``s``."""
+        P, C, L = self.P, self.C, stream.shape[1] + self.C + 1
+        ext = np.zeros((P, L), dtype=stream.dtype)
+        ext[:, : stream.shape[1]] = stream
+        ring1 = self._link(ext)
+        ring2 = self._link(ring1)
+        lanes = P
+
+        def delayed(x: np.ndarray, depth: int) -> np.ndarray:
+            return DelayLine(depth, lanes, x.dtype).push(x)
+
+        m = (s + self._a + self._b) % P
+        flat = m * L + self._cell_t
+
+        def at(x: np.ndarray) -> np.ndarray:
+            return x.ravel()[flat]
+
+        v00 = at(delayed(ext, self.beam_depth))
+        v01 = np.where(self._wrap, at(delayed(ring1, C)), at(delayed(ring1, C + 1)))
+        v10 = at(delayed(ring1, 1))
+        v11 = np.where(self._wrap, at(ring2), at(delayed(ring2, 1)))
+        # Far-edge cells replicate their own voxels (boundary multiplexers).
+        last_b = self._b == self.n_b - 1
+        v01 = np.where(last_b, v00, v01)
+        v11 = np.where(last_b, v10, v11)
+        if self.n_a >= 1:
+            v10[-1] = v00[-1]
+            v11[-1] = v01[-1]
+        e00, e01 = extend_axis(v00, v01, 1)
+        e10, e11 = extend_axis(v10, v11, 1)
+        E00, E10 = extend_axis(e00, e10, 0)
+        E01, E11 = extend_axis(e01, e11, 0)
+        return np.stack([E00, E01, E10, E11])

@@ -1,0 +1,72 @@
+"""The ``cycle`` rung: exact cycles from the modelled hardware of an architecture.
+
+# Ref: design.md section 3 (cycle rung: bit-identical to functional, exact cycle count,
+#      per-unit busy/stall counters, optional VCD); architectures.md section 1 (Cube-4).
+
+Today the Cube-4 family (processing order ``slice-parallel``: ``cube4``,
+``cube4-teramac`` and user variants) is modelled; other machines raise
+:class:`~hwsim.errors.NotAvailableError` naming what is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from hwsim.arch import ArchConfig
+from hwsim.engine import VcdTrace
+from hwsim.errors import NotAvailableError
+from hwsim.golden.positions import SamplePlan
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction
+from hwsim.volumes.volume import Volume
+from models.arch.cube4 import Cube4Machine, CycleResult, Faults
+from models.backend import Backend
+from models.datapath import Datapath
+
+__all__ = ["render_cycle", "CYCLE_ORDERS", "Faults", "CycleResult"]
+
+#: Processing orders the cycle rung models.
+CYCLE_ORDERS = ("slice-parallel",)
+
+
+def render_cycle(
+    scene: Scene,
+    volume: Volume,
+    transfer: TransferFunction,
+    arch: ArchConfig,
+    plan: SamplePlan,
+    *,
+    faults: Faults | None = None,
+    elaborate_all: bool = False,
+    trace: str | Path | None = None,
+    datapath: Datapath | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> CycleResult:
+    """Render one frame on ``arch``'s modelled hardware.
+
+    Parameters
+    ----------
+    faults : Faults, optional
+        Structures to break (fault-injection tests).
+    elaborate_all : bool
+        Simulate every unit, even those the scene does not use (the elision check).
+    trace : path, optional
+        Write a VCD of memory reads, interpolator inputs and the pixel bus there.
+    """
+    if arch.order not in CYCLE_ORDERS:
+        raise NotAvailableError(
+            f"the cycle rung models the Cube-4 family so far; {arch.name} "
+            f"({arch.order} order) is not modelled at cycle fidelity",
+            key="--arch",
+            allowed="cube4, cube4-teramac or a slice-parallel FILE.toml",
+        )
+    if datapath is None:
+        datapath = Datapath.for_volume(arch, volume)
+    backend = Backend(scene, volume, transfer, arch, plan, datapath)
+    vcd = VcdTrace() if trace is not None else None
+    machine = Cube4Machine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd)
+    result = machine.run(progress)
+    if vcd is not None:
+        vcd.write(trace)
+    return result
