@@ -47,6 +47,19 @@ class DelayLine:
         self._state = joined[:, length:]
         return joined[:, :length]
 
+    @staticmethod
+    def read_at(block: np.ndarray, flat_cycles: np.ndarray, cycles: np.ndarray, depth: int):
+        """What a freshly reset line of ``depth`` fed ``block`` outputs at given cycles.
+
+        ``flat_cycles`` indexes ``block.ravel()`` (lane * L + cycle) and ``cycles`` is the
+        cycle part; entries read before anything reached the output are the reset zeros.
+        Same result as :meth:`push` followed by indexing, without building the output.
+        """
+        if depth == 0:
+            return block.ravel()[flat_cycles]
+        out = block.ravel()[np.maximum(flat_cycles - depth, 0)]
+        return np.where(cycles >= depth, out, 0)
+
     @property
     def entries(self) -> int:
         """Storage of the line in entries (all lanes)."""

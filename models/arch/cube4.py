@@ -240,7 +240,7 @@ class Cube4Machine:
         payloads = {}
         if self.be.pre_classified:
             rgba = self.be.classified_voxels(stream)
-            payloads.update(zip("rgba", rgba, strict=True))
+            payloads.update((c, v.reshape(stream.shape)) for c, v in zip("rgba", rgba, strict=True))
         if not self.be.pre_classified or self.be.need_grad or "gradient" in self.elaborated:
             payloads["value"] = stream
         return {k: self.datapath.corners(v, q) << S for k, v in payloads.items()}

@@ -76,6 +76,7 @@ class Cube4Memory:
         self.modules[module, address] = raw
         counters.set("memory.words_per_module", words)
         self._schedules: dict[tuple[int, int], tuple] = {}
+        self._conflicts: dict[tuple[int, int], int] = {}
 
     def schedule(self, kp: int, s: int) -> SliceSchedule:
         """The read schedule of slice ``s`` along axis ``kp`` (cached per ``s mod P``)."""
@@ -103,14 +104,20 @@ class Cube4Memory:
         sched = self.schedule(kp, s)
         z, y, x = sched.zyx
         P = self.P
-        holder = cube4_module(x, y, z, P)
         lane = np.arange(P)[:, None]
-        conflicts = int(np.count_nonzero(sched.valid & (holder != lane)))
+        # The module holding each scheduled voxel depends on s only through s mod P, so
+        # the check is computed once per residue and counted on every read.
+        key = (kp, s % P)
+        if key not in self._conflicts:
+            holder = cube4_module(x, y, z, P)
+            self._conflicts[key] = int(np.count_nonzero(sched.valid & (holder != lane)))
+        conflicts = self._conflicts[key]
         self.counters.add("memory.conflicts", conflicts)
         if conflicts:
             raise AssertionError(f"skew violated: {conflicts} reads of slice {s} hit a busy module")
         address = cube4_address_zyx(z, y, x, self.shape, P)
-        stream = np.where(sched.valid, self.modules[lane, address], 0).astype(np.int64)
+        stream = self.modules[lane, address].astype(np.int64)
+        stream[~sched.valid] = 0
         if self.stuck is not None:
             k, value = self.stuck
             stream[k] = np.where(sched.valid[k], value, 0)

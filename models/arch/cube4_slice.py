@@ -102,21 +102,18 @@ class SliceDatapath:
         ext[:, : stream.shape[1]] = stream
         ring1 = self._link(ext)
         ring2 = self._link(ring1)
-        lanes = P
-
-        def delayed(x: np.ndarray, depth: int) -> np.ndarray:
-            return DelayLine(depth, lanes, x.dtype).push(x)
-
         m = (s + self._a + self._b) % P
         flat = m * L + self._cell_t
+        t = self._cell_t
 
-        def at(x: np.ndarray) -> np.ndarray:
-            return x.ravel()[flat]
+        def delayed(x: np.ndarray, depth: int) -> np.ndarray:
+            # The delay line of that depth (reset per slice), read at each cell's cycle.
+            return DelayLine.read_at(x, flat, t, depth)
 
-        v00 = at(delayed(ext, self.beam_depth))
-        v01 = np.where(self._wrap, at(delayed(ring1, C)), at(delayed(ring1, C + 1)))
-        v10 = at(delayed(ring1, 1))
-        v11 = np.where(self._wrap, at(ring2), at(delayed(ring2, 1)))
+        v00 = delayed(ext, self.beam_depth)
+        v01 = np.where(self._wrap, delayed(ring1, C), delayed(ring1, C + 1))
+        v10 = delayed(ring1, 1)
+        v11 = np.where(self._wrap, delayed(ring2, 0), delayed(ring2, 1))
         # Far-edge cells replicate their own voxels (boundary multiplexers).
         last_b = self._b == self.n_b - 1
         v01 = np.where(last_b, v00, v01)

@@ -139,7 +139,12 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--image", "axb"], "not an integer"),
         (["render", "--phantom", "teapot"], "teapot"),
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
-        (["render", "--fidelity", "cycle"], "not yet available"),
+        (["render", "--fidelity", "transaction"], "not yet available"),
+        (
+            ["render", "--fidelity", "cycle", "--arch", "volumepro500"],
+            "volumepro500 (shear-warp order) is not modelled at cycle fidelity",
+        ),
+        (["render", "--trace", "t.vcd"], "--trace: a waveform needs --fidelity cycle"),
         (["render", "--arch", "cray-1"], "--arch: unknown architecture 'cray-1'"),
         (
             ["render", "--arch", "volumepro500", "--projection", "perspective"],

@@ -1,0 +1,178 @@
+"""The ``cycle`` rung on the Cube-4 family: bit-identical images, exact cycle accounting.
+
+Design section 3: functional, transaction, cycle and rtl images are bit-identical for the
+same scene and architecture.  The cycle image is assembled only from what the modelled
+pixel bus delivers (see test_cycle_faults.py for the proof by fault injection).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hwsim.fidelity import render, resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom, read_volume
+from hwsim.volumes.volume import Volume
+from models.arch.cube4 import UNITS
+from models.cycle import render_cycle
+from models.functional import render_functional
+
+pytestmark = pytest.mark.model
+
+VIEWS = [(0, 0), (45, 0), (0, 90), (30, 20), (180, 0), (37, -61), (90, 45)]
+MODES = ["composite", "mip", "minip", "xray", "iso"]
+
+
+def scene_of(az=30, el=20, *, size=28, mode="composite", projection="parallel", **extra):
+    render_kw = extra.pop("render", {})
+    return Scene(
+        volume=VolumeSpec(phantom="head"),
+        transfer=extra.pop("transfer", TransferSpec(preset="ct")),
+        view=ViewSpec(
+            azimuth=az, elevation=el, width=size, height=size, zoom=1.2, projection=projection
+        ),
+        render=RenderSpec(mode=mode, **render_kw),
+        **extra,
+    )
+
+
+def both(scene, volume, arch="cube4", **kw):
+    machine = resolve_arch(arch) if isinstance(arch, str) else arch
+    tf = resolve_transfer(scene.transfer, volume)
+    plan = make_plan(scene, volume, machine.order)
+    fixed = render_functional(scene, volume, tf, machine, plan)
+    cycle = render_cycle(scene, volume, tf, machine, plan, **kw)
+    return fixed, cycle, plan
+
+
+def assert_identical(fixed, cycle):
+    assert cycle.image.dtype == fixed.image.dtype and cycle.image.shape == fixed.image.shape
+    assert np.array_equal(cycle.image, fixed.image), "cycle image differs from functional"
+    assert cycle.samples == fixed.samples
+
+
+@pytest.fixture(scope="module")
+def head():
+    return make_phantom("head", size=21)  # odd, not a multiple of P
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize(("az", "el"), VIEWS)
+def test_cycle_equals_functional_bit_for_bit_parallel(head, mode, az, el):
+    fixed, cycle, _ = both(scene_of(az, el, mode=mode), head)
+    assert_identical(fixed, cycle)
+    if mode == "composite":
+        assert cycle.image[..., 3].max() > 0.5  # not a trivially empty picture
+
+
+@pytest.mark.parametrize("mode", ["composite", "mip", "xray", "iso"])
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20), (45, 0), (150, -30)])
+def test_cycle_equals_functional_bit_for_bit_perspective(head, mode, az, el):
+    scene = scene_of(az, el, mode=mode, projection="perspective")
+    fixed, cycle, _ = both(scene, head)
+    assert_identical(fixed, cycle)
+
+
+@pytest.mark.parametrize("pipelines", [1, 3, 8])
+def test_any_pipeline_count_renders_the_same_image(head, pipelines):
+    arch = dataclasses.replace(resolve_arch("cube4"), pipelines=pipelines)
+    fixed, cycle, _ = both(scene_of(60, 25), head, arch)
+    assert_identical(fixed, cycle)
+    assert cycle.counters["memory.conflicts"] == 0
+
+
+def test_non_cubic_anisotropic_volume(rng):
+    data = (rng.random((9, 14, 23)) * 3000).astype(np.uint16)
+    data[3:7, 4:10, 5:18] += 900
+    vol = Volume(data=data, spacing=(2.0, 1.0, 0.7), bits=12, name="box")
+    for az, el in [(20, 10), (100, 0), (0, 80)]:
+        assert_identical(*both(scene_of(az, el, transfer=TransferSpec(preset="auto")), vol)[:2])
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        {"transfer": TransferSpec(preset="ct", order="pre")},
+        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(0.0, 12.5))},
+        {"cut_planes": (CutPlane(normal=(1.0, 0.3, 0.2), offset=0.5, thickness=4.0, falloff=2.0),)},
+        {"transfer": TransferSpec(preset="ct", gradient_opacity=((0.0, 0.2), (200.0, 1.0)))},
+        {"render": {"lighting": False}},
+        {"render": {"early_termination": 0.9}},
+    ],
+    ids=["pre-classified", "crop", "cut-plane", "gm-modulation", "unlit", "ert"],
+)
+def test_scene_features_stay_bit_identical(head, extra):
+    assert_identical(*both(scene_of(40, 15, **extra), head)[:2])
+
+
+def test_marschner_lobb_and_ball():
+    for name in ("marschner-lobb", "ball"):
+        vol = make_phantom(name, size=24)
+        for mode in ("composite", "mip"):
+            tf = TransferSpec(preset="auto")
+            assert_identical(*both(scene_of(25, 35, mode=mode, transfer=tf), vol)[:2])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
+def test_real_volumes_are_bit_identical(shared_data, name):
+    vol = read_volume(shared_data / name)
+    for mode, view in (("composite", (30, 15)), ("mip", (90, 0))):
+        scene = scene_of(*view, size=40, mode=mode, transfer=TransferSpec(preset="auto"))
+        assert_identical(*both(scene, vol)[:2])
+
+
+def test_counters_add_up_and_throughput_never_exceeds_P(head):
+    fixed, cycle, plan = both(scene_of(33, 21), head)
+    c, P = cycle.counters, 4
+    assert c["memory.conflicts"] == 0
+    assert cycle.samples <= P * cycle.cycles
+    assert c["pixel_bus.pixels"] == plan.ray_ids.size
+    for unit in ["memory", *cycle.elaborated_units]:
+        if unit in ("ring", "pixel_bus"):
+            continue
+        for lane in range(P):
+            parts = [c[f"pipeline[{lane}].{unit}.{k}_cycles"] for k in ("busy", "stall", "idle")]
+            assert sum(parts) == cycle.cycles, (unit, lane, parts)
+    reads = sum(c[f"memory.module[{m}].reads"] for m in range(P))
+    assert reads == head.data.size  # every voxel read exactly once per frame
+
+
+def test_axis_aligned_cycle_count_has_its_closed_form():
+    """Timing rules of docs/cycle.md: (n + 1) slices of n ceil(n / P) clocks, the pipeline
+    latency (units + beam alignment C + 1 + address 1) and the pixel-bus drain."""
+    n, P = 16, 4
+    vol = make_phantom("head", size=n)
+    fixed, cycle, plan = both(scene_of(0, 0, size=n), vol)
+    C = -(-n // P)
+    latency = 1 + C + 1 + sum(u.LATENCY for u in UNITS.values())
+    rays = plan.ray_ids.size  # all finish on the last slice; the bus drains one per clock
+    assert cycle.cycles == (n + 1) * n * C + latency + rays
+    assert cycle.counters["pipeline.latency_cycles"] == latency
+
+
+def test_a_small_pixel_fifo_costs_cycles_not_pixels(head):
+    scene = scene_of(30, 20)
+    fixed, roomy, _ = both(scene, head)
+    from models.cycle import Faults
+
+    _, tight, _ = both(scene, head, faults=Faults(pixel_fifo_depth=8))
+    assert np.array_equal(tight.image, roomy.image)
+    assert tight.cycles > roomy.cycles
+    stalls = tight.counters["pipeline[0].composite.stall_cycles"]
+    assert (
+        stalls > 0
+        and tight.cycles - roomy.cycles <= stalls + roomy.counters["pixel_bus.drain_cycles"]
+    )
+
+
+def test_render_entry_point_reports_cycle_stats(head):
+    run = render(scene_of(30, 20), fidelity="cycle", arch="cube4", volume=head)
+    assert run.cycles > 0 and run.clock_hz == 125e6
+    assert run.derived["samples_per_cycle"] <= 4
+    assert "memory" in run.elaborated_units and "crop" in run.elided_units
