@@ -2,7 +2,8 @@
 
 Every cycle of a stage is exactly one of *busy* (it accepted an input), *stalled* (it
 held a result its consumer could not take) or *idle* (nothing to do), so
-``busy + stalled + idle == total`` per lane -- a test checks it for every unit.
+``busy + stalled + idle == total`` per lane -- a test checks it for every unit.  Counts
+accumulate in arrays (cheap per block) and reach the counters at :meth:`Stage.publish`.
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ class Stage:
         self.unit, self.latency, self.ii, self.lanes = unit, int(latency), int(ii), int(lanes)
         self.counters = counters
         self.path = "pipeline[{}]." + unit
+        # busy, stall, idle cycles and inputs per lane; published by :meth:`publish`.
+        self._sums = np.zeros((4, self.lanes), dtype=np.int64)
 
     def account(self, busy: np.ndarray, cycles: int, stalled: int = 0) -> None:
         """Add one block of ``cycles`` cycles: ``busy[i]`` inputs accepted by lane ``i``
@@ -44,7 +47,15 @@ class Stage:
         idle = cycles - busy * self.ii - stalled
         if (idle < 0).any():
             raise ValueError(f"{self.unit}: busy + stalled exceeds the block of {cycles} cycles")
-        self.counters.add_lanes(self.path + ".busy_cycles", busy * self.ii)
-        self.counters.add_lanes(self.path + ".stall_cycles", np.full(self.lanes, stalled))
-        self.counters.add_lanes(self.path + ".idle_cycles", idle)
-        self.counters.add_lanes(self.path + ".inputs", busy)
+        self._sums[0] += busy * self.ii
+        self._sums[1] += stalled
+        self._sums[2] += idle
+        self._sums[3] += busy
+
+    def publish(self) -> None:
+        """Write the accumulated per-lane counts into the counters (once, at the end)."""
+        for name, row in zip(
+            ("busy_cycles", "stall_cycles", "idle_cycles", "inputs"), self._sums, strict=True
+        ):
+            self.counters.add_lanes(f"{self.path}.{name}", row)
+        self._sums[:] = 0

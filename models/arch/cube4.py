@@ -348,6 +348,8 @@ class Cube4Machine:
         cycles = self.now + latency + drain
         for stage in [self.memory_stage, *stages.values()]:
             stage.account(idle, latency + drain)
+            stage.publish()
+        self.memory.publish()
         c.set("pixel_bus.pixels", pixel_fifo.pushed)
         c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
         c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)

@@ -77,6 +77,8 @@ class Cube4Memory:
         counters.set("memory.words_per_module", words)
         self._schedules: dict[tuple[int, int], tuple] = {}
         self._conflicts: dict[tuple[int, int], int] = {}
+        self.reads = np.zeros(P, dtype=np.int64)
+        self.idle_slots = np.zeros(P, dtype=np.int64)
 
     def schedule(self, kp: int, s: int) -> SliceSchedule:
         """The read schedule of slice ``s`` along axis ``kp`` (cached per ``s mod P``)."""
@@ -122,6 +124,13 @@ class Cube4Memory:
             k, value = self.stuck
             stream[k] = np.where(sched.valid[k], value, 0)
         reads = sched.valid.sum(axis=1)
-        self.counters.add_lanes("memory.module[{}].reads", reads)
-        self.counters.add_lanes("memory.module[{}].idle_slots", (~sched.valid).sum(axis=1))
+        self.reads += reads
+        self.idle_slots += sched.valid.shape[1] - reads
         return stream, sched
+
+    def publish(self) -> None:
+        """Write the per-module read and idle-slot counts into the counters."""
+        self.counters.add_lanes("memory.module[{}].reads", self.reads)
+        self.counters.add_lanes("memory.module[{}].idle_slots", self.idle_slots)
+        self.reads[:] = 0
+        self.idle_slots[:] = 0

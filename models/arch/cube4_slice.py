@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwsim.engine import Counters, DelayLine
+from hwsim.engine import Counters
 
 __all__ = ["SliceCorners", "SlicePath", "extend_axis"]
 
@@ -86,7 +86,22 @@ class SliceDatapath:
         self._wrap = np.broadcast_to(b % P == P - 1, (self.n_a, self.n_b))
         self._b = b
         self._a = a
+        self._read_cache: dict = {}
         counters.set("ring.beam_fifo_depth", self.beam_depth)
+
+    def _reads(self, residue: int, L: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """Per delay depth: where each cell reads the ``(P, L)`` stream, and which cells
+        read before anything left the line (reset zeros).  Depends on ``s mod P`` only;
+        the same as :meth:`DelayLine.read_at`, precomputed."""
+        key = (residue, L)
+        if key not in self._read_cache:
+            t = self._cell_t
+            flat = ((residue + self._a + self._b) % self.P) * L + t
+            depths = {self.beam_depth, self.C, self.C + 1, 1, 0}
+            self._read_cache[key] = {
+                d: (np.maximum(flat - d, 0), np.broadcast_to(t < d, t.shape).copy()) for d in depths
+            }
+        return self._read_cache[key]
 
     def _link(self, stream: np.ndarray) -> np.ndarray:
         """What every pipeline receives over its ring link: pipeline ``k + 1``'s stream."""
@@ -102,13 +117,14 @@ class SliceDatapath:
         ext[:, : stream.shape[1]] = stream
         ring1 = self._link(ext)
         ring2 = self._link(ring1)
-        m = (s + self._a + self._b) % P
-        flat = m * L + self._cell_t
-        t = self._cell_t
+        reads = self._reads(s % P, L)
 
         def delayed(x: np.ndarray, depth: int) -> np.ndarray:
             # The delay line of that depth (reset per slice), read at each cell's cycle.
-            return DelayLine.read_at(x, flat, t, depth)
+            idx, fresh = reads[depth]
+            out = x.ravel()[idx]
+            out[fresh] = 0
+            return out
 
         v00 = delayed(ext, self.beam_depth)
         v01 = np.where(self._wrap, delayed(ring1, C), delayed(ring1, C + 1))

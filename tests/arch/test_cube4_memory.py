@@ -42,6 +42,7 @@ def test_every_slice_of_every_axis_reads_each_voxel_once_one_per_module_per_cloc
             assert np.array_equal(stream[sched.valid], raw[z, y, x][sched.valid])
             assert np.all(stream[~sched.valid] == 0)
     assert counters["memory.conflicts"] == 0
+    mem.publish()
     total_reads = sum(counters[f"memory.module[{m}].reads"] for m in range(P))
     assert total_reads == 3 * raw.size
 

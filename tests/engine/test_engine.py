@@ -85,6 +85,7 @@ def test_stage_accounting_balances_and_refuses_impossible_blocks():
     c = Counters()
     s = Stage("interp", latency=4, ii=1, lanes=2, counters=c)
     s.account(np.array([5, 3]), cycles=8, stalled=2)
+    s.publish()
     for lane in (0, 1):
         kinds = ("busy", "stall", "idle")
         assert sum(c[f"pipeline[{lane}].interp.{k}_cycles"] for k in kinds) == 8
