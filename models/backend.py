@@ -246,8 +246,30 @@ class Backend:
         )
         return shade_unit.shade(shader, rgb, normals)
 
+    def transparent_ranges(self) -> np.ndarray:
+        """``next_visible[i]``: the first LUT entry ``>= i`` with non-zero opacity (the
+        table size when none).  A sample whose entry range ``[lo, hi]`` has
+        ``next_visible[lo] > hi`` is transparent, whatever it interpolates to."""
+        alpha = self.lut.alpha12
+        entries = alpha.size
+        idx = np.where(alpha > 0, np.arange(entries), entries)
+        return np.minimum.accumulate(idx[::-1])[::-1]
+
     def _composite(self, step: Step, src: SampleSource, factor, state: RayState) -> None:
         dp = self.dp
+        maybe = getattr(src, "maybe_visible", None)
+        if maybe is not None:
+            # The source knows samples that are provably transparent (all their voxels
+            # classify to opacity 0): skip simulating them, they change nothing.
+            keep = maybe()
+            if keep is not None and not keep.all():
+                sel = np.flatnonzero(keep)
+                if not sel.size:
+                    return
+                state.extra["skipped"] = state.extra.get("skipped", 0) + step.rays.size - sel.size
+                step = subset_step(step, keep)
+                factor = factor[sel] if factor is not None else None
+                src = src.subset(sel)
         if self.pre_classified:
             chans = src.channels()
             alpha = (chans[3] + (1 << (self.S - 1))) >> self.S

@@ -96,7 +96,13 @@ class CycleResult:
 
 
 class HardwareSource:
-    """Samples of one step interpolated from the corners the slice datapath delivered."""
+    """Samples of one step interpolated from the corners the slice datapath delivered.
+
+    Cells and weights follow the functional rung's float arithmetic exactly: a
+    neighbour's position is ``p + 1.0`` or ``p - 1.0`` rounded as float64, and its
+    weight is quantised from its own fraction (reused when that fraction is the same
+    float, which makes the quantised weight the same by construction).
+    """
 
     def __init__(self, machine: Cube4Machine, step: Step, q: int) -> None:
         self.m, self.q = machine, q
@@ -105,12 +111,27 @@ class HardwareSource:
         self._cells = machine.cell(self.pa), machine.cell(self.pb)
 
     def _bilinear(self, planes: np.ndarray, cells_a, cells_b) -> np.ndarray:
-        (ca, fa), (cb, fb) = cells_a, cells_b
-        idx = (ca + 2) * planes.shape[2] + (cb + 2)
-        flat = planes.reshape(4, -1)
+        (ca, fa, _), (cb, fb, _) = cells_a, cells_b
+        corners = planes[(ca + 2) * self.m.plane_width + (cb + 2)]
         return interp_unit.bilinear(
-            flat[0, idx], flat[1, idx], flat[2, idx], flat[3, idx], fa, fb, self.m.dp.interp
+            corners[:, 0], corners[:, 1], corners[:, 2], corners[:, 3], fa, fb, self.m.dp.interp
         )
+
+    def subset(self, sel: np.ndarray) -> HardwareSource:
+        """The same source restricted to samples ``sel``."""
+        out = object.__new__(HardwareSource)
+        out.m, out.q = self.m, self.q
+        out.pa, out.pb = self.pa[sel], self.pb[sel]
+        out._cells = tuple(tuple(x[sel] for x in cell) for cell in self._cells)
+        return out
+
+    def maybe_visible(self) -> np.ndarray | None:
+        """False where every corner of a sample's cell classifies to opacity 0."""
+        flags = self.m.planes(self.q).get("maybe")
+        if flags is None:
+            return None
+        (ca, _, _), (cb, _, _) = self._cells
+        return flags[(ca + 2) * self.m.plane_width + (cb + 2)]
 
     def value(self) -> np.ndarray:
         return self._bilinear(self.m.planes(self.q, "value"), *self._cells)
@@ -120,8 +141,7 @@ class HardwareSource:
 
     def gradient(self, sel: np.ndarray) -> np.ndarray:
         m = self.m
-        (ca, fa), (cb, fb) = self._cells
-        cells_a, cells_b = (ca[sel], fa[sel]), (cb[sel], fb[sel])
+        cells_a, cells_b = (tuple(x[sel] for x in cell) for cell in self._cells)
         pa, pb = self.pa[sel], self.pb[sel]
         cur = m.planes(self.q, "value")
         g = np.empty((pa.size, 3), dtype=np.int64)
@@ -130,12 +150,16 @@ class HardwareSource:
         g[:, 2 - m.kp] = self._bilinear(ahead, cells_a, cells_b) - self._bilinear(
             behind, cells_a, cells_b
         )
-        g[:, 2 - m.a_ax] = self._bilinear(cur, m.cell(pa + 1.0), cells_b) - self._bilinear(
-            cur, m.cell(pa - 1.0), cells_b
-        )
-        g[:, 2 - m.b_ax] = self._bilinear(cur, cells_a, m.cell(pb + 1.0)) - self._bilinear(
-            cur, cells_a, m.cell(pb - 1.0)
-        )
+        for axis, p, cells in ((m.a_ax, pa, cells_a), (m.b_ax, pb, cells_b)):
+            up, down = m.cell(p + 1.0, cells), m.cell(p - 1.0, cells)
+            if axis == m.a_ax:
+                g[:, 2 - axis] = self._bilinear(cur, up, cells_b) - self._bilinear(
+                    cur, down, cells_b
+                )
+            else:
+                g[:, 2 - axis] = self._bilinear(cur, cells_a, up) - self._bilinear(
+                    cur, cells_a, down
+                )
         return g
 
 
@@ -176,6 +200,7 @@ class Cube4Machine:
         self.n_kp, self.n_a, self.n_b = shape[kp], shape[self.a_ax], shape[self.b_ax]
         self.C = -(-self.n_b // P)
         self.T = self.n_a * self.C
+        self.plane_width = self.n_b + 3  # cells -2 .. n_b
         self.forward = self._direction()
         self.counters = Counters()
         self.elaborated, self.elided = self._elaborate(elaborate_all)
@@ -190,6 +215,9 @@ class Cube4Machine:
             (self.n_a, self.n_b),
             self.counters,
         )
+        self.elaborate_all = elaborate_all
+        if backend.mode == "composite":
+            self._next_visible = backend.transparent_ranges()
         self._cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
         self._current: dict[int, dict[str, np.ndarray]] = {}
 
@@ -224,10 +252,19 @@ class Cube4Machine:
         units = ["memory", "ring"] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
         return units, [u for u in UNITS if not needs[u]]
 
-    def cell(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cell index and quantised fraction of in-slice positions (the geometry unit)."""
+    def cell(self, p: np.ndarray, like=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cell index, quantised weight and float fraction of in-slice positions (the
+        geometry unit).  ``like``: cells of positions whose fractions are probably the
+        same floats; their quantised weights are reused where they are."""
         c = np.floor(p)
-        return c.astype(np.int64), self.dp.interp.weight.quantize(p - c)
+        frac = p - c
+        if like is None:
+            return c.astype(np.int64), self.dp.interp.weight.quantize(frac), frac
+        weight = like[1].copy()
+        other = frac != like[2]
+        if other.any():
+            weight[other] = self.dp.interp.weight.quantize(frac[other])
+        return c.astype(np.int64), weight, frac
 
     # ------------------------------------------------------------------ slices
 
@@ -243,7 +280,25 @@ class Cube4Machine:
             payloads.update((c, v.reshape(stream.shape)) for c, v in zip("rgba", rgba, strict=True))
         if not self.be.pre_classified or self.be.need_grad or "gradient" in self.elaborated:
             payloads["value"] = stream
-        return {k: self.datapath.corners(v, q) << S for k, v in payloads.items()}
+        # Interleaved (cells, 4) planes: one gather fetches a cell's four corners.
+        planes = {
+            k: (self.datapath.corners(v, q) << S).reshape(4, -1).T.copy()
+            for k, v in payloads.items()
+        }
+        if self.be.mode == "composite" and not self.elaborate_all:
+            if self.be.pre_classified:
+                planes["maybe"] = planes["a"].max(axis=1) > 0
+            else:
+                # Simulation shortcut, not hardware: a cell whose corners span only
+                # transparent LUT entries yields transparent samples (lerps are convex).
+                lo = classify_unit.lut_index(
+                    planes["value"].min(axis=1), self.dp.voxel_bits, S, self.dp.classify
+                )
+                hi = classify_unit.lut_index(
+                    planes["value"].max(axis=1), self.dp.voxel_bits, S, self.dp.classify
+                )
+                planes["maybe"] = self._next_visible[lo] <= hi
+        return planes
 
     def _planes_for(self, stream: np.ndarray, q: int) -> dict[str, np.ndarray]:
         cached = self._cache.get(q)
@@ -253,8 +308,8 @@ class Cube4Machine:
         self._cache[q] = (stream, planes)
         return planes
 
-    def planes(self, q: int, channel: str) -> np.ndarray:
-        return self._current[q][channel]
+    def planes(self, q: int, channel: str | None = None):
+        return self._current[q] if channel is None else self._current[q][channel]
 
     def _read(self, j: int) -> np.ndarray:
         q = self.slice_of(j)
@@ -357,6 +412,7 @@ class Cube4Machine:
         c.set("pipeline.latency_cycles", latency)
         c.set("frame.cycles", cycles)
         c.set("frame.samples", state.samples)
+        c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
         raw = c.as_dict()
         derived = derive(
