@@ -280,24 +280,22 @@ class Cube4Machine:
             payloads.update((c, v.reshape(stream.shape)) for c, v in zip("rgba", rgba, strict=True))
         if not self.be.pre_classified or self.be.need_grad or "gradient" in self.elaborated:
             payloads["value"] = stream
-        # Interleaved (cells, 4) planes: one gather fetches a cell's four corners.
-        planes = {
-            k: (self.datapath.corners(v, q) << S).reshape(4, -1).T.copy()
-            for k, v in payloads.items()
-        }
+        corners = {k: self.datapath.corners(v, q) << S for k, v in payloads.items()}
+        planes = {}
         if self.be.mode == "composite" and not self.elaborate_all:
             if self.be.pre_classified:
-                planes["maybe"] = planes["a"].max(axis=1) > 0
+                planes["maybe"] = corners["a"].max(axis=0).ravel() > 0
             else:
                 # Simulation shortcut, not hardware: a cell whose corners span only
                 # transparent LUT entries yields transparent samples (lerps are convex).
-                lo = classify_unit.lut_index(
-                    planes["value"].min(axis=1), self.dp.voxel_bits, S, self.dp.classify
-                )
-                hi = classify_unit.lut_index(
-                    planes["value"].max(axis=1), self.dp.voxel_bits, S, self.dp.classify
+                value = corners["value"]
+                lo, hi = (
+                    classify_unit.lut_index(x.ravel(), self.dp.voxel_bits, S, self.dp.classify)
+                    for x in (value.min(axis=0), value.max(axis=0))
                 )
                 planes["maybe"] = self._next_visible[lo] <= hi
+        # Interleaved (cells, 4) planes: one gather fetches a cell's four corners.
+        planes.update((k, v.reshape(4, -1).T.copy()) for k, v in corners.items())
         return planes
 
     def _planes_for(self, stream: np.ndarray, q: int) -> dict[str, np.ndarray]:
@@ -376,12 +374,21 @@ class Cube4Machine:
                     del self._cache[old]
             else:
                 self._current = {q: self._corners(self._read(j), q)}
-            lanes = self._lanes(step, q)
+            source = HardwareSource(self, step, q)
+            lanes = self._lanes(source)
             busy = np.bincount(lanes, minlength=P)
             extra = max(0, int(busy.max(initial=0)) - T)
             self._hand_off(step.rays, lanes, prev_lane, state)
             if step.rays.size:
-                be.process(step, lambda s, q=q: HardwareSource(self, s, q), state)
+                # The back end may drop samples (terminated rays, crop); then the source
+                # is rebuilt for the samples that remain.
+                be.process(
+                    step,
+                    lambda s, q=q, src=source, full=step: (
+                        src if s is full else HardwareSource(self, s, q)
+                    ),
+                    state,
+                )
             rays = finishing(j)
             if rays.size:
                 bus["acc"][rays] = state.acc[rays]
@@ -429,13 +436,13 @@ class Cube4Machine:
             derived=derived,
         )
 
-    def _lanes(self, step: Step, q: int) -> np.ndarray:
-        """Pipeline evaluating each sample: the module of its nearest voxel."""
-        if not step.rays.size:
-            return np.zeros(0, dtype=np.int64)
-        a = np.clip(np.floor(step.zyx[:, self.a_ax] + 0.5), 0, self.n_a - 1).astype(np.int64)
-        b = np.clip(np.floor(step.zyx[:, self.b_ax] + 0.5), 0, self.n_b - 1).astype(np.int64)
-        return (q + a + b) % self.P
+    def _lanes(self, source: HardwareSource) -> np.ndarray:
+        """Pipeline evaluating each sample: the module of its nearest voxel
+        (``cell + (fraction >= 1/2)``, clamped to the volume)."""
+        (ca, _, fa), (cb, _, fb) = source._cells
+        a = np.clip(ca + (fa >= 0.5), 0, self.n_a - 1)
+        b = np.clip(cb + (fb >= 0.5), 0, self.n_b - 1)
+        return (source.q + a + b) % self.P
 
     def _hand_off(self, rays: np.ndarray, lanes: np.ndarray, prev_lane: np.ndarray, state) -> None:
         """Move accumulators to the pipeline of their ray's new sample (ring hand-off)."""
