@@ -138,9 +138,41 @@ def run(sizes: Sequence[int], pipelines: int, repeats: int, memory: bool) -> dic
         },
         "cases": cases,
     }
+    report["elision"] = [elision(n, pipelines, repeats) for n in sizes]
     if memory:
         report["memory"] = [peak_rss(n, pipelines) for n in sizes]
     return report
+
+
+def elision(n: int, pipelines: int, repeats: int) -> dict[str, Any]:
+    """Wall time of the elaborated-as-needed model against ``elaborate_all`` (same image
+    and cycles, checked), for an unlit composite scene and a MIP scene."""
+    from models.cycle import render_cycle
+
+    arch, volume, scene, tf, plan = _case(n, pipelines)
+    out: dict[str, Any] = {"size": n}
+    for label, sc in (
+        (
+            "unlit",
+            dataclasses.replace(scene, render=dataclasses.replace(scene.render, lighting=False)),
+        ),
+        ("mip", dataclasses.replace(scene, render=dataclasses.replace(scene.render, mode="mip"))),
+        ("lit", scene),
+    ):
+        lean_s, lean = _timed(repeats, render_cycle, sc, volume, tf, arch, plan)
+        full_s, full = _timed(repeats, render_cycle, sc, volume, tf, arch, plan, elaborate_all=True)
+        out[label] = {
+            "elided_units": lean.elided_units,
+            "lean_seconds": lean_s,
+            "full_seconds": full_s,
+            "speedup": full_s / lean_s,
+            "same_image": bool(np.array_equal(lean.image, full.image)),
+            "same_cycles": lean.cycles == full.cycles,
+            "transparent_samples_skipped": lean.counters.get(
+                "simulation.transparent_samples_skipped", 0
+            ),
+        }
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -160,6 +192,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{c['simulated_cycles_per_second'] / 1e6:>8.2f}{c['ratio_to_rtl']:>8.0f}"
             f"  identical={c['bit_identical']}"
         )
+    for e in report["elision"]:
+        for label in ("unlit", "mip", "lit"):
+            x = e[label]
+            print(
+                f"{e['size']}^3 {label:<6} elision speed-up {x['speedup']:.2f}x "
+                f"(elided {', '.join(x['elided_units']) or 'none'}; "
+                f"same image {x['same_image']}, same cycles {x['same_cycles']})"
+            )
     for m in report.get("memory", []):
         print(
             f"{m['size']}^3 peak RSS {m['peak_rss_bytes'] / 2**20:.0f} MiB "

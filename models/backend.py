@@ -91,7 +91,10 @@ class Backend:
         arch: ArchConfig,
         plan: SamplePlan,
         datapath: Datapath,
+        *,
+        exercise_unused: bool = False,
     ) -> None:
+        self.exercise_unused = exercise_unused
         self.scene, self.volume, self.transfer, self.arch, self.plan = (
             scene,
             volume,
@@ -106,7 +109,7 @@ class Backend:
         self.ref = min(volume.spacing)
         composite = self.mode == "composite"
         self.need_grad = scene.lit or (composite and transfer.modulates)
-        if composite or self.mode == "iso":
+        if composite or self.mode == "iso" or exercise_unused:
             self.lut = classify_unit.build_lut(
                 transfer, self.vmap.to_value, dp.voxel_bits, dp.classify
             )
@@ -119,10 +122,12 @@ class Backend:
             # An integer magnitude m stands for m * scale / (2 * 2**S * min spacing).
             per_unit = self.vmap.scale / (2.0 * (1 << self.S) * self.ref)
             self.gm_scale = classify_unit.gm_scale(per_unit, self.gm_max, dp.classify)
-        if scene.lit:
+        if scene.lit or exercise_unused:
+            from hwsim.scene import Light
+
             lights = [
                 (plan.camera.light_to_world(light.direction, light.space), light.intensity)
-                for light in scene.lights
+                for light in (scene.lights or (Light(),))
             ]
             m = scene.material
             material = (m.ambient, m.diffuse, m.specular, m.shininess)
@@ -204,6 +209,8 @@ class Backend:
         state.samples += step.rays.size
         state.touched[step.rays] = True
         src = make_source(step)
+        if self.exercise_unused:
+            self._exercise(step, src, state)
         acc = state.acc
         if mode == "composite":
             self._composite(step, src, factor, state)
@@ -233,6 +240,16 @@ class Backend:
                     state.dt_sum, step.rays, np.full(s.size, 1, np.int64), step.dt, dp.composite
                 )
         return step
+
+    def _exercise(self, step: Step, src: SampleSource, state: RayState) -> None:
+        """Run the units this scene does not use on every sample and discard the results:
+        what a fixed pipeline with disabled units does (the elision check)."""
+        s = src.value()
+        rgb, _ = classify_unit.classify(s, self.lut, self.dp.voxel_bits, self.S, self.dp.classify)
+        if not self.scene.lit:
+            g = self._to_world(src.gradient(np.arange(s.size)))
+            self._shade(rgb, g, step.rays)
+        state.extra["exercised"] = state.extra.get("exercised", 0) + s.size
 
     def _to_world(self, g: np.ndarray) -> np.ndarray:
         return gradient_unit.to_world(g, self.volume.spacing, self.S, self.dp.gradient)

@@ -50,7 +50,8 @@ def render_cycle(
     faults : Faults, optional
         Structures to break (fault-injection tests).
     elaborate_all : bool
-        Simulate every unit, even those the scene does not use (the elision check).
+        Simulate every unit, even those the scene does not use, discarding what they
+        compute (a fixed pipeline with disabled units): the elision check.
     trace : path, optional
         Write a VCD of memory reads, interpolator inputs and the pixel bus there.
     """
@@ -63,7 +64,7 @@ def render_cycle(
         )
     if datapath is None:
         datapath = Datapath.for_volume(arch, volume)
-    backend = Backend(scene, volume, transfer, arch, plan, datapath)
+    backend = Backend(scene, volume, transfer, arch, plan, datapath, exercise_unused=elaborate_all)
     vcd = VcdTrace() if trace is not None else None
     machine = Cube4Machine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd)
     result = machine.run(progress)

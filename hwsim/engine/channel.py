@@ -25,12 +25,13 @@ class Channel:
     lanes : int
         Parallel lanes.
     counters : Counters
-        Where ``.transfers``, ``.stall_cycles`` and ``.idle_cycles`` accumulate.
+        Where ``.transfers``, ``.stall_cycles`` and ``.idle_cycles`` go at :meth:`publish`.
     """
 
     def __init__(self, path: str, lanes: int, counters: Counters) -> None:
         self.path, self.lanes, self.counters = path, lanes, counters
         self._held = np.zeros(lanes, dtype=bool)  # valid high without ready at block end
+        self._sums = np.zeros((3, lanes), dtype=np.int64)
 
     def observe(self, valid: np.ndarray, ready: np.ndarray) -> np.ndarray:
         """Account one block: ``valid``/``ready`` ``(lanes, L)`` bools; returns the
@@ -47,7 +48,14 @@ class Channel:
             )
         fire = valid & ready
         self._held = valid[:, -1] & ~ready[:, -1]
-        self.counters.add_lanes(self.path + ".transfers", fire.sum(axis=1))
-        self.counters.add_lanes(self.path + ".stall_cycles", (valid & ~ready).sum(axis=1))
-        self.counters.add_lanes(self.path + ".idle_cycles", (~valid).sum(axis=1))
+        transfers = fire.sum(axis=1)
+        self._sums[0] += transfers
+        self._sums[1] += valid.sum(axis=1) - transfers
+        self._sums[2] += valid.shape[1] - valid.sum(axis=1)
         return fire
+
+    def publish(self) -> None:
+        """Write the accumulated per-lane counts into the counters."""
+        for name, row in zip(("transfers", "stall_cycles", "idle_cycles"), self._sums, strict=True):
+            self.counters.add_lanes(f"{self.path}.{name}", row)
+        self._sums[:] = 0

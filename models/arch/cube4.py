@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.engine import Counters, DelayLine, DrainFifo, Stage, VcdTrace
+from hwsim.engine import Channel, Counters, DelayLine, DrainFifo, Stage, VcdTrace
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan, Step
@@ -312,6 +312,9 @@ class Cube4Machine:
     def _read(self, j: int) -> np.ndarray:
         q = self.slice_of(j)
         stream, sched = self.memory.read_slice(self.kp, q)
+        # Module -> pipeline stream: valid in every scheduled slot; Cube-4 never
+        # back-pressures inside a slice (stalls happen between slices, at the pixel bus).
+        self.memory_out.observe(sched.valid, True)
         self._reads = sched.valid.sum(axis=1)
         self.counters.add("ring.link_transfers", 2 * int(sched.valid.sum()))
         if self.trace is not None:
@@ -328,6 +331,7 @@ class Cube4Machine:
         pixel_fifo = DrainFifo("pixel_bus.fifo", self.n_a * self.n_b if depth is None else depth)
         c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
         self.memory_stage = Stage("memory", skew_unit.LATENCY, skew_unit.II, P, c)
+        self.memory_out = Channel("pipeline[{}].memory.o", P, c)
         stages = {
             u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
         }
@@ -412,6 +416,7 @@ class Cube4Machine:
             stage.account(idle, latency + drain)
             stage.publish()
         self.memory.publish()
+        self.memory_out.publish()
         c.set("pixel_bus.pixels", pixel_fifo.pushed)
         c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
         c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)

@@ -73,6 +73,7 @@ def test_channel_counts_transfers_stalls_and_idles_and_enforces_valid_hold():
     valid = np.array([[1, 1, 1, 0, 1]], bool)
     ready = np.array([[0, 1, 1, 1, 1]], bool)
     fire = ch.observe(valid, ready)
+    ch.publish()
     assert fire.tolist() == [[False, True, True, False, True]]
     assert c["pipeline[0].interp.i.transfers"] == 3
     assert c["pipeline[0].interp.i.stall_cycles"] == 1

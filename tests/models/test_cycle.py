@@ -141,6 +141,8 @@ def test_counters_add_up_and_throughput_never_exceeds_P(head):
             assert sum(parts) == cycle.cycles, (unit, lane, parts)
     reads = sum(c[f"memory.module[{m}].reads"] for m in range(P))
     assert reads == head.data.size  # every voxel read exactly once per frame
+    moved = sum(c[f"pipeline[{m}].memory.o.transfers"] for m in range(P))
+    assert moved == reads and c["pipeline[0].memory.o.stall_cycles"] == 0
 
 
 def test_axis_aligned_cycle_count_has_its_closed_form():
