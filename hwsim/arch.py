@@ -50,8 +50,9 @@ class ArchConfig:
         Allowed z-supersampling range ``(lo, hi)``.
     cut_planes : int
         Most thick cut planes the machine applies at once.
-    formats, memory : dict
-        Raw tables for the unit formats and the memory system (models layer).
+    formats, memory, buffers : dict
+        Raw tables for the unit formats, the memory system and on-chip buffer capacities
+        (the models layer owns their meaning and validates them).
     slice_overhead_cycles, section_width, section_overhead_cycles : int
         Closed-form timing overheads: cycles lost per slice, the width of a section in
         base-plane pixels (0: no sectioning) and cycles lost per section.
@@ -74,6 +75,7 @@ class ArchConfig:
     cut_planes: int = 4
     formats: dict[str, Any] = field(default_factory=dict)
     memory: dict[str, Any] = field(default_factory=dict)
+    buffers: dict[str, Any] = field(default_factory=dict)
     published: dict[str, Any] = field(default_factory=dict)
     slice_overhead_cycles: int = 0
     section_width: int = 0
@@ -129,6 +131,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         cut_planes=features.integer("cut_planes", 4, 0, 64),
         formats=dict(top.raw("formats", {})),
         memory=dict(top.raw("memory", {})),
+        buffers=dict(top.raw("buffers", {})),
         published=dict(top.raw("published", {})),
         slice_overhead_cycles=overheads.integer("slice_cycles", 0, 0, 1 << 20),
         section_width=overheads.integer("section_width", 0, 0, 1 << 16),

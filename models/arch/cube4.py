@@ -202,6 +202,7 @@ class Cube4Machine:
         self.T = self.n_a * self.C
         self.plane_width = self.n_b + 3  # cells -2 .. n_b
         self.forward = self._direction()
+        self.capacity = self._buffers()
         self.counters = Counters()
         self.elaborated, self.elided = self._elaborate(elaborate_all)
         self.need_slices = "gradient" in self.elaborated
@@ -236,6 +237,48 @@ class Cube4Machine:
                 allowed="a view from outside the volume's slab",
             )
         return bool(signs[0] > 0)
+
+    def _buffers(self) -> dict[str, int]:
+        """On-chip buffer capacities per pipeline (``[buffers]``, entries), checked
+        against what this volume needs.  Defaults: sized for ``limits.max_volume``."""
+        arch, P = self.arch, self.P
+        n_max = max(arch.max_volume)
+        c_max = -(-n_max // P)
+        defaults = {
+            "beam_fifo_entries": c_max + 1,  # architectures.md 9.2: n / P
+            "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
+            "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
+        }
+        table = dict(arch.buffers)
+        out = {}
+        for key, default in defaults.items():
+            value = table.pop(key, default)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise InputError(
+                    f"invalid {value!r}",
+                    source=arch.source,
+                    key=f"buffers.{key}",
+                    allowed="an integer >= 0",
+                )
+            out[key] = value
+        if table:
+            raise InputError(
+                "unknown key",
+                source=arch.source,
+                key=f"buffers.{sorted(table)[0]}",
+                allowed=", ".join(defaults),
+            )
+        needs = {"beam_fifo_entries": self.C + 1, "slice_fifo_entries": self.T}
+        for key, need in needs.items():
+            if out[key] < need:
+                raise InputError(
+                    f"{arch.name} cannot hold this volume's {key.split('_entries')[0]} "
+                    f"({need} entries per pipeline)",
+                    source=arch.source,
+                    key=f"buffers.{key}",
+                    allowed=f">= {need}",
+                )
+        return out
 
     def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
         be, mode = self.be, self.be.mode
@@ -328,7 +371,8 @@ class Cube4Machine:
         c = self.counters
         state = be.new_state(plan.n_rays)
         depth = self.faults.pixel_fifo_depth
-        pixel_fifo = DrainFifo("pixel_bus.fifo", self.n_a * self.n_b if depth is None else depth)
+        capacity = self.capacity["pixel_fifo_entries"]
+        pixel_fifo = DrainFifo("pixel_bus.fifo", capacity if depth is None else depth)
         c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
         self.memory_stage = Stage("memory", skew_unit.LATENCY, skew_unit.II, P, c)
         self.memory_out = Channel("pipeline[{}].memory.o", P, c)

@@ -178,3 +178,19 @@ def test_render_entry_point_reports_cycle_stats(head):
     assert run.cycles > 0 and run.clock_hz == 125e6
     assert run.derived["samples_per_cycle"] <= 4
     assert "memory" in run.elaborated_units and "crop" in run.elided_units
+
+
+def test_perspective_rays_denser_than_voxels_stretch_slices_not_the_rules():
+    """Timing rule 3: a pipeline owing more samples than a slice has clocks stretches the
+    slice; every unit still accounts each cycle exactly once and samples/cycle <= P."""
+    vol = make_phantom("head", size=12)
+    scene = scene_of(20, 10, size=64, projection="perspective")
+    fixed, cycle, plan = both(scene, vol)
+    assert_identical(fixed, cycle)
+    n, P = 12, 4
+    T = n * -(-n // P)
+    plain = (n + 1) * T + cycle.counters["pipeline.latency_cycles"]
+    assert cycle.cycles > plain + cycle.counters["pixel_bus.drain_cycles"]
+    assert cycle.samples <= P * cycle.cycles
+    busy = [cycle.counters[f"pipeline[{m}].interp.busy_cycles"] for m in range(P)]
+    assert max(busy) > n * T  # more samples than the frame's voxel slots on one pipeline

@@ -115,3 +115,31 @@ def test_elided_model_equals_the_full_model_in_image_and_cycles(head, scene, eli
     for unit in elided:
         assert f"pipeline[0].{unit}.busy_cycles" not in lean.counters
         assert f"pipeline[0].{unit}.busy_cycles" in full.counters
+
+
+def test_buffer_capacities_come_from_the_arch_file_and_are_checked(head, tmp_path):
+    import dataclasses
+
+    from hwsim.errors import InputError
+
+    arch = dataclasses.replace(
+        resolve_arch("cube4"), buffers={"beam_fifo_entries": 7, "pixel_fifo_entries": 600}
+    )
+    scene = scene_of()
+    tf = resolve_transfer(scene.transfer, head)
+    plan = make_plan(scene, head, arch.order)
+    small = dataclasses.replace(arch, buffers={**arch.buffers, "slice_fifo_entries": 10})
+    narrow = dataclasses.replace(arch, buffers={"beam_fifo_entries": 6})
+    with pytest.raises(InputError, match=r"buffers\.beam_fifo_entries.*>= 7"):
+        render_cycle(scene, head, tf, narrow, plan)
+    with pytest.raises(InputError, match=r"buffers\.slice_fifo_entries.*>= 144"):
+        render_cycle(scene, head, tf, small, plan)
+    typo = dataclasses.replace(arch, buffers={"beam_fifo": 3})
+    with pytest.raises(InputError, match=r"buffers\.beam_fifo: unknown key"):
+        render_cycle(scene, head, tf, typo, plan)
+    tight = dataclasses.replace(arch, buffers={**arch.buffers, "pixel_fifo_entries": 4})
+    roomy = render_cycle(scene, head, tf, arch, plan)
+    slow = render_cycle(scene, head, tf, tight, plan)
+    assert np.array_equal(slow.image, roomy.image) and slow.cycles > roomy.cycles
+    assert slow.counters["pixel_bus.fifo_depth"] == 4
+    assert roomy.counters["pixel_bus.fifo_depth"] == 600
