@@ -39,3 +39,11 @@ def test_cli_examples_run(tmp_path):
         argv = shlex.split(line)[1:]
         argv[argv.index("--out") + 1] = str(tmp_path / argv[argv.index("--out") + 1])
         assert main([*argv, "--quiet"]) == 0, line
+
+
+def test_architecture_reference_example_renders_at_cycle_fidelity(tmp_path):
+    (example,) = blocks("architectures.md", "toml")
+    arch = tmp_path / "my-cube4.toml"
+    arch.write_text(example)
+    args = ["render", "--arch", str(arch), "--fidelity", "cycle", "--phantom", "head:size=16"]
+    assert main([*args, "--image", "16", "--out", str(tmp_path / "o"), "--quiet"]) == 0
