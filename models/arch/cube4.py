@@ -301,8 +301,15 @@ class Cube4Machine:
         same floats; their quantised weights are reused where they are."""
         c = np.floor(p)
         frac = p - c
+        quantize = self.dp.interp.weight.quantize
         if like is None:
-            return c.astype(np.int64), self.dp.interp.weight.quantize(frac), frac
+            # Parallel projection: one fraction per slice, usually the very same float
+            # for every ray; then quantise it once (same input, same weight).
+            if frac.size and (frac == frac[0]).all():
+                weight = np.full(frac.shape, quantize(frac[:1])[0], dtype=np.int64)
+            else:
+                weight = quantize(frac)
+            return c.astype(np.int64), weight, frac
         weight = like[1].copy()
         other = frac != like[2]
         if other.any():
