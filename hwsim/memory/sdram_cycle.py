@@ -1,0 +1,355 @@
+"""Cycle-exact SDRAM timing: the exact cycle of every command and data beat of a burst stream.
+
+# Ref: shared/docs/reference/architectures.md section 9.1 (voxel memory controller: SDRAM
+#      burst scheduling, bank interleave, refresh) and 9.5 item 2 (bursts back-to-back);
+#      the timing rules are the JEDEC SDR SDRAM ones every PC100/PC133 datasheet states.
+
+The model is a read-only, in-order memory controller driving one SDRAM device (one memory
+module).  It is exact at the clock: every PRECHARGE, ACTIVATE, READ and REFRESH command
+gets an integer memory-clock cycle, one command per cycle on the command bus, and every
+timing rule of :class:`~hwsim.memory.sdram.SdramConfig` holds between them (the property
+tests replay the command log against an independent checker).  It loops over *requests*,
+not cycles: a few dozen Python operations per burst, whatever the gaps between them.
+
+Rules, for request ``i`` to bank ``b``, row ``r``, not before cycle ``earliest[i]``:
+
+* **Order.** READs issue in request order, each at least ``burst_cycles`` after the
+  previous one (the data bus is busy ``burst_cycles`` per burst, CAS latency is the same for
+  all).  Request ``i`` issues no command before request ``i - 1``'s first command, nor
+  before request ``i - queue_depth`` has issued its READ (the controller holds
+  ``queue_depth`` requests).  Within that window the PRECHARGE and ACTIVATE of request
+  ``i`` overlap the bursts of earlier requests to other banks (bank interleaving).
+* **Row hit** (row ``r`` open in ``b``): READ >= ACT(b) + tRCD.
+* **Row miss** (bank closed): ACT >= PRE(b) + tRP, ACT(b) + tRC, last ACT + tRRD; READ >=
+  ACT + tRCD.
+* **Row conflict** (another row open): PRE >= ACT(b) + tRAS and >= last READ(b) +
+  ``burst_cycles`` (a PRECHARGE may not cut the burst short); then as a miss.
+* **Closed page policy**: every READ auto-precharges; the bank is ready to activate
+  ``tRP`` after ``max(READ + burst_cycles, ACT + tRAS)``; every request is a miss.
+* **Refresh.** Refresh ``k`` falls due at ``k * t_refi``.  When the next request's first
+  command would issue at or after the due cycle, the controller refreshes first: after its
+  last issued command it precharges all banks (one PRECHARGE-ALL, honouring tRAS and the
+  bursts in flight), waits tRP, issues REFRESH, and issues nothing for tRFC; every bank is
+  then closed.
+* **Data.** READ at ``t``: beats at ``t + CL .. t + CL + burst_cycles - 1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from hwsim.memory.sdram import SdramConfig
+
+__all__ = ["HIT", "MISS", "CONFLICT", "BurstSchedule", "SdramStats", "schedule_bursts"]
+
+#: Row outcome codes of :attr:`BurstSchedule.outcome`.
+HIT, MISS, CONFLICT = 0, 1, 2
+_NEVER = -(1 << 40)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SdramStats:
+    """Raw counters of one memory module (memory-clock cycles).
+
+    ``elapsed_cycles = data_busy_cycles + first_access_cycles + stall_arrival_cycles +
+    stall_bank_cycles + stall_refresh_cycles``: every data-bus idle cycle after the first
+    beat is charged to one cause (the request was not there yet; bank timing, command-bus
+    slots or the controller queue; a refresh).
+    """
+
+    bursts: int = 0
+    row_hits: int = 0
+    row_misses: int = 0
+    row_conflicts: int = 0
+    activates: int = 0
+    precharges: int = 0
+    refreshes: int = 0
+    refresh_cycles: int = 0
+    data_busy_cycles: int = 0
+    idle_cycles: int = 0
+    elapsed_cycles: int = 0
+    first_access_cycles: int = 0
+    stall_arrival_cycles: int = 0
+    stall_bank_cycles: int = 0
+    stall_refresh_cycles: int = 0
+
+    @property
+    def efficiency(self) -> float:
+        """Data-bus busy cycles / elapsed cycles (1.0: bursts back-to-back from cycle 0)."""
+        return self.data_busy_cycles / self.elapsed_cycles if self.elapsed_cycles else 0.0
+
+    @property
+    def streaming_efficiency(self) -> float:
+        """Busy / (elapsed - first access latency): the steady-state share of the data bus."""
+        span = self.elapsed_cycles - self.first_access_cycles
+        return self.data_busy_cycles / span if span > 0 else 0.0
+
+    def to_counters(self, prefix: str = "memory") -> dict[str, int]:
+        """Counters under a component path, e.g. ``memory[2].row_hits``."""
+        return {f"{prefix}.{f.name}": getattr(self, f.name) for f in fields(self)}
+
+    @staticmethod
+    def combine(parts: list[SdramStats]) -> SdramStats:
+        """Totals of several modules working in parallel: sums, ``elapsed`` = the longest."""
+        sums: dict[str, Any] = {
+            f.name: sum(getattr(p, f.name) for p in parts) for f in fields(SdramStats)
+        }
+        sums["elapsed_cycles"] = max((p.elapsed_cycles for p in parts), default=0)
+        return SdramStats(**sums)
+
+
+@dataclass(frozen=True)
+class BurstSchedule:
+    """Result of :func:`schedule_bursts`: per-request command cycles and the counters.
+
+    Attributes
+    ----------
+    read, activate, precharge : numpy.ndarray
+        int64 per request: cycle of its READ, of its ACTIVATE (-1: none, row hit) and of its
+        PRECHARGE (-1: none; the auto-precharge of the closed policy is not a command).
+    data_first, data_end : numpy.ndarray
+        First data beat ``read + CL`` and the cycle after the last, ``data_first +
+        burst_cycles``.
+    outcome : numpy.ndarray
+        int8: :data:`HIT`, :data:`MISS` or :data:`CONFLICT`.
+    refresh : numpy.ndarray
+        int64 ``(k, 2)``: cycle of each refresh's PRECHARGE-ALL (-1 when every bank was
+        already closed) and of its REFRESH command.
+    stats : SdramStats
+    """
+
+    read: np.ndarray
+    activate: np.ndarray
+    precharge: np.ndarray
+    data_first: np.ndarray
+    data_end: np.ndarray
+    outcome: np.ndarray
+    refresh: np.ndarray
+    stats: SdramStats
+
+    @property
+    def cycles(self) -> int:
+        """Cycle after the last data beat (0 for an empty stream)."""
+        return self.stats.elapsed_cycles
+
+
+def _as_list(name: str, values, n: int, lo: int, hi: int | None) -> list[int]:
+    arr = np.asarray(values, dtype=np.int64).reshape(-1)
+    if arr.size != n:
+        raise ValueError(f"{name} has {arr.size} entries, expected {n}")
+    if arr.size and (arr.min() < lo or (hi is not None and arr.max() > hi)):
+        raise ValueError(f"{name} out of range {lo} .. {hi if hi is not None else 'inf'}")
+    return arr.tolist()
+
+
+def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule:
+    """Schedule an ordered stream of READ bursts on one SDRAM device, cycle-exactly.
+
+    Parameters
+    ----------
+    cfg : SdramConfig
+    bank, row : array of int
+        Per request, in issue order: the bank (``0 .. banks-1``) and row (``0 .. rows-1``).
+        The column does not change the timing (any column of an open row reads alike).
+    earliest : array of int, optional
+        Per request, the first memory cycle it may issue a command (e.g. when the FIFO it
+        fills has space); default 0 for all (the memory-bound case).
+
+    Returns
+    -------
+    BurstSchedule
+    """
+    n = int(np.asarray(bank).size)
+    banks = _as_list("bank", bank, n, 0, cfg.banks - 1)
+    rows = _as_list("row", row, n, 0, cfg.rows - 1)
+    arrive = [0] * n if earliest is None else _as_list("earliest", earliest, n, 0, None)
+
+    t_rcd, t_rp, t_ras, t_rc, t_rrd = cfg.t_rcd, cfg.t_rp, cfg.t_ras, cfg.t_rc, cfg.t_rrd
+    bc, cl, rtp, t_rfc, t_refi = (
+        cfg.burst_cycles,
+        cfg.cas_latency,
+        cfg.read_to_precharge,
+        cfg.t_rfc,
+        cfg.t_refi,
+    )
+    closed = cfg.page_policy == "closed"
+    depth = cfg.queue_depth
+    nb = cfg.banks
+
+    open_row = [-1] * nb
+    act_at = [_NEVER] * nb  # last ACTIVATE per bank
+    act_ready = [0] * nb  # earliest ACTIVATE after a precharge or refresh
+    read_at = [_NEVER] * nb  # last READ per bank
+    last_act = _NEVER
+    prev_read = _NEVER
+    prev_start = 0
+    last_cmd = -1
+    refresh_end = 0
+    due = t_refi if t_refi > 0 else 1 << 62
+    booked: set[int] = set()
+
+    reads = [0] * n
+    acts = [-1] * n
+    pres = [-1] * n
+    outcome = [0] * n
+    refresh_log: list[tuple[int, int]] = []
+    hits = misses = conflicts = 0
+    refresh_cycles = 0
+    stall_arrival = stall_bank = stall_refresh = 0
+
+    for i in range(n):
+        b = banks[i]
+        r = rows[i]
+        e = arrive[i]
+        floor = e if e > prev_start else prev_start
+        if i >= depth and reads[i - depth] + 1 > floor:
+            floor = reads[i - depth] + 1
+        refreshed = False
+        while True:
+            if refresh_end > floor:
+                floor = refresh_end
+            orow = open_row[b]
+            if orow == r:
+                kind = HIT
+                t = act_at[b] + t_rcd
+                if floor > t:
+                    t = floor
+                if prev_read + bc > t:
+                    t = prev_read + bc
+            elif orow < 0:
+                kind = MISS
+                t = act_ready[b]
+                if floor > t:
+                    t = floor
+                if act_at[b] + t_rc > t:
+                    t = act_at[b] + t_rc
+                if last_act + t_rrd > t:
+                    t = last_act + t_rrd
+            else:
+                kind = CONFLICT
+                t = act_at[b] + t_ras
+                if floor > t:
+                    t = floor
+                if read_at[b] + rtp > t:
+                    t = read_at[b] + rtp
+            while t in booked:
+                t += 1
+            if t < due:
+                break
+            # Refresh first: after every command issued so far, all banks precharged.
+            refreshed = True
+            start = due if due > last_cmd + 1 else last_cmd + 1
+            prea = -1
+            if any(o >= 0 for o in open_row):
+                for k in range(nb):
+                    if open_row[k] >= 0:
+                        start = max(start, act_at[k] + t_ras, read_at[k] + rtp)
+                while start in booked:
+                    start += 1
+                prea = start
+                booked.add(prea)
+                ref = prea + t_rp
+            else:
+                ref = start
+            ref = max(ref, *act_ready)
+            while ref in booked:
+                ref += 1
+            booked.add(ref)
+            refresh_log.append((prea, ref))
+            refresh_end = ref + t_rfc
+            refresh_cycles += refresh_end - (prea if prea >= 0 else ref)
+            last_cmd = ref
+            for k in range(nb):
+                open_row[k] = -1
+                act_ready[k] = refresh_end
+            due += t_refi
+
+        start = t
+        if kind == CONFLICT:
+            booked.add(t)
+            pres[i] = t
+            t += t_rp
+            if act_at[b] + t_rc > t:
+                t = act_at[b] + t_rc
+            if last_act + t_rrd > t:
+                t = last_act + t_rrd
+            while t in booked:
+                t += 1
+        if kind != HIT:
+            booked.add(t)
+            acts[i] = t
+            act_at[b] = t
+            last_act = t
+            t += t_rcd
+            if prev_read + bc > t:
+                t = prev_read + bc
+            while t in booked:
+                t += 1
+        booked.add(t)
+        reads[i] = t
+        read_at[b] = t
+        if t > last_cmd:
+            last_cmd = t
+        outcome[i] = kind
+        if closed:
+            done = t + rtp
+            if act_at[b] + t_ras > done:
+                done = act_at[b] + t_ras
+            act_ready[b] = done + t_rp
+        else:
+            open_row[b] = r
+        if kind == HIT:
+            hits += 1
+        elif kind == MISS:
+            misses += 1
+        else:
+            conflicts += 1
+        if i:
+            gap = t - prev_read - bc
+            if gap > 0:
+                if refreshed:
+                    stall_refresh += gap
+                elif e + (0 if kind == HIT else t_rcd if kind == MISS else t_rp + t_rcd) >= t:
+                    stall_arrival += gap
+                else:
+                    stall_bank += gap
+        prev_read = t
+        prev_start = start
+        if len(booked) > 256:
+            booked = {c for c in booked if c >= start}
+
+    read = np.asarray(reads, dtype=np.int64)
+    data_first = read + cl
+    data_end = data_first + bc
+    elapsed = int(data_end[-1]) if n else 0
+    busy = n * bc
+    stats = SdramStats(
+        bursts=n,
+        row_hits=hits,
+        row_misses=misses,
+        row_conflicts=conflicts,
+        activates=misses + conflicts,
+        precharges=conflicts + sum(1 for p, _ in refresh_log if p >= 0),
+        refreshes=len(refresh_log),
+        refresh_cycles=refresh_cycles,
+        data_busy_cycles=busy,
+        idle_cycles=elapsed - busy,
+        elapsed_cycles=elapsed,
+        first_access_cycles=int(data_first[0]) if n else 0,
+        stall_arrival_cycles=stall_arrival,
+        stall_bank_cycles=stall_bank,
+        stall_refresh_cycles=stall_refresh,
+    )
+    return BurstSchedule(
+        read=read,
+        activate=np.asarray(acts, dtype=np.int64),
+        precharge=np.asarray(pres, dtype=np.int64),
+        data_first=data_first,
+        data_end=data_end,
+        outcome=np.asarray(outcome, dtype=np.int8),
+        refresh=np.asarray(refresh_log, dtype=np.int64).reshape(-1, 2),
+        stats=stats,
+    )
