@@ -13,7 +13,9 @@ from hwsim.memory.sdram_cycle import (
     BurstSchedule,
     SdramStats,
     schedule_bursts,
+    summarize,
 )
+from hwsim.memory.sdram_events import BurstRequest, SdramEventModel, simulate_events
 
 __all__ = [
     "CONFLICT",
@@ -21,10 +23,14 @@ __all__ = [
     "MISS",
     "PAGE_POLICIES",
     "SKEWS",
+    "BurstRequest",
     "BurstSchedule",
     "MemoryConfig",
     "SdramConfig",
+    "SdramEventModel",
     "SdramStats",
     "parse_memory",
     "schedule_bursts",
+    "simulate_events",
+    "summarize",
 ]

@@ -43,7 +43,15 @@ import numpy as np
 
 from hwsim.memory.sdram import SdramConfig
 
-__all__ = ["HIT", "MISS", "CONFLICT", "BurstSchedule", "SdramStats", "schedule_bursts"]
+__all__ = [
+    "HIT",
+    "MISS",
+    "CONFLICT",
+    "BurstSchedule",
+    "SdramStats",
+    "schedule_bursts",
+    "summarize",
+]
 
 #: Row outcome codes of :attr:`BurstSchedule.outcome`.
 HIT, MISS, CONFLICT = 0, 1, 2
@@ -136,6 +144,10 @@ class BurstSchedule:
         return self.stats.elapsed_cycles
 
 
+def _ignore(_cycle: int) -> None:
+    """Booking that books nothing (``command_bus=False``)."""
+
+
 def _as_list(name: str, values, n: int, lo: int, hi: int | None) -> list[int]:
     arr = np.asarray(values, dtype=np.int64).reshape(-1)
     if arr.size != n:
@@ -145,7 +157,9 @@ def _as_list(name: str, values, n: int, lo: int, hi: int | None) -> list[int]:
     return arr.tolist()
 
 
-def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule:
+def schedule_bursts(
+    cfg: SdramConfig, bank, row, earliest=None, *, command_bus: bool = True
+) -> BurstSchedule:
     """Schedule an ordered stream of READ bursts on one SDRAM device, cycle-exactly.
 
     Parameters
@@ -157,6 +171,10 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
     earliest : array of int, optional
         Per request, the first memory cycle it may issue a command (e.g. when the FIFO it
         fills has space); default 0 for all (the memory-bound case).
+    command_bus : bool
+        Enforce one command per cycle (the device's rule).  ``False`` lets commands share
+        a cycle, which is what the burst-granularity SimPy form assumes; the tests use it
+        to show the two forms differ by that rule only.
 
     Returns
     -------
@@ -168,13 +186,7 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
     arrive = [0] * n if earliest is None else _as_list("earliest", earliest, n, 0, None)
 
     t_rcd, t_rp, t_ras, t_rc, t_rrd = cfg.t_rcd, cfg.t_rp, cfg.t_ras, cfg.t_rc, cfg.t_rrd
-    bc, cl, rtp, t_rfc, t_refi = (
-        cfg.burst_cycles,
-        cfg.cas_latency,
-        cfg.read_to_precharge,
-        cfg.t_rfc,
-        cfg.t_refi,
-    )
+    bc, rtp, t_rfc, t_refi = cfg.burst_cycles, cfg.read_to_precharge, cfg.t_rfc, cfg.t_refi
     closed = cfg.page_policy == "closed"
     depth = cfg.queue_depth
     nb = cfg.banks
@@ -189,16 +201,15 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
     last_cmd = -1
     refresh_end = 0
     due = t_refi if t_refi > 0 else 1 << 62
-    booked: set[int] = set()
+    booked: set[int] = set()  # command-bus cycles taken (only recent ones are kept)
+    book = booked.add if command_bus else _ignore
 
     reads = [0] * n
     acts = [-1] * n
     pres = [-1] * n
     outcome = [0] * n
     refresh_log: list[tuple[int, int]] = []
-    hits = misses = conflicts = 0
-    refresh_cycles = 0
-    stall_arrival = stall_bank = stall_refresh = 0
+    refreshed_before = [False] * n
 
     for i in range(n):
         b = banks[i]
@@ -250,17 +261,16 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
                 while start in booked:
                     start += 1
                 prea = start
-                booked.add(prea)
+                book(prea)
                 ref = prea + t_rp
             else:
                 ref = start
             ref = max(ref, *act_ready)
             while ref in booked:
                 ref += 1
-            booked.add(ref)
+            book(ref)
             refresh_log.append((prea, ref))
             refresh_end = ref + t_rfc
-            refresh_cycles += refresh_end - (prea if prea >= 0 else ref)
             last_cmd = ref
             for k in range(nb):
                 open_row[k] = -1
@@ -269,7 +279,7 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
 
         start = t
         if kind == CONFLICT:
-            booked.add(t)
+            book(t)
             pres[i] = t
             t += t_rp
             if act_at[b] + t_rc > t:
@@ -279,7 +289,7 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
             while t in booked:
                 t += 1
         if kind != HIT:
-            booked.add(t)
+            book(t)
             acts[i] = t
             act_at[b] = t
             last_act = t
@@ -288,7 +298,7 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
                 t = prev_read + bc
             while t in booked:
                 t += 1
-        booked.add(t)
+        book(t)
         reads[i] = t
         read_at[b] = t
         if t > last_cmd:
@@ -301,55 +311,92 @@ def schedule_bursts(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule
             act_ready[b] = done + t_rp
         else:
             open_row[b] = r
-        if kind == HIT:
-            hits += 1
-        elif kind == MISS:
-            misses += 1
-        else:
-            conflicts += 1
-        if i:
-            gap = t - prev_read - bc
-            if gap > 0:
-                if refreshed:
-                    stall_refresh += gap
-                elif e + (0 if kind == HIT else t_rcd if kind == MISS else t_rp + t_rcd) >= t:
-                    stall_arrival += gap
-                else:
-                    stall_bank += gap
+        refreshed_before[i] = refreshed
         prev_read = t
         prev_start = start
-        if len(booked) > 256:
-            booked = {c for c in booked if c >= start}
+        if len(booked) > 256:  # later commands never precede this request's first one
+            booked.difference_update([c for c in booked if c < start])
 
-    read = np.asarray(reads, dtype=np.int64)
-    data_first = read + cl
+    return summarize(
+        cfg,
+        read=reads,
+        activate=acts,
+        precharge=pres,
+        outcome=outcome,
+        earliest=arrive,
+        refreshed_before=refreshed_before,
+        refresh_log=refresh_log,
+    )
+
+
+def summarize(
+    cfg: SdramConfig,
+    *,
+    read,
+    activate,
+    precharge,
+    outcome,
+    earliest,
+    refreshed_before,
+    refresh_log,
+) -> BurstSchedule:
+    """Build a :class:`BurstSchedule` and its counters from per-request command cycles.
+
+    Shared by both forms of the model, so their counters mean exactly the same.  The
+    data-bus gap before burst ``i > 0`` (``read[i] - read[i-1] - burst_cycles``) is charged
+    to *refresh* when a refresh was inserted just before request ``i``; to *arrival* when
+    the request could not have issued its READ earlier even with its bank ready
+    (``earliest + row latency >= read``: 0 for a hit, tRCD for a miss, tRP + tRCD for a
+    conflict); otherwise to *bank* (row timing, command-bus slots, controller queue).
+    """
+    read = np.asarray(read, dtype=np.int64).reshape(-1)
+    n = read.size
+    outcome = np.asarray(outcome, dtype=np.int8).reshape(-1)
+    earliest = np.asarray(earliest, dtype=np.int64).reshape(-1)
+    refreshed = np.asarray(refreshed_before, dtype=bool).reshape(-1)
+    refresh = np.asarray(refresh_log, dtype=np.int64).reshape(-1, 2)
+    bc = cfg.burst_cycles
+    data_first = read + cfg.cas_latency
     data_end = data_first + bc
+    gap = np.zeros(n, dtype=np.int64)
+    if n > 1:
+        gap[1:] = read[1:] - read[:-1] - bc
+    latency = np.choose(outcome, [0, cfg.t_rcd, cfg.t_rp + cfg.t_rcd]) if n else gap
+    late = gap > 0
+    late[:1] = False
+    by_refresh = late & refreshed
+    by_arrival = late & ~refreshed & (earliest + latency >= read)
+    by_bank = late & ~by_refresh & ~by_arrival
     elapsed = int(data_end[-1]) if n else 0
     busy = n * bc
+    prea = refresh[:, 0]
+    counts = np.bincount(outcome, minlength=3) if n else np.zeros(3, dtype=np.int64)
     stats = SdramStats(
         bursts=n,
-        row_hits=hits,
-        row_misses=misses,
-        row_conflicts=conflicts,
-        activates=misses + conflicts,
-        precharges=conflicts + sum(1 for p, _ in refresh_log if p >= 0),
-        refreshes=len(refresh_log),
-        refresh_cycles=refresh_cycles,
+        row_hits=int(counts[HIT]),
+        row_misses=int(counts[MISS]),
+        row_conflicts=int(counts[CONFLICT]),
+        activates=int(counts[MISS] + counts[CONFLICT]),
+        precharges=int(counts[CONFLICT] + np.count_nonzero(prea >= 0)),
+        refreshes=int(refresh.shape[0]),
+        refresh_cycles=int(
+            np.sum(refresh[:, 1] + cfg.t_rfc - np.where(prea >= 0, prea, refresh[:, 1]))
+        ),
         data_busy_cycles=busy,
         idle_cycles=elapsed - busy,
         elapsed_cycles=elapsed,
         first_access_cycles=int(data_first[0]) if n else 0,
-        stall_arrival_cycles=stall_arrival,
-        stall_bank_cycles=stall_bank,
-        stall_refresh_cycles=stall_refresh,
+        stall_arrival_cycles=int(gap[by_arrival].sum()),
+        stall_bank_cycles=int(gap[by_bank].sum()),
+        stall_refresh_cycles=int(gap[by_refresh].sum()),
     )
     return BurstSchedule(
         read=read,
-        activate=np.asarray(acts, dtype=np.int64),
-        precharge=np.asarray(pres, dtype=np.int64),
+        activate=np.asarray(activate, dtype=np.int64).reshape(-1),
+        precharge=np.asarray(precharge, dtype=np.int64).reshape(-1),
         data_first=data_first,
         data_end=data_end,
-        outcome=np.asarray(outcome, dtype=np.int8),
-        refresh=np.asarray(refresh_log, dtype=np.int64).reshape(-1, 2),
+        outcome=outcome,
+        refresh=refresh,
         stats=stats,
     )

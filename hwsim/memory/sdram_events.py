@@ -1,0 +1,300 @@
+"""SimPy discrete-event form of the SDRAM model, at burst granularity.
+
+# Ref: shared/docs/reference/architectures.md section 9.1 (SDRAM burst scheduling, bank
+#      interleave, refresh) and design.md section 3 (the `transaction` rung: a SimPy
+#      event model at beam/burst granularity).
+
+Same parameters (:class:`~hwsim.memory.sdram.SdramConfig`) and the same rules as the
+cycle-exact form (:mod:`hwsim.memory.sdram_cycle`), expressed as cooperating SimPy
+processes that exchange events instead of a loop over requests:
+
+* a **controller** takes requests from the module's :class:`simpy.Store` in order and
+  admits request ``i`` once request ``i - queue_depth`` has read and request ``i - 1`` has
+  issued its first command;
+* one **bank process** per bank serves that bank's requests in order: it decides hit /
+  miss / conflict from its open row, times PRECHARGE and ACTIVATE with timeouts
+  (tRAS, read-to-precharge, tRP, tRC, tRRD against the previous request's ACTIVATE) and
+  signals *row ready* tRCD later; it runs the refresh (PRECHARGE-ALL, tRP, REFRESH, tRFC)
+  when its request's first command would fall at or after the due cycle;
+* a **data-bus sequencer** issues the READs in request order, ``burst_cycles`` apart, and
+  fires each request's ``done`` event after its last beat.
+
+Simulated time is memory-clock cycles.  What it leaves out, by design, is the *command
+bus*: PRECHARGE, ACTIVATE and READ of different requests may share a cycle, where the
+cycle form moves the later one to the next free cycle.  On streams without such
+collisions the two forms agree cycle for cycle; docs/memory.md gives the measured
+difference where they do collide.
+
+Embedding in a larger model: create :class:`SdramEventModel` on the caller's
+``simpy.Environment`` and call :meth:`SdramEventModel.request` from any process; wait on
+the returned request's ``done`` (or ``read_done``) event.
+"""
+
+from __future__ import annotations
+
+import simpy
+
+from hwsim.memory.sdram import SdramConfig
+from hwsim.memory.sdram_cycle import CONFLICT, HIT, MISS, BurstSchedule, summarize
+
+__all__ = ["BurstRequest", "SdramEventModel", "simulate_events"]
+
+_NEVER = -(1 << 40)
+
+
+class BurstRequest:
+    """One burst in flight: its place in the stream, its target and its events.
+
+    Attributes
+    ----------
+    index, bank, row, earliest : int
+    started, acted, ready, read_done, done : simpy.Event
+        First command issued; ACTIVATE issued (or not needed); row open; READ issued;
+        last data beat delivered (fires at ``read + CL + burst_cycles``).
+    kind, precharge, activate, read : int
+        Filled in as the request is served (-1: no such command).
+    """
+
+    __slots__ = (
+        "acted",
+        "activate",
+        "bank",
+        "done",
+        "earliest",
+        "index",
+        "kind",
+        "precharge",
+        "read",
+        "read_done",
+        "ready",
+        "refreshed",
+        "row",
+        "started",
+    )
+
+    def __init__(self, env: simpy.Environment, index: int, bank: int, row: int) -> None:
+        self.index, self.bank, self.row = index, bank, row
+        self.earliest = int(env.now)
+        self.started = env.event()
+        self.acted = env.event()
+        self.ready = env.event()
+        self.read_done = env.event()
+        self.done = env.event()
+        self.kind = HIT
+        self.precharge = self.activate = self.read = -1
+        self.refreshed = False
+
+
+class SdramEventModel:
+    """One SDRAM device as SimPy processes (see the module docstring).
+
+    Parameters
+    ----------
+    env : simpy.Environment
+        Time unit: one memory clock.
+    cfg : SdramConfig
+    """
+
+    def __init__(self, env: simpy.Environment, cfg: SdramConfig) -> None:
+        self.env = env
+        self.cfg = cfg
+        self.requests: list[BurstRequest] = []
+        self.refresh_log: list[tuple[int, int]] = []
+        self._incoming = simpy.Store(env)
+        self._to_bank = [simpy.Store(env) for _ in range(cfg.banks)]
+        self._to_bus = simpy.Store(env)
+        nb = cfg.banks
+        self.open_row = [-1] * nb
+        self.act_at = [_NEVER] * nb
+        self.act_ready = [0] * nb
+        self.read_at = [_NEVER] * nb
+        self.prev_read = _NEVER
+        self.last_act = _NEVER  # ACTIVATEs issue in request order (each waits the last)
+        self.last_cmd = -1
+        self.refresh_end = 0
+        self.due = cfg.t_refi if cfg.t_refi > 0 else float("inf")
+        env.process(self._controller())
+        env.process(self._sequencer())
+        for b in range(nb):
+            env.process(self._bank(b))
+
+    def request(self, bank: int, row: int) -> BurstRequest:
+        """Queue a burst now (``env.now`` is its earliest cycle); returns its events."""
+        if not (0 <= bank < self.cfg.banks and 0 <= row < self.cfg.rows):
+            raise ValueError(f"bank {bank} / row {row} outside the device")
+        req = BurstRequest(self.env, len(self.requests), bank, row)
+        self.requests.append(req)
+        self._incoming.put(req)
+        return req
+
+    # -- processes ---------------------------------------------------------------------
+
+    def _wait_until(self, t: int):
+        if t > self.env.now:
+            yield self.env.timeout(t - self.env.now)
+
+    def _controller(self):
+        depth = self.cfg.queue_depth
+        while True:
+            req = yield self._incoming.get()
+            i = req.index
+            if i >= depth:
+                older = self.requests[i - depth]
+                yield older.read_done
+                yield from self._wait_until(older.read + 1)
+            if i:
+                yield self.requests[i - 1].started
+            self._to_bank[req.bank].put(req)
+            self._to_bus.put(req)
+
+    def _bank(self, b: int):
+        cfg, env = self.cfg, self.env
+        while True:
+            req = yield self._to_bank[b].get()
+            i = req.index
+            prev = self.requests[i - 1] if i else None
+            while True:
+                yield from self._wait_until(self.refresh_end)
+                if self.open_row[b] == req.row:
+                    kind = HIT
+                    if prev is not None:
+                        yield prev.read_done
+                    t = max(env.now, self.act_at[b] + cfg.t_rcd, self.prev_read + cfg.burst_cycles)
+                elif self.open_row[b] < 0:
+                    kind = MISS
+                    if prev is not None:
+                        yield prev.acted
+                    t = max(
+                        env.now,
+                        self.act_ready[b],
+                        self.act_at[b] + cfg.t_rc,
+                        self.last_act + cfg.t_rrd,
+                    )
+                else:
+                    kind = CONFLICT
+                    t = max(
+                        env.now,
+                        self.act_at[b] + cfg.t_ras,
+                        self.read_at[b] + cfg.read_to_precharge,
+                    )
+                if t < self.due:
+                    break
+                req.refreshed = True
+                yield from self._refresh(prev)
+            req.kind = kind
+            yield from self._wait_until(t)
+            if kind == HIT:
+                req.acted.succeed()
+                req.ready.succeed()
+                req.started.succeed()
+                yield req.read_done  # the bank serves its next request after this READ
+                continue
+            if kind == CONFLICT:
+                req.precharge = int(env.now)
+                req.started.succeed()
+                yield env.timeout(cfg.t_rp)
+                if prev is not None:
+                    yield prev.acted
+                yield from self._wait_until(
+                    max(self.act_at[b] + cfg.t_rc, self.last_act + cfg.t_rrd)
+                )
+            else:
+                req.started.succeed()
+            req.activate = int(env.now)
+            self.act_at[b] = self.last_act = req.activate
+            req.acted.succeed()
+            yield env.timeout(cfg.t_rcd)
+            req.ready.succeed()
+            yield req.read_done  # the bank serves its next request after this READ
+
+    def _refresh(self, prev: BurstRequest | None):
+        cfg = self.cfg
+        if prev is not None:
+            yield prev.read_done  # every issued command is at or before this READ
+        start = max(self.due, self.last_cmd + 1)
+        prea = -1
+        open_banks = [k for k in range(cfg.banks) if self.open_row[k] >= 0]
+        if open_banks:
+            for k in open_banks:
+                start = max(
+                    start, self.act_at[k] + cfg.t_ras, self.read_at[k] + cfg.read_to_precharge
+                )
+            prea = start
+            ref = prea + cfg.t_rp
+        else:
+            ref = start
+        ref = max(ref, *self.act_ready)
+        self.refresh_log.append((prea, ref))
+        self.last_cmd = ref
+        self.refresh_end = ref + cfg.t_rfc
+        for k in range(cfg.banks):
+            self.open_row[k] = -1
+            self.act_ready[k] = self.refresh_end
+        self.due += cfg.t_refi
+        yield from self._wait_until(self.refresh_end)
+
+    def _sequencer(self):
+        cfg, env = self.cfg, self.env
+        tail = cfg.cas_latency + cfg.burst_cycles
+        while True:
+            req = yield self._to_bus.get()
+            yield req.ready
+            yield from self._wait_until(self.prev_read + cfg.burst_cycles)
+            t = int(env.now)
+            req.read = t
+            b = req.bank
+            self.prev_read = t
+            self.last_cmd = max(self.last_cmd, t)
+            self.read_at[b] = t
+            if cfg.page_policy == "closed":
+                self.open_row[b] = -1
+                self.act_ready[b] = (
+                    max(t + cfg.read_to_precharge, self.act_at[b] + cfg.t_ras) + cfg.t_rp
+                )
+            else:
+                self.open_row[b] = req.row
+            req.read_done.succeed()
+            env.timeout(tail).callbacks.append(lambda _e, r=req: r.done.succeed())
+
+    # -- results -----------------------------------------------------------------------
+
+    def schedule(self) -> BurstSchedule:
+        """The commands and counters of every request served so far (same form as
+        :func:`hwsim.memory.schedule_bursts`)."""
+        reqs = [r for r in self.requests if r.read >= 0]
+        return summarize(
+            self.cfg,
+            read=[r.read for r in reqs],
+            activate=[r.activate for r in reqs],
+            precharge=[r.precharge for r in reqs],
+            outcome=[r.kind for r in reqs],
+            earliest=[r.earliest for r in reqs],
+            refreshed_before=[r.refreshed for r in reqs],
+            refresh_log=self.refresh_log,
+        )
+
+
+def simulate_events(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule:
+    """Run a request stream through :class:`SdramEventModel` on its own environment.
+
+    Same arguments and result as :func:`hwsim.memory.schedule_bursts`.
+    """
+    banks = [int(v) for v in bank]
+    rows = [int(v) for v in row]
+    arrive = [0] * len(banks) if earliest is None else [int(v) for v in earliest]
+    if len(rows) != len(banks) or len(arrive) != len(banks):
+        raise ValueError("bank, row and earliest must have the same length")
+    if any(a < 0 for a in arrive):
+        raise ValueError("earliest out of range 0 .. inf")
+    env = simpy.Environment()
+    model = SdramEventModel(env, cfg)
+
+    def feed():
+        for b, r, a in zip(banks, rows, arrive, strict=True):
+            if a > env.now:
+                yield env.timeout(a - env.now)
+            model.request(b, r).earliest = a
+
+    env.process(feed())
+    env.run()
+    return model.schedule()
