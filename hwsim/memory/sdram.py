@@ -253,7 +253,6 @@ def parse_memory(data: dict[str, Any], *, source: str) -> MemoryConfig:
             values[name] = table.integer(name, getattr(defaults, name), int(lo), int(hi))
     modules = table.integer("modules", 4, 1, 4096)
     skew = table.choice("skew", SKEWS, "miniblock")
-    table.raw("notes", "")  # free-text provenance notes are allowed
     table.finish()
 
     def error(key: str, message: str, allowed: str) -> InputError:

@@ -13,12 +13,13 @@ not cycles: a few dozen Python operations per burst, whatever the gaps between t
 
 Rules, for request ``i`` to bank ``b``, row ``r``, not before cycle ``earliest[i]``:
 
-* **Order.** READs issue in request order, each at least ``burst_cycles`` after the
-  previous one (the data bus is busy ``burst_cycles`` per burst, CAS latency is the same for
-  all).  Request ``i`` issues no command before request ``i - 1``'s first command, nor
-  before request ``i - queue_depth`` has issued its READ (the controller holds
-  ``queue_depth`` requests).  Within that window the PRECHARGE and ACTIVATE of request
-  ``i`` overlap the bursts of earlier requests to other banks (bank interleaving).
+* **Order.** Requests enter the controller in order: request ``i`` is *admitted* at
+  ``max(earliest[i], admission of i - 1, READ of i - queue_depth + 1)`` (the controller
+  holds ``queue_depth`` requests) and issues no command before.  READs issue in request
+  order, each at least ``burst_cycles`` after the previous one (the data bus is busy
+  ``burst_cycles`` per burst; CAS latency is the same for all); ACTIVATEs issue in request
+  order too, tRRD apart.  Within the window the PRECHARGE and ACTIVATE of request ``i``
+  overlap the bursts of earlier requests to other banks (bank interleaving).
 * **Row hit** (row ``r`` open in ``b``): READ >= ACT(b) + tRCD.
 * **Row miss** (bank closed): ACT >= PRE(b) + tRP, ACT(b) + tRC, last ACT + tRRD; READ >=
   ACT + tRCD.
@@ -26,11 +27,12 @@ Rules, for request ``i`` to bank ``b``, row ``r``, not before cycle ``earliest[i
   ``burst_cycles`` (a PRECHARGE may not cut the burst short); then as a miss.
 * **Closed page policy**: every READ auto-precharges; the bank is ready to activate
   ``tRP`` after ``max(READ + burst_cycles, ACT + tRAS)``; every request is a miss.
-* **Refresh.** Refresh ``k`` falls due at ``k * t_refi``.  When the next request's first
-  command would issue at or after the due cycle, the controller refreshes first: after its
-  last issued command it precharges all banks (one PRECHARGE-ALL, honouring tRAS and the
-  bursts in flight), waits tRP, issues REFRESH, and issues nothing for tRFC; every bank is
-  then closed.
+* **Refresh.** Refresh ``k`` falls due at ``k * t_refi``.  A request admitted at or after
+  the due cycle waits for the refresh: at ``max(due, last command + 1)`` (so during idle
+  time if the controller was idle) the controller precharges all open banks (one
+  PRECHARGE-ALL, honouring tRAS and the bursts in flight), waits tRP, issues REFRESH and
+  then nothing for tRFC; every bank is then closed.  No request, no refresh: the stream's
+  end is not padded.
 * **Data.** READ at ``t``: beats at ``t + CL .. t + CL + burst_cycles - 1``.
 """
 
@@ -197,7 +199,6 @@ def schedule_bursts(
     read_at = [_NEVER] * nb  # last READ per bank
     last_act = _NEVER
     prev_read = _NEVER
-    prev_start = 0
     last_cmd = -1
     refresh_end = 0
     due = t_refi if t_refi > 0 else 1 << 62
@@ -211,46 +212,19 @@ def schedule_bursts(
     refresh_log: list[tuple[int, int]] = []
     refreshed_before = [False] * n
 
+    floor = 0  # admission cycle: requests enter the controller in order
     for i in range(n):
         b = banks[i]
         r = rows[i]
         e = arrive[i]
-        floor = e if e > prev_start else prev_start
+        if e > floor:
+            floor = e
         if i >= depth and reads[i - depth] + 1 > floor:
             floor = reads[i - depth] + 1
         refreshed = False
-        while True:
-            if refresh_end > floor:
-                floor = refresh_end
-            orow = open_row[b]
-            if orow == r:
-                kind = HIT
-                t = act_at[b] + t_rcd
-                if floor > t:
-                    t = floor
-                if prev_read + bc > t:
-                    t = prev_read + bc
-            elif orow < 0:
-                kind = MISS
-                t = act_ready[b]
-                if floor > t:
-                    t = floor
-                if act_at[b] + t_rc > t:
-                    t = act_at[b] + t_rc
-                if last_act + t_rrd > t:
-                    t = last_act + t_rrd
-            else:
-                kind = CONFLICT
-                t = act_at[b] + t_ras
-                if floor > t:
-                    t = floor
-                if read_at[b] + rtp > t:
-                    t = read_at[b] + rtp
-            while t in booked:
-                t += 1
-            if t < due:
-                break
-            # Refresh first: after every command issued so far, all banks precharged.
+        while floor >= due:
+            # Refresh before admitting: after every command issued so far (possibly while
+            # the controller sat idle), all banks precharged, then REFRESH and tRFC.
             refreshed = True
             start = due if due > last_cmd + 1 else last_cmd + 1
             prea = -1
@@ -276,8 +250,35 @@ def schedule_bursts(
                 open_row[k] = -1
                 act_ready[k] = refresh_end
             due += t_refi
+            if refresh_end > floor:
+                floor = refresh_end
 
-        start = t
+        orow = open_row[b]
+        if orow == r:
+            kind = HIT
+            t = act_at[b] + t_rcd
+            if floor > t:
+                t = floor
+            if prev_read + bc > t:
+                t = prev_read + bc
+        elif orow < 0:
+            kind = MISS
+            t = act_ready[b]
+            if floor > t:
+                t = floor
+            if act_at[b] + t_rc > t:
+                t = act_at[b] + t_rc
+            if last_act + t_rrd > t:
+                t = last_act + t_rrd
+        else:
+            kind = CONFLICT
+            t = act_at[b] + t_ras
+            if floor > t:
+                t = floor
+            if read_at[b] + rtp > t:
+                t = read_at[b] + rtp
+        while t in booked:
+            t += 1
         if kind == CONFLICT:
             book(t)
             pres[i] = t
@@ -313,9 +314,8 @@ def schedule_bursts(
             open_row[b] = r
         refreshed_before[i] = refreshed
         prev_read = t
-        prev_start = start
-        if len(booked) > 256:  # later commands never precede this request's first one
-            booked.difference_update([c for c in booked if c < start])
+        if len(booked) > 256:  # later requests issue nothing before this admission
+            booked.difference_update([c for c in booked if c < floor])
 
     return summarize(
         cfg,
@@ -344,10 +344,10 @@ def summarize(
 
     Shared by both forms of the model, so their counters mean exactly the same.  The
     data-bus gap before burst ``i > 0`` (``read[i] - read[i-1] - burst_cycles``) is charged
-    to *refresh* when a refresh was inserted just before request ``i``; to *arrival* when
-    the request could not have issued its READ earlier even with its bank ready
-    (``earliest + row latency >= read``: 0 for a hit, tRCD for a miss, tRP + tRCD for a
-    conflict); otherwise to *bank* (row timing, command-bus slots, controller queue).
+    to *arrival* when the request could not have issued its READ earlier even with its bank
+    ready (``earliest + row latency >= read``: 0 for a hit, tRCD for a miss, tRP + tRCD for
+    a conflict); else to *refresh* when a refresh came just before request ``i``; otherwise
+    to *bank* (row timing, command-bus slots, controller queue).
     """
     read = np.asarray(read, dtype=np.int64).reshape(-1)
     n = read.size
@@ -364,8 +364,8 @@ def summarize(
     latency = np.choose(outcome, [0, cfg.t_rcd, cfg.t_rp + cfg.t_rcd]) if n else gap
     late = gap > 0
     late[:1] = False
-    by_refresh = late & refreshed
-    by_arrival = late & ~refreshed & (earliest + latency >= read)
+    by_arrival = late & (earliest + latency >= read)
+    by_refresh = late & ~by_arrival & refreshed
     by_bank = late & ~by_refresh & ~by_arrival
     elapsed = int(data_end[-1]) if n else 0
     busy = n * bc

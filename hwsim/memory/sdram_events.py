@@ -8,14 +8,14 @@ Same parameters (:class:`~hwsim.memory.sdram.SdramConfig`) and the same rules as
 cycle-exact form (:mod:`hwsim.memory.sdram_cycle`), expressed as cooperating SimPy
 processes that exchange events instead of a loop over requests:
 
-* a **controller** takes requests from the module's :class:`simpy.Store` in order and
-  admits request ``i`` once request ``i - queue_depth`` has read and request ``i - 1`` has
-  issued its first command;
-* one **bank process** per bank serves that bank's requests in order: it decides hit /
-  miss / conflict from its open row, times PRECHARGE and ACTIVATE with timeouts
-  (tRAS, read-to-precharge, tRP, tRC, tRRD against the previous request's ACTIVATE) and
-  signals *row ready* tRCD later; it runs the refresh (PRECHARGE-ALL, tRP, REFRESH, tRFC)
-  when its request's first command would fall at or after the due cycle;
+* a **controller** takes requests from the module's :class:`simpy.Store` in order,
+  admits request ``i`` once request ``i - queue_depth`` has read, refreshes first when the
+  admission falls at or after a refresh's due cycle (PRECHARGE-ALL, tRP, REFRESH, tRFC,
+  after the last issued READ), and classifies the request hit / miss / conflict from the
+  rows requested before it;
+* one **bank process** per bank serves that bank's requests in order: it times
+  PRECHARGE and ACTIVATE with timeouts (tRAS, read-to-precharge, tRP, tRC, tRRD after the
+  previous request's ACTIVATE) and signals *row ready* tRCD later;
 * a **data-bus sequencer** issues the READs in request order, ``burst_cycles`` apart, and
   fires each request's ``done`` event after its last beat.
 
@@ -48,8 +48,8 @@ class BurstRequest:
     Attributes
     ----------
     index, bank, row, earliest : int
-    started, acted, ready, read_done, done : simpy.Event
-        First command issued; ACTIVATE issued (or not needed); row open; READ issued;
+    acted, ready, read_done, done : simpy.Event
+        ACTIVATE issued (never, for a row hit); row open; READ issued;
         last data beat delivered (fires at ``read + CL + burst_cycles``).
     kind, precharge, activate, read : int
         Filled in as the request is served (-1: no such command).
@@ -58,6 +58,7 @@ class BurstRequest:
     __slots__ = (
         "acted",
         "activate",
+        "after",
         "bank",
         "done",
         "earliest",
@@ -69,13 +70,11 @@ class BurstRequest:
         "ready",
         "refreshed",
         "row",
-        "started",
     )
 
     def __init__(self, env: simpy.Environment, index: int, bank: int, row: int) -> None:
         self.index, self.bank, self.row = index, bank, row
         self.earliest = int(env.now)
-        self.started = env.event()
         self.acted = env.event()
         self.ready = env.event()
         self.read_done = env.event()
@@ -83,6 +82,7 @@ class BurstRequest:
         self.kind = HIT
         self.precharge = self.activate = self.read = -1
         self.refreshed = False
+        self.after: BurstRequest | None = None  # the previous request that activates
 
 
 class SdramEventModel:
@@ -104,7 +104,9 @@ class SdramEventModel:
         self._to_bank = [simpy.Store(env) for _ in range(cfg.banks)]
         self._to_bus = simpy.Store(env)
         nb = cfg.banks
-        self.open_row = [-1] * nb
+        self.open_row = [-1] * nb  # rows open in the device now
+        self._planned_row = [-1] * nb  # rows open once every admitted request has read
+        self._last_activating: BurstRequest | None = None
         self.act_at = [_NEVER] * nb
         self.act_ready = [0] * nb
         self.read_at = [_NEVER] * nb
@@ -134,7 +136,8 @@ class SdramEventModel:
             yield self.env.timeout(t - self.env.now)
 
     def _controller(self):
-        depth = self.cfg.queue_depth
+        cfg, env = self.cfg, self.env
+        depth = cfg.queue_depth
         while True:
             req = yield self._incoming.get()
             i = req.index
@@ -142,75 +145,30 @@ class SdramEventModel:
                 older = self.requests[i - depth]
                 yield older.read_done
                 yield from self._wait_until(older.read + 1)
-            if i:
-                yield self.requests[i - 1].started
-            self._to_bank[req.bank].put(req)
+            while env.now >= self.due:
+                req.refreshed = True
+                if i:
+                    yield self.requests[i - 1].read_done  # every earlier command issued
+                self._refresh()
+                yield from self._wait_until(self.refresh_end)
+            # Admitted: hit, miss or conflict follows from the rows requested so far.
+            b = req.bank
+            planned = self._planned_row[b]
+            if planned == req.row:
+                req.kind = HIT
+            else:
+                req.kind = MISS if planned < 0 else CONFLICT
+                req.after = self._last_activating  # ACTIVATEs go in request order
+                self._last_activating = req
+            if cfg.page_policy == "open":
+                self._planned_row[b] = req.row
+            self._to_bank[b].put(req)
             self._to_bus.put(req)
 
-    def _bank(self, b: int):
-        cfg, env = self.cfg, self.env
-        while True:
-            req = yield self._to_bank[b].get()
-            i = req.index
-            prev = self.requests[i - 1] if i else None
-            while True:
-                yield from self._wait_until(self.refresh_end)
-                if self.open_row[b] == req.row:
-                    kind = HIT
-                    if prev is not None:
-                        yield prev.read_done
-                    t = max(env.now, self.act_at[b] + cfg.t_rcd, self.prev_read + cfg.burst_cycles)
-                elif self.open_row[b] < 0:
-                    kind = MISS
-                    if prev is not None:
-                        yield prev.acted
-                    t = max(
-                        env.now,
-                        self.act_ready[b],
-                        self.act_at[b] + cfg.t_rc,
-                        self.last_act + cfg.t_rrd,
-                    )
-                else:
-                    kind = CONFLICT
-                    t = max(
-                        env.now,
-                        self.act_at[b] + cfg.t_ras,
-                        self.read_at[b] + cfg.read_to_precharge,
-                    )
-                if t < self.due:
-                    break
-                req.refreshed = True
-                yield from self._refresh(prev)
-            req.kind = kind
-            yield from self._wait_until(t)
-            if kind == HIT:
-                req.acted.succeed()
-                req.ready.succeed()
-                req.started.succeed()
-                yield req.read_done  # the bank serves its next request after this READ
-                continue
-            if kind == CONFLICT:
-                req.precharge = int(env.now)
-                req.started.succeed()
-                yield env.timeout(cfg.t_rp)
-                if prev is not None:
-                    yield prev.acted
-                yield from self._wait_until(
-                    max(self.act_at[b] + cfg.t_rc, self.last_act + cfg.t_rrd)
-                )
-            else:
-                req.started.succeed()
-            req.activate = int(env.now)
-            self.act_at[b] = self.last_act = req.activate
-            req.acted.succeed()
-            yield env.timeout(cfg.t_rcd)
-            req.ready.succeed()
-            yield req.read_done  # the bank serves its next request after this READ
-
-    def _refresh(self, prev: BurstRequest | None):
+    def _refresh(self) -> None:
+        """Book a refresh after every issued command (its cycles may lie in the past when
+        the controller sat idle: the device was idle then, so nothing else changes)."""
         cfg = self.cfg
-        if prev is not None:
-            yield prev.read_done  # every issued command is at or before this READ
         start = max(self.due, self.last_cmd + 1)
         prea = -1
         open_banks = [k for k in range(cfg.banks) if self.open_row[k] >= 0]
@@ -228,10 +186,36 @@ class SdramEventModel:
         self.last_cmd = ref
         self.refresh_end = ref + cfg.t_rfc
         for k in range(cfg.banks):
-            self.open_row[k] = -1
+            self.open_row[k] = self._planned_row[k] = -1
             self.act_ready[k] = self.refresh_end
         self.due += cfg.t_refi
-        yield from self._wait_until(self.refresh_end)
+
+    def _bank(self, b: int):
+        cfg, env = self.cfg, self.env
+        while True:
+            req = yield self._to_bank[b].get()
+            if req.kind == HIT:
+                yield from self._wait_until(self.act_at[b] + cfg.t_rcd)
+                req.ready.succeed()
+                yield req.read_done  # the bank serves its next request after this READ
+                continue
+            if req.kind == CONFLICT:
+                yield from self._wait_until(
+                    max(self.act_at[b] + cfg.t_ras, self.read_at[b] + cfg.read_to_precharge)
+                )
+                req.precharge = int(env.now)
+                yield env.timeout(cfg.t_rp)
+            else:
+                yield from self._wait_until(self.act_ready[b])
+            if req.after is not None:
+                yield req.after.acted  # ACTIVATEs in request order
+            yield from self._wait_until(max(self.act_at[b] + cfg.t_rc, self.last_act + cfg.t_rrd))
+            req.activate = int(env.now)
+            self.act_at[b] = self.last_act = req.activate
+            req.acted.succeed()
+            yield env.timeout(cfg.t_rcd)
+            req.ready.succeed()
+            yield req.read_done
 
     def _sequencer(self):
         cfg, env = self.cfg, self.env
