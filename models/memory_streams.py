@@ -38,10 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.memory import MemoryConfig
+from hwsim.memory import BurstSchedule, MemoryConfig, schedule_bursts
 from models.units import skew as sk
 
-__all__ = ["AXES", "RequestStream", "module_streams", "processing_order"]
+__all__ = ["AXES", "RequestStream", "module_streams", "processing_order", "schedule_frame"]
 
 #: Principal axis -> (i, j, k) permutation of (x, y, z) indices (architectures.md 6.3).
 AXES = {"x": (1, 2, 0), "y": (2, 0, 1), "z": (0, 1, 2)}
@@ -153,3 +153,18 @@ def module_streams(
         bank, address = np.divmod(linear, per_bank)
         return _split(memory, s % M, bank, address)
     raise ValueError(f"unknown skew {memory.skew!r}")
+
+
+def schedule_frame(
+    memory: MemoryConfig, n: int, axis: str, reverse: bool = False, slabs: int | None = None
+) -> list[BurstSchedule]:
+    """Cycle-exact schedules of every module for one frame read memory-bound (each
+    request available at cycle 0); arguments as :func:`module_streams`.
+
+    ``SdramStats.combine([s.stats for s in result])`` gives the frame's memory counters;
+    its ``elapsed_cycles`` (memory clocks) is the frame's memory-bound time.
+    """
+    return [
+        schedule_bursts(memory.sdram, s.bank, s.row)
+        for s in module_streams(memory, n, axis, reverse, slabs)
+    ]
