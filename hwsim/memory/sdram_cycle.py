@@ -199,7 +199,7 @@ def schedule_bursts(
     read_at = [_NEVER] * nb  # last READ per bank
     last_act = _NEVER
     prev_read = _NEVER
-    last_cmd = -1
+    last_ref = -1
     refresh_end = 0
     due = t_refi if t_refi > 0 else 1 << 62
     booked: set[int] = set()  # command-bus cycles taken (only recent ones are kept)
@@ -208,25 +208,23 @@ def schedule_bursts(
     reads = [0] * n
     acts = [-1] * n
     pres = [-1] * n
-    outcome = [0] * n
     refresh_log: list[tuple[int, int]] = []
     refreshed_before = [False] * n
 
     floor = 0  # admission cycle: requests enter the controller in order
-    for i in range(n):
-        b = banks[i]
-        r = rows[i]
-        e = arrive[i]
+    i = -1
+    for b, r, e in zip(banks, rows, arrive, strict=True):
+        i += 1
         if e > floor:
             floor = e
         if i >= depth and reads[i - depth] + 1 > floor:
             floor = reads[i - depth] + 1
-        refreshed = False
+        if floor >= due:
+            refreshed_before[i] = True
         while floor >= due:
             # Refresh before admitting: after every command issued so far (possibly while
             # the controller sat idle), all banks precharged, then REFRESH and tRFC.
-            refreshed = True
-            start = due if due > last_cmd + 1 else last_cmd + 1
+            start = max(due, prev_read + 1, last_ref + 1)
             prea = -1
             if any(o >= 0 for o in open_row):
                 for k in range(nb):
@@ -245,7 +243,7 @@ def schedule_bursts(
             book(ref)
             refresh_log.append((prea, ref))
             refresh_end = ref + t_rfc
-            last_cmd = ref
+            last_ref = ref
             for k in range(nb):
                 open_row[k] = -1
                 act_ready[k] = refresh_end
@@ -254,57 +252,43 @@ def schedule_bursts(
                 floor = refresh_end
 
         orow = open_row[b]
-        if orow == r:
-            kind = HIT
+        if orow == r:  # row hit: READ only
             t = act_at[b] + t_rcd
             if floor > t:
                 t = floor
             if prev_read + bc > t:
                 t = prev_read + bc
-        elif orow < 0:
-            kind = MISS
-            t = act_ready[b]
-            if floor > t:
-                t = floor
-            if act_at[b] + t_rc > t:
-                t = act_at[b] + t_rc
-            if last_act + t_rrd > t:
-                t = last_act + t_rrd
         else:
-            kind = CONFLICT
-            t = act_at[b] + t_ras
-            if floor > t:
-                t = floor
-            if read_at[b] + rtp > t:
-                t = read_at[b] + rtp
-        while t in booked:
-            t += 1
-        if kind == CONFLICT:
-            book(t)
-            pres[i] = t
-            t += t_rp
+            if orow < 0:  # row miss
+                t = act_ready[b]
+                if floor > t:
+                    t = floor
+            else:  # row conflict: PRECHARGE first
+                t = act_at[b] + t_ras
+                if floor > t:
+                    t = floor
+                if read_at[b] + rtp > t:
+                    t = read_at[b] + rtp
+                while t in booked:
+                    t += 1
+                book(t)
+                pres[i] = t
+                t += t_rp
             if act_at[b] + t_rc > t:
                 t = act_at[b] + t_rc
             if last_act + t_rrd > t:
                 t = last_act + t_rrd
             while t in booked:
                 t += 1
-        if kind != HIT:
             book(t)
-            acts[i] = t
-            act_at[b] = t
-            last_act = t
+            acts[i] = act_at[b] = last_act = t
             t += t_rcd
             if prev_read + bc > t:
                 t = prev_read + bc
-            while t in booked:
-                t += 1
+        while t in booked:
+            t += 1
         book(t)
-        reads[i] = t
-        read_at[b] = t
-        if t > last_cmd:
-            last_cmd = t
-        outcome[i] = kind
+        reads[i] = read_at[b] = prev_read = t
         if closed:
             done = t + rtp
             if act_at[b] + t_ras > done:
@@ -312,16 +296,17 @@ def schedule_bursts(
             act_ready[b] = done + t_rp
         else:
             open_row[b] = r
-        refreshed_before[i] = refreshed
-        prev_read = t
-        if len(booked) > 256:  # later requests issue nothing before this admission
+        if not i & 127:  # later requests issue nothing before this admission
             booked.difference_update([c for c in booked if c < floor])
 
+    act_arr = np.asarray(acts, dtype=np.int64)
+    pre_arr = np.asarray(pres, dtype=np.int64)
+    outcome = np.where(act_arr < 0, HIT, np.where(pre_arr >= 0, CONFLICT, MISS))
     return summarize(
         cfg,
         read=reads,
-        activate=acts,
-        precharge=pres,
+        activate=act_arr,
+        precharge=pre_arr,
         outcome=outcome,
         earliest=arrive,
         refreshed_before=refreshed_before,
