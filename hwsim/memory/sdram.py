@@ -29,6 +29,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from hwsim.config import Table
 from hwsim.errors import InputError
 
@@ -146,6 +148,16 @@ class SdramConfig:
     def words(self) -> int:
         """Words in the device: banks x rows x columns."""
         return self.banks * self.rows * self.columns
+
+    def to_pipeline_cycles(self, memory_cycles):
+        """Memory-clock cycle counts or instants -> pipeline clocks, rounded up (the
+        pipeline sees data at its first clock edge at or after the memory's)."""
+        return np.ceil(np.asarray(memory_cycles) / self.clock_ratio).astype(np.int64)
+
+    def to_memory_cycles(self, pipeline_cycles):
+        """Pipeline-clock instants -> memory clocks, rounded up (e.g. a request's earliest
+        issue cycle from the cycle its FIFO frees a slot)."""
+        return np.ceil(np.asarray(pipeline_cycles) * self.clock_ratio).astype(np.int64)
 
     @property
     def peak_words_per_cycle(self) -> int:

@@ -74,3 +74,10 @@ def test_derived_quantities():
     d = SdramConfig(data_rate=2, burst_length=8)
     assert d.burst_cycles == 4 and d.read_to_precharge == 4 and d.peak_words_per_cycle == 2
     assert SdramConfig().words == 4 * 8192 * 512
+
+
+def test_clock_conversion_rounds_up():
+    d = SdramConfig(clock_ratio=1.5)  # memory at 1.5x the pipeline clock
+    assert d.to_pipeline_cycles([0, 3, 4]).tolist() == [0, 2, 3]
+    assert d.to_memory_cycles([0, 1, 2]).tolist() == [0, 2, 3]
+    assert SdramConfig().to_pipeline_cycles(17).item() == 17
