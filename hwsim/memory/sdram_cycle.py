@@ -50,6 +50,7 @@ __all__ = [
     "MISS",
     "CONFLICT",
     "BurstSchedule",
+    "SdramController",
     "SdramStats",
     "schedule_bursts",
     "summarize",
@@ -182,136 +183,212 @@ def schedule_bursts(
     -------
     BurstSchedule
     """
-    n = int(np.asarray(bank).size)
-    banks = _as_list("bank", bank, n, 0, cfg.banks - 1)
-    rows = _as_list("row", row, n, 0, cfg.rows - 1)
-    arrive = [0] * n if earliest is None else _as_list("earliest", earliest, n, 0, None)
+    controller = SdramController(cfg, command_bus=command_bus)
+    controller.issue_many(bank, row, earliest)
+    return controller.schedule()
 
-    t_rcd, t_rp, t_ras, t_rc, t_rrd = cfg.t_rcd, cfg.t_rp, cfg.t_ras, cfg.t_rc, cfg.t_rrd
-    bc, rtp, t_rfc, t_refi = cfg.burst_cycles, cfg.read_to_precharge, cfg.t_rfc, cfg.t_refi
-    closed = cfg.page_policy == "closed"
-    depth = cfg.queue_depth
-    nb = cfg.banks
 
-    open_row = [-1] * nb
-    act_at = [_NEVER] * nb  # last ACTIVATE per bank
-    act_ready = [0] * nb  # earliest ACTIVATE after a precharge or refresh
-    read_at = [_NEVER] * nb  # last READ per bank
-    last_act = _NEVER
-    prev_read = _NEVER
-    last_ref = -1
-    refresh_end = 0
-    due = t_refi if t_refi > 0 else 1 << 62
-    booked: set[int] = set()  # command-bus cycles taken (only recent ones are kept)
-    book = booked.add if command_bus else _ignore
+class SdramController:
+    """The cycle-exact scheduler as an object that takes requests a few at a time.
 
-    reads = [0] * n
-    acts = [-1] * n
-    pres = [-1] * n
-    refresh_log: list[tuple[int, int]] = []
-    refreshed_before = [False] * n
+    For a caller whose next request depends on earlier completions (a FIFO that frees a
+    slot when the consumer has used a burst): :meth:`issue` one request, read its
+    :meth:`data_end`, compute the next ``earliest``.  Any split of a stream into
+    :meth:`issue` / :meth:`issue_many` calls gives the same schedule as
+    :func:`schedule_bursts` on the whole stream.
 
-    floor = 0  # admission cycle: requests enter the controller in order
-    i = -1
-    for b, r, e in zip(banks, rows, arrive, strict=True):
-        i += 1
-        if e > floor:
-            floor = e
-        if i >= depth and reads[i - depth] + 1 > floor:
-            floor = reads[i - depth] + 1
-        if floor >= due:
-            refreshed_before[i] = True
-        while floor >= due:
-            # Refresh before admitting: after every command issued so far (possibly while
-            # the controller sat idle), all banks precharged, then REFRESH and tRFC.
-            start = max(due, prev_read + 1, last_ref + 1)
-            prea = -1
-            if any(o >= 0 for o in open_row):
+    Parameters
+    ----------
+    cfg : SdramConfig
+    command_bus : bool
+        As in :func:`schedule_bursts`.
+    """
+
+    def __init__(self, cfg: SdramConfig, *, command_bus: bool = True) -> None:
+        self.cfg = cfg
+        self.command_bus = command_bus
+        nb = cfg.banks
+        self._state = {
+            "open_row": [-1] * nb,
+            "act_at": [_NEVER] * nb,  # last ACTIVATE per bank
+            "act_ready": [0] * nb,  # earliest ACTIVATE after a precharge or refresh
+            "read_at": [_NEVER] * nb,  # last READ per bank
+            "last_act": _NEVER,
+            "prev_read": _NEVER,
+            "last_ref": -1,
+            "refresh_end": 0,
+            "due": cfg.t_refi if cfg.t_refi > 0 else 1 << 62,
+            "floor": 0,  # admission cycle of the last request
+        }
+        self._booked: set[int] = set()  # command-bus cycles taken (recent ones only)
+        self.reads: list[int] = []
+        self.activates: list[int] = []
+        self.precharges: list[int] = []
+        self.arrivals: list[int] = []
+        self.refreshed_before: list[bool] = []
+        self.refresh_log: list[tuple[int, int]] = []
+
+    def __len__(self) -> int:
+        return len(self.reads)
+
+    def issue(self, bank: int, row: int, earliest: int = 0) -> int:
+        """Schedule one request; returns the cycle of its READ."""
+        cfg = self.cfg
+        if not (0 <= bank < cfg.banks and 0 <= row < cfg.rows and earliest >= 0):
+            raise ValueError(
+                f"bank {bank}, row {row}, earliest {earliest} out of range "
+                f"(bank 0 .. {cfg.banks - 1}, row 0 .. {cfg.rows - 1}, earliest >= 0)"
+            )
+        self._run([int(bank)], [int(row)], [int(earliest)])
+        return self.reads[-1]
+
+    def data_end(self, index: int) -> int:
+        """Cycle after the last data beat of request ``index``."""
+        return self.reads[index] + self.cfg.cas_latency + self.cfg.burst_cycles
+
+    def issue_many(self, bank, row, earliest=None) -> None:
+        """Schedule a batch of requests (arrays as in :func:`schedule_bursts`)."""
+        n = int(np.asarray(bank).size)
+        banks = _as_list("bank", bank, n, 0, self.cfg.banks - 1)
+        rows = _as_list("row", row, n, 0, self.cfg.rows - 1)
+        arrive = [0] * n if earliest is None else _as_list("earliest", earliest, n, 0, None)
+        self._run(banks, rows, arrive)
+
+    def schedule(self) -> BurstSchedule:
+        """Commands and counters of every request issued so far."""
+        act_arr = np.asarray(self.activates, dtype=np.int64)
+        pre_arr = np.asarray(self.precharges, dtype=np.int64)
+        outcome = np.where(act_arr < 0, HIT, np.where(pre_arr >= 0, CONFLICT, MISS))
+        return summarize(
+            self.cfg,
+            read=self.reads,
+            activate=act_arr,
+            precharge=pre_arr,
+            outcome=outcome,
+            earliest=self.arrivals,
+            refreshed_before=self.refreshed_before,
+            refresh_log=self.refresh_log,
+        )
+
+    def _run(self, banks: list[int], rows: list[int], arrive: list[int]) -> None:
+        """The loop over requests; state lives in locals while it runs."""
+        cfg = self.cfg
+        t_rcd, t_rp, t_ras, t_rc, t_rrd = cfg.t_rcd, cfg.t_rp, cfg.t_ras, cfg.t_rc, cfg.t_rrd
+        bc, rtp, t_rfc, t_refi = cfg.burst_cycles, cfg.read_to_precharge, cfg.t_rfc, cfg.t_refi
+        closed = cfg.page_policy == "closed"
+        depth = cfg.queue_depth
+        nb = cfg.banks
+        st = self._state
+        open_row, act_at, act_ready, read_at = (
+            st["open_row"],
+            st["act_at"],
+            st["act_ready"],
+            st["read_at"],
+        )
+        last_act, prev_read, last_ref = st["last_act"], st["prev_read"], st["last_ref"]
+        refresh_end, due, floor = st["refresh_end"], st["due"], st["floor"]
+        booked = self._booked
+        book = booked.add if self.command_bus else _ignore
+        refresh_log = self.refresh_log
+        start_index = len(self.reads)
+        n = len(banks)
+        self.reads.extend([0] * n)
+        self.activates.extend([-1] * n)
+        self.precharges.extend([-1] * n)
+        self.refreshed_before.extend([False] * n)
+        self.arrivals.extend(arrive)
+        reads, acts, pres = self.reads, self.activates, self.precharges
+        refreshed_before = self.refreshed_before
+
+        i = start_index - 1
+        for b, r, e in zip(banks, rows, arrive, strict=True):
+            i += 1
+            if e > floor:
+                floor = e
+            if i >= depth and reads[i - depth] + 1 > floor:
+                floor = reads[i - depth] + 1
+            if floor >= due:
+                refreshed_before[i] = True
+            while floor >= due:
+                # Refresh before admitting: after every command issued so far (possibly while
+                # the controller sat idle), all banks precharged, then REFRESH and tRFC.
+                start = max(due, prev_read + 1, last_ref + 1)
+                prea = -1
+                if any(o >= 0 for o in open_row):
+                    for k in range(nb):
+                        if open_row[k] >= 0:
+                            start = max(start, act_at[k] + t_ras, read_at[k] + rtp)
+                    while start in booked:
+                        start += 1
+                    prea = start
+                    book(prea)
+                    ref = prea + t_rp
+                else:
+                    ref = start
+                ref = max(ref, *act_ready)
+                while ref in booked:
+                    ref += 1
+                book(ref)
+                refresh_log.append((prea, ref))
+                refresh_end = ref + t_rfc
+                last_ref = ref
                 for k in range(nb):
-                    if open_row[k] >= 0:
-                        start = max(start, act_at[k] + t_ras, read_at[k] + rtp)
-                while start in booked:
-                    start += 1
-                prea = start
-                book(prea)
-                ref = prea + t_rp
-            else:
-                ref = start
-            ref = max(ref, *act_ready)
-            while ref in booked:
-                ref += 1
-            book(ref)
-            refresh_log.append((prea, ref))
-            refresh_end = ref + t_rfc
-            last_ref = ref
-            for k in range(nb):
-                open_row[k] = -1
-                act_ready[k] = refresh_end
-            due += t_refi
-            if refresh_end > floor:
-                floor = refresh_end
+                    open_row[k] = -1
+                    act_ready[k] = refresh_end
+                due += t_refi
+                if refresh_end > floor:
+                    floor = refresh_end
 
-        orow = open_row[b]
-        if orow == r:  # row hit: READ only
-            t = act_at[b] + t_rcd
-            if floor > t:
-                t = floor
-            if prev_read + bc > t:
-                t = prev_read + bc
-        else:
-            if orow < 0:  # row miss
-                t = act_ready[b]
+            orow = open_row[b]
+            if orow == r:  # row hit: READ only
+                t = act_at[b] + t_rcd
                 if floor > t:
                     t = floor
-            else:  # row conflict: PRECHARGE first
-                t = act_at[b] + t_ras
-                if floor > t:
-                    t = floor
-                if read_at[b] + rtp > t:
-                    t = read_at[b] + rtp
+                if prev_read + bc > t:
+                    t = prev_read + bc
+            else:
+                if orow < 0:  # row miss
+                    t = act_ready[b]
+                    if floor > t:
+                        t = floor
+                else:  # row conflict: PRECHARGE first
+                    t = act_at[b] + t_ras
+                    if floor > t:
+                        t = floor
+                    if read_at[b] + rtp > t:
+                        t = read_at[b] + rtp
+                    while t in booked:
+                        t += 1
+                    book(t)
+                    pres[i] = t
+                    t += t_rp
+                if act_at[b] + t_rc > t:
+                    t = act_at[b] + t_rc
+                if last_act + t_rrd > t:
+                    t = last_act + t_rrd
                 while t in booked:
                     t += 1
                 book(t)
-                pres[i] = t
-                t += t_rp
-            if act_at[b] + t_rc > t:
-                t = act_at[b] + t_rc
-            if last_act + t_rrd > t:
-                t = last_act + t_rrd
+                acts[i] = act_at[b] = last_act = t
+                t += t_rcd
+                if prev_read + bc > t:
+                    t = prev_read + bc
             while t in booked:
                 t += 1
             book(t)
-            acts[i] = act_at[b] = last_act = t
-            t += t_rcd
-            if prev_read + bc > t:
-                t = prev_read + bc
-        while t in booked:
-            t += 1
-        book(t)
-        reads[i] = read_at[b] = prev_read = t
-        if closed:
-            done = t + rtp
-            if act_at[b] + t_ras > done:
-                done = act_at[b] + t_ras
-            act_ready[b] = done + t_rp
-        else:
-            open_row[b] = r
-        if not i & 127:  # later requests issue nothing before this admission
-            booked.difference_update([c for c in booked if c < floor])
+            reads[i] = read_at[b] = prev_read = t
+            if closed:
+                done = t + rtp
+                if act_at[b] + t_ras > done:
+                    done = act_at[b] + t_ras
+                act_ready[b] = done + t_rp
+            else:
+                open_row[b] = r
+            if not i & 127:  # later requests issue nothing before this admission
+                booked.difference_update([c for c in booked if c < floor])
 
-    act_arr = np.asarray(acts, dtype=np.int64)
-    pre_arr = np.asarray(pres, dtype=np.int64)
-    outcome = np.where(act_arr < 0, HIT, np.where(pre_arr >= 0, CONFLICT, MISS))
-    return summarize(
-        cfg,
-        read=reads,
-        activate=act_arr,
-        precharge=pre_arr,
-        outcome=outcome,
-        earliest=arrive,
-        refreshed_before=refreshed_before,
-        refresh_log=refresh_log,
-    )
+        st["last_act"], st["prev_read"], st["last_ref"] = last_act, prev_read, last_ref
+        st["refresh_end"], st["due"], st["floor"] = refresh_end, due, floor
 
 
 def summarize(

@@ -49,9 +49,10 @@ def test_paced_arrivals_agree():
 
 
 def test_where_the_forms_differ_it_is_the_command_bus():
-    """A random stream: the event form has no command bus, so a few commands land a cycle
-    earlier than in the cycle form, never later; switching the rule off in the cycle form
-    removes every difference."""
+    """A random stream: the event form has no command bus, so on this stream a few
+    ACTIVATEs land earlier than in the cycle form and no burst ends later (not a general
+    law: a command moved by a cycle can also move a refresh); switching the rule off in
+    the cycle form removes every difference."""
     rng = np.random.default_rng(7)
     cfg = SdramConfig()
     bank, row = rng.integers(0, 4, N), rng.integers(0, 3, N)

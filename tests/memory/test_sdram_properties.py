@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sdram_checker import violations
 
-from hwsim.memory import SdramConfig, schedule_bursts, simulate_events
+from hwsim.memory import SdramConfig, SdramController, schedule_bursts, simulate_events
 
 pytestmark = pytest.mark.model
 
@@ -102,11 +102,24 @@ def test_simpy_form_equals_cycle_form_without_command_bus(case):
     assert cycle.stats == events.stats
 
 
-@given(streams())
+@given(streams(), st.data())
 @settings(deadline=None, max_examples=100)
-def test_command_bus_only_ever_delays(case):
-    """Taking a command-bus slot can only push commands later, never earlier."""
+def test_incremental_controller_equals_batch(case, data):
+    """Issuing a stream one request or a few at a time gives the batch schedule."""
     cfg, bank, row, earliest = case
-    strict = schedule_bursts(cfg, bank, row, earliest)
-    free = schedule_bursts(cfg, bank, row, earliest, command_bus=False)
-    assert strict.cycles >= free.cycles
+    batch = schedule_bursts(cfg, bank, row, earliest)
+    ctl = SdramController(cfg)
+    i, n = 0, len(bank)
+    while i < n:
+        k = data.draw(st.integers(1, 5))
+        if k == 1:
+            ctl.issue(bank[i], row[i], 0 if earliest is None else earliest[i])
+        else:
+            ctl.issue_many(
+                bank[i : i + k], row[i : i + k], None if earliest is None else earliest[i : i + k]
+            )
+        i += k
+    inc = ctl.schedule()
+    for name in ("read", "activate", "precharge", "outcome", "refresh"):
+        assert np.array_equal(getattr(batch, name), getattr(inc, name)), name
+    assert batch.stats == inc.stats

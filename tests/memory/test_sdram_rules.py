@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from sdram_checker import violations
 
-from hwsim.memory import CONFLICT, HIT, MISS, SdramConfig, schedule_bursts
+from hwsim.memory import CONFLICT, HIT, MISS, SdramConfig, SdramController, schedule_bursts
 
 pytestmark = pytest.mark.model
 
@@ -169,3 +169,21 @@ def test_the_checker_catches_a_broken_schedule():
     assert any("tRCD" in v for v in violations(NO_REFRESH, bank, row, None, early))
     squeezed = dataclasses.replace(s, read=np.array([2, 9]))
     assert any("overlap" in v for v in violations(NO_REFRESH, bank, row, None, squeezed))
+
+
+def test_fifo_backpressure_through_the_incremental_controller():
+    """A consumer with a FIFO of 2 bursts that uses each burst for 12 cycles (slower than
+    the memory's 8): burst i may not issue before burst i - 2 has been consumed.  The
+    memory then waits on arrival: 12-cycle spacing, the gaps charged to arrival."""
+    ctl = SdramController(NO_REFRESH)
+    consumed: list[int] = []
+    for i in range(10):
+        earliest = consumed[i - 2] if i >= 2 else 0
+        ctl.issue(i % 4, 0, earliest)
+        start = max(ctl.data_end(i), consumed[-1] if consumed else 0)
+        consumed.append(start + 12)
+    s = ctl.schedule()
+    assert np.all(np.diff(s.read[4:]) == 12)
+    assert s.stats.stall_arrival_cycles > 0 and s.stats.stall_bank_cycles == 0
+    with pytest.raises(ValueError, match="bank 9"):
+        ctl.issue(9, 0)
