@@ -16,7 +16,12 @@ from hwsim.memory.sdram_cycle import (
     schedule_bursts,
     summarize,
 )
-from hwsim.memory.sdram_events import BurstRequest, SdramEventModel, simulate_events
+from hwsim.memory.sdram_events import (
+    BurstRequest,
+    SdramEventModel,
+    SdramTransactionPort,
+    simulate_events,
+)
 
 __all__ = [
     "CONFLICT",
@@ -31,6 +36,7 @@ __all__ = [
     "SdramController",
     "SdramEventModel",
     "SdramStats",
+    "SdramTransactionPort",
     "parse_memory",
     "schedule_bursts",
     "simulate_events",

@@ -28,6 +28,10 @@ difference where they do collide.
 Embedding in a larger model: create :class:`SdramEventModel` on the caller's
 ``simpy.Environment`` and call :meth:`SdramEventModel.request` from any process; wait on
 the returned request's ``done`` (or ``read_done``) event.
+
+Coarser and faster: :class:`SdramTransactionPort` takes a whole batch of bursts (a beam)
+per call and returns one event, timed by the cycle-exact controller, so a
+transaction-level model pays one SimPy event per batch, not about thirteen per burst.
 """
 
 from __future__ import annotations
@@ -35,9 +39,16 @@ from __future__ import annotations
 import simpy
 
 from hwsim.memory.sdram import SdramConfig
-from hwsim.memory.sdram_cycle import CONFLICT, HIT, MISS, BurstSchedule, summarize
+from hwsim.memory.sdram_cycle import (
+    CONFLICT,
+    HIT,
+    MISS,
+    BurstSchedule,
+    SdramController,
+    summarize,
+)
 
-__all__ = ["BurstRequest", "SdramEventModel", "simulate_events"]
+__all__ = ["BurstRequest", "SdramEventModel", "SdramTransactionPort", "simulate_events"]
 
 _NEVER = -(1 << 40)
 
@@ -256,6 +267,48 @@ class SdramEventModel:
             refreshed_before=[r.refreshed for r in reqs],
             refresh_log=self.refresh_log,
         )
+
+
+class SdramTransactionPort:
+    """A SimPy front end of the cycle-exact controller: one event per batch of bursts.
+
+    Every burst of a batch is queued at the call's ``env.now`` (rounded up to a whole
+    memory cycle); :class:`~hwsim.memory.SdramController` gives the exact cycles, so the
+    timing is the cycle form's for those arrival cycles.
+
+    Parameters
+    ----------
+    env : simpy.Environment
+        Time unit: one memory clock.
+    cfg : SdramConfig
+    """
+
+    def __init__(self, env: simpy.Environment, cfg: SdramConfig) -> None:
+        self.env = env
+        self.controller = SdramController(cfg)
+
+    def read(self, bank, row) -> simpy.Event:
+        """Queue a batch of bursts now.
+
+        Returns
+        -------
+        simpy.Event
+            Fires at the cycle after the batch's last data beat; its value is the
+            ``(first, last)`` request indices of the batch in the port's stream.
+        """
+        ctl = self.controller
+        first = len(ctl)
+        now = -(-self.env.now // 1)
+        count = len(bank)
+        ctl.issue_many(bank, row, [int(now)] * count)
+        if count == 0:
+            return self.env.timeout(0, value=(first, first - 1))
+        end = ctl.data_end(first + count - 1)
+        return self.env.timeout(end - self.env.now, value=(first, first + count - 1))
+
+    def schedule(self) -> BurstSchedule:
+        """Commands and counters of every burst read so far."""
+        return self.controller.schedule()
 
 
 def simulate_events(cfg: SdramConfig, bank, row, earliest=None) -> BurstSchedule:

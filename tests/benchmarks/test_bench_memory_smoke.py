@@ -30,6 +30,7 @@ def test_memory_benchmark_report(tmp_path, capsys):
     assert len(cycle) == 4 and all(c["cycle_bursts_per_second"] > 0 for c in cycle)
     for c in report["speed"]["simpy_vs_cycle"]:
         assert c["simpy_bursts_per_second"] > 0 and c["same_completion_cycles"] is True
+        assert c["port_bursts_per_second"] > 0
     layouts = {(r["layout"], r["axis"]) for r in report["layouts"]}
     assert ("volumepro500", "y") in layouts and ("no bank skew (block)", "x") in layouts
     for r in report["layouts"]:

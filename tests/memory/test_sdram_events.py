@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 import simpy
 
-from hwsim.memory import SdramConfig, SdramEventModel, schedule_bursts, simulate_events
+from hwsim.memory import (
+    SdramConfig,
+    SdramEventModel,
+    SdramTransactionPort,
+    schedule_bursts,
+    simulate_events,
+)
 
 pytestmark = pytest.mark.model
 
@@ -101,3 +107,29 @@ def test_bad_requests_are_refused():
         model.request(4, 0)
     with pytest.raises(ValueError, match="earliest"):
         simulate_events(SdramConfig(), [0], [0], [-3])
+
+
+def test_transaction_port_times_a_beam_per_event():
+    """A consumer reads beams of 16 bursts, spending 100 cycles on each beam: one event
+    per beam, completion = the cycle form's last data beat for the same arrival cycles."""
+    cfg = SdramConfig(t_refi=150)
+    env = simpy.Environment()
+    port = SdramTransactionPort(env, cfg)
+    issued: list[int] = []
+    finished: list[int] = []
+
+    def consumer():
+        for beam in range(6):
+            issued.extend([int(env.now)] * 16)
+            idx = np.arange(16)
+            (first, last) = yield port.read(idx % 4, (beam * 16 + idx) // 64)
+            assert (first, last) == (16 * beam, 16 * beam + 15)
+            finished.append(int(env.now))
+            yield env.timeout(100)
+
+    env.process(consumer())
+    env.run()
+    idx = np.arange(96)
+    cycle = schedule_bursts(cfg, idx % 4, idx // 64, issued)
+    assert finished == cycle.data_end[15::16].tolist()
+    assert port.schedule().stats == cycle.stats and cycle.stats.refreshes > 0
