@@ -1,0 +1,464 @@
+"""Cycle-exact SDRAM timing: the exact cycle of every command and data beat of a burst stream.
+
+# Ref: shared/docs/reference/architectures.md section 9.1 (voxel memory controller: SDRAM
+#      burst scheduling, bank interleave, refresh) and 9.5 item 2 (bursts back-to-back);
+#      the timing rules are the JEDEC SDR SDRAM ones every PC100/PC133 datasheet states.
+
+The model is a read-only, in-order memory controller driving one SDRAM device (one memory
+module).  It is exact at the clock: every PRECHARGE, ACTIVATE, READ and REFRESH command
+gets an integer memory-clock cycle, one command per cycle on the command bus, and every
+timing rule of :class:`~hwsim.memory.sdram.SdramConfig` holds between them (the property
+tests replay the command log against an independent checker).  It loops over *requests*,
+not cycles: a few dozen Python operations per burst, whatever the gaps between them.
+
+Rules, for request ``i`` to bank ``b``, row ``r``, not before cycle ``earliest[i]``:
+
+* **Order.** Requests enter the controller in order: request ``i`` is *admitted* at
+  ``max(earliest[i], admission of i - 1, READ of i - queue_depth + 1)`` (the controller
+  holds ``queue_depth`` requests) and issues no command before.  READs issue in request
+  order, each at least ``burst_cycles`` after the previous one (the data bus is busy
+  ``burst_cycles`` per burst; CAS latency is the same for all); ACTIVATEs issue in request
+  order too, tRRD apart.  Within the window the PRECHARGE and ACTIVATE of request ``i``
+  overlap the bursts of earlier requests to other banks (bank interleaving).
+* **Row hit** (row ``r`` open in ``b``): READ >= ACT(b) + tRCD.
+* **Row miss** (bank closed): ACT >= PRE(b) + tRP, ACT(b) + tRC, last ACT + tRRD; READ >=
+  ACT + tRCD.
+* **Row conflict** (another row open): PRE >= ACT(b) + tRAS and >= last READ(b) +
+  ``burst_cycles`` (a PRECHARGE may not cut the burst short); then as a miss.
+* **Closed page policy**: every READ auto-precharges; the bank is ready to activate
+  ``tRP`` after ``max(READ + burst_cycles, ACT + tRAS)``; every request is a miss.
+* **Refresh.** Refresh ``k`` falls due at ``k * t_refi``.  A request admitted at or after
+  the due cycle waits for the refresh: at ``max(due, last command + 1)`` (so during idle
+  time if the controller was idle) the controller precharges all open banks (one
+  PRECHARGE-ALL, honouring tRAS and the bursts in flight), waits tRP, issues REFRESH and
+  then nothing for tRFC; every bank is then closed.  No request, no refresh: the stream's
+  end is not padded.
+* **Data.** READ at ``t``: beats at ``t + CL .. t + CL + burst_cycles - 1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from hwsim.memory.sdram import SdramConfig
+
+__all__ = [
+    "HIT",
+    "MISS",
+    "CONFLICT",
+    "BurstSchedule",
+    "SdramController",
+    "SdramStats",
+    "schedule_bursts",
+    "summarize",
+]
+
+#: Row outcome codes of :attr:`BurstSchedule.outcome`.
+HIT, MISS, CONFLICT = 0, 1, 2
+_NEVER = -(1 << 40)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SdramStats:
+    """Raw counters of one memory module (memory-clock cycles).
+
+    ``elapsed_cycles = data_busy_cycles + first_access_cycles + stall_arrival_cycles +
+    stall_bank_cycles + stall_refresh_cycles``: every data-bus idle cycle after the first
+    beat is charged to one cause (the request was not there yet; bank timing, command-bus
+    slots or the controller queue; a refresh).
+    """
+
+    bursts: int = 0
+    row_hits: int = 0
+    row_misses: int = 0
+    row_conflicts: int = 0
+    activates: int = 0
+    precharges: int = 0
+    refreshes: int = 0
+    refresh_cycles: int = 0
+    data_busy_cycles: int = 0
+    idle_cycles: int = 0
+    elapsed_cycles: int = 0
+    first_access_cycles: int = 0
+    stall_arrival_cycles: int = 0
+    stall_bank_cycles: int = 0
+    stall_refresh_cycles: int = 0
+
+    @property
+    def efficiency(self) -> float:
+        """Data-bus busy cycles / elapsed cycles (1.0: bursts back-to-back from cycle 0)."""
+        return self.data_busy_cycles / self.elapsed_cycles if self.elapsed_cycles else 0.0
+
+    @property
+    def streaming_efficiency(self) -> float:
+        """Busy / (elapsed - first access latency): the steady-state share of the data bus."""
+        span = self.elapsed_cycles - self.first_access_cycles
+        return self.data_busy_cycles / span if span > 0 else 0.0
+
+    def to_counters(self, prefix: str = "memory") -> dict[str, int]:
+        """Counters under a component path, e.g. ``memory[2].row_hits``."""
+        return {f"{prefix}.{f.name}": getattr(self, f.name) for f in fields(self)}
+
+    @staticmethod
+    def combine(parts: list[SdramStats]) -> SdramStats:
+        """Totals of several modules working in parallel: sums, ``elapsed`` = the longest."""
+        sums: dict[str, Any] = {
+            f.name: sum(getattr(p, f.name) for p in parts) for f in fields(SdramStats)
+        }
+        sums["elapsed_cycles"] = max((p.elapsed_cycles for p in parts), default=0)
+        return SdramStats(**sums)
+
+
+@dataclass(frozen=True)
+class BurstSchedule:
+    """Result of :func:`schedule_bursts`: per-request command cycles and the counters.
+
+    Attributes
+    ----------
+    read, activate, precharge : numpy.ndarray
+        int64 per request: cycle of its READ, of its ACTIVATE (-1: none, row hit) and of its
+        PRECHARGE (-1: none; the auto-precharge of the closed policy is not a command).
+    data_first, data_end : numpy.ndarray
+        First data beat ``read + CL`` and the cycle after the last, ``data_first +
+        burst_cycles``.
+    outcome : numpy.ndarray
+        int8: :data:`HIT`, :data:`MISS` or :data:`CONFLICT`.
+    refresh : numpy.ndarray
+        int64 ``(k, 2)``: cycle of each refresh's PRECHARGE-ALL (-1 when every bank was
+        already closed) and of its REFRESH command.
+    stats : SdramStats
+    """
+
+    read: np.ndarray
+    activate: np.ndarray
+    precharge: np.ndarray
+    data_first: np.ndarray
+    data_end: np.ndarray
+    outcome: np.ndarray
+    refresh: np.ndarray
+    stats: SdramStats
+
+    @property
+    def cycles(self) -> int:
+        """Cycle after the last data beat (0 for an empty stream)."""
+        return self.stats.elapsed_cycles
+
+
+def _ignore(_cycle: int) -> None:
+    """Booking that books nothing (``command_bus=False``)."""
+
+
+def _as_list(name: str, values, n: int, lo: int, hi: int | None) -> list[int]:
+    arr = np.asarray(values, dtype=np.int64).reshape(-1)
+    if arr.size != n:
+        raise ValueError(f"{name} has {arr.size} entries, expected {n}")
+    if arr.size and (arr.min() < lo or (hi is not None and arr.max() > hi)):
+        raise ValueError(f"{name} out of range {lo} .. {hi if hi is not None else 'inf'}")
+    return arr.tolist()
+
+
+def schedule_bursts(
+    cfg: SdramConfig, bank, row, earliest=None, *, command_bus: bool = True
+) -> BurstSchedule:
+    """Schedule an ordered stream of READ bursts on one SDRAM device, cycle-exactly.
+
+    Parameters
+    ----------
+    cfg : SdramConfig
+    bank, row : array of int
+        Per request, in issue order: the bank (``0 .. banks-1``) and row (``0 .. rows-1``).
+        The column does not change the timing (any column of an open row reads alike).
+    earliest : array of int, optional
+        Per request, the first memory cycle it may issue a command (e.g. when the FIFO it
+        fills has space); default 0 for all (the memory-bound case).
+    command_bus : bool
+        Enforce one command per cycle (the device's rule).  ``False`` lets commands share
+        a cycle, which is what the burst-granularity SimPy form assumes; the tests use it
+        to show the two forms differ by that rule only.
+
+    Returns
+    -------
+    BurstSchedule
+    """
+    controller = SdramController(cfg, command_bus=command_bus)
+    controller.issue_many(bank, row, earliest)
+    return controller.schedule()
+
+
+class SdramController:
+    """The cycle-exact scheduler as an object that takes requests a few at a time.
+
+    For a caller whose next request depends on earlier completions (a FIFO that frees a
+    slot when the consumer has used a burst): :meth:`issue` one request, read its
+    :meth:`data_end`, compute the next ``earliest``.  Any split of a stream into
+    :meth:`issue` / :meth:`issue_many` calls gives the same schedule as
+    :func:`schedule_bursts` on the whole stream.
+
+    Parameters
+    ----------
+    cfg : SdramConfig
+    command_bus : bool
+        As in :func:`schedule_bursts`.
+    """
+
+    def __init__(self, cfg: SdramConfig, *, command_bus: bool = True) -> None:
+        self.cfg = cfg
+        self.command_bus = command_bus
+        nb = cfg.banks
+        self._state = {
+            "open_row": [-1] * nb,
+            "act_at": [_NEVER] * nb,  # last ACTIVATE per bank
+            "act_ready": [0] * nb,  # earliest ACTIVATE after a precharge or refresh
+            "read_at": [_NEVER] * nb,  # last READ per bank
+            "last_act": _NEVER,
+            "prev_read": _NEVER,
+            "last_ref": -1,
+            "refresh_end": 0,
+            "due": cfg.t_refi if cfg.t_refi > 0 else 1 << 62,
+            "floor": 0,  # admission cycle of the last request
+        }
+        self._booked: set[int] = set()  # command-bus cycles taken (recent ones only)
+        self.reads: list[int] = []
+        self.activates: list[int] = []
+        self.precharges: list[int] = []
+        self.arrivals: list[int] = []
+        self.refreshed_before: list[bool] = []
+        self.refresh_log: list[tuple[int, int]] = []
+
+    def __len__(self) -> int:
+        return len(self.reads)
+
+    def issue(self, bank: int, row: int, earliest: int = 0) -> int:
+        """Schedule one request; returns the cycle of its READ."""
+        cfg = self.cfg
+        if not (0 <= bank < cfg.banks and 0 <= row < cfg.rows and earliest >= 0):
+            raise ValueError(
+                f"bank {bank}, row {row}, earliest {earliest} out of range "
+                f"(bank 0 .. {cfg.banks - 1}, row 0 .. {cfg.rows - 1}, earliest >= 0)"
+            )
+        self._run([int(bank)], [int(row)], [int(earliest)])
+        return self.reads[-1]
+
+    def data_end(self, index: int) -> int:
+        """Cycle after the last data beat of request ``index``."""
+        return self.reads[index] + self.cfg.cas_latency + self.cfg.burst_cycles
+
+    def issue_many(self, bank, row, earliest=None) -> None:
+        """Schedule a batch of requests (arrays as in :func:`schedule_bursts`)."""
+        n = int(np.asarray(bank).size)
+        banks = _as_list("bank", bank, n, 0, self.cfg.banks - 1)
+        rows = _as_list("row", row, n, 0, self.cfg.rows - 1)
+        arrive = [0] * n if earliest is None else _as_list("earliest", earliest, n, 0, None)
+        self._run(banks, rows, arrive)
+
+    def schedule(self) -> BurstSchedule:
+        """Commands and counters of every request issued so far."""
+        act_arr = np.asarray(self.activates, dtype=np.int64)
+        pre_arr = np.asarray(self.precharges, dtype=np.int64)
+        outcome = np.where(act_arr < 0, HIT, np.where(pre_arr >= 0, CONFLICT, MISS))
+        return summarize(
+            self.cfg,
+            read=self.reads,
+            activate=act_arr,
+            precharge=pre_arr,
+            outcome=outcome,
+            earliest=self.arrivals,
+            refreshed_before=self.refreshed_before,
+            refresh_log=self.refresh_log,
+        )
+
+    def _run(self, banks: list[int], rows: list[int], arrive: list[int]) -> None:
+        """The loop over requests; state lives in locals while it runs."""
+        cfg = self.cfg
+        t_rcd, t_rp, t_ras, t_rc, t_rrd = cfg.t_rcd, cfg.t_rp, cfg.t_ras, cfg.t_rc, cfg.t_rrd
+        bc, rtp, t_rfc, t_refi = cfg.burst_cycles, cfg.read_to_precharge, cfg.t_rfc, cfg.t_refi
+        closed = cfg.page_policy == "closed"
+        depth = cfg.queue_depth
+        nb = cfg.banks
+        st = self._state
+        open_row, act_at, act_ready, read_at = (
+            st["open_row"],
+            st["act_at"],
+            st["act_ready"],
+            st["read_at"],
+        )
+        last_act, prev_read, last_ref = st["last_act"], st["prev_read"], st["last_ref"]
+        refresh_end, due, floor = st["refresh_end"], st["due"], st["floor"]
+        booked = self._booked
+        book = booked.add if self.command_bus else _ignore
+        refresh_log = self.refresh_log
+        start_index = len(self.reads)
+        n = len(banks)
+        self.reads.extend([0] * n)
+        self.activates.extend([-1] * n)
+        self.precharges.extend([-1] * n)
+        self.refreshed_before.extend([False] * n)
+        self.arrivals.extend(arrive)
+        reads, acts, pres = self.reads, self.activates, self.precharges
+        refreshed_before = self.refreshed_before
+
+        i = start_index - 1
+        for b, r, e in zip(banks, rows, arrive, strict=True):
+            i += 1
+            if e > floor:
+                floor = e
+            if i >= depth and reads[i - depth] + 1 > floor:
+                floor = reads[i - depth] + 1
+            if floor >= due:
+                refreshed_before[i] = True
+            while floor >= due:
+                # Refresh before admitting: after every command issued so far (possibly while
+                # the controller sat idle), all banks precharged, then REFRESH and tRFC.
+                start = max(due, prev_read + 1, last_ref + 1)
+                prea = -1
+                if any(o >= 0 for o in open_row):
+                    for k in range(nb):
+                        if open_row[k] >= 0:
+                            start = max(start, act_at[k] + t_ras, read_at[k] + rtp)
+                    while start in booked:
+                        start += 1
+                    prea = start
+                    book(prea)
+                    ref = prea + t_rp
+                else:
+                    ref = start
+                ref = max(ref, *act_ready)
+                while ref in booked:
+                    ref += 1
+                book(ref)
+                refresh_log.append((prea, ref))
+                refresh_end = ref + t_rfc
+                last_ref = ref
+                for k in range(nb):
+                    open_row[k] = -1
+                    act_ready[k] = refresh_end
+                due += t_refi
+                if refresh_end > floor:
+                    floor = refresh_end
+
+            orow = open_row[b]
+            if orow == r:  # row hit: READ only
+                t = act_at[b] + t_rcd
+                if floor > t:
+                    t = floor
+                if prev_read + bc > t:
+                    t = prev_read + bc
+            else:
+                if orow < 0:  # row miss
+                    t = act_ready[b]
+                    if floor > t:
+                        t = floor
+                else:  # row conflict: PRECHARGE first
+                    t = act_at[b] + t_ras
+                    if floor > t:
+                        t = floor
+                    if read_at[b] + rtp > t:
+                        t = read_at[b] + rtp
+                    while t in booked:
+                        t += 1
+                    book(t)
+                    pres[i] = t
+                    t += t_rp
+                if act_at[b] + t_rc > t:
+                    t = act_at[b] + t_rc
+                if last_act + t_rrd > t:
+                    t = last_act + t_rrd
+                while t in booked:
+                    t += 1
+                book(t)
+                acts[i] = act_at[b] = last_act = t
+                t += t_rcd
+                if prev_read + bc > t:
+                    t = prev_read + bc
+            while t in booked:
+                t += 1
+            book(t)
+            reads[i] = read_at[b] = prev_read = t
+            if closed:
+                done = t + rtp
+                if act_at[b] + t_ras > done:
+                    done = act_at[b] + t_ras
+                act_ready[b] = done + t_rp
+            else:
+                open_row[b] = r
+            if not i & 127:  # later requests issue nothing before this admission
+                booked.difference_update([c for c in booked if c < floor])
+
+        st["last_act"], st["prev_read"], st["last_ref"] = last_act, prev_read, last_ref
+        st["refresh_end"], st["due"], st["floor"] = refresh_end, due, floor
+
+
+def summarize(
+    cfg: SdramConfig,
+    *,
+    read,
+    activate,
+    precharge,
+    outcome,
+    earliest,
+    refreshed_before,
+    refresh_log,
+) -> BurstSchedule:
+    """Build a :class:`BurstSchedule` and its counters from per-request command cycles.
+
+    Shared by both forms of the model, so their counters mean exactly the same.  The
+    data-bus gap before burst ``i > 0`` (``read[i] - read[i-1] - burst_cycles``) is charged
+    to *arrival* when the request could not have issued its READ earlier even with its bank
+    ready (``earliest + row latency >= read``: 0 for a hit, tRCD for a miss, tRP + tRCD for
+    a conflict); else to *refresh* when a refresh came just before request ``i``; otherwise
+    to *bank* (row timing, command-bus slots, controller queue).
+    """
+    read = np.asarray(read, dtype=np.int64).reshape(-1)
+    n = read.size
+    outcome = np.asarray(outcome, dtype=np.int8).reshape(-1)
+    earliest = np.asarray(earliest, dtype=np.int64).reshape(-1)
+    refreshed = np.asarray(refreshed_before, dtype=bool).reshape(-1)
+    refresh = np.asarray(refresh_log, dtype=np.int64).reshape(-1, 2)
+    bc = cfg.burst_cycles
+    data_first = read + cfg.cas_latency
+    data_end = data_first + bc
+    gap = np.zeros(n, dtype=np.int64)
+    if n > 1:
+        gap[1:] = read[1:] - read[:-1] - bc
+    latency = np.choose(outcome, [0, cfg.t_rcd, cfg.t_rp + cfg.t_rcd]) if n else gap
+    late = gap > 0
+    late[:1] = False
+    by_arrival = late & (earliest + latency >= read)
+    by_refresh = late & ~by_arrival & refreshed
+    by_bank = late & ~by_refresh & ~by_arrival
+    elapsed = int(data_end[-1]) if n else 0
+    busy = n * bc
+    prea = refresh[:, 0]
+    counts = np.bincount(outcome, minlength=3) if n else np.zeros(3, dtype=np.int64)
+    stats = SdramStats(
+        bursts=n,
+        row_hits=int(counts[HIT]),
+        row_misses=int(counts[MISS]),
+        row_conflicts=int(counts[CONFLICT]),
+        activates=int(counts[MISS] + counts[CONFLICT]),
+        precharges=int(counts[CONFLICT] + np.count_nonzero(prea >= 0)),
+        refreshes=int(refresh.shape[0]),
+        refresh_cycles=int(
+            np.sum(refresh[:, 1] + cfg.t_rfc - np.where(prea >= 0, prea, refresh[:, 1]))
+        ),
+        data_busy_cycles=busy,
+        idle_cycles=elapsed - busy,
+        elapsed_cycles=elapsed,
+        first_access_cycles=int(data_first[0]) if n else 0,
+        stall_arrival_cycles=int(gap[by_arrival].sum()),
+        stall_bank_cycles=int(gap[by_bank].sum()),
+        stall_refresh_cycles=int(gap[by_refresh].sum()),
+    )
+    return BurstSchedule(
+        read=read,
+        activate=np.asarray(activate, dtype=np.int64).reshape(-1),
+        precharge=np.asarray(precharge, dtype=np.int64).reshape(-1),
+        data_first=data_first,
+        data_end=data_end,
+        outcome=outcome,
+        refresh=refresh,
+        stats=stats,
+    )
