@@ -140,4 +140,8 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     for t in (p, limits, features, overheads):
         t.finish()
     top.finish()
+    if cfg.memory:
+        from hwsim.memory.sdram import parse_memory
+
+        parse_memory(cfg.memory, source=source)  # a bad [memory] table fails at load
     return cfg

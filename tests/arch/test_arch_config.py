@@ -74,3 +74,15 @@ def test_a_machine_refuses_more_cut_planes_than_it_has():
     with pytest.raises(InputError, match=r"volumepro500 applies 1 cut plane\(s\) at most"):
         check_scene_fits(two, resolve_arch("volumepro500"))
     check_scene_fits(two, resolve_arch("volumepro1000"))  # up to 4 [V]
+
+
+def test_a_bad_memory_table_is_refused_when_the_file_loads(tmp_path):
+    from hwsim.arch import load_arch_file
+
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        'schema = 1\n[pipeline]\norder = "shear-warp"\ncount = 4\nclock_hz = 1e8\n'
+        "[memory]\nbanks = 0\n"
+    )
+    with pytest.raises(InputError, match=r"bad\.toml.*memory\.banks"):
+        load_arch_file(path)
