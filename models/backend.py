@@ -77,7 +77,8 @@ def subset_step(step: Step, keep: np.ndarray) -> Step:
     if keep.all():
         return step
     dt = step.dt if np.isscalar(step.dt) else step.dt[keep]
-    return Step(step.rays[keep], step.zyx[keep], dt)
+    # np.compress: the same rows as boolean indexing, several times faster for (n, 3).
+    return Step(step.rays[keep], np.compress(keep, step.zyx, axis=0), dt)
 
 
 class Backend:

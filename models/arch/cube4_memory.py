@@ -67,18 +67,37 @@ class Cube4Memory:
         self.P = P = int(pipelines)
         self.counters = counters
         self.stuck = stuck_module
-        nz, ny, nx = self.shape
-        words = -(-(nz * ny * (-(-nx // P) * P)) // P)
-        self.modules = np.zeros((P, max(words, 1)), dtype=np.uint16)  # voxels <= 16 bits
-        z, y, x = np.indices(self.shape, sparse=True)
-        module = cube4_module(x, y, z, P)
-        address = cube4_address_zyx(z, y, x, self.shape, P)
-        self.modules[module, address] = raw
-        counters.set("memory.words_per_module", words)
+        self.modules = self.load(raw, P)
+        counters.set("memory.words_per_module", self.modules.shape[1])
         self._schedules: dict[tuple[int, int], tuple] = {}
         self._conflicts: dict[tuple[int, int], int] = {}
         self.reads = np.zeros(P, dtype=np.int64)
         self.idle_slots = np.zeros(P, dtype=np.int64)
+
+    @staticmethod
+    def load(raw: np.ndarray, P: int) -> np.ndarray:
+        """The host's write of a volume: ``modules[m, a]`` holds the voxel whose
+        :func:`cube4_module` is ``m`` and :func:`cube4_address_zyx` is ``a``.
+
+        Row by row (a row is one ``(z, y)``, padded to ``nxp``): the row's words are
+        ``row * nxp / P + x div P``, and module ``m`` takes ``x = g P + ((m - y - z) mod
+        P)`` of group ``g`` -- the same map, gathered a module at a time instead of
+        computing ``(x + y + z) mod P`` for every voxel.
+        """
+        nz, ny, nx = raw.shape
+        rows, width = nz * ny, -(-nx // P)  # width: groups of P per padded row
+        padded = np.zeros((rows, width * P), dtype=np.uint16)  # voxels <= 16 bits
+        padded[:, :nx] = raw.reshape(rows, nx)
+        by_lane = np.ascontiguousarray(padded.reshape(rows, width, P).transpose(2, 0, 1))
+        z, y = np.divmod(np.arange(rows), ny)
+        residue = (y + z) % P
+        modules = np.empty((P, max(rows * width, 1)), dtype=np.uint16)
+        words = modules[:, : rows * width].reshape(P, rows, width)
+        for r in range(P):
+            sel = np.flatnonzero(residue == r)
+            for m in range(P):
+                words[m, sel] = by_lane[(m - r) % P].take(sel, axis=0)
+        return modules
 
     def schedule(self, kp: int, s: int) -> SliceSchedule:
         """The read schedule of slice ``s`` along axis ``kp`` (cached per ``s mod P``)."""

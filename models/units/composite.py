@@ -266,12 +266,23 @@ def front_to_back(
     fmt = cfg.acc
     one = 1 << fmt.frac_bits
     rays = np.asarray(rays, dtype=np.int64)
-    cur = acc[rays]
+    cur = np.take(acc, rays, axis=0)  # row gather; much faster than acc[rays] for (n, 4)
     w = round_shift((one - cur[:, 3]) * a, _ALPHA_BITS, fmt.rounding)
     dc = round_shift(w[:, None] * rgb, _ALPHA_BITS, fmt.rounding)
     cur[:, :3] += dc
     cur[:, 3] += w
-    acc[rays] = _saturate_unit(cur, fmt)
+    _put_rows(acc, rays, _saturate_unit(cur, fmt))
+
+
+def _put_rows(acc: np.ndarray, rays: np.ndarray, rows: np.ndarray) -> None:
+    """``acc[rays] = rows`` for a C-contiguous ``(n_rays, k)`` array, through a flat view
+    (one 1-D scatter instead of a 2-D one; rays are distinct, so the order is moot)."""
+    if not acc.flags.c_contiguous:
+        acc[rays] = rows
+        return
+    k = acc.shape[1]
+    flat = (rays[:, None] * k + np.arange(k)).ravel()
+    acc.reshape(-1)[flat] = rows.ravel()
 
 
 def back_to_front(

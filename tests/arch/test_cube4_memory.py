@@ -72,3 +72,17 @@ def test_a_stuck_module_returns_its_value_for_every_read(rng):
     assert np.all(stream[1][sched.valid[1]] == 77)
     z, y, x = sched.zyx
     assert np.array_equal(stream[0][sched.valid[0]], raw[z[0], y[0], x[0]][sched.valid[0]])
+
+
+@pytest.mark.parametrize(
+    ("shape", "P"), [((5, 6, 9), 4), ((3, 4, 8), 8), ((2, 3, 5), 1), ((4, 4, 7), 3)]
+)
+def test_the_host_load_places_every_voxel_where_the_skew_unit_says(shape, P, rng):
+    from models.units.skew import cube4_address_zyx, cube4_module
+
+    raw = _volume(shape, rng)
+    modules = Cube4Memory.load(raw, P)
+    z, y, x = np.indices(shape)
+    m, a = cube4_module(x, y, z, P), cube4_address_zyx(z, y, x, shape, P)
+    assert np.array_equal(modules[m, a], raw)
+    assert modules.shape[1] == -(-(shape[0] * shape[1] * -(-shape[2] // P) * P) // P)
