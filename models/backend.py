@@ -304,7 +304,7 @@ class Backend:
         if self.pre_classified:
             rgb = np.stack([(c[sel] + (1 << (self.S - 1))) >> self.S for c in chans[:3]], axis=1)
         else:
-            rgb = rgb[sel]
+            rgb = np.take(rgb, sel, axis=0)
         if self.need_grad:
             g = self._to_world(src.gradient(sel))
             if self.transfer.modulates:
