@@ -1,4 +1,4 @@
-"""The cycle kernel: counters, ready/valid channels, delay lines and FIFOs, stages, VCD.
+"""The cycle kernel: clock, counters, ready/valid channels, delay lines, FIFOs, stages, VCD.
 
 # Ref: design.md sections 2 and 3 (engine/, the ``cycle`` rung); conventions.md items 2,
 #      3 and 7 (latency and II as interface, one ready/valid contract, raw counters).
@@ -11,10 +11,20 @@ rendering; ``models.arch`` assembles machines from it.
 """
 
 from hwsim.engine.channel import Channel
+from hwsim.engine.clock import Clock
 from hwsim.engine.counters import Counters
 from hwsim.engine.delay import DelayLine
 from hwsim.engine.fifo import DeadlockError, DrainFifo
 from hwsim.engine.stage import Stage
 from hwsim.engine.trace import VcdTrace
 
-__all__ = ["Channel", "Counters", "DeadlockError", "DelayLine", "DrainFifo", "Stage", "VcdTrace"]
+__all__ = [
+    "Channel",
+    "Clock",
+    "Counters",
+    "DeadlockError",
+    "DelayLine",
+    "DrainFifo",
+    "Stage",
+    "VcdTrace",
+]

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.engine import Channel, Counters, DelayLine, DrainFifo, Stage, VcdTrace
+from hwsim.engine import Channel, Clock, Counters, DelayLine, DrainFifo, Stage, VcdTrace
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan, Step
@@ -399,7 +399,7 @@ class Cube4Machine:
         }
         finishing = _finishing_rays(plan)
         prev_lane = np.full(plan.n_rays, -1, dtype=np.int64)
-        self.now = 0
+        self.clock = Clock(self.arch.clock_hz)
         idle = np.zeros(P, dtype=np.int64)
         # Prime: the first slice is read one slice ahead of its samples (fixed hardware).
         self._reads = idle
@@ -408,7 +408,7 @@ class Cube4Machine:
         self.memory_stage.account(self._reads, T)
         for stage in stages.values():
             stage.account(idle, T)
-        self.now = T
+        self.clock.advance(T)
         steps = plan.steps()
         for j, step in enumerate(steps):
             q = self.slice_of(j)
@@ -452,18 +452,18 @@ class Cube4Machine:
                 if bus["dt_sum"] is not None:
                     bus["dt_sum"][rays] = state.dt_sum[rays]
             block = T + self.arch.slice_overhead_cycles + extra
-            stall = pixel_fifo.advance(block, int(rays.size), self.now)
+            stall = pixel_fifo.advance(block, int(rays.size), self.clock.cycle)
             self.memory_stage.account(self._reads, block + stall, stall)
             for stage in stages.values():
                 stage.account(busy, block + stall, stall)
             if self.trace is not None:
                 self._trace_samples(step, q, lanes, rays.size)
-            self.now += block + stall
+            self.clock.advance(block + stall)
             if progress is not None:
                 progress(j + 1, plan.n_steps)
         latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
         drain = pixel_fifo.flush()
-        cycles = self.now + latency + drain
+        cycles = self.clock.advance(latency + drain)
         for stage in [self.memory_stage, *stages.values()]:
             stage.account(idle, latency + drain)
             stage.publish()
@@ -517,7 +517,7 @@ class Cube4Machine:
     # ------------------------------------------------------------------ trace
 
     def _trace_memory(self, stream: np.ndarray, valid: np.ndarray) -> None:
-        cycles = self.now + np.arange(stream.shape[1])
+        cycles = self.clock.cycle + np.arange(stream.shape[1])
         bits = self.dp.voxel_bits
         for m in range(self.P):
             scope = f"pipeline[{m}].memory"
@@ -528,14 +528,14 @@ class Cube4Machine:
         if step.rays.size:
             a = np.clip(np.floor(step.zyx[:, self.a_ax] + 0.5), 0, self.n_a - 1).astype(np.int64)
             b = np.clip(np.floor(step.zyx[:, self.b_ax] + 0.5), 0, self.n_b - 1).astype(np.int64)
-            t = self.now + a * self.C + b // self.P + self.C + 1 + skew_unit.LATENCY
+            t = self.clock.cycle + a * self.C + b // self.P + self.C + 1 + skew_unit.LATENCY
             for m in range(self.P):
                 on = lanes == m
                 cyc = np.concatenate([t[on], t[on] + 1])
                 val = np.concatenate([np.ones(on.sum(), np.int64), np.zeros(on.sum(), np.int64)])
                 self.trace.record(f"pipeline[{m}].interp", "i__valid", 1, cyc, val)
         if finished:
-            end = self.now + self.T
+            end = self.clock.cycle + self.T
             cyc = end + np.arange(finished + 1)
             val = np.r_[np.ones(finished, np.int64), 0]
             self.trace.record("pixel_bus", "o__valid", 1, cyc, val)

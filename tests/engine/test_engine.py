@@ -120,3 +120,15 @@ def test_derived_metrics_come_from_raw_counts():
     assert d["samples_per_cycle"] == 1.5 and d["efficiency"] == 0.75
     assert d["frame_seconds"] == 1e-4
     assert d["units"]["pipeline[0].interp"] == {"utilisation": 0.5, "stall_share": 0.05}
+
+
+def test_clock_counts_cycles_and_converts_to_seconds():
+    from hwsim.engine import Clock
+
+    clk = Clock(125e6)
+    assert clk.advance(250) == 250 and clk.advance(0) == 250
+    assert clk.seconds == 2e-6
+    with pytest.raises(ValueError):
+        clk.advance(-1)
+    with pytest.raises(ValueError):
+        Clock(0)
