@@ -79,8 +79,16 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
     t.add_argument("--out", metavar="DIR", required=True)
     t.add_argument("--quiet", action="store_true")
+    w = sub.add_parser("sweep", help="design-space sweep on Dask; rows in SQLite")
+    w.add_argument("file", metavar="SWEEP.toml", help="sweep file (docs/sweeps.md)")
+    where = w.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=2, help="local worker processes (2)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler")
+    w.add_argument("--db", metavar="FILE", default="runs.db", help="SQLite file (runs.db)")
+    w.add_argument("--out", metavar="DIR", help="also write each run's render folder here")
+    w.add_argument("--retry-failed", action="store_true", help="rerun runs recorded as failed")
+    w.add_argument("--quiet", action="store_true")
     for name, text in (
-        ("sweep", "design-space sweep"),
         ("report", "human report of runs"),
         ("bench", "speed of every rung"),
         ("rtl", "Verilog and synthesis statistics"),
@@ -203,6 +211,12 @@ def _cmd_trade(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from hwsim.sweep.command import sweep_command
+
+    return sweep_command(args, _progress_bar)
+
+
 def _not_yet(args: argparse.Namespace) -> int:
     raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
 
@@ -213,7 +227,7 @@ _COMMANDS = {
     "phantoms": _cmd_phantoms,
     "archs": _cmd_archs,
     "trade": _cmd_trade,
-    "sweep": _not_yet,
+    "sweep": _cmd_sweep,
     "report": _not_yet,
     "bench": _not_yet,
     "rtl": _not_yet,
