@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
     sub.add_parser("archs", help="list built-in architectures")
-    t = sub.add_parser("trade", help="measure accuracy trades (today: --widths)")
+    t = sub.add_parser("trade", help="measure the fidelity ladder (speed vs error), or --widths")
     t.add_argument(
         "--widths",
         action="store_true",
@@ -75,8 +75,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="add a volume file to the scene set (repeatable)",
     )
-    t.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
+    t.add_argument(
+        "--arch",
+        metavar="NAME|FILE.toml",
+        action="append",
+        default=[],
+        help="machines to measure (repeatable; default every built-in, --widths: volumepro500)",
+    )
+    t.add_argument("--rungs", metavar="R,R,...", help="rungs to measure (default: all five)")
     t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
+    t.add_argument("--size", metavar="N", type=int, default=64, help="phantom side (voxels)")
     t.add_argument("--out", metavar="DIR", required=True)
     t.add_argument("--quiet", action="store_true")
     w = sub.add_parser("sweep", help="design-space sweep on Dask; rows in SQLite")
@@ -185,30 +193,9 @@ def _cmd_archs(args: argparse.Namespace) -> int:
 
 
 def _cmd_trade(args: argparse.Namespace) -> int:
-    from hwsim.fidelity import resolve_arch
-    from hwsim.trade import default_cases, width_trade, write_width_trade
+    from hwsim.trade.command import trade_command
 
-    if not args.widths:
-        raise NotAvailableError(
-            "the fidelity-ladder trade is not yet available", key="trade", allowed="--widths"
-        )
-    if not 8 <= args.image <= 1024:
-        raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")
-    arch = resolve_arch(args.arch)
-    cases = default_cases(args.volume, args.image)
-    with _progress_bar(args.quiet, "widths") as progress:
-        rows = width_trade(cases, arch, progress=progress)
-    paths = write_width_trade(rows, args.out)
-    if not args.quiet:
-        print(f"{'knob':<26} {'value':>6} " + " ".join(f"{c.label[:14]:>14}" for c in cases))
-        for knob_value in dict.fromkeys((r["knob"], r["value"]) for r in rows):
-            cells = [r["psnr_db"] for r in rows if (r["knob"], r["value"]) == knob_value]
-            print(
-                f"{knob_value[0]:<26} {knob_value[1]:>6} "
-                + " ".join(f"{c:>11.1f} dB" for c in cells)
-            )
-        print(f"wrote {paths['csv']}, {paths['json'].name}, {paths['png'].name}")
-    return 0
+    return trade_command(args, _progress_bar)
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
