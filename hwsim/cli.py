@@ -96,8 +96,13 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--out", metavar="DIR", help="also write each run's render folder here")
     w.add_argument("--retry-failed", action="store_true", help="rerun runs recorded as failed")
     w.add_argument("--quiet", action="store_true")
+    rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
+    rp.add_argument(
+        "runs", metavar="RUN_DIR", nargs="+", help="render, sweep --out or trade folders"
+    )
+    rp.add_argument("--out", metavar="DIR", required=True)
+    rp.add_argument("--quiet", action="store_true")
     for name, text in (
-        ("report", "human report of runs"),
         ("bench", "speed of every rung"),
         ("rtl", "Verilog and synthesis statistics"),
     ):
@@ -204,6 +209,15 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, _progress_bar)
 
 
+def _cmd_report(args: argparse.Namespace) -> int:
+    from hwsim.report.report import write_report
+
+    paths = write_report(args.runs, args.out)
+    if not args.quiet:
+        print(f"wrote {paths['md']} and {paths['html'].name}")
+    return 0
+
+
 def _not_yet(args: argparse.Namespace) -> int:
     raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
 
@@ -215,7 +229,7 @@ _COMMANDS = {
     "archs": _cmd_archs,
     "trade": _cmd_trade,
     "sweep": _cmd_sweep,
-    "report": _not_yet,
+    "report": _cmd_report,
     "bench": _not_yet,
     "rtl": _not_yet,
 }
