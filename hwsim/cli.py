@@ -102,10 +102,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rp.add_argument("--out", metavar="DIR", required=True)
     rp.add_argument("--quiet", action="store_true")
-    for name, text in (
-        ("bench", "speed of every rung"),
-        ("rtl", "Verilog and synthesis statistics"),
-    ):
+    b = sub.add_parser("bench", help="speed of every rung and the goal ratios, as JSON")
+    b.add_argument("--size", metavar="N", type=int, default=64, help="head phantom side (64)")
+    b.add_argument("--image", metavar="N", type=int, default=128, help="image side (128)")
+    b.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
+    b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung")
+    b.add_argument("--no-vtk", action="store_true", help="skip golden vs VTK")
+    b.add_argument("--no-sweep", action="store_true", help="skip the 1 vs 2 worker sweep")
+    b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
+    b.add_argument("--quiet", action="store_true")
+    for name, text in (("rtl", "Verilog and synthesis statistics"),):
         p = sub.add_parser(name, help=f"{text} (not yet available)")
         p.add_argument("args", nargs=argparse.REMAINDER)
     return parser
@@ -218,6 +224,39 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    import json
+
+    from hwsim.bench import format_bench, run_bench
+    from hwsim.fidelity import resolve_arch
+    from hwsim.trade.files import output_folder
+
+    for flag, value, lo, hi in (
+        ("--size", args.size, 8, 512),
+        ("--image", args.image, 8, 1024),
+        ("--repeats", args.repeats, 1, 100),
+    ):
+        if not lo <= value <= hi:
+            raise InputError(f"{value} is out of range", key=flag, allowed=f"{lo} .. {hi}")
+    resolve_arch(args.arch)
+    out = output_folder(args.out)
+    log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    report = run_bench(
+        args.size,
+        args.image,
+        args.arch,
+        args.repeats,
+        vtk=not args.no_vtk,
+        sweep=not args.no_sweep,
+        log=log,
+    )
+    (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")
+    if not args.quiet:
+        print(format_bench(report))
+        print(f"wrote {out / 'bench.json'}")
+    return 0
+
+
 def _not_yet(args: argparse.Namespace) -> int:
     raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
 
@@ -230,7 +269,7 @@ _COMMANDS = {
     "trade": _cmd_trade,
     "sweep": _cmd_sweep,
     "report": _cmd_report,
-    "bench": _not_yet,
+    "bench": _cmd_bench,
     "rtl": _not_yet,
 }
 
