@@ -229,7 +229,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     from hwsim.bench import format_bench, run_bench
     from hwsim.fidelity import resolve_arch
-    from hwsim.trade.files import output_folder
+    from hwsim.report.output import output_folder
 
     for flag, value, lo, hi in (
         ("--size", args.size, 8, 512),

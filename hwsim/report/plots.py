@@ -106,22 +106,31 @@ def plot_images(
     return path
 
 
-def plot_utilisation(units: dict[str, dict[str, float]], cycles: int, path: Path) -> Path | None:
-    """Busy cycles / total cycles per unit, as horizontal bars."""
-    busy = {u: c["busy"] / cycles for u, c in units.items() if "busy" in c and cycles}
-    if not busy:
-        return None
+def _bars(path: Path, names: list[str], xlabel: str, draw) -> Path:
+    """Horizontal bars, one per name (first at the top); ``draw(ax)`` adds the bars."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.0, 0.35 * len(busy) + 1.2))
-    names = list(busy)
-    ax.barh(names, [busy[n] * 100 for n in names], color="tab:blue")
-    ax.set_xlim(0, 100)
-    ax.set_xlabel("utilisation (% of cycles busy)")
+    fig, ax = plt.subplots(figsize=(6.0, 0.35 * len(names) + 1.3))
+    draw(ax)
+    ax.set_xlabel(xlabel)
     ax.invert_yaxis()
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def plot_utilisation(units: dict[str, dict[str, float]], cycles: int, path: Path) -> Path | None:
+    """Busy cycles / total cycles per unit, as horizontal bars."""
+    busy = {u: c["busy"] / cycles for u, c in units.items() if "busy" in c and cycles}
+    if not busy:
+        return None
+    names = list(busy)
+
+    def draw(ax) -> None:
+        ax.barh(names, [busy[n] * 100 for n in names], color="tab:blue")
+        ax.set_xlim(0, 100)
+
+    return _bars(path, names, "utilisation (% of cycles busy)", draw)
 
 
 def plot_stalls(units: dict[str, dict[str, float]], path: Path) -> Path | None:
@@ -130,35 +139,27 @@ def plot_stalls(units: dict[str, dict[str, float]], path: Path) -> Path | None:
     stalled = {u: c for u, c in units.items() if any(c.get(r, 0) for r in reasons)}
     if not stalled:
         return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.0, 0.35 * len(stalled) + 1.4))
     names = list(stalled)
-    left = np.zeros(len(names))
-    for reason in reasons:
-        widths = np.array([stalled[n].get(reason, 0.0) for n in names])
-        if widths.any():
-            ax.barh(names, widths, left=left, label=reason.removeprefix("stall:"))
-            left += widths
-    ax.set_xlabel("stall cycles")
-    ax.invert_yaxis()
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+
+    def draw(ax) -> None:
+        left = np.zeros(len(names))
+        for reason in reasons:
+            widths = np.array([stalled[n].get(reason, 0.0) for n in names])
+            if widths.any():
+                ax.barh(names, widths, left=left, label=reason.removeprefix("stall:"))
+                left += widths
+        ax.legend(fontsize=7)
+
+    return _bars(path, names, "stall cycles", draw)
 
 
 def plot_bandwidth(memory: dict[str, float], seconds: float, path: Path) -> Path | None:
     """Bytes per simulated second for each memory counter."""
     if not memory or not seconds:
         return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.0, 0.35 * len(memory) + 1.2))
     names = list(memory)
-    ax.barh(names, [memory[n] / seconds / 1e9 for n in names], color="tab:green")
-    ax.set_xlabel("GB/s at the simulated clock")
-    ax.invert_yaxis()
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+
+    def draw(ax) -> None:
+        ax.barh(names, [memory[n] / seconds / 1e9 for n in names], color="tab:green")
+
+    return _bars(path, names, "GB/s at the simulated clock", draw)

@@ -437,7 +437,7 @@ def _html(blocks: list[Block]) -> str:
 
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:
     """Write ``report.md``, ``report.html`` and the PNG plots into ``out_dir``."""
-    from hwsim.trade.files import output_folder
+    from hwsim.report.output import output_folder
 
     if not folders:
         raise InputError("give at least one run folder", key="RUN_DIR")

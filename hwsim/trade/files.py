@@ -1,4 +1,4 @@
-"""Writing trade tables: the output folder, CSV and JSON with the same rows."""
+"""Writing trade tables: CSV and JSON with the same rows."""
 
 from __future__ import annotations
 
@@ -8,21 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from hwsim.errors import InputError
-
-__all__ = ["output_folder", "write_rows"]
-
-
-def output_folder(out_dir: str | Path) -> Path:
-    """Create ``out_dir`` (bad input, exit 2, if it cannot be created)."""
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(
-            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
-        ) from None
-    return out
+__all__ = ["write_rows"]
 
 
 def write_rows(

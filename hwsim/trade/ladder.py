@@ -31,8 +31,9 @@ import numpy as np
 
 from hwsim.errors import InputError
 from hwsim.numerics import max_abs_error, per_channel, psnr, rmse
+from hwsim.report.output import output_folder
 from hwsim.scene import Scene, ViewSpec, VolumeSpec, load_scene
-from hwsim.trade.files import output_folder, write_rows
+from hwsim.trade.files import write_rows
 from hwsim.volumes.volume import Volume
 
 __all__ = [
