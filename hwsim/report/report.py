@@ -145,7 +145,6 @@ def _published(run: RunRecord) -> list[list[str]]:
     if arch is None or not arch.published:
         return []
     fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
-    voxels = int(np.prod(s["volume"]["shape_zyx"]))
     rows = []
     for key, value in arch.published.items():
         if not isinstance(value, (int, float)):
@@ -163,15 +162,16 @@ def _published(run: RunRecord) -> list[list[str]]:
             )
         elif key.startswith("fps_") and key[4:].isdigit():
             n = int(key[4:])
-            scaled = fps * voxels / n**3 if fps else None
+            sps = s.get("samples_per_second")
+            scaled = sps / n**3 if sps else None
             rows.append(
                 [
                     key,
                     _fmt(float(value)),
                     _fmt(scaled),
                     _fmt(scaled / value if scaled else None, ".3f"),
-                    f"this run's {_fmt(fps)} fps on {voxels:,} voxels, "
-                    f"scaled to {n}^3 by voxel count",
+                    f"this run's simulated samples/s over {n}^3 (one sample per voxel); "
+                    f"this volume itself: {_fmt(fps)} fps",
                 ]
             )
         else:
@@ -359,11 +359,12 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
         blocks.append(
             (
                 "table",
-                ["run", "scene", "arch", "fidelity", "cycles", "simulated fps", "wall s"],
+                ["run", "scene", "volume", "arch", "fidelity", "cycles", "simulated fps", "wall s"],
                 [
                     [
                         str(i),
                         r.stats["scene"].get("name", ""),
+                        r.stats["volume"]["name"],
                         r.stats["arch"] or "ideal",
                         r.stats["fidelity"],
                         _fmt(r.stats.get("cycles")),
