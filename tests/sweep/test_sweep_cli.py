@@ -86,3 +86,26 @@ def test_failed_runs_are_recorded_and_do_not_stop_the_sweep(tmp_path, capsys):
     assert status["volumepro1000"] == ("ok", None)
     assert status["volumepro500"][0] == "error"
     assert "volumepro500 renders parallel projection only" in status["volumepro500"][1]
+
+
+def test_sweep_on_an_existing_scheduler(tmp_path, capsys):
+    from hwsim.sweep import local_client
+
+    (tmp_path / "s.toml").write_text('[sweep]\nphantom = ["ball:size=16"]\nimage = [16]\n')
+    db = tmp_path / "runs.db"
+    with local_client(1) as client:
+        address = client.scheduler.address
+        assert (
+            main(["sweep", str(tmp_path / "s.toml"), "--scheduler", address, "--db", str(db)]) == 0
+        )
+    assert "1 runs: 0 already in" in capsys.readouterr().out
+    with RunsDB(db) as runs:
+        (row,) = runs.rows()
+    assert row["status"] == "ok" and row["worker"].startswith("tcp://127.0.0.1:")
+
+
+def test_an_unreachable_scheduler_is_bad_input(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text('[sweep]\nphantom = ["ball:size=16"]\n')
+    argv = ["sweep", str(tmp_path / "s.toml"), "--db", str(tmp_path / "r.db")]
+    assert main([*argv, "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    assert "tcp://127.0.0.1:9: --scheduler: cannot reach the scheduler" in capsys.readouterr().err

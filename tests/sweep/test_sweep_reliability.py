@@ -187,3 +187,21 @@ def test_same_inputs_give_the_same_bits_and_cycles_in_every_process(tmp_path):
     scene, arch, fidelity, _ = build_run(run)
     here = render(scene, fidelity=fidelity, arch=arch)  # and this process agrees
     assert (image_digest(here.image), here.cycles, here.samples) == a[run_key(run)]
+
+
+def test_the_local_cluster_listens_on_127_0_0_1_only():
+    import psutil
+
+    with local_client(2) as client:
+        client.wait_for_workers(2)
+        me = psutil.Process()
+        procs = [me, *me.children(recursive=True)]
+        listening = [
+            c.laddr
+            for p in procs
+            for c in p.net_connections(kind="tcp")
+            if c.status == psutil.CONN_LISTEN
+        ]
+    # scheduler, its HTTP server, and per worker process: worker, nanny, worker HTTP server
+    assert len(listening) >= 2 + 2 * 2
+    assert {addr.ip for addr in listening} == {"127.0.0.1"}
