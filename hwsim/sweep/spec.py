@@ -129,12 +129,16 @@ def parse_sweep(data: dict[str, Any], *, source: str, base_dir: str | Path) -> S
     )
     if not runs:
         raise InputError("the product of the lists is empty", source=source, key="sweep")
-    for run in {_arch_part(r): r for r in runs}.values():  # each distinct machine once
+    for run in {_machine_params(r): r for r in runs}.values():  # each distinct machine once
         try:
             build_run(run)
         except InputError as exc:
+            if not (exc.key or "").startswith("formats"):
+                raise  # an architecture file's own error names that file and key
+            formats = [k for k, _ in run.params if k.startswith("formats.")]
+            key = exc.key if exc.key in formats else formats[0]
             raise InputError(
-                exc.message, source=source, key=_arch_key(run, exc), allowed=exc.allowed
+                exc.message, source=source, key=f"sweep.{key}", allowed=exc.allowed
             ) from None
     return Sweep(source=source, axes=axes, runs=runs)
 
@@ -348,7 +352,8 @@ def _flatten(table: dict[str, Any], prefix: str) -> dict[str, Any]:
     return out
 
 
-def _arch_part(run: RunSpec) -> tuple:
+def _machine_params(run: RunSpec) -> tuple:
+    """The parameters that define a run's machine (architecture and its overrides)."""
     return tuple(
         (k, json.dumps(v))
         for k, v in run.params
@@ -356,24 +361,10 @@ def _arch_part(run: RunSpec) -> tuple:
     )
 
 
-def _arch_key(run: RunSpec, exc: InputError) -> str:
-    formats = [k for k, _ in run.params if k.startswith("formats.")]
-    if (
-        exc.key
-        and exc.key.startswith("formats.")
-        and f"formats.{exc.key.removeprefix('formats.')}" in formats
-    ):
-        return f"sweep.{exc.key}"
-    return f"sweep.{formats[0]}" if formats else "sweep.arch"
-
-
 def _short(value: Any) -> str:
-    if isinstance(value, list):
-        return (
-            "x".join(_short(v) for v in value)
-            if len(value) == 2 and all(isinstance(v, int) for v in value)
-            else ",".join(_short(v) for v in value)
-        )
+    if isinstance(value, list):  # image [W, H] -> WxH, view [az, el] -> az,el
+        sep = "x" if all(isinstance(v, int) for v in value) else ","
+        return sep.join(_short(v) for v in value)
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)

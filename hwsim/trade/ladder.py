@@ -226,11 +226,9 @@ def _empty(case: TradeCase, arch: str, rung: str, status: str, note: str = "") -
 
 def _row(case: TradeCase, arch: str, run: Any, *, status: str, note: str = "") -> dict[str, Any]:
     """Speed, timing and elision of one render (error columns are added by the caller)."""
-    from hwsim.fidelity import elaboration
-
     row = _empty(case, arch, "golden" if arch == "ideal" else run.fidelity, status, note)
     frame = run.cycles / run.clock_hz if run.cycles is not None and run.clock_hz else None
-    all_units = len(run.elaborated_units) + len(run.elided_units) or len(elaboration(run.scene)[0])
+    all_units = len(run.elaborated_units) + len(run.elided_units)
     row.update(
         wall_seconds=run.wall_seconds,
         samples=run.samples,

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import pytest
 
 from hwsim.errors import InputError
 from hwsim.sweep import build_run, parse_sweep, run_key
 from hwsim.sweep import spec as spec_module
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def sweep(table: dict, tmp_path) -> spec_module.Sweep:
@@ -134,3 +137,14 @@ def test_missing_sweep_table_and_wrong_schema(tmp_path):
         parse_sweep({}, source="s.toml", base_dir=tmp_path)
     with pytest.raises(InputError, match="s.toml: schema: unsupported schema 2"):
         parse_sweep({"schema": 2, "sweep": {}}, source="s.toml", base_dir=tmp_path)
+
+
+def test_an_arch_file_beside_the_sweep_file_is_found_and_its_errors_name_it(tmp_path):
+    good = (REPO / "models" / "arch" / "cube4.toml").read_text()
+    (tmp_path / "mine.toml").write_text(good.replace('name = "cube4"', 'name = "mine"'))
+    _, arch, _, _ = build_run(sweep({"arch": ["mine.toml"]}, tmp_path).runs[0])
+    assert arch.name == "mine"
+    (tmp_path / "bad.toml").write_text(good.replace("count = 4", "count = 0"))
+    with pytest.raises(InputError) as info:
+        sweep({"arch": ["bad.toml"]}, tmp_path)
+    assert str(info.value).startswith(f"{tmp_path / 'bad.toml'}: pipeline.count: 0 is out of range")
