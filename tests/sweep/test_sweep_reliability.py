@@ -105,7 +105,7 @@ def test_kill_9_mid_sweep_then_resume_keeps_every_row_exactly_once(tmp_path):
 def test_a_worker_killed_mid_task_is_replaced_and_the_sweep_completes(tmp_path):
     sweep_file = write_sweep(
         tmp_path / "s.toml",
-        'fidelity = ["functional"]\nphantom = ["head:size=96"]\nimage = [96]\n'
+        'fidelity = ["functional"]\nphantom = ["head:size=128"]\nimage = [128]\n'
         "pipelines = [1, 2, 3, 4, 5, 6]\n",
     )
     sweep = load_sweep(sweep_file)
