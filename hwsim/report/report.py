@@ -17,8 +17,6 @@ self-contained.
 
 from __future__ import annotations
 
-import base64
-import html
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +26,7 @@ import numpy as np
 
 from hwsim.errors import HwsimError, InputError
 from hwsim.report import plots
+from hwsim.report.document import Block, html_page, markdown
 
 __all__ = ["RunRecord", "load_run", "build_report", "write_report"]
 
@@ -69,8 +68,6 @@ def load_run(folder: str | Path) -> RunRecord:
 
 
 # --------------------------------------------------------------------------- blocks
-
-Block = tuple  # ("h1" | "h2" | "h3" | "p", text) | ("table", header, rows) | ("img", path, alt)
 
 
 def _scene_from_stats(stats: dict[str, Any]):
@@ -384,58 +381,6 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     return blocks
 
 
-def _markdown(blocks: list[Block], out: Path) -> str:
-    lines: list[str] = []
-    for b in blocks:
-        kind = b[0]
-        if kind in ("h1", "h2", "h3"):
-            lines += ["#" * int(kind[1]) + " " + b[1], ""]
-        elif kind == "p":
-            lines += [b[1], ""]
-        elif kind == "table":
-            header, rows = b[1], b[2]
-            lines.append("| " + " | ".join(header) + " |")
-            lines.append("|" + "---|" * len(header))
-            lines += ["| " + " | ".join(c.replace("|", "\\|") for c in row) + " |" for row in rows]
-            lines.append("")
-        elif kind == "img":
-            lines += [f"![{b[2]}]({Path(b[1]).relative_to(out)})", ""]
-    return "\n".join(lines)
-
-
-_CSS = """
-body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}
-body{color:#222}table{border-collapse:collapse;margin:0.8em 0;font-size:0.85em}
-th,td{border:1px solid #ccc;padding:3px 8px;text-align:left}th{background:#f0f0f0}
-img{max-width:100%;border:1px solid #eee;margin:0.4em 0}
-h2{border-bottom:2px solid #ddd;margin-top:2em}"""
-
-
-def _html(blocks: list[Block]) -> str:
-    parts = [
-        "<!DOCTYPE html>",
-        '<html lang="en"><head><meta charset="utf-8">',
-        "<title>hwsim report</title>",
-        f"<style>{_CSS}</style></head><body>",
-    ]
-    for b in blocks:
-        kind = b[0]
-        if kind in ("h1", "h2", "h3", "p"):
-            parts.append(f"<{kind}>{html.escape(b[1])}</{kind}>")
-        elif kind == "table":
-            head = "".join(f"<th>{html.escape(c)}</th>" for c in b[1])
-            body = "".join(
-                "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>"
-                for row in b[2]
-            )
-            parts.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
-        elif kind == "img":
-            data = base64.b64encode(Path(b[1]).read_bytes()).decode()
-            parts.append(f'<img alt="{html.escape(b[2])}" src="data:image/png;base64,{data}">')
-    parts.append("</body></html>")
-    return "\n".join(parts)
-
-
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:
     """Write ``report.md``, ``report.html`` and the PNG plots into ``out_dir``."""
     from hwsim.report.output import output_folder
@@ -445,6 +390,6 @@ def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Pa
     out = output_folder(out_dir).resolve()
     blocks = build_report(folders, out)
     paths = {"md": out / "report.md", "html": out / "report.html"}
-    paths["md"].write_text(_markdown(blocks, out) + "\n")
-    paths["html"].write_text(_html(blocks) + "\n")
+    paths["md"].write_text(markdown(blocks, out) + "\n")
+    paths["html"].write_text(html_page(blocks, "hwsim report") + "\n")
     return paths
