@@ -98,7 +98,10 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--quiet", action="store_true")
     rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
     rp.add_argument(
-        "runs", metavar="RUN_DIR", nargs="+", help="render, sweep --out or trade folders"
+        "runs",
+        metavar="RUN_DIR",
+        nargs="+",
+        help="render, sweep --out or trade folders, or a sweep's runs.db",
     )
     rp.add_argument("--out", metavar="DIR", required=True)
     rp.add_argument("--quiet", action="store_true")

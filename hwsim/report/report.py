@@ -339,19 +339,59 @@ def _trade_blocks(folder: Path, out: Path) -> list[Block]:
     return blocks
 
 
+def _sweep_blocks(path: Path) -> list[Block]:
+    """One row per run of a sweep database (``hwsim sweep --db``)."""
+    import sqlite3
+
+    from hwsim.sweep.db import RunsDB
+
+    try:
+        with RunsDB(path) as db:
+            rows = db.rows()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"unreadable sweep database: {exc}", source=str(path)) from None
+    failed = sum(r["status"] != "ok" for r in rows)
+    table = [
+        [
+            r["label"] or "",
+            r["status"],
+            _fmt(r["cycles"]) if r["cycles"] is not None else "-",
+            _fmt(1.0 / r["frame_seconds"]) if r["frame_seconds"] else "-",
+            _fmt(r["samples_per_second"]) if r["samples_per_second"] else "-",
+            _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
+            r["error"] or "",
+        ]
+        for r in rows
+    ]
+    header = ["run", "status", "cycles", "simulated fps", "simulated samples/s", "wall s", "error"]
+    return [
+        ("h2", f"Sweep ({path})"),
+        ("p", f"{len(rows)} run(s), {failed} failed."),
+        ("table", header, table),
+    ]
+
+
 def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     """The report's blocks; plots are written into ``out`` as they are made."""
-    runs, trades = [], []
+    runs, trades, sweeps = [], [], []
     for f in folders:
         folder = Path(f)
-        if (folder / "trade.json").is_file():
+        if folder.is_file() and folder.suffix == ".db":
+            sweeps.append(folder)
+        elif (folder / "trade.json").is_file():
             trades.append(folder)
         else:
             runs.append(load_run(folder))
     blocks: list[Block] = [("h1", "hwsim report")]
     from hwsim import __version__
 
-    blocks.append(("p", f"hwsim {__version__}; {len(runs)} run(s), {len(trades)} trade table(s)."))
+    blocks.append(
+        (
+            "p",
+            f"hwsim {__version__}; {len(runs)} run(s), {len(trades)} trade table(s), "
+            f"{len(sweeps)} sweep database(s).",
+        )
+    )
     if runs:
         blocks.append(
             (
@@ -378,6 +418,8 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
         blocks += _run_blocks(run, runs, out, i)
     for folder in trades:
         blocks += _trade_blocks(folder, out)
+    for db in sweeps:
+        blocks += _sweep_blocks(db)
     return blocks
 
 

@@ -69,8 +69,12 @@ def test_rerun_skips_every_finished_run(swept, capsys):
 def test_report_reads_sweep_run_folders(swept):
     tmp, _, rows = swept
     folders = [r["run_dir"] for r in rows[:2]]
-    assert main(["report", *folders, "--out", str(tmp / "report"), "--quiet"]) == 0
-    assert "## Run 2:" in (tmp / "report" / "report.md").read_text()
+    argv = ["report", *folders, str(tmp / "runs.db"), "--out", str(tmp / "report"), "--quiet"]
+    assert main(argv) == 0
+    md = (tmp / "report" / "report.md").read_text()
+    assert "## Run 2:" in md and "16 run(s), 0 failed." in md
+    sweep_rows = [line for line in md.splitlines() if line.startswith("| phantom=")]
+    assert len(sweep_rows) == 16
 
 
 def test_failed_runs_are_recorded_and_do_not_stop_the_sweep(tmp_path, capsys):
