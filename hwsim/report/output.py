@@ -23,7 +23,14 @@ from hwsim.errors import InputError
 if TYPE_CHECKING:
     from hwsim.fidelity import RenderRun
 
-__all__ = ["STATS_SCHEMA", "stats_dict", "write_render", "image_to_rgb8", "output_folder"]
+__all__ = [
+    "STATS_SCHEMA",
+    "stats_dict",
+    "stats_plain",
+    "write_render",
+    "image_to_rgb8",
+    "output_folder",
+]
 
 STATS_SCHEMA = 1
 
@@ -68,6 +75,11 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
             "machine": platform.machine(),
         },
     }
+
+
+def stats_plain(run: RenderRun) -> dict[str, Any]:
+    """:func:`stats_dict` as plain JSON types (NumPy scalars and arrays converted)."""
+    return json.loads(json.dumps(stats_dict(run), default=_json_default))
 
 
 def image_to_rgb8(image: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:

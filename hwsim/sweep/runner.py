@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import json
 import logging
 import os
 import time
@@ -84,7 +83,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
     reads).
     """
     from hwsim.fidelity import render
-    from hwsim.report.output import _json_default, stats_dict, write_render
+    from hwsim.report.output import stats_plain, write_render
 
     p = run.values
     row: dict[str, Any] = {
@@ -102,7 +101,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
         scene, arch, fidelity, _ = build_run(run)
         row.update(scene=scene.name, volume=scene.volume.describe(), mode=scene.render.mode)
         result = render(scene, fidelity=fidelity, arch=arch)
-        stats = json.loads(json.dumps(stats_dict(result), default=_json_default))
+        stats = stats_plain(result)
         row.update(
             status="ok",
             arch=result.arch,
