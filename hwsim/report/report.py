@@ -35,11 +35,12 @@ NOT_RECORDED = "not recorded"
 
 @dataclass
 class RunRecord:
-    """One run folder: its stats and image."""
+    """One run folder: its stats, image and the sweep's architecture overrides (if any)."""
 
     folder: Path
     stats: dict[str, Any]
     image: np.ndarray
+    overrides: dict[str, Any]
 
     @property
     def title(self) -> str:
@@ -64,7 +65,9 @@ def load_run(folder: str | Path) -> RunRecord:
         ) from None
     except (OSError, ValueError) as exc:
         raise InputError(f"unreadable run: {exc}", source=str(folder), key="RUN_DIR") from None
-    return RunRecord(folder, stats, image)
+    facts = folder / "sweep.json"  # written beside a sweep's run (hwsim sweep --out)
+    overrides = json.loads(facts.read_text())["arch_overrides"] if facts.is_file() else {}
+    return RunRecord(folder, stats, image, overrides)
 
 
 # --------------------------------------------------------------------------- blocks
@@ -208,6 +211,10 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
                 ["wall seconds", _fmt(s.get("wall_seconds"))],
                 ["elaborated units", ", ".join(s.get("elaborated_units", [])) or "-"],
                 ["elided units", ", ".join(s.get("elided_units", [])) or "none"],
+                [
+                    "architecture overrides (sweep)",
+                    ", ".join(f"{k} = {v}" for k, v in run.overrides.items()) or "none",
+                ],
             ],
         )
     )
@@ -260,6 +267,15 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
         blocks.append(("img", bw, "memory bandwidth"))
     published = _published(run)
     blocks.append(("h3", "Published figures"))
+    if run.overrides:
+        changed = ", ".join(f"{k} = {v}" for k, v in run.overrides.items())
+        blocks.append(
+            (
+                "p",
+                f"This run changes the machine ({changed}); the published "
+                "figures are for the machine as built.",
+            )
+        )
     if s.get("frame_seconds") is None:
         blocks.append(("p", f"The {s['fidelity']} rung has no timing: nothing to compare."))
     elif published:

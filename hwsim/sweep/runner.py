@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import logging
 import os
 import time
@@ -80,7 +81,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
 
     Runs on a Dask worker.  With ``out_dir`` the run's ``image.npy``, ``image.png`` and
     ``stats.json`` are also written to ``out_dir/<key[:16]>`` (what ``hwsim report``
-    reads).
+    reads), with ``sweep.json``: the run's key, parameters and architecture overrides.
     """
     from hwsim.fidelity import render
     from hwsim.report.output import stats_plain, write_render
@@ -98,7 +99,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
         "started_at": _now(),
     }
     try:
-        scene, arch, fidelity, _ = build_run(run)
+        scene, arch, fidelity, overrides = build_run(run)
         row.update(scene=scene.name, volume=scene.volume.describe(), mode=scene.render.mode)
         result = render(scene, fidelity=fidelity, arch=arch)
         stats = stats_plain(result)
@@ -125,6 +126,8 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
         if out_dir is not None:
             folder = Path(out_dir) / key[:16]
             write_render(result, folder)
+            sweep_facts = {"key": key, "params": p, "arch_overrides": overrides}
+            (folder / "sweep.json").write_text(json.dumps(sweep_facts, indent=2) + "\n")
             row["run_dir"] = str(folder)
     except Exception as exc:  # recorded, not raised: one bad run must not stop a sweep
         text = str(exc) if isinstance(exc, HwsimError) else f"{type(exc).__name__}: {exc}"

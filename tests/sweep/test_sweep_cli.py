@@ -73,6 +73,12 @@ def test_report_reads_sweep_run_folders(swept):
     assert main(argv) == 0
     md = (tmp / "report" / "report.md").read_text()
     assert "## Run 2:" in md and "16 run(s), 0 failed." in md
+    overrides = rows[0]["params"]
+    assert (
+        f"| architecture overrides (sweep) | pipelines = {overrides['pipelines']}, "
+        f"formats.interp.weight_bits = {overrides['formats.interp.weight_bits']} |" in md
+    )
+    assert "the published figures are for the machine as built" in md
     sweep_rows = [line for line in md.splitlines() if line.startswith("| phantom=")]
     assert len(sweep_rows) == 16
 
