@@ -204,7 +204,7 @@ def run_bench(
         ratios["sweep_2_vs_1_workers"] = _ratio("sweep_2_vs_1_workers", None, "", note=why)
     else:
         log(f"sweep scaling, 24 runs at {sweep_size}^3 (benchmarks/bench_sweep.py)")
-        sweep_report = scaling.run(sweep_size, (1, 2))
+        sweep_report = scaling.run(sweep_size, (1, 2), repeats=2)
         ratios["sweep_2_vs_1_workers"] = _ratio(
             "sweep_2_vs_1_workers",
             sweep_report["speedup_2_workers"],

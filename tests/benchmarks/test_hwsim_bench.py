@@ -56,7 +56,7 @@ def test_cli_bench_writes_json(tmp_path):
 def test_sweep_scaling_harness_reports_a_speedup_per_worker_count():
     from benchmarks.bench_sweep import run
 
-    report = run(size=16, workers=(1, 2))
+    report = run(size=16, workers=(1, 2), repeats=1)
     assert [c["workers"] for c in report["cases"]] == [1, 2]
     assert all(c["ok"] == 24 and c["failed"] == 0 for c in report["cases"])
     one, two = report["cases"]
