@@ -271,10 +271,14 @@ def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[
     archs = list(dict.fromkeys(r["arch"] for r in rows))
     markers = dict(zip(archs, "o^sDvP*Xh<>", strict=False))
     colours = {r: plt.cm.tab10(i) for i, r in enumerate(rungs)}
-    fig, axes = plt.subplots(
-        1, len(scenes), figsize=(4.2 * len(scenes), 3.8), squeeze=False, sharey=False
-    )
-    for ax, scene in zip(axes[0], scenes, strict=True):
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
+    ncols = min(len(scenes), 3)
+    nrows = -(-len(scenes) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.6 * nrows + 0.8), squeeze=False)
+    for ax in axes.flat[len(scenes) :]:
+        ax.set_visible(False)
+    for ax, scene in zip(axes.flat, scenes, strict=False):
         measured = [r for r in rows if r["scene"] == scene and r["status"] == "ok"]
         pts = []
         errors = [e for e in (r["total_rmse"] for r in measured) if e]
@@ -301,13 +305,20 @@ def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[
         ax.set_title(scene, fontsize=10)
         ax.set_xlabel("wall seconds per frame (log)")
         ax.set_ylabel("RMSE vs ideal golden (log; dotted: exact)")
+        xs = [p[0] for p in pts]
+        if xs and max(xs) < 10 * min(xs):  # within a decade: label the minor ticks
+            ax.xaxis.set_minor_formatter(FormatStrFormatter("%.2g"))
+            ax.tick_params(axis="x", which="minor", labelsize=7, labelrotation=45)
+        else:
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.grid(True, which="major", lw=0.3, alpha=0.5)
     handles = [
         plt.Line2D([], [], color=c, marker="o", ls="", label=f"rung {r}")
         for r, c in colours.items()
         if any(x["rung"] == r and x["status"] == "ok" for x in rows)
     ] + [plt.Line2D([], [], color="k", marker=m, ls="", label=a) for a, m in markers.items()]
     fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 6), fontsize=7)
-    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    fig.tight_layout(rect=(0, 0.8 / (3.6 * nrows + 0.8), 1, 1))
     fig.savefig(paths["png"], dpi=110)
     plt.close(fig)
     return paths
