@@ -65,7 +65,36 @@ def _time_once(sweep, n: int, db_path: Path) -> dict[str, Any]:
     }
 
 
-def run(size: int = 128, workers: Sequence[int] = (1, 2), repeats: int = 1) -> dict[str, Any]:
+def _run_share(sweep_file: str, start: int, step: int) -> int:
+    """Render every ``step``-th run of the sweep from ``start``, in this process."""
+    from hwsim.sweep.runner import execute_run
+
+    runs = load_sweep(sweep_file).runs[start::step]
+    for r in runs:
+        execute_run(r, "control")
+    return len(runs)
+
+
+def _time_plain(sweep_file: Path, n: int) -> float:
+    """The control: the same runs split over ``n`` plain processes, no Dask, no database.
+
+    If this does not speed up either, the machine (not the sweep) is the limit.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("spawn")) as pool:
+        list(pool.map(int, [0] * n))  # start the processes before timing
+        start = time.perf_counter()
+        done = sum(pool.map(_run_share, [str(sweep_file)] * n, range(n), [n] * n))
+        seconds = time.perf_counter() - start
+    assert done == 24
+    return seconds
+
+
+def run(
+    size: int = 128, workers: Sequence[int] = (1, 2), repeats: int = 1, control: bool = False
+) -> dict[str, Any]:
     """Time the 24-run sweep per worker count; returns the JSON report.
 
     With ``repeats`` > 1 the worker counts are interleaved (1, 2, 1, 2, ...) and each
@@ -79,7 +108,10 @@ def run(size: int = 128, workers: Sequence[int] = (1, 2), repeats: int = 1) -> d
         sweep = load_sweep(sweep_file)
         for r in range(repeats):
             for n in workers:
-                trials[n].append(_time_once(sweep, n, Path(tmp) / f"w{n}-{r}.db"))
+                trial = _time_once(sweep, n, Path(tmp) / f"w{n}-{r}.db")
+                if control:
+                    trial["plain_processes_seconds"] = _time_plain(sweep_file, n)
+                trials[n].append(trial)
     cases = []
     for n in workers:
         best = min(trials[n], key=lambda t: t["sweep_seconds"])
@@ -90,6 +122,11 @@ def run(size: int = 128, workers: Sequence[int] = (1, 2), repeats: int = 1) -> d
                 **best,
                 "runs_per_second": best["ok"] / best["sweep_seconds"],
                 "sweep_seconds_all": [t["sweep_seconds"] for t in trials[n]],
+                "plain_processes_seconds_all": [
+                    t["plain_processes_seconds"]
+                    for t in trials[n]
+                    if "plain_processes_seconds" in t
+                ],
             }
         )
     base = cases[0]["sweep_seconds"]
@@ -115,14 +152,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--size", type=int, default=128)
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--repeats", type=int, default=3, help="interleaved trials, best kept")
+    parser.add_argument(
+        "--no-control", action="store_true", help="skip the plain-process control runs"
+    )
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
-    report = run(args.size, args.workers, args.repeats)
-    print(f"{'workers':>8}{'runs':>6}{'sweep s':>9}{'cluster s':>10}{'runs/s':>8}{'speedup':>9}")
+    report = run(args.size, args.workers, args.repeats, control=not args.no_control)
+    print(
+        f"{'workers':>8}{'runs':>6}{'sweep s':>9}{'cluster s':>10}{'runs/s':>8}{'speedup':>9}"
+        f"{'plain s':>9}"
+    )
     for c in report["cases"]:
+        plain = min(c["plain_processes_seconds_all"], default=None)
         print(
             f"{c['workers']:>8}{c['ok']:>6}{c['sweep_seconds']:>9.2f}{c['cluster_seconds']:>10.2f}"
             f"{c['runs_per_second']:>8.2f}{c['speedup']:>9.2f}"
+            f"{'-' if plain is None else f'{plain:.2f}':>9}"
         )
     print(f"goal: 2 workers >= {GOAL_SPEEDUP}x one worker")
     if args.out:
