@@ -26,8 +26,6 @@ from __future__ import annotations
 import argparse
 import gc
 import json
-import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -137,27 +135,11 @@ def _golden() -> Callable[..., Any] | None:
 def machine_info() -> dict[str, Any]:
     """CPU model, cores, Python/NumPy/VTK versions and how VTK renders here."""
     from benchmarks.vtk_reference import vtk_environment
+    from hwsim.bench import machine_info as host
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        usable = os.cpu_count() or 0
     env = vtk_environment()
     return {
-        "cpu_model": cpu,
-        "cores": os.cpu_count(),
-        "usable_cores": usable,
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
+        **host(),
         "vtk": env["vtk_version"],
         "vtk_window_class": env["window_class"],
         "vtk_opengl_renderer": env["opengl_renderer"],

@@ -65,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
     sub.add_parser("archs", help="list built-in architectures")
-    t = sub.add_parser("trade", help="measure accuracy trades (today: --widths)")
+    t = sub.add_parser("trade", help="measure the fidelity ladder (speed vs error), or --widths")
     t.add_argument(
         "--widths",
         action="store_true",
@@ -78,16 +78,46 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="add a volume file to the scene set (repeatable)",
     )
-    t.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
+    t.add_argument(
+        "--arch",
+        metavar="NAME|FILE.toml",
+        action="append",
+        default=[],
+        help="machines to measure (repeatable; default every built-in, --widths: volumepro500)",
+    )
+    t.add_argument("--rungs", metavar="R,R,...", help="rungs to measure (default: all five)")
     t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
+    t.add_argument("--size", metavar="N", type=int, default=64, help="phantom side (voxels)")
     t.add_argument("--out", metavar="DIR", required=True)
     t.add_argument("--quiet", action="store_true")
-    for name, text in (
-        ("sweep", "design-space sweep"),
-        ("report", "human report of runs"),
-        ("bench", "speed of every rung"),
-        ("rtl", "Verilog and synthesis statistics"),
-    ):
+    w = sub.add_parser("sweep", help="design-space sweep on Dask; rows in SQLite")
+    w.add_argument("file", metavar="SWEEP.toml", help="sweep file (docs/sweeps.md)")
+    where = w.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=2, help="local worker processes (2)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler")
+    w.add_argument("--db", metavar="FILE", default="runs.db", help="SQLite file (runs.db)")
+    w.add_argument("--out", metavar="DIR", help="also write each run's render folder here")
+    w.add_argument("--retry-failed", action="store_true", help="rerun runs recorded as failed")
+    w.add_argument("--quiet", action="store_true")
+    rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
+    rp.add_argument(
+        "runs",
+        metavar="RUN_DIR",
+        nargs="+",
+        help="render, sweep --out or trade folders, or a sweep's runs.db",
+    )
+    rp.add_argument("--out", metavar="DIR", required=True)
+    rp.add_argument("--quiet", action="store_true")
+    b = sub.add_parser("bench", help="speed of every rung and the goal ratios, as JSON")
+    b.add_argument("--size", metavar="N", type=int, default=64, help="head phantom side (64)")
+    b.add_argument("--image", metavar="N", type=int, default=128, help="image side (128)")
+    b.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
+    b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung")
+    b.add_argument("--no-vtk", action="store_true", help="skip golden vs VTK")
+    b.add_argument("--no-sweep", action="store_true", help="skip the 1 vs 2 worker sweep")
+    b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
+    b.add_argument("--quiet", action="store_true")
+    for name, text in (("rtl", "Verilog and synthesis statistics"),):
         p = sub.add_parser(name, help=f"{text} (not yet available)")
         p.add_argument("args", nargs=argparse.REMAINDER)
     return parser
@@ -197,29 +227,56 @@ def _cmd_archs(args: argparse.Namespace) -> int:
 
 
 def _cmd_trade(args: argparse.Namespace) -> int:
-    from hwsim.fidelity import resolve_arch
-    from hwsim.trade import default_cases, width_trade, write_width_trade
+    from hwsim.trade.command import trade_command
 
-    if not args.widths:
-        raise NotAvailableError(
-            "the fidelity-ladder trade is not yet available", key="trade", allowed="--widths"
-        )
-    if not 8 <= args.image <= 1024:
-        raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")
-    arch = resolve_arch(args.arch)
-    cases = default_cases(args.volume, args.image)
-    with _progress_bar(args.quiet, "widths") as progress:
-        rows = width_trade(cases, arch, progress=progress)
-    paths = write_width_trade(rows, args.out)
+    return trade_command(args, _progress_bar)
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from hwsim.sweep.command import sweep_command
+
+    return sweep_command(args, _progress_bar)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from hwsim.report.report import write_report
+
+    paths = write_report(args.runs, args.out)
     if not args.quiet:
-        print(f"{'knob':<26} {'value':>6} " + " ".join(f"{c.label[:14]:>14}" for c in cases))
-        for knob_value in dict.fromkeys((r["knob"], r["value"]) for r in rows):
-            cells = [r["psnr_db"] for r in rows if (r["knob"], r["value"]) == knob_value]
-            print(
-                f"{knob_value[0]:<26} {knob_value[1]:>6} "
-                + " ".join(f"{c:>11.1f} dB" for c in cells)
-            )
-        print(f"wrote {paths['csv']}, {paths['json'].name}, {paths['png'].name}")
+        print(f"wrote {paths['md']} and {paths['html'].name}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    import json
+
+    from hwsim.bench import format_bench, run_bench
+    from hwsim.fidelity import resolve_arch
+    from hwsim.report.output import output_folder
+
+    for flag, value, lo, hi in (
+        ("--size", args.size, 8, 512),
+        ("--image", args.image, 8, 1024),
+        ("--repeats", args.repeats, 1, 100),
+    ):
+        if not lo <= value <= hi:
+            raise InputError(f"{value} is out of range", key=flag, allowed=f"{lo} .. {hi}")
+    resolve_arch(args.arch)
+    out = output_folder(args.out)
+    log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
+    report = run_bench(
+        args.size,
+        args.image,
+        args.arch,
+        args.repeats,
+        vtk=not args.no_vtk,
+        sweep=not args.no_sweep,
+        log=log,
+    )
+    (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")
+    if not args.quiet:
+        print(format_bench(report))
+        print(f"wrote {out / 'bench.json'}")
     return 0
 
 
@@ -233,9 +290,9 @@ _COMMANDS = {
     "phantoms": _cmd_phantoms,
     "archs": _cmd_archs,
     "trade": _cmd_trade,
-    "sweep": _not_yet,
-    "report": _not_yet,
-    "bench": _not_yet,
+    "sweep": _cmd_sweep,
+    "report": _cmd_report,
+    "bench": _cmd_bench,
     "rtl": _not_yet,
 }
 

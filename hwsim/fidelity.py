@@ -139,7 +139,7 @@ def render(
     scene: Scene,
     *,
     fidelity: str = "golden",
-    arch: str | None = None,
+    arch: str | ArchConfig | None = None,
     sampling: str = "ray",
     volume: Volume | None = None,
     progress: Progress | None = None,
@@ -153,9 +153,10 @@ def render(
         The validated scene.
     fidelity : str
         One of :data:`FIDELITIES`; only :data:`AVAILABLE_FIDELITIES` run today.
-    arch : str, optional
-        Architecture name or file.  At the golden rung it selects the machine's sample
-        positions (so golden vs. a timed rung differs only numerically).
+    arch : str or ArchConfig, optional
+        Architecture name, file or config (a sweep's overrides).  At the golden rung
+        it selects the machine's sample positions (so golden vs. a timed rung differs
+        only numerically).
     sampling : str
         Sample positions of the golden rung without ``arch``: the ideal ``ray`` caster
         or an architecture's (``shear-warp``, ``shear-image``, ``slice-parallel``).
@@ -180,7 +181,10 @@ def render(
         raise InputError("a waveform needs --fidelity cycle", key="--trace", allowed="cycle")
     if arch is None and fidelity != "golden":
         arch = DEFAULT_ARCH
-    machine = resolve_arch(arch) if arch is not None else None
+    if isinstance(arch, ArchConfig):
+        machine: ArchConfig | None = arch
+    else:
+        machine = resolve_arch(arch) if arch is not None else None
     if machine is not None:
         check_scene_fits(scene, machine)
         if sampling not in ("ray", machine.order):

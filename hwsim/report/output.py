@@ -23,7 +23,14 @@ from hwsim.errors import InputError
 if TYPE_CHECKING:
     from hwsim.fidelity import RenderRun
 
-__all__ = ["STATS_SCHEMA", "stats_dict", "write_render", "image_to_rgb8"]
+__all__ = [
+    "STATS_SCHEMA",
+    "stats_dict",
+    "stats_plain",
+    "write_render",
+    "image_to_rgb8",
+    "output_folder",
+]
 
 STATS_SCHEMA = 1
 
@@ -71,6 +78,11 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
     }
 
 
+def stats_plain(run: RenderRun) -> dict[str, Any]:
+    """:func:`stats_dict` as plain JSON types (NumPy scalars and arrays converted)."""
+    return json.loads(json.dumps(stats_dict(run), default=_json_default))
+
+
 def image_to_rgb8(image: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
     """An 8-bit picture of a render and how it was made.
 
@@ -86,6 +98,18 @@ def image_to_rgb8(image: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
     return np.repeat(grey[..., None], 3, axis=2), {"display": "grey", "window": [lo, hi]}
 
 
+def output_folder(out_dir: str | Path) -> Path:
+    """Create ``out_dir`` (bad input, exit 2, if it cannot be created)."""
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(
+            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
+        ) from None
+    return out
+
+
 def _atomic_write(path: Path, write) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     write(tmp)
@@ -99,13 +123,7 @@ def write_render(run: RenderRun, out_dir: str | Path) -> dict[str, Path]:
     matplotlib.use("Agg")
     from matplotlib import image as mpimage
 
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(
-            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
-        ) from None
+    out = output_folder(out_dir)
     paths = {"npy": out / "image.npy", "png": out / "image.png", "stats": out / "stats.json"}
     try:
 

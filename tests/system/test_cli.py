@@ -151,7 +151,8 @@ def test_scene_file_and_listing_commands(tmp_path):
             "volumepro500 renders parallel projection only",
         ),
         (["render", "no-such-scene"], "unknown built-in scene"),
-        (["trade", "--out", "x"], "not yet available"),
+        (["trade", "--rungs", "fast", "--out", "x"], "--rungs: unknown rung 'fast'"),
+        (["sweep", "missing.toml"], "missing.toml: file not found"),
     ],
 )
 def test_bad_input_is_one_line_on_stderr_with_exit_status_2(tmp_path, args, needle):

@@ -4,13 +4,12 @@
 width knob (the others at the architecture's defaults) and compares against the float64
 golden renderer at the *same* sample positions, so the error is purely numerical.  It
 writes ``widths.csv``, ``widths.json`` and ``widths.png`` (PSNR against bits, one panel
-per knob).  The full fidelity-ladder trade (speed against error per rung) grows here too.
+per knob).  The fidelity-ladder trade (speed against error per rung) is
+:mod:`hwsim.trade.ladder`.
 """
 
 from __future__ import annotations
 
-import csv
-import json
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -18,10 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from hwsim.arch import ArchConfig
-from hwsim.errors import InputError
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import max_abs_error, psnr, rmse
+from hwsim.report.output import output_folder
 from hwsim.scene import Scene
+from hwsim.trade.files import write_rows
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes.volume import Volume
 
@@ -132,22 +132,9 @@ def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(
-            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
-        ) from None
+    out = output_folder(out_dir)
     paths = {"csv": out / "widths.csv", "json": out / "widths.json", "png": out / "widths.png"}
-    with open(paths["csv"], "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    finite = [
-        {**r, "psnr_db": r["psnr_db"] if r["psnr_db"] != float("inf") else None} for r in rows
-    ]
-    paths["json"].write_text(json.dumps({"schema": 1, "rows": finite}, indent=2) + "\n")
+    write_rows(rows, paths["csv"], paths["json"])
     knobs = list(dict.fromkeys(r["knob"] for r in rows))
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
     fig, axes = plt.subplots(1, len(knobs), figsize=(3.2 * len(knobs), 3.0), squeeze=False)

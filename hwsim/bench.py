@@ -1,0 +1,239 @@
+"""``hwsim bench``: the speed of every rung and the goal ratios, measured in one run.
+
+# Ref: shared/docs/design.md section 3 (expected speed per rung) and conventions item 11
+#      (speed lives in benchmarks, as JSON, against a reference run in the same process).
+
+Every available rung renders the same scene (head phantom, ``ct`` preset, composite +
+Phong) on the same machine, median of ``repeats`` renders after a warm-up; a rung that
+is not built is reported as ``not available``.  The goal ratios named by the tracker
+issues come from the harnesses in ``benchmarks/`` (imported, not copied):
+
+============================  ==========================================  =====
+ratio                         definition                                  goal
+============================  ==========================================  =====
+``golden_vs_vtk``             VTK seconds / golden seconds                0.5
+``functional_vs_golden``      golden seconds / functional seconds         2
+``transaction_vs_cycle``      cycle seconds / transaction seconds         10
+``cycle_vs_rtl``              rtl seconds / cycle seconds                 (none)
+``sweep_2_vs_1_workers``      1-worker / 2-worker seconds, 24-run sweep   1.8
+============================  ==========================================  =====
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["GOALS", "machine_info", "rung_speeds", "run_bench", "format_bench"]
+
+#: Goal of each ratio (``None``: no number was set).
+GOALS = {
+    "golden_vs_vtk": 0.5,
+    "functional_vs_golden": 2.0,
+    "transaction_vs_cycle": 10.0,
+    "cycle_vs_rtl": None,
+    "sweep_2_vs_1_workers": 1.8,
+}
+_REPO = Path(__file__).resolve().parents[1]
+
+
+def machine_info() -> dict[str, Any]:
+    """CPU model, cores (total and usable), load average, Python and NumPy versions."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return {
+        "cpu_model": cpu,
+        "cores": os.cpu_count(),
+        "usable_cores": usable,
+        "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+    }
+
+
+def _harness(name: str):
+    """A module of the repository's ``benchmarks/`` folder, or ``None`` outside a clone."""
+    if not (_REPO / "benchmarks" / f"{name}.py").is_file():
+        return None
+    if str(_REPO) not in sys.path:
+        sys.path.insert(0, str(_REPO))
+    import importlib
+
+    return importlib.import_module(f"benchmarks.{name}")
+
+
+def rung_speeds(size: int, image: int, arch: str, repeats: int) -> dict[str, Any]:
+    """Wall seconds and samples per wall second of every rung on one scene."""
+    from hwsim.fidelity import AVAILABLE_FIDELITIES, FIDELITIES, render
+    from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+    from hwsim.volumes import make_phantom
+
+    volume = make_phantom("head", size=size)
+    scene = Scene(
+        name=f"bench-head-{size}",
+        volume=VolumeSpec(phantom="head", params=(("size", size),)),
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(azimuth=30, elevation=15, width=image, height=image, zoom=1.3),
+    )
+    out: dict[str, Any] = {}
+    for rung in FIDELITIES:
+        if rung not in AVAILABLE_FIDELITIES:
+            out[rung] = {"status": "not available"}
+            continue
+        render(scene, fidelity=rung, arch=arch, volume=volume)  # warm-up (caches)
+        runs = [render(scene, fidelity=rung, arch=arch, volume=volume) for _ in range(repeats)]
+        seconds = statistics.median(r.wall_seconds for r in runs)
+        last = runs[-1]
+        out[rung] = {
+            "status": "ok",
+            "arch": last.arch,
+            "sampling": last.sampling,
+            "samples": last.samples,
+            "seconds": seconds,
+            "seconds_all": [r.wall_seconds for r in runs],
+            "samples_per_second": last.samples / seconds,
+            "cycles": last.cycles,
+        }
+    return out
+
+
+def _ratio(name: str, value: float | None, definition: str, **extra: Any) -> dict[str, Any]:
+    goal = GOALS[name]
+    return {
+        "status": "ok" if value is not None else "not available",
+        "value": value,
+        "definition": definition,
+        "goal": goal,
+        "goal_met": (value >= goal) if value is not None and goal is not None else None,
+        **extra,
+    }
+
+
+def _from_rungs(rungs: dict[str, Any], name: str, slow: str, fast: str) -> dict[str, Any]:
+    definition = f"{slow} seconds / {fast} seconds"
+    missing = [r for r in (slow, fast) if rungs[r]["status"] != "ok"]
+    if missing:
+        return _ratio(name, None, definition, missing=missing)
+    return _ratio(name, rungs[slow]["seconds"] / rungs[fast]["seconds"], definition)
+
+
+def run_bench(
+    size: int = 64,
+    image: int = 128,
+    arch: str = "volumepro500",
+    repeats: int = 3,
+    *,
+    vtk: bool = True,
+    sweep: bool = True,
+    sweep_size: int = 96,
+    log: Callable[[str], None] = lambda m: None,
+) -> dict[str, Any]:
+    """Measure every rung and every goal ratio; returns the JSON-ready report."""
+    report: dict[str, Any] = {
+        "schema": 1,
+        "benchmark": "hwsim-bench",
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "machine": machine_info(),
+        "scene": {"phantom": "head", "size": size, "image": image, "arch": arch},
+    }
+    log(f"rungs: head {size}^3 -> {image}x{image} on {arch}")
+    rungs = rung_speeds(size, image, arch, repeats)
+    report["rungs"] = rungs
+    ratios: dict[str, Any] = {}
+    golden = _harness("bench_golden") if vtk else None
+    if golden is None:
+        why = "skipped (--no-vtk)" if not vtk else "benchmarks/ folder not found"
+        ratios["golden_vs_vtk"] = _ratio("golden_vs_vtk", None, "vtk s / golden s", note=why)
+    else:
+        log("golden vs VTK (benchmarks/bench_golden.py)")
+        try:
+            vtk_report = golden.run_benchmark(
+                [size], [image], golden_repeats=repeats, vtk_frames=5, memory=False, log=log
+            )
+            case = vtk_report["cases"][0]
+            ratios["golden_vs_vtk"] = _ratio(
+                "golden_vs_vtk",
+                case["ratio"],
+                "vtk seconds / golden seconds",
+                golden_seconds=case["golden"]["seconds"],
+                vtk_seconds=case["vtk"]["seconds"],
+                vtk_threads=case["vtk"]["threads"],
+            )
+        except ImportError as exc:  # VTK is the optional `bench` extra
+            ratios["golden_vs_vtk"] = _ratio(
+                "golden_vs_vtk", None, "vtk s / golden s", note=f"VTK not importable: {exc}"
+            )
+    functional = _harness("bench_functional")
+    if functional is not None and rungs["functional"]["status"] == "ok":
+        log("functional vs golden (benchmarks/bench_functional.py)")
+        case = functional.run([size], arch, repeats, image)["cases"][0]
+        ratios["functional_vs_golden"] = _ratio(
+            "functional_vs_golden",
+            case["ratio"],
+            "golden seconds / functional seconds, same sample positions",
+            golden_seconds=case["golden_seconds"],
+            functional_seconds=case["functional_seconds"],
+        )
+    else:
+        ratios["functional_vs_golden"] = _from_rungs(
+            rungs, "functional_vs_golden", "golden", "functional"
+        )
+    ratios["transaction_vs_cycle"] = _from_rungs(
+        rungs, "transaction_vs_cycle", "cycle", "transaction"
+    )
+    ratios["cycle_vs_rtl"] = _from_rungs(rungs, "cycle_vs_rtl", "rtl", "cycle")
+    scaling = _harness("bench_sweep") if sweep else None
+    if scaling is None:
+        why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
+        ratios["sweep_2_vs_1_workers"] = _ratio("sweep_2_vs_1_workers", None, "", note=why)
+    else:
+        log(f"sweep scaling, 24 runs at {sweep_size}^3 (benchmarks/bench_sweep.py)")
+        sweep_report = scaling.run(sweep_size, (1, 2), repeats=2)
+        ratios["sweep_2_vs_1_workers"] = _ratio(
+            "sweep_2_vs_1_workers",
+            sweep_report["speedup_2_workers"],
+            "1-worker seconds / 2-worker seconds, 24-run sweep",
+            cases=sweep_report["cases"],
+        )
+    report["ratios"] = ratios
+    report["machine"]["load_average_after"] = machine_info()["load_average"]
+    return report
+
+
+def format_bench(report: dict[str, Any]) -> str:
+    """Rung speeds and ratios as text."""
+    m = report["machine"]
+    lines = [
+        f"{m['cpu_model']}, {m['usable_cores']} usable cores, load {m['load_average']}",
+        f"{'rung':<13}{'seconds':>9}{'Msamples/s':>12}  status",
+    ]
+    for rung, r in report["rungs"].items():
+        if r["status"] == "ok":
+            lines.append(
+                f"{rung:<13}{r['seconds']:>9.3f}{r['samples_per_second'] / 1e6:>12.2f}  ok"
+            )
+        else:
+            lines.append(f"{rung:<13}{'-':>9}{'-':>12}  {r['status']}")
+    lines.append(f"{'ratio':<22}{'value':>8}{'goal':>7}  met")
+    for name, r in report["ratios"].items():
+        value = "-" if r["value"] is None else f"{r['value']:.3g}"
+        goal = "-" if r["goal"] is None else f"{r['goal']:g}"
+        met = {True: "yes", False: "no", None: r["status"]}[r["goal_met"]]
+        lines.append(f"{name:<22}{value:>8}{goal:>7}  {met}")
+    return "\n".join(lines)

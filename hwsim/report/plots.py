@@ -1,0 +1,165 @@
+"""Report plots (matplotlib Agg): image triples, unit utilisation, stalls, bandwidth.
+
+Every function takes raw data and a PNG path and returns the path, or ``None`` when the
+data holds nothing to plot, so the report can say "not recorded" instead of drawing an
+empty axis.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hwsim.report.output import image_to_rgb8
+
+__all__ = [
+    "unit_counters",
+    "memory_counters",
+    "plot_images",
+    "plot_utilisation",
+    "plot_stalls",
+    "plot_bandwidth",
+]
+
+_UNIT_COUNTER = re.compile(
+    r"^(?P<unit>.+)\.(?P<kind>busy|stall|idle)(?:_cycles|\.(?P<why>[\w-]+))?$"
+)
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def unit_counters(counters: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """Per-unit busy/stall/idle cycles from raw counters.
+
+    Recognised paths (design conventions item 7): ``<unit>.busy_cycles``,
+    ``<unit>.idle_cycles``, ``<unit>.stall_cycles`` and ``<unit>.stall.<reason>``
+    (cycles stalled for one reason), e.g. ``pipeline[2].interp.busy_cycles``.
+    """
+    units: dict[str, dict[str, float]] = {}
+    for path, value in _flat(counters).items():
+        m = _UNIT_COUNTER.match(path)
+        if m is None or not isinstance(value, (int, float)):
+            continue
+        name = m["kind"] if m["why"] is None else f"stall:{m['why']}"
+        units.setdefault(m["unit"], {})[name] = float(value)
+    return units
+
+
+def memory_counters(counters: dict[str, Any]) -> dict[str, float]:
+    """Byte counters of the memory system: paths under ``memory`` ending in ``bytes``."""
+    return {
+        path: float(v)
+        for path, v in _flat(counters).items()
+        if path.startswith("memory") and path.endswith("bytes") and isinstance(v, (int, float))
+    }
+
+
+def _flat(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in table.items():
+        name = f"{prefix}.{k}" if prefix else str(k)
+        if isinstance(v, dict):
+            out.update(_flat(v, name))
+        else:
+            out[name] = v
+    return out
+
+
+def plot_images(
+    simulated: np.ndarray, reference: np.ndarray | None, path: Path, titles: tuple[str, str]
+) -> Path:
+    """Reference, simulated and ``|simulated - reference|`` (max over channels) heat map."""
+    plt = _plt()
+    panels = 3 if reference is not None else 1
+    fig, axes = plt.subplots(1, panels, figsize=(3.4 * panels, 3.4), squeeze=False)
+    ax = axes[0]
+    if reference is None:
+        ax[0].imshow(image_to_rgb8(simulated)[0])
+        ax[0].set_title(titles[1], fontsize=9)
+    else:
+        ax[0].imshow(image_to_rgb8(reference)[0])
+        ax[0].set_title(titles[0], fontsize=9)
+        ax[1].imshow(image_to_rgb8(simulated)[0])
+        ax[1].set_title(titles[1], fontsize=9)
+        diff = np.abs(np.asarray(simulated, float) - np.asarray(reference, float))
+        if diff.ndim == 3:
+            diff = diff.max(axis=2)
+        im = ax[2].imshow(diff, cmap="inferno")
+        ax[2].set_title(f"|difference| (max {diff.max():.3g})", fontsize=9)
+        fig.colorbar(im, ax=ax[2], fraction=0.046, pad=0.04)
+    for a in ax:
+        a.set_xticks([])
+        a.set_yticks([])
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _bars(path: Path, names: list[str], xlabel: str, draw) -> Path:
+    """Horizontal bars, one per name (first at the top); ``draw(ax)`` adds the bars."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6.0, 0.35 * len(names) + 1.3))
+    draw(ax)
+    ax.set_xlabel(xlabel)
+    ax.invert_yaxis()
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def plot_utilisation(units: dict[str, dict[str, float]], cycles: int, path: Path) -> Path | None:
+    """Busy cycles / total cycles per unit, as horizontal bars."""
+    busy = {u: c["busy"] / cycles for u, c in units.items() if "busy" in c and cycles}
+    if not busy:
+        return None
+    names = list(busy)
+
+    def draw(ax) -> None:
+        ax.barh(names, [busy[n] * 100 for n in names], color="tab:blue")
+        ax.set_xlim(0, 100)
+
+    return _bars(path, names, "utilisation (% of cycles busy)", draw)
+
+
+def plot_stalls(units: dict[str, dict[str, float]], path: Path) -> Path | None:
+    """Stall cycles per unit, stacked by reason (``stall`` alone when no reason given)."""
+    reasons = sorted({k for c in units.values() for k in c if k.startswith("stall")})
+    stalled = {u: c for u, c in units.items() if any(c.get(r, 0) for r in reasons)}
+    if not stalled:
+        return None
+    names = list(stalled)
+
+    def draw(ax) -> None:
+        left = np.zeros(len(names))
+        for reason in reasons:
+            widths = np.array([stalled[n].get(reason, 0.0) for n in names])
+            if widths.any():
+                ax.barh(names, widths, left=left, label=reason.removeprefix("stall:"))
+                left += widths
+        ax.legend(fontsize=7)
+
+    return _bars(path, names, "stall cycles", draw)
+
+
+def plot_bandwidth(memory: dict[str, float], seconds: float, path: Path) -> Path | None:
+    """Bytes per simulated second for each memory counter."""
+    if not memory or not seconds:
+        return None
+    names = list(memory)
+
+    def draw(ax) -> None:
+        ax.barh(names, [memory[n] / seconds / 1e9 for n in names], color="tab:green")
+
+    return _bars(path, names, "GB/s at the simulated clock", draw)

@@ -1,0 +1,453 @@
+"""``hwsim report RUN_DIR... --out DIR``: a report a person reads without the terminal.
+
+# Ref: shared/docs/design.md section 8 (report.md / report.html with plots, compared
+#      against the published figures of the real machines).
+
+Inputs are folders ``hwsim render`` (or ``hwsim sweep --out``) wrote (``stats.json``,
+``image.npy``) and folders ``hwsim trade`` wrote (``trade.json``).  For each run the
+report shows golden, simulated and a difference heat map; golden is a golden run among
+the inputs with the same scene and sample positions, else it is rendered here.  Unit
+utilisation, stalls and memory bandwidth come from the run's raw counters; a rung that
+does not record them is reported as "not recorded", never estimated.
+
+Both files are built from one list of blocks, so they say the same thing:
+``report.md`` links the PNGs beside it, ``report.html`` embeds them (base64) and is
+self-contained.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hwsim.errors import HwsimError, InputError
+from hwsim.report import plots
+from hwsim.report.document import Block, html_page, markdown
+
+__all__ = ["RunRecord", "load_run", "build_report", "write_report"]
+
+NOT_RECORDED = "not recorded"
+
+
+@dataclass
+class RunRecord:
+    """One run folder: its stats, image and the sweep's architecture overrides (if any)."""
+
+    folder: Path
+    stats: dict[str, Any]
+    image: np.ndarray
+    overrides: dict[str, Any]
+
+    @property
+    def title(self) -> str:
+        s = self.stats
+        where = s["arch"] or "ideal rays"
+        return (
+            f"{s['scene'].get('name', 'scene')} / {s['volume']['name']}: {s['fidelity']} on {where}"
+        )
+
+
+def load_run(folder: str | Path) -> RunRecord:
+    """Read ``stats.json`` and ``image.npy`` of a render folder."""
+    folder = Path(folder)
+    try:
+        stats = json.loads((folder / "stats.json").read_text())
+        image = np.load(folder / "image.npy", allow_pickle=False)
+    except FileNotFoundError as exc:
+        raise InputError(
+            f"not a run folder: {Path(exc.filename).name} missing",
+            source=str(folder),
+            key="RUN_DIR",
+        ) from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"unreadable run: {exc}", source=str(folder), key="RUN_DIR") from None
+    facts = folder / "sweep.json"  # written beside a sweep's run (hwsim sweep --out)
+    overrides = json.loads(facts.read_text())["arch_overrides"] if facts.is_file() else {}
+    return RunRecord(folder, stats, image, overrides)
+
+
+# --------------------------------------------------------------------------- blocks
+
+
+def _scene_from_stats(stats: dict[str, Any]):
+    from hwsim.scene import parse_scene
+
+    def clean(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items() if x is not None}
+        if isinstance(v, list):
+            return [clean(x) for x in v]
+        return v
+
+    data = {k: v for k, v in clean(stats["scene"]).items() if k not in ("name", "source")}
+    return parse_scene(
+        data,
+        source=stats["scene"].get("source", "<stats.json>"),
+        name=stats["scene"].get("name", "scene"),
+    )
+
+
+def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | None, str]:
+    """The reference image and where it came from.
+
+    A timed rung is compared with golden at its own sample positions (numerical error);
+    golden at a machine's positions with the ideal ray caster (algorithmic error).
+    """
+    if run.stats["fidelity"] == "golden":
+        from hwsim.fidelity import render
+
+        try:
+            ideal = render(_scene_from_stats(run.stats), fidelity="golden")
+        except HwsimError as exc:
+            return None, f"ideal reference unavailable: {exc}"
+        return ideal.image, "the ideal ray caster, rendered by the report (algorithmic error)"
+    for other in runs:
+        s = other.stats
+        if (
+            s["fidelity"] == "golden"
+            and s["scene"] == run.stats["scene"]
+            and s["sampling"] == run.stats["sampling"]
+            and other is not run
+        ):
+            return other.image, f"golden run {other.folder.name}"
+    try:
+        from hwsim.fidelity import render
+
+        scene = _scene_from_stats(run.stats)
+        arch = run.stats["arch"]
+        golden = render(
+            scene, fidelity="golden", arch=arch, sampling="ray" if arch else run.stats["sampling"]
+        )
+        return golden.image, "golden rendered by the report at the same sample positions"
+    except HwsimError as exc:
+        return None, f"golden reference unavailable: {exc}"
+
+
+def _fmt(v: Any, spec: str = ".4g") -> str:
+    if v is None:
+        return NOT_RECORDED
+    if isinstance(v, float):
+        return "exact" if v == float("inf") else format(v, spec)
+    if isinstance(v, int):
+        return f"{v:,}"
+    return str(v)
+
+
+def _published(run: RunRecord) -> list[list[str]]:
+    from hwsim.fidelity import builtin_archs
+
+    s = run.stats
+    arch = builtin_archs().get(s["arch"] or "")
+    if arch is None or not arch.published:
+        return []
+    fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+    rows = []
+    for key, value in arch.published.items():
+        if not isinstance(value, (int, float)):
+            continue
+        if key == "samples_per_second":
+            sim = s.get("samples_per_second")
+            rows.append(
+                [
+                    key,
+                    _fmt(float(value)),
+                    _fmt(sim),
+                    _fmt(sim / value if sim else None, ".3f"),
+                    "this run's samples / simulated frame time",
+                ]
+            )
+        elif key.startswith("fps_") and key[4:].isdigit():
+            n = int(key[4:])
+            sps = s.get("samples_per_second")
+            scaled = sps / n**3 if sps else None
+            rows.append(
+                [
+                    key,
+                    _fmt(float(value)),
+                    _fmt(scaled),
+                    _fmt(scaled / value if scaled else None, ".3f"),
+                    f"this run's simulated samples/s over {n}^3 (one sample per voxel); "
+                    f"this volume itself: {_fmt(fps)} fps",
+                ]
+            )
+        else:
+            rows.append([key, _fmt(value), "-", "-", "context"])
+    return rows
+
+
+def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) -> list[Block]:
+    s = run.stats
+    blocks: list[Block] = [("h2", f"Run {index}: {run.title}")]
+    fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+    blocks.append(
+        (
+            "table",
+            ["quantity", "value"],
+            [
+                ["folder", str(run.folder)],
+                [
+                    "volume",
+                    f"{s['volume']['name']} {'x'.join(map(str, s['volume']['shape_zyx']))} "
+                    f"{s['volume']['dtype']}",
+                ],
+                ["mode", s["scene"]["render"]["mode"]],
+                ["fidelity / sampling", f"{s['fidelity']} / {s['sampling']}"],
+                ["architecture", s["arch"] or "none (ideal ray caster)"],
+                ["samples", _fmt(s["samples"])],
+                [
+                    "cycles",
+                    _fmt(s.get("cycles"))
+                    if s["fidelity"] != "golden"
+                    else "none: golden has no timing",
+                ],
+                ["clock", _fmt(s.get("clock_hz"))],
+                ["simulated frame time (s)", _fmt(s.get("frame_seconds"))],
+                ["simulated fps", _fmt(fps)],
+                ["simulated samples/s", _fmt(s.get("samples_per_second"))],
+                ["wall seconds", _fmt(s.get("wall_seconds"))],
+                ["elaborated units", ", ".join(s.get("elaborated_units", [])) or "-"],
+                ["elided units", ", ".join(s.get("elided_units", [])) or "none"],
+                [
+                    "architecture overrides (sweep)",
+                    ", ".join(f"{k} = {v}" for k, v in run.overrides.items()) or "none",
+                ],
+            ],
+        )
+    )
+    if s["fidelity"] == "golden" and not s["arch"]:
+        reference, origin = None, "this run is the ideal golden reference"
+    else:
+        reference, origin = _golden_for(run, runs)
+    titles = (
+        ("ideal golden", f"golden on {s['arch']}")
+        if s["fidelity"] == "golden"
+        else ("golden, same positions", f"{s['fidelity']} on {s['arch']}")
+    )
+    png = plots.plot_images(run.image, reference, out / f"run{index}-images.png", titles)
+    blocks.append(("h3", "Images"))
+    blocks.append(("p", f"Reference: {origin}."))
+    blocks.append(("img", png, f"golden, {s['fidelity']} and difference"))
+    if reference is not None and reference.shape == run.image.shape:
+        from hwsim.trade.ladder import image_error
+
+        err = image_error(reference, run.image)
+        blocks.append(
+            (
+                "p",
+                f"Against the reference: RMSE {_fmt(err['rmse'])}, "
+                f"PSNR {_fmt(err['psnr_db'], '.2f')} dB, "
+                f"max abs error {_fmt(err['max_abs'])} (peak {err['peak']:g}).",
+            )
+        )
+    units = plots.unit_counters(s.get("counters", {}))
+    blocks.append(("h3", "Unit utilisation and stalls"))
+    util = plots.plot_utilisation(units, s.get("cycles") or 0, out / f"run{index}-utilisation.png")
+    stalls = plots.plot_stalls(units, out / f"run{index}-stalls.png")
+    if util is None and stalls is None:
+        blocks.append(
+            ("p", f"Per-unit busy and stall counters: {NOT_RECORDED} by the {s['fidelity']} rung.")
+        )
+    for path, alt in ((util, "utilisation"), (stalls, "stalls")):
+        if path is not None:
+            blocks.append(("img", path, alt))
+    blocks.append(("h3", "Memory bandwidth"))
+    memory = plots.memory_counters(s.get("counters", {}))
+    bw = plots.plot_bandwidth(
+        memory, s.get("frame_seconds") or 0.0, out / f"run{index}-bandwidth.png"
+    )
+    if bw is None:
+        blocks.append(
+            ("p", f"Memory traffic counters: {NOT_RECORDED} by the {s['fidelity']} rung.")
+        )
+    else:
+        blocks.append(("img", bw, "memory bandwidth"))
+    published = _published(run)
+    blocks.append(("h3", "Published figures"))
+    if run.overrides:
+        changed = ", ".join(f"{k} = {v}" for k, v in run.overrides.items())
+        blocks.append(
+            (
+                "p",
+                f"This run changes the machine ({changed}); the published "
+                "figures are for the machine as built.",
+            )
+        )
+    if s.get("frame_seconds") is None:
+        blocks.append(("p", f"The {s['fidelity']} rung has no timing: nothing to compare."))
+    elif published:
+        blocks.append(
+            (
+                "table",
+                ["figure", "published", "simulated", "simulated / published", "how"],
+                published,
+            )
+        )
+    else:
+        blocks.append(
+            ("p", "No published figures for this run (no architecture, or none in its file).")
+        )
+    return blocks
+
+
+def _trade_blocks(folder: Path, out: Path) -> list[Block]:
+    data = json.loads((folder / "trade.json").read_text())
+    rows = data["rows"]
+    blocks: list[Block] = [("h2", f"Fidelity-ladder trade ({folder})")]
+    header = [
+        "scene",
+        "arch",
+        "rung",
+        "status",
+        "wall s",
+        "Msamples/s wall",
+        "cycles",
+        "numerical PSNR dB",
+        "algorithmic PSNR dB",
+        "cycle error",
+    ]
+    table = []
+    for r in rows:
+        sps = r["wall_samples_per_second"]
+        table.append(
+            [
+                r["scene"],
+                r["arch"],
+                r["rung"],
+                r["status"],
+                _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
+                f"{sps / 1e6:.2f}" if sps else "-",
+                _fmt(r["cycles"]) if r["cycles"] is not None else "-",
+                "exact"
+                if r["status"] == "ok" and r["numerical_rmse"] == 0
+                else (
+                    f"{r['numerical_psnr_db']:.1f}" if r["numerical_psnr_db"] is not None else "-"
+                ),
+                "exact"
+                if r["status"] == "ok" and r["algorithmic_rmse"] == 0
+                else (
+                    f"{r['algorithmic_psnr_db']:.1f}"
+                    if r["algorithmic_psnr_db"] is not None
+                    else "-"
+                ),
+                f"{r['cycle_error']:.2%}"
+                if r.get("cycle_error") is not None
+                else (r.get("cycle_reference") or "-"),
+            ]
+        )
+    blocks.append(
+        (
+            "p",
+            "Numerical: the rung against golden at the same sample positions. "
+            "Algorithmic: golden at the machine's positions against the ideal ray caster. "
+            "Cycle error: against the cycle rung of the same case.",
+        )
+    )
+    blocks.append(("table", header, table))
+    png = folder / "trade.png"
+    if png.is_file():
+        copy = out / f"trade-{len(list(out.glob('trade-*.png')))}.png"
+        copy.write_bytes(png.read_bytes())
+        blocks.append(("img", copy, "speed against error, Pareto front dashed"))
+    return blocks
+
+
+def _sweep_blocks(path: Path) -> list[Block]:
+    """One row per run of a sweep database (``hwsim sweep --db``)."""
+    import sqlite3
+
+    from hwsim.sweep.db import RunsDB
+
+    try:
+        with RunsDB(path) as db:
+            rows = db.rows()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"unreadable sweep database: {exc}", source=str(path)) from None
+    failed = sum(r["status"] != "ok" for r in rows)
+    table = [
+        [
+            r["label"] or "",
+            r["status"],
+            _fmt(r["cycles"]) if r["cycles"] is not None else "-",
+            _fmt(1.0 / r["frame_seconds"]) if r["frame_seconds"] else "-",
+            _fmt(r["samples_per_second"]) if r["samples_per_second"] else "-",
+            _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
+            r["error"] or "",
+        ]
+        for r in rows
+    ]
+    header = ["run", "status", "cycles", "simulated fps", "simulated samples/s", "wall s", "error"]
+    return [
+        ("h2", f"Sweep ({path})"),
+        ("p", f"{len(rows)} run(s), {failed} failed."),
+        ("table", header, table),
+    ]
+
+
+def build_report(folders: list[str | Path], out: Path) -> list[Block]:
+    """The report's blocks; plots are written into ``out`` as they are made."""
+    runs, trades, sweeps = [], [], []
+    for f in folders:
+        folder = Path(f)
+        if folder.is_file() and folder.suffix == ".db":
+            sweeps.append(folder)
+        elif (folder / "trade.json").is_file():
+            trades.append(folder)
+        else:
+            runs.append(load_run(folder))
+    blocks: list[Block] = [("h1", "hwsim report")]
+    from hwsim import __version__
+
+    blocks.append(
+        (
+            "p",
+            f"hwsim {__version__}; {len(runs)} run(s), {len(trades)} trade table(s), "
+            f"{len(sweeps)} sweep database(s).",
+        )
+    )
+    if runs:
+        blocks.append(
+            (
+                "table",
+                ["run", "scene", "volume", "arch", "fidelity", "cycles", "simulated fps", "wall s"],
+                [
+                    [
+                        str(i),
+                        r.stats["scene"].get("name", ""),
+                        r.stats["volume"]["name"],
+                        r.stats["arch"] or "ideal",
+                        r.stats["fidelity"],
+                        _fmt(r.stats.get("cycles")),
+                        _fmt(
+                            1.0 / r.stats["frame_seconds"] if r.stats.get("frame_seconds") else None
+                        ),
+                        _fmt(r.stats["wall_seconds"], ".3f"),
+                    ]
+                    for i, r in enumerate(runs, start=1)
+                ],
+            )
+        )
+    for i, run in enumerate(runs, start=1):
+        blocks += _run_blocks(run, runs, out, i)
+    for folder in trades:
+        blocks += _trade_blocks(folder, out)
+    for db in sweeps:
+        blocks += _sweep_blocks(db)
+    return blocks
+
+
+def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:
+    """Write ``report.md``, ``report.html`` and the PNG plots into ``out_dir``."""
+    from hwsim.report.output import output_folder
+
+    if not folders:
+        raise InputError("give at least one run folder", key="RUN_DIR")
+    out = output_folder(out_dir).resolve()
+    blocks = build_report(folders, out)
+    paths = {"md": out / "report.md", "html": out / "report.html"}
+    paths["md"].write_text(markdown(blocks, out) + "\n")
+    paths["html"].write_text(html_page(blocks, "hwsim report") + "\n")
+    return paths

@@ -1,0 +1,150 @@
+"""The sweep database: one SQLite row per finished run, written in its own transaction.
+
+# Ref: shared/docs/design.md section 8 (sweeps write rows to an embedded SQL database
+#      keyed by a hash of scene + architecture + fidelity + code version).
+
+Kill-safety comes from SQLite: the database runs in WAL mode with ``synchronous=FULL``,
+so a committed row survives a ``kill -9`` of the writer (and a power cut); each finished
+run is one ``INSERT ... ON CONFLICT(key) DO NOTHING`` committed on its own, so a killed
+sweep loses at most the runs that were still computing, and the ``UNIQUE`` key makes a
+duplicate row impossible.  Only the process driving the sweep writes; Dask workers
+return their rows to it.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from hwsim.errors import InputError
+
+__all__ = ["COLUMNS", "SCHEMA", "RunsDB"]
+
+SCHEMA = 1
+#: Columns of table ``runs`` besides ``key``: (name, SQL type).  ``params`` and
+#: ``stats`` hold JSON text (the run's parameters and its full ``stats.json`` content).
+COLUMNS = (
+    ("status", "TEXT NOT NULL"),  # ok | error
+    ("error", "TEXT"),
+    ("label", "TEXT"),
+    ("params", "TEXT NOT NULL"),
+    ("scene", "TEXT"),
+    ("volume", "TEXT"),
+    ("arch", "TEXT"),
+    ("fidelity", "TEXT"),
+    ("mode", "TEXT"),
+    ("code_version", "TEXT"),
+    ("samples", "INTEGER"),
+    ("rays", "INTEGER"),
+    ("cycles", "INTEGER"),
+    ("clock_hz", "REAL"),
+    ("frame_seconds", "REAL"),
+    ("samples_per_second", "REAL"),
+    ("wall_seconds", "REAL"),
+    ("wall_samples_per_second", "REAL"),
+    ("image_sha256", "TEXT"),
+    ("run_dir", "TEXT"),
+    ("stats", "TEXT"),
+    ("worker", "TEXT"),
+    ("worker_pid", "INTEGER"),
+    ("started_at", "TEXT"),
+    ("finished_at", "TEXT"),
+)
+_NAMES = ["key", *(name for name, _ in COLUMNS)]
+
+
+class RunsDB:
+    """Table ``runs`` of an SQLite file (created on first use).
+
+    Parameters
+    ----------
+    path : str or Path
+        The database file (``--db``); its folder must exist.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        try:
+            self.conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+            self.conn.execute("PRAGMA journal_mode=WAL")
+            self.conn.execute("PRAGMA synchronous=FULL")
+            cols = ",\n  ".join(f"{n} {t}" for n, t in COLUMNS)
+            self.conn.execute(
+                f"CREATE TABLE IF NOT EXISTS runs (\n  key TEXT NOT NULL UNIQUE,\n  {cols}\n)"
+            )
+            self.conn.execute(
+                "CREATE TABLE IF NOT EXISTS meta (name TEXT PRIMARY KEY, value TEXT NOT NULL)"
+            )
+            self.conn.execute(
+                "INSERT INTO meta VALUES ('schema', ?) ON CONFLICT(name) DO NOTHING",
+                (str(SCHEMA),),
+            )
+        except sqlite3.DatabaseError as exc:
+            raise InputError(
+                f"cannot open database: {exc}", source=str(self.path), key="--db"
+            ) from None
+
+    def close(self) -> None:
+        self.conn.close()
+
+    def __enter__(self) -> RunsDB:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def finished_keys(self) -> set[str]:
+        """Keys of every run with a row (finished, successfully or not)."""
+        return {k for (k,) in self.conn.execute("SELECT key FROM runs")}
+
+    def insert(self, row: dict[str, Any]) -> bool:
+        """Write one finished run in its own transaction; ``False`` if the key existed."""
+        values = [_sql_value(row.get(n)) for n in _NAMES]
+        marks = ",".join("?" * len(_NAMES))
+        self.conn.execute("BEGIN IMMEDIATE")
+        try:
+            cur = self.conn.execute(
+                f"INSERT INTO runs ({','.join(_NAMES)}) VALUES ({marks}) "
+                "ON CONFLICT(key) DO NOTHING",
+                values,
+            )
+            self.conn.execute("COMMIT")
+        except BaseException:
+            self.conn.execute("ROLLBACK")
+            raise
+        return cur.rowcount == 1
+
+    def delete_failed(self) -> int:
+        """Remove the rows of failed runs (so the next sweep retries them)."""
+        with self.conn:
+            return self.conn.execute("DELETE FROM runs WHERE status = 'error'").rowcount
+
+    def rows(self, where: str = "1", args: Iterable[Any] = ()) -> list[dict[str, Any]]:
+        """Rows as dicts, JSON columns decoded."""
+        self.conn.row_factory = sqlite3.Row
+        try:
+            out = []
+            for r in self.conn.execute(
+                f"SELECT * FROM runs WHERE {where} ORDER BY rowid", tuple(args)
+            ):
+                d = dict(r)
+                for name in ("params", "stats"):
+                    if d.get(name) is not None:
+                        d[name] = json.loads(d[name])
+                out.append(d)
+            return out
+        finally:
+            self.conn.row_factory = None
+
+    def integrity(self) -> str:
+        """``PRAGMA integrity_check``: ``"ok"`` for a sound file."""
+        return self.conn.execute("PRAGMA integrity_check").fetchone()[0]
+
+
+def _sql_value(value: Any) -> Any:
+    if isinstance(value, (dict, list)):
+        return json.dumps(value, sort_keys=True, default=str)
+    return value

@@ -1,0 +1,324 @@
+"""The fidelity-ladder trade: every rung on every architecture, speed against error.
+
+# Ref: shared/docs/design.md section 3 (the ladder, its contracts and the two kinds of
+#      image error); docs/fidelity.md.
+
+For each scene the ideal float64 ray caster (``golden`` without an architecture) is the
+reference.  Then for each architecture of :func:`hwsim.fidelity.builtin_archs` and each
+rung of :data:`hwsim.fidelity.FIDELITIES`:
+
+* a rung that is not built (not in ``AVAILABLE_FIDELITIES``) gets a row with status
+  ``not available``, nothing measured;
+* ``golden`` at the machine's sample positions gives the **algorithmic** error (its
+  image against the ideal ray caster);
+* every other rung gives the **numerical** error (its image against golden at the same
+  positions), the wall time, simulated samples per wall second, and, when the ``cycle``
+  rung ran for that case, the relative cycle-count error against it.
+
+Rows are written as ``trade.csv`` / ``trade.json``; ``trade.png`` is the Pareto plot
+(wall seconds against error, both log scale, the non-dominated points joined).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hwsim.errors import InputError
+from hwsim.numerics import max_abs_error, per_channel, psnr, rmse
+from hwsim.report.output import output_folder
+from hwsim.scene import Scene, ViewSpec, VolumeSpec, load_scene
+from hwsim.trade.files import write_rows
+from hwsim.volumes.volume import Volume
+
+__all__ = [
+    "LADDER_SCENES",
+    "TradeCase",
+    "image_error",
+    "ladder_cases",
+    "ladder_trade",
+    "write_ladder_trade",
+    "pareto_front",
+]
+
+#: Built-in scenes of the default set: (label, built-in scene, phantom).
+LADDER_SCENES = (
+    ("marschner-lobb", "marschner-lobb", "marschner-lobb"),
+    ("head", "head", "head"),
+    ("ball", "ball-xray", "ball"),
+)
+
+
+@dataclass(frozen=True)
+class TradeCase:
+    """One scene of the trade: a label, the scene and its loaded volume."""
+
+    label: str
+    scene: Scene
+    volume: Volume
+
+
+def ladder_cases(volumes: Sequence[str] = (), image: int = 64, size: int = 64) -> list[TradeCase]:
+    """The built-in phantoms (Marschner-Lobb, head, ball at ``size^3``) plus each file.
+
+    The phantoms use their built-in scenes (ML iso-surface, head composite + Phong, ball
+    X-ray); files use the head scene's view and light with the automatic transfer
+    function.  Every image is ``image x image``.
+    """
+    from hwsim.volumes import make_phantom, read_volume
+
+    cases = []
+    for label, scene_name, phantom in LADDER_SCENES:
+        scene = load_scene(scene_name)
+        scene = scene.replace(
+            volume=VolumeSpec(phantom=phantom, params=(("size", size),)),
+            view=dataclasses.replace(scene.view, width=image, height=image),
+        )
+        cases.append(TradeCase(label, scene, make_phantom(phantom, size=size)))
+    base = load_scene("head")
+    for path in volumes:
+        volume = read_volume(path)
+        scene = Scene(
+            name=volume.name,
+            volume=VolumeSpec(path=str(path)),
+            view=ViewSpec(azimuth=30, elevation=15, zoom=1.3, width=image, height=image),
+            lights=base.lights,
+            material=base.material,
+        )
+        cases.append(TradeCase(volume.name, scene, volume))
+    return cases
+
+
+def image_error(reference: np.ndarray, test: np.ndarray) -> dict[str, Any]:
+    """RMSE, PSNR and max abs error of ``test`` against ``reference``, and per channel.
+
+    RGBA images are in 0..1 (PSNR peak 1); scalar images (mip, minip, xray) keep volume
+    or world units, so their PSNR peak is the reference's largest magnitude.
+    """
+    peak = 1.0 if reference.ndim == 3 else float(np.max(np.abs(reference))) or 1.0
+    return {
+        "rmse": rmse(reference, test),
+        "psnr_db": psnr(reference, test, peak),
+        "max_abs": max_abs_error(reference, test),
+        "peak": peak,
+        "per_channel": per_channel(reference, test, peak),
+    }
+
+
+def _error_columns(prefix: str, err: dict[str, Any] | None) -> dict[str, Any]:
+    keys = ("rmse", "psnr_db", "max_abs")
+    return {f"{prefix}_{k}": (err[k] if err else None) for k in keys}
+
+
+def ladder_trade(
+    cases: Sequence[TradeCase],
+    archs: Sequence[str] | None = None,
+    rungs: Sequence[str] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Measure every (scene, architecture, rung); one row each (see the module doc)."""
+    from hwsim.fidelity import AVAILABLE_FIDELITIES, FIDELITIES, builtin_archs, render
+
+    arch_names = list(archs) if archs else list(builtin_archs())
+    rung_names = list(rungs) if rungs else list(FIDELITIES)
+    for r in rung_names:
+        if r not in FIDELITIES:
+            raise InputError(f"unknown rung {r!r}", key="--rungs", allowed=", ".join(FIDELITIES))
+    if "golden" not in rung_names:
+        rung_names.insert(0, "golden")  # the reference of every error column
+    rows: list[dict[str, Any]] = []
+    total = len(cases) * (1 + len(arch_names) * len(rung_names))
+    done = 0
+
+    def tick() -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    for case in cases:
+        # Untimed warm-up: fills the golden renderer's per-volume cache (float copy and
+        # voxel gradients), which every later render of this volume reuses.
+        render(case.scene, fidelity="golden", volume=case.volume)
+        ideal = render(case.scene, fidelity="golden", volume=case.volume)
+        reference = _row(case, "ideal", ideal, status="ok", note="reference: ideal ray caster")
+        reference["total_rmse"] = 0.0
+        rows.append(reference)
+        tick()
+        for arch in arch_names:
+            runs: dict[str, Any] = {}
+            pending: list[dict[str, Any]] = []
+            for rung in rung_names:
+                if rung not in AVAILABLE_FIDELITIES:
+                    pending.append(_empty(case, arch, rung, "not available"))
+                    tick()
+                    continue
+                try:
+                    runs[rung] = render(case.scene, fidelity=rung, arch=arch, volume=case.volume)
+                except InputError as exc:  # the machine refuses the scene, as the hardware did
+                    pending.append(_empty(case, arch, rung, "unsupported", note=exc.message))
+                    tick()
+                    continue
+                tick()
+            golden = runs.get("golden")
+            cycle = runs.get("cycle")
+            for rung, run in runs.items():
+                row = _row(case, arch, run, status="ok")
+                row["total_rmse"] = rmse(ideal.image, run.image)
+                if golden is not None:
+                    row.update(
+                        _error_columns("algorithmic", image_error(ideal.image, golden.image))
+                    )
+                    if rung != "golden":
+                        num = image_error(golden.image, run.image)
+                        row.update(_error_columns("numerical", num))
+                        row["numerical_per_channel"] = num["per_channel"]
+                if run.cycles is not None and cycle is not None and cycle.cycles:
+                    row["cycle_error"] = (run.cycles - cycle.cycles) / cycle.cycles
+                    row["cycle_reference"] = "cycle"
+                elif run.cycles is not None:
+                    row["cycle_reference"] = "cycle rung not available"
+                pending.append(row)
+            order = {r: i for i, r in enumerate(rung_names)}
+            rows.extend(sorted(pending, key=lambda r: order[r["rung"]]))
+    return rows
+
+
+_COLUMNS = (
+    "scene",
+    "volume",
+    "arch",
+    "rung",
+    "status",
+    "wall_seconds",
+    "samples",
+    "wall_samples_per_second",
+    "cycles",
+    "frame_seconds",
+    "simulated_samples_per_second",
+    "numerical_rmse",
+    "numerical_psnr_db",
+    "numerical_max_abs",
+    "algorithmic_rmse",
+    "algorithmic_psnr_db",
+    "algorithmic_max_abs",
+    "total_rmse",
+    "cycle_error",
+    "cycle_reference",
+    "elaborated_units",
+    "elided_units",
+    "elision_saving",
+    "note",
+)
+
+
+def _empty(case: TradeCase, arch: str, rung: str, status: str, note: str = "") -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(_COLUMNS)
+    row.update(scene=case.label, volume=case.volume.name, arch=arch, rung=rung, status=status)
+    row["note"] = note or f"the {rung} rung is not built yet"
+    return row
+
+
+def _row(case: TradeCase, arch: str, run: Any, *, status: str, note: str = "") -> dict[str, Any]:
+    """Speed, timing and elision of one render (error columns are added by the caller)."""
+    row = _empty(case, arch, "golden" if arch == "ideal" else run.fidelity, status, note)
+    frame = run.cycles / run.clock_hz if run.cycles is not None and run.clock_hz else None
+    all_units = len(run.elaborated_units) + len(run.elided_units)
+    row.update(
+        wall_seconds=run.wall_seconds,
+        samples=run.samples,
+        wall_samples_per_second=run.samples / run.wall_seconds if run.wall_seconds else None,
+        cycles=run.cycles,
+        frame_seconds=frame,
+        simulated_samples_per_second=run.samples / frame if frame else None,
+        elaborated_units=list(run.elaborated_units),
+        elided_units=list(run.elided_units),
+        # Share of the pipeline's per-sample unit evaluations the scene does not need.
+        elision_saving=len(run.elided_units) / all_units if all_units else 0.0,
+        note=note,
+    )
+    return row
+
+
+def pareto_front(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The non-dominated points (lower seconds and lower error are better), by seconds."""
+    front: list[tuple[float, float]] = []
+    for x, y in sorted(points):
+        if not front or y < front[-1][1]:
+            front.append((x, y))
+    return front
+
+
+def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[str, Path]:
+    """Write ``trade.csv``, ``trade.json`` and the Pareto plot ``trade.png``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = output_folder(out_dir)
+    paths = {"csv": out / "trade.csv", "json": out / "trade.json", "png": out / "trade.png"}
+    flat = [{k: v for k, v in r.items() if k != "numerical_per_channel"} for r in rows]
+    write_rows(flat, paths["csv"], None)
+    write_rows(rows, None, paths["json"])
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    rungs = list(dict.fromkeys(r["rung"] for r in rows))
+    archs = list(dict.fromkeys(r["arch"] for r in rows))
+    markers = dict(zip(archs, "o^sDvP*Xh<>", strict=False))
+    colours = {r: plt.cm.tab10(i) for i, r in enumerate(rungs)}
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+
+    ncols = min(len(scenes), 3)
+    nrows = -(-len(scenes) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.6 * nrows + 0.8), squeeze=False)
+    for ax in axes.flat[len(scenes) :]:
+        ax.set_visible(False)
+    for ax, scene in zip(axes.flat, scenes, strict=False):
+        measured = [r for r in rows if r["scene"] == scene and r["status"] == "ok"]
+        pts = []
+        errors = [e for e in (r["total_rmse"] for r in measured) if e]
+        floor = min(errors) / 10 if errors else 1e-6
+        for r in measured:
+            err = r["total_rmse"]
+            if err is None:
+                continue
+            y = max(err, floor)
+            pts.append((r["wall_seconds"], y))
+            ax.scatter(
+                r["wall_seconds"],
+                y,
+                color=colours[r["rung"]],
+                marker=markers.get(r["arch"], "o"),
+                s=28,
+                zorder=3,
+            )
+        front = pareto_front(pts)
+        ax.plot([p[0] for p in front], [p[1] for p in front], "k--", lw=0.8, zorder=2)
+        ax.axhline(floor, color="grey", lw=0.5, ls=":")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(scene, fontsize=10)
+        ax.set_xlabel("wall seconds per frame (log)")
+        ax.set_ylabel("RMSE vs ideal golden (log; dotted: exact)")
+        xs = [p[0] for p in pts]
+        if xs and max(xs) < 10 * min(xs):  # within a decade: label the minor ticks
+            ax.xaxis.set_minor_formatter(FormatStrFormatter("%.2g"))
+            ax.tick_params(axis="x", which="minor", labelsize=7, labelrotation=45)
+        else:
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.grid(True, which="major", lw=0.3, alpha=0.5)
+    handles = [
+        plt.Line2D([], [], color=c, marker="o", ls="", label=f"rung {r}")
+        for r, c in colours.items()
+        if any(x["rung"] == r and x["status"] == "ok" for x in rows)
+    ] + [plt.Line2D([], [], color="k", marker=m, ls="", label=a) for a, m in markers.items()]
+    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 6), fontsize=7)
+    fig.tight_layout(rect=(0, 0.8 / (3.6 * nrows + 0.8), 1, 1))
+    fig.savefig(paths["png"], dpi=110)
+    plt.close(fig)
+    return paths

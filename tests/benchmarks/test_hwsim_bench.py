@@ -1,0 +1,63 @@
+"""hwsim bench and the sweep-scaling harness: complete reports, missing rungs named.
+
+Harness checks only: no wall-clock assertions (docs/conventions.md item 11).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from hwsim.bench import GOALS, run_bench
+from hwsim.cli import main
+from hwsim.fidelity import AVAILABLE_FIDELITIES, FIDELITIES
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+
+def test_every_rung_and_ratio_is_reported_and_missing_ones_say_so():
+    report = run_bench(16, 16, "volumepro500", 1, vtk=False, sweep=False)
+    assert set(report["rungs"]) == set(FIDELITIES)
+    for rung, r in report["rungs"].items():
+        if rung in AVAILABLE_FIDELITIES:
+            assert r["status"] == "ok" and r["seconds"] > 0 and r["samples_per_second"] > 0
+        else:
+            assert r == {"status": "not available"}
+    ratios = report["ratios"]
+    assert set(ratios) == set(GOALS)
+    fvg = ratios["functional_vs_golden"]
+    assert fvg["status"] == "ok" and fvg["value"] > 0
+    assert fvg["value"] == pytest.approx(fvg["golden_seconds"] / fvg["functional_seconds"])
+    for name, pair in (
+        ("transaction_vs_cycle", ("cycle", "transaction")),
+        ("cycle_vs_rtl", ("rtl", "cycle")),
+    ):
+        expected = [r for r in pair if r not in AVAILABLE_FIDELITIES]
+        if expected:
+            assert ratios[name]["status"] == "not available"
+            assert ratios[name]["missing"] == expected
+    assert ratios["golden_vs_vtk"]["note"] == "skipped (--no-vtk)"
+    assert {"cpu_model", "usable_cores", "python", "numpy"} <= set(report["machine"])
+
+
+def test_cli_bench_writes_json(tmp_path):
+    argv = ["bench", "--size", "16", "--image", "16", "--repeats", "1", "--no-vtk", "--no-sweep"]
+    assert main([*argv, "--out", str(tmp_path), "--quiet"]) == 0
+    report = json.loads((tmp_path / "bench.json").read_text())
+    assert report["rungs"]["golden"]["status"] == "ok"
+
+
+@pytest.mark.slow
+def test_sweep_scaling_harness_reports_a_speedup_per_worker_count():
+    from benchmarks.bench_sweep import run
+
+    report = run(size=16, workers=(1, 2), repeats=1)
+    assert [c["workers"] for c in report["cases"]] == [1, 2]
+    assert all(c["ok"] == 24 and c["failed"] == 0 for c in report["cases"])
+    one, two = report["cases"]
+    assert report["speedup_2_workers"] == pytest.approx(one["sweep_seconds"] / two["sweep_seconds"])

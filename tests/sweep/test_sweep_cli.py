@@ -1,0 +1,121 @@
+"""hwsim sweep end to end: the docs example, overrides that reach the model, resume, report."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from hwsim.cli import main
+from hwsim.sweep import RunsDB
+
+pytestmark = pytest.mark.system
+
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "sweeps.md"
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("sweep")
+    (example,) = re.findall(r"```toml\n(.*?)```", DOCS.read_text(), flags=re.S)
+    (tmp / "sweep.toml").write_text(example)
+    argv = ["sweep", str(tmp / "sweep.toml"), "--workers", "1", "--db", str(tmp / "runs.db")]
+    assert main([*argv, "--out", str(tmp / "runs"), "--quiet"]) == 0
+    with RunsDB(tmp / "runs.db") as db:
+        rows = db.rows()
+    return tmp, argv, rows
+
+
+def test_the_docs_example_runs_every_combination_once(swept):
+    _, _, rows = swept
+    assert "That is 2 x 1 x 2 x 1 x 2 x 2 = 16 runs" in DOCS.read_text()
+    assert len(rows) == 16 and all(r["status"] == "ok" for r in rows)
+    combos = {
+        (p["arch"], p["phantom"], p["pipelines"], p["formats.interp.weight_bits"])
+        for p in (r["params"] for r in rows)
+    }
+    assert len(combos) == 16
+
+
+def test_overrides_reach_the_model(swept):
+    _, _, rows = swept
+    by = {
+        (
+            r["params"]["arch"],
+            r["params"]["phantom"],
+            r["params"]["pipelines"],
+            r["params"]["formats.interp.weight_bits"],
+        ): r
+        for r in rows
+    }
+    for (arch, phantom, pipes, bits), row in by.items():
+        assert row["stats"]["arch"] == arch and row["clock_hz"] == 125e6
+        if pipes == 1:
+            four = by[arch, phantom, 4, bits]
+            # Same samples, a quarter of the cycles (one sample per pipeline per clock).
+            assert row["samples"] == four["samples"]
+            assert row["cycles"] > 3.9 * four["cycles"]
+        if bits == 6 and phantom.startswith("head"):
+            assert row["image_sha256"] != by[arch, phantom, pipes, 8]["image_sha256"]
+
+
+def test_rerun_skips_every_finished_run(swept, capsys):
+    tmp, argv, _ = swept
+    assert main(argv) == 0
+    assert "16 runs: 16 already in" in capsys.readouterr().out
+
+
+def test_report_reads_sweep_run_folders(swept):
+    tmp, _, rows = swept
+    folders = [r["run_dir"] for r in rows[:2]]
+    argv = ["report", *folders, str(tmp / "runs.db"), "--out", str(tmp / "report"), "--quiet"]
+    assert main(argv) == 0
+    md = (tmp / "report" / "report.md").read_text()
+    assert "## Run 2:" in md and "16 run(s), 0 failed." in md
+    overrides = rows[0]["params"]
+    assert (
+        f"| architecture overrides (sweep) | pipelines = {overrides['pipelines']}, "
+        f"formats.interp.weight_bits = {overrides['formats.interp.weight_bits']} |" in md
+    )
+    assert "the published figures are for the machine as built" in md
+    sweep_rows = [line for line in md.splitlines() if line.startswith("| phantom=")]
+    assert len(sweep_rows) == 16
+
+
+def test_failed_runs_are_recorded_and_do_not_stop_the_sweep(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(
+        '[sweep]\nscene = ["head-perspective"]\nphantom = ["ball:size=16"]\nimage = [16]\n'
+        'arch = ["volumepro500", "volumepro1000"]\n'
+    )
+    db = tmp_path / "runs.db"
+    assert main(["sweep", str(tmp_path / "s.toml"), "--workers", "1", "--db", str(db)]) == 1
+    assert "1 run(s) failed" in capsys.readouterr().err
+    with RunsDB(db) as runs:
+        status = {r["params"]["arch"]: (r["status"], r["error"]) for r in runs.rows()}
+    assert status["volumepro1000"] == ("ok", None)
+    assert status["volumepro500"][0] == "error"
+    assert "volumepro500 renders parallel projection only" in status["volumepro500"][1]
+
+
+def test_sweep_on_an_existing_scheduler(tmp_path, capsys):
+    from hwsim.sweep import local_client
+
+    (tmp_path / "s.toml").write_text('[sweep]\nphantom = ["ball:size=16"]\nimage = [16]\n')
+    db = tmp_path / "runs.db"
+    with local_client(1) as client:
+        address = client.scheduler.address
+        assert (
+            main(["sweep", str(tmp_path / "s.toml"), "--scheduler", address, "--db", str(db)]) == 0
+        )
+    assert "1 runs: 0 already in" in capsys.readouterr().out
+    with RunsDB(db) as runs:
+        (row,) = runs.rows()
+    assert row["status"] == "ok" and row["worker"].startswith("tcp://127.0.0.1:")
+
+
+def test_an_unreachable_scheduler_is_bad_input(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text('[sweep]\nphantom = ["ball:size=16"]\n')
+    argv = ["sweep", str(tmp_path / "s.toml"), "--db", str(tmp_path / "r.db")]
+    assert main([*argv, "--scheduler", "tcp://127.0.0.1:9"]) == 2
+    assert "tcp://127.0.0.1:9: --scheduler: cannot reach the scheduler" in capsys.readouterr().err

@@ -1,0 +1,49 @@
+"""The runs table: one row per key whatever happens, WAL mode, integrity check."""
+
+from __future__ import annotations
+
+import sqlite3
+
+import pytest
+
+from hwsim.errors import InputError
+from hwsim.sweep import RunsDB
+
+
+def row(key: str, status: str = "ok", **extra) -> dict:
+    return {"key": key, "status": status, "params": {"pipelines": 2}, "cycles": 10, **extra}
+
+
+def test_insert_is_once_per_key_and_reports_the_conflict(tmp_path):
+    with RunsDB(tmp_path / "r.db") as db:
+        assert db.insert(row("a")) is True
+        assert db.insert(row("a", cycles=99)) is False  # ON CONFLICT DO NOTHING
+        assert db.insert(row("b", "error", error="boom")) is True
+        rows = db.rows()
+        assert [(r["key"], r["cycles"]) for r in rows] == [("a", 10), ("b", 10)]
+        assert rows[0]["params"] == {"pipelines": 2}
+        assert db.finished_keys() == {"a", "b"}
+        assert db.integrity() == "ok"
+
+
+def test_the_key_is_unique_in_the_schema_itself(tmp_path):
+    RunsDB(tmp_path / "r.db").insert(row("a"))
+    conn = sqlite3.connect(tmp_path / "r.db")
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    with pytest.raises(sqlite3.IntegrityError):
+        conn.execute("INSERT INTO runs (key, status, params) VALUES ('a', 'ok', '{}')")
+
+
+def test_retry_failed_deletes_only_failed_rows(tmp_path):
+    with RunsDB(tmp_path / "r.db") as db:
+        db.insert(row("a"))
+        db.insert(row("b", "error", error="boom"))
+        assert db.delete_failed() == 1
+        assert db.finished_keys() == {"a"}
+
+
+def test_a_file_that_is_not_a_database_is_bad_input(tmp_path):
+    bad = tmp_path / "r.db"
+    bad.write_text("not sqlite " * 100)
+    with pytest.raises(InputError, match="r.db: --db: cannot open database"):
+        RunsDB(bad)

@@ -1,0 +1,151 @@
+"""The fidelity-ladder trade: every rung and machine has a row; errors are the right pairs."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+
+import pytest
+
+import hwsim.fidelity as fidelity
+from hwsim.cli import main
+from hwsim.numerics import rmse
+from hwsim.scene import ViewSpec
+from hwsim.trade import ladder_cases, ladder_trade, write_ladder_trade
+from hwsim.trade.ladder import TradeCase, pareto_front
+
+pytestmark = pytest.mark.model
+
+ARCHS = ["volumepro500", "vizard2"]
+
+
+@pytest.fixture(scope="module")
+def cases():
+    return [c for c in ladder_cases(image=20, size=20) if c.label in ("head", "ball")]
+
+
+@pytest.fixture(scope="module")
+def rows(cases):
+    return ladder_trade(cases, ARCHS)
+
+
+def pick(rows, scene, arch, rung):
+    (row,) = [r for r in rows if (r["scene"], r["arch"], r["rung"]) == (scene, arch, rung)]
+    return row
+
+
+def test_every_rung_of_every_machine_has_a_row_and_missing_rungs_say_so(rows):
+    for scene in ("head", "ball"):
+        assert pick(rows, scene, "ideal", "golden")["status"] == "ok"
+        for arch in ARCHS:
+            for rung in fidelity.FIDELITIES:
+                row = pick(rows, scene, arch, rung)
+                if rung in fidelity.AVAILABLE_FIDELITIES:
+                    assert row["status"] == "ok" and row["wall_seconds"] > 0
+                    assert row["samples"] > 0
+                else:
+                    assert row["status"] == "not available"
+                    assert row["wall_seconds"] is None and row["numerical_rmse"] is None
+
+
+def test_numerical_and_algorithmic_errors_compare_the_documented_pairs(cases, rows):
+    head = cases[[c.label for c in cases].index("head")]
+    ideal = fidelity.render(head.scene, fidelity="golden", volume=head.volume).image
+    for arch in ARCHS:
+        golden = fidelity.render(head.scene, fidelity="golden", arch=arch, volume=head.volume)
+        fixed = fidelity.render(head.scene, fidelity="functional", arch=arch, volume=head.volume)
+        row = pick(rows, "head", arch, "functional")
+        assert row["numerical_rmse"] == pytest.approx(rmse(golden.image, fixed.image), rel=1e-12)
+        assert row["algorithmic_rmse"] == pytest.approx(rmse(ideal, golden.image), rel=1e-12)
+        assert row["total_rmse"] == pytest.approx(rmse(ideal, fixed.image), rel=1e-12)
+        assert row["cycles"] == fixed.cycles
+        assert row["cycle_reference"] == "cycle rung not available"
+        assert pick(rows, "head", arch, "golden")["numerical_rmse"] is None  # it is the reference
+    # VIZARD II casts the ideal rays; VolumePro 500's shear-warp resamples them.
+    assert pick(rows, "head", "vizard2", "golden")["algorithmic_rmse"] == 0.0
+    assert pick(rows, "head", "volumepro500", "golden")["algorithmic_rmse"] > 1e-3
+
+
+def test_elision_saving_is_the_share_of_units_the_scene_does_not_need(rows):
+    head, ball = (
+        pick(rows, "head", "volumepro500", "functional"),
+        pick(rows, "ball", "volumepro500", "functional"),
+    )
+    assert head["elided_units"] == ["crop"] and head["elision_saving"] == pytest.approx(1 / 6)
+    # X-ray: no gradient, classifier, shader or crop unit
+    assert ball["elision_saving"] == pytest.approx(4 / 6)
+
+
+def test_cycle_error_is_measured_against_the_cycle_rung_when_it_runs(cases, monkeypatch):
+    """A stand-in cycle rung (functional image, 10% more cycles) exercises the column the
+    real cycle rung fills: the functional estimate is then 1/1.1 - 1 off."""
+    real_render = fidelity.render
+
+    def render(scene, *, fidelity="golden", **kw):
+        if fidelity == "cycle":
+            run = real_render(scene, fidelity="functional", **kw)
+            return dataclasses.replace(run, fidelity="cycle", cycles=round(run.cycles * 1.1))
+        return real_render(scene, fidelity=fidelity, **kw)
+
+    monkeypatch.setattr(fidelity, "AVAILABLE_FIDELITIES", ("golden", "functional", "cycle"))
+    monkeypatch.setattr(fidelity, "render", render)
+    rows = ladder_trade(cases[:1], ["volumepro500"], ["golden", "functional", "cycle"])
+    fun, cyc = (
+        pick(rows, "head", "volumepro500", "functional"),
+        pick(rows, "head", "volumepro500", "cycle"),
+    )
+    assert cyc["cycle_error"] == 0.0
+    assert fun["cycle_error"] == pytest.approx(fun["cycles"] / cyc["cycles"] - 1)
+    assert cyc["cycles"] == round(fun["cycles"] * 1.1) and fun["cycle_error"] < 0
+
+
+def test_a_machine_that_cannot_render_the_scene_is_recorded_not_fatal(cases):
+    head = cases[0]
+    persp = dataclasses.replace(head.scene.view, projection="perspective")
+    case = TradeCase("persp", head.scene.replace(view=persp), head.volume)
+    rows = ladder_trade([case], ARCHS, ["golden", "functional"])
+    assert pick(rows, "persp", "volumepro500", "functional")["status"] == "unsupported"
+    assert "parallel projection only" in pick(rows, "persp", "volumepro500", "golden")["note"]
+    assert pick(rows, "persp", "vizard2", "functional")["status"] == "ok"
+
+
+def test_pareto_front_keeps_only_non_dominated_points():
+    pts = [(1.0, 5.0), (2.0, 6.0), (3.0, 1.0), (0.5, 9.0), (4.0, 1.0)]
+    assert pareto_front(pts) == [(0.5, 9.0), (1.0, 5.0), (3.0, 1.0)]
+
+
+def test_files_csv_json_and_plot(rows, tmp_path):
+    paths = write_ladder_trade(rows, tmp_path)
+    assert paths["png"].read_bytes()[:4] == b"\x89PNG"
+    with open(paths["csv"]) as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == len(rows) and {"rung", "numerical_psnr_db", "cycle_error"} <= set(table[0])
+    data = json.loads(paths["json"].read_text())
+    assert len(data["rows"]) == len(rows)
+    exact = [r for r in data["rows"] if r["arch"] == "vizard2" and r["rung"] == "golden"]
+    assert exact and all(r["algorithmic_psnr_db"] is None for r in exact)  # inf -> null
+
+
+def test_cli_trade_on_the_real_ct(tmp_path, shared_data, capsys):
+    out = tmp_path / "t"
+    argv = ["trade", "--volume", str(shared_data / "ct_cranium.nrrd"), "--arch", "volumepro500"]
+    status = main([*argv, "--image", "24", "--size", "16", "--out", str(out)])
+    assert status == 0
+    rows = json.loads((out / "trade.json").read_text())["rows"]
+    ct = {r["rung"]: r for r in rows if r["scene"] == "ct_cranium" and r["arch"] == "volumepro500"}
+    assert set(ct) == set(fidelity.FIDELITIES)
+    assert ct["functional"]["status"] == "ok" and ct["functional"]["numerical_psnr_db"] > 30
+    assert "ct_cranium" in capsys.readouterr().out
+    assert (out / "trade.png").is_file()
+
+
+def test_cli_trade_rejects_bad_sizes(capsys):
+    assert main(["trade", "--size", "4", "--out", "x"]) == 2
+    assert "--size: 4 is out of range" in capsys.readouterr().err
+
+
+def test_ladder_cases_are_the_three_phantoms_plus_files(shared_data):
+    labels = [c.label for c in ladder_cases([str(shared_data / "mr_brainsmall.nrrd")], 16, 16)]
+    assert labels == ["marschner-lobb", "head", "ball", "mr_brainsmall"]
+    assert isinstance(ladder_cases((), 16, 16)[0].scene.view, ViewSpec)
