@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.numerics import max_abs_error, per_channel, psnr, rmse
 from hwsim.report.output import output_folder
 from hwsim.scene import Scene, ViewSpec, VolumeSpec, load_scene
@@ -160,6 +160,10 @@ def ladder_trade(
                     continue
                 try:
                     runs[rung] = render(case.scene, fidelity=rung, arch=arch, volume=case.volume)
+                except NotAvailableError as exc:  # the rung does not model this machine yet
+                    pending.append(_empty(case, arch, rung, "not available", note=exc.message))
+                    tick()
+                    continue
                 except InputError as exc:  # the machine refuses the scene, as the hardware did
                     pending.append(_empty(case, arch, rung, "unsupported", note=exc.message))
                     tick()
