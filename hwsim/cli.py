@@ -83,10 +83,12 @@ def build_parser() -> argparse.ArgumentParser:
         ("sweep", "design-space sweep"),
         ("report", "human report of runs"),
         ("bench", "speed of every rung"),
-        ("rtl", "Verilog and synthesis statistics"),
     ):
         p = sub.add_parser(name, help=f"{text} (not yet available)")
         p.add_argument("args", nargs=argparse.REMAINDER)
+    from rtl.cli import add_parser as add_rtl_parser
+
+    add_rtl_parser(sub)
     return parser
 
 
@@ -203,6 +205,13 @@ def _cmd_trade(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_rtl(args: argparse.Namespace) -> int:
+    from rtl.cli import run
+
+    with _progress_bar(args.quiet, "rtl build") as progress:
+        return run(args, progress)
+
+
 def _not_yet(args: argparse.Namespace) -> int:
     raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
 
@@ -216,7 +225,7 @@ _COMMANDS = {
     "sweep": _not_yet,
     "report": _not_yet,
     "bench": _not_yet,
-    "rtl": _not_yet,
+    "rtl": _cmd_rtl,
 }
 
 

@@ -89,6 +89,7 @@ class Shade(wiring.Component):
 
     def __init__(self, cfg: ShadeConfig = ShadeConfig(method="reflectance-map")):
         if cfg.method != "reflectance-map":
+            self._MustUse__silence = True  # never elaborated: no "created but never used"
             raise ValueError("rtl.shade implements method = 'reflectance-map'")
         self.cfg = cfg
         super().__init__(
