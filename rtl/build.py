@@ -43,17 +43,29 @@ def _registry() -> dict[str, tuple[type, dict, Callable]]:
 
     return {
         "skew": (SkewConfig, {}, lambda cfg: skew.Skew(cfg)),
-        "interp": (InterpConfig, {"voxel_bits": 12},
-                   lambda cfg, voxel_bits: interp.Interp(cfg, voxel_bits)),
-        "gradient": (GradientConfig, {"sample_bits": 16},
-                     lambda cfg, sample_bits: gradient.Gradient(cfg, sample_bits)),
-        "classify": (ClassifyConfig, {"voxel_bits": 12, "sample_frac_bits": 4},
-                     lambda cfg, voxel_bits, sample_frac_bits: classify.Classify(
-                         cfg, voxel_bits, sample_frac_bits)),
-        "shade": (ShadeConfig, {"method": "reflectance-map"},
-                  lambda cfg: shade.Shade(cfg)),
-        "composite": (CompositeConfig, {"sample_bits": 16},
-                      lambda cfg, sample_bits: composite.Composite(cfg, sample_bits)),
+        "interp": (
+            InterpConfig,
+            {"voxel_bits": 12},
+            lambda cfg, voxel_bits: interp.Interp(cfg, voxel_bits),
+        ),
+        "gradient": (
+            GradientConfig,
+            {"sample_bits": 16},
+            lambda cfg, sample_bits: gradient.Gradient(cfg, sample_bits),
+        ),
+        "classify": (
+            ClassifyConfig,
+            {"voxel_bits": 12, "sample_frac_bits": 4},
+            lambda cfg, voxel_bits, sample_frac_bits: classify.Classify(
+                cfg, voxel_bits, sample_frac_bits
+            ),
+        ),
+        "shade": (ShadeConfig, {"method": "reflectance-map"}, lambda cfg: shade.Shade(cfg)),
+        "composite": (
+            CompositeConfig,
+            {"sample_bits": 16},
+            lambda cfg, sample_bits: composite.Composite(cfg, sample_bits),
+        ),
     }
 
 
@@ -85,8 +97,9 @@ def parse_settings(items: list[str]) -> dict[str, dict[str, int | str]]:
                 raise InputError(f"{text!r} is not an integer", source="--set", key=key) from None
             lo, hi = _EXTRA_RANGES.get(name, (None, None))
             if lo is not None and not lo <= value <= hi:
-                raise InputError(f"{value} is out of range", source="--set", key=key,
-                                 allowed=f"{lo} .. {hi}")
+                raise InputError(
+                    f"{value} is out of range", source="--set", key=key, allowed=f"{lo} .. {hi}"
+                )
         else:
             value = text
         out.setdefault(unit, {})[name] = value
@@ -144,8 +157,9 @@ def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
     )
     with tempfile.TemporaryDirectory(prefix="hwsim-synth-") as tmp:
         Path(tmp, "top.v").write_text(_MEMORY_INIT.sub(r"\1", verilog))
-        done = subprocess.run([_yosys(), "-q", "-p", script], cwd=tmp, capture_output=True,
-                              text=True, check=False)
+        done = subprocess.run(
+            [_yosys(), "-q", "-p", script], cwd=tmp, capture_output=True, text=True, check=False
+        )
         if done.returncode != 0:
             raise HwsimError(f"yosys failed on {top}: {done.stderr.strip()[-500:]}")
         stat = json.loads(Path(tmp, "stat.json").read_text())
@@ -161,16 +175,28 @@ def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
     }
 
 
-def build(units: list[str], out: Path, settings: dict[str, dict], synth: bool = True,
-          abc: bool = False, progress: Callable[[int, int], None] | None = None) -> dict:
+def build(
+    units: list[str],
+    out: Path,
+    settings: dict[str, dict],
+    synth: bool = True,
+    abc: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict:
     """Write ``out/<unit>.v`` for each unit and, with ``synth``, ``out/synth.json``
     (schema 1: per unit its resolved parameters, LATENCY, II, ``cells``,
     ``flip_flops``, ``cells_by_type``, ``memories``, ``memory_bits``)."""
     from rtl import classify, composite, gradient, interp, shade, skew
     from rtl.export import to_verilog
 
-    modules = {"skew": skew, "interp": interp, "gradient": gradient, "classify": classify,
-               "shade": shade, "composite": composite}
+    modules = {
+        "skew": skew,
+        "interp": interp,
+        "gradient": gradient,
+        "classify": classify,
+        "shade": shade,
+        "composite": composite,
+    }
     out.mkdir(parents=True, exist_ok=True)
     flow = "yosys generic: techmap" + (" + abc -fast to 2-input gates" if abc else " gates")
     report = {"schema": 1, "flow": flow, "units": {}}
@@ -178,8 +204,12 @@ def build(units: list[str], out: Path, settings: dict[str, dict], synth: bool = 
         component, params = build_unit(unit, settings.get(unit))
         text = to_verilog(component, unit)
         (out / f"{unit}.v").write_text(text)
-        entry = {"params": params, "latency": modules[unit].LATENCY, "ii": modules[unit].II,
-                 "verilog": f"{unit}.v"}
+        entry = {
+            "params": params,
+            "latency": modules[unit].LATENCY,
+            "ii": modules[unit].II,
+            "verilog": f"{unit}.v",
+        }
         if synth:
             entry.update(synthesize(text, unit, abc))
         report["units"][unit] = entry

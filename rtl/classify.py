@@ -39,12 +39,16 @@ GM_SCALE_BITS = 24  # models.units.classify._GM_SCALE_BITS
 def input_layout(sample_bits: int):
     """``sample`` (``B + S`` bits) and ``magnitude`` (``floor(|g|)``, ``B + S + 3`` bits,
     the gradient unit's output)."""
-    return data.StructLayout({"sample": unsigned(sample_bits), "magnitude": unsigned(sample_bits + 3)})
+    return data.StructLayout(
+        {"sample": unsigned(sample_bits), "magnitude": unsigned(sample_bits + 3)}
+    )
 
 
 def output_layout():
     """``rgb[3]`` and ``alpha`` in UQ1.12."""
-    return data.StructLayout({"rgb": data.ArrayLayout(unsigned(ONE_BITS), 3), "alpha": unsigned(ONE_BITS)})
+    return data.StructLayout(
+        {"rgb": data.ArrayLayout(unsigned(ONE_BITS), 3), "alpha": unsigned(ONE_BITS)}
+    )
 
 
 def entry_bits(cfg: ClassifyConfig) -> int:
@@ -91,8 +95,13 @@ class Classify(wiring.Component):
         Multiply alpha by the magnitude table.
     """
 
-    def __init__(self, cfg: ClassifyConfig = ClassifyConfig(), voxel_bits: int = 12,
-                 sample_frac_bits: int = 4):
+    def __init__(
+        self,
+        cfg: ClassifyConfig | None = None,
+        voxel_bits: int = 12,
+        sample_frac_bits: int = 4,
+    ):
+        cfg = cfg if cfg is not None else ClassifyConfig()
         self.cfg, self.voxel_bits, self.sample_frac_bits = cfg, voxel_bits, sample_frac_bits
         self.sample_bits = voxel_bits + sample_frac_bits
         super().__init__(
@@ -145,6 +154,8 @@ class Classify(wiring.Component):
         m.d.comb += alpha.eq(_expand(entry[3 * c : 3 * c + a], a))
         modulated = round_shift(alpha * gm_rd.data, 12, "nearest-up")
         m.d.comb += out.alpha.eq(
-            pipe.register(Mux(self.modulate, modulated, alpha), name="alpha", shape=unsigned(ONE_BITS))
+            pipe.register(
+                Mux(self.modulate, modulated, alpha), name="alpha", shape=unsigned(ONE_BITS)
+            )
         )
         return m

@@ -160,4 +160,3 @@ def divide_by_constant(value, divisor: int, value_bits: int) -> Value:
     k = value_bits + (divisor - 1).bit_length()
     magic = -(-(1 << k) // divisor)
     return (value * magic) >> k
-

@@ -94,7 +94,8 @@ class Composite(wiring.Component):
         0 when the threshold is >= 1.0 (ERT off).
     """
 
-    def __init__(self, cfg: CompositeConfig = CompositeConfig(), sample_bits: int = 16):
+    def __init__(self, cfg: CompositeConfig | None = None, sample_bits: int = 16):
+        cfg = cfg if cfg is not None else CompositeConfig()
         self.cfg, self.sample_bits = cfg, sample_bits
         super().__init__(
             {
@@ -131,11 +132,16 @@ class Composite(wiring.Component):
         ]
         acc1 = [pipe.register(payload.acc[k], name=f"acc1_{k}") for k in range(4)]
         rgb1 = [
-            pipe.register(Mux(payload.rgb[k] > ONE_A, ONE_A, payload.rgb[k]), name=f"rgb1_{k}",
-                          shape=unsigned(ALPHA_BITS + 1))
+            pipe.register(
+                Mux(payload.rgb[k] > ONE_A, ONE_A, payload.rgb[k]),
+                name=f"rgb1_{k}",
+                shape=unsigned(ALPHA_BITS + 1),
+            )
             for k in range(3)
         ]
-        mip1 = pipe.register(Mux(payload.sample > payload.mip, payload.sample, payload.mip), name="mip1")
+        mip1 = pipe.register(
+            Mux(payload.sample > payload.mip, payload.sample, payload.mip), name="mip1"
+        )
 
         # Stage 2: w = round((1 - A) a').
         w = round_shift((one - acc1[3]) * rd.data, ALPHA_BITS, "nearest-up")

@@ -28,7 +28,7 @@ from amaranth.lib.wiring import In, Out
 
 from models.units import gradient as model
 from models.units.gradient import GradientConfig
-from rtl.common import StallingPipeline, bit_length, divide_bounded, isqrt, round_shift
+from rtl.common import StallingPipeline, divide_bounded, isqrt, round_shift
 
 __all__ = ["Gradient", "LATENCY", "II", "input_layout", "output_layout", "RATIO_BITS"]
 
@@ -49,7 +49,9 @@ def input_layout(cfg: GradientConfig, sample_bits: int):
     z)`` order; ``"voxel"``: ``diff[3]`` signed interpolated voxel differences."""
     if cfg.source == "sample":
         s = unsigned(sample_bits)
-        return data.StructLayout({"ahead": data.ArrayLayout(s, 3), "behind": data.ArrayLayout(s, 3)})
+        return data.StructLayout(
+            {"ahead": data.ArrayLayout(s, 3), "behind": data.ArrayLayout(s, 3)}
+        )
     return data.StructLayout({"diff": data.ArrayLayout(signed(_diff_bits(sample_bits)), 3)})
 
 
@@ -83,7 +85,8 @@ class Gradient(wiring.Component):
         (4096 on isotropic data); static during a pass.
     """
 
-    def __init__(self, cfg: GradientConfig = GradientConfig(), sample_bits: int = 16):
+    def __init__(self, cfg: GradientConfig | None = None, sample_bits: int = 16):
+        cfg = cfg if cfg is not None else GradientConfig()
         self.cfg, self.sample_bits = cfg, sample_bits
         super().__init__(
             {
@@ -125,7 +128,10 @@ class Gradient(wiring.Component):
         s = Signal(s_bits, name="s")
         m.d.comb += s.eq(s0 << (shift << 1))
         root = isqrt(m, s, s_bits, name="root")
-        gs = [pipe.register(g[a] << shift, name=f"gs{a}", shape=signed(gbits + f + 2)) for a in range(3)]
+        gs = [
+            pipe.register(g[a] << shift, name=f"gs{a}", shape=signed(gbits + f + 2))
+            for a in range(3)
+        ]
         m_reg = pipe.register(root, name="m")
         shift_reg = pipe.register(shift, name="shift_reg")
         zero = pipe.register(s0 == 0, name="zero")
@@ -144,6 +150,10 @@ class Gradient(wiring.Component):
             n = Signal(signed(f + 4), name=f"n{a}")
             m.d.comb += n.eq(Mux(negative, -q, q))
             clipped = Mux(zero, 0, Mux(n > limit, limit, Mux(n < -limit, -limit, n)))
-            m.d.comb += out.normal[a].eq(pipe.register(clipped, name=f"normal{a}", shape=signed(f + 2)))
-        m.d.comb += out.magnitude.eq(pipe.register(m_reg >> shift_reg, name="magnitude", shape=out.magnitude.shape()))
+            m.d.comb += out.normal[a].eq(
+                pipe.register(clipped, name=f"normal{a}", shape=signed(f + 2))
+            )
+        m.d.comb += out.magnitude.eq(
+            pipe.register(m_reg >> shift_reg, name="magnitude", shape=out.magnitude.shape())
+        )
         return m

@@ -10,7 +10,7 @@ bits), four x lerps, two y lerps, one z lerp.  ``lerp(a, b, f) = a + round((b - 
 
 from __future__ import annotations
 
-from amaranth import Module, Signal, signed, unsigned
+from amaranth import Module, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -56,8 +56,10 @@ class Interp(wiring.Component):
         Two's-complement voxels (gradient differences at voxels).
     """
 
-    def __init__(self, cfg: InterpConfig = InterpConfig(), voxel_bits: int = 12,
-                 signed_input: bool = False):
+    def __init__(
+        self, cfg: InterpConfig | None = None, voxel_bits: int = 12, signed_input: bool = False
+    ):
+        cfg = cfg if cfg is not None else InterpConfig()
         self.cfg, self.voxel_bits, self.signed_input = cfg, voxel_bits, signed_input
         super().__init__(
             {
@@ -80,10 +82,14 @@ class Interp(wiring.Component):
             return a + round_shift((b - a) * f, w, cfg.rounding)
 
         # The fractions travel with their samples, one register per stage.
-        x = [pipe.register(lerp(v[c], v[c + 1], fx), name=f"x{c}", shape=wide) for c in (0, 2, 4, 6)]
+        x = [
+            pipe.register(lerp(v[c], v[c + 1], fx), name=f"x{c}", shape=wide) for c in (0, 2, 4, 6)
+        ]
         fy2, fz2 = pipe.register(fy, name="fy2"), pipe.register(fz, name="fz2")
-        y = [pipe.register(lerp(x[0], x[1], fy2), name="y0", shape=wide),
-             pipe.register(lerp(x[2], x[3], fy2), name="y1", shape=wide)]
+        y = [
+            pipe.register(lerp(x[0], x[1], fy2), name="y0", shape=wide),
+            pipe.register(lerp(x[2], x[3], fy2), name="y1", shape=wide),
+        ]
         fz3 = pipe.register(fz2, name="fz3")
         z = pipe.register(lerp(y[0], y[1], fz3), name="z", shape=wide)
         m.d.comb += self.o.payload.sample.eq(z)

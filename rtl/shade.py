@@ -64,7 +64,11 @@ def map_entries(cfg: ShadeConfig) -> int:
 def load_layout(cfg: ShadeConfig):
     """``table`` (0 diffuse, 1 specular), ``addr``, ``data`` (UQ8.12)."""
     return data.StructLayout(
-        {"table": unsigned(1), "addr": unsigned(bit_length(map_entries(cfg) - 1)), "data": unsigned(MAP_BITS)}
+        {
+            "table": unsigned(1),
+            "addr": unsigned(bit_length(map_entries(cfg) - 1)),
+            "data": unsigned(MAP_BITS),
+        }
     )
 
 
@@ -87,7 +91,8 @@ class Shade(wiring.Component):
         Ambient coefficient, UQ4.8.
     """
 
-    def __init__(self, cfg: ShadeConfig = ShadeConfig(method="reflectance-map")):
+    def __init__(self, cfg: ShadeConfig | None = None):
+        cfg = cfg if cfg is not None else ShadeConfig(method="reflectance-map")
         if cfg.method != "reflectance-map":
             self._MustUse__silence = True  # never elaborated: no "created but never used"
             raise ValueError("rtl.shade implements method = 'reflectance-map'")
@@ -143,7 +148,9 @@ class Shade(wiring.Component):
             q = divide_bounded(m, num, safe << 1, qbits, name=f"{name}_div")
             cells.append(Mux(q > r - 1, r - 1, q))
         index = Mux(major1 == 0, 6 * r * r, (((axis1 << 1) | sign1) * r + cells[0]) * r + cells[1])
-        index2 = pipe.register(index, name="cell", shape=unsigned(bit_length(map_entries(self.cfg) - 1)))
+        index2 = pipe.register(
+            index, name="cell", shape=unsigned(bit_length(map_entries(self.cfg) - 1))
+        )
         rgb2 = [pipe.register(rgb1[k], name=f"rgb2_{k}") for k in range(3)]
 
         # Stage 3: map reads.
@@ -171,5 +178,7 @@ class Shade(wiring.Component):
                 + specular
             )
             out = Mux(lit > ONE, ONE, lit)
-            m.d.comb += self.o.payload.rgb[k].eq(pipe.register(out, name=f"lit{k}", shape=unsigned(ONE_BITS)))
+            m.d.comb += self.o.payload.rgb[k].eq(
+                pipe.register(out, name=f"lit{k}", shape=unsigned(ONE_BITS))
+            )
         return m

@@ -76,7 +76,8 @@ class Skew(wiring.Component):
         Voxels per axis of the volume (static during a pass, ``1 .. max_size``).
     """
 
-    def __init__(self, cfg: SkewConfig = SkewConfig()):
+    def __init__(self, cfg: SkewConfig | None = None):
+        cfg = cfg if cfg is not None else SkewConfig()
         self.cfg = cfg
         super().__init__(
             {
@@ -135,5 +136,7 @@ class Skew(wiring.Component):
             "vp_address": (div(lb, mk) << 3) | offset,
         }
         for name, value in fields.items():
-            m.d.comb += getattr(out, name).eq(pipe.register(value, name=name, shape=getattr(out, name).shape()))
+            m.d.comb += getattr(out, name).eq(
+                pipe.register(value, name=name, shape=getattr(out, name).shape())
+            )
         return m

@@ -16,10 +16,9 @@ import os
 
 import cocotb
 import numpy as np
+from amaranth_bench import check_outputs
 from cocotb.clock import Clock
 from cocotb.triggers import ReadOnly, RisingEdge
-
-from amaranth_bench import check_outputs
 from stream_bench import PHASES, StreamBench, pack
 from unit_cases import make_case
 
@@ -72,8 +71,15 @@ async def unit_matches_model(dut):
         bench.check(case.latency, idle, stall)
         check_outputs(case, stim, bench.outputs)  # model -> checker
         lat = np.array(bench.out_cycles) - np.array(bench.in_cycles)
-        summary.append({"idle": idle, "stall": stall, "vectors": len(bench.words),
-                        "cycles": bench.cycle, "latency_min": int(lat.min()),
-                        "latency_max": int(lat.max())})
+        summary.append(
+            {
+                "idle": idle,
+                "stall": stall,
+                "vectors": len(bench.words),
+                "cycles": bench.cycle,
+                "latency_min": int(lat.min()),
+                "latency_max": int(lat.max()),
+            }
+        )
     with open(os.environ["HWSIM_COSIM_SUMMARY"], "w") as f:
         json.dump({"unit": unit, "declared_latency": case.latency, "phases": summary}, f)

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from unit_cases import UNITS, make_case
 
 REPO = Path(__file__).resolve().parents[2]
@@ -72,8 +71,11 @@ def test_unit_on_simulator_equals_model(unit: str, sim: str) -> None:
         build_dir=build_dir,
         test_dir=build_dir,
         results_xml=str(results),
-        extra_env={"HWSIM_COSIM_UNIT": unit, "HWSIM_COSIM_COUNT": str(COUNT),
-                   "HWSIM_COSIM_SUMMARY": str(summary)},
+        extra_env={
+            "HWSIM_COSIM_UNIT": unit,
+            "HWSIM_COSIM_COUNT": str(COUNT),
+            "HWSIM_COSIM_SUMMARY": str(summary),
+        },
     )
     tests, failed = get_results(results)
     assert (tests, failed) == (1, 0)

@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 from amaranth.hdl import Value
 from amaranth.sim import Simulator
-
 from stream_bench import PHASES, StreamBench, pack, unpack
 
 __all__ = ["run_case"]
@@ -21,7 +20,9 @@ def run_case(case, count: int, seed: int = 1, phases=PHASES) -> dict:
     plans = []
     for p, (idle, stall) in enumerate(phases):
         stim = case.stimulus(rng, count)
-        plans.append((idle, stall, stim, StreamBench(pack(case.in_layout, stim), idle, stall, seed + p)))
+        plans.append(
+            (idle, stall, stim, StreamBench(pack(case.in_layout, stim), idle, stall, seed + p))
+        )
     i_payload, o_payload = Value.cast(dut.i.payload), Value.cast(dut.o.payload)
 
     async def testbench(ctx):

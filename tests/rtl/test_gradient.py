@@ -22,8 +22,12 @@ def test_latency_and_interval_are_the_models():
     [
         (GradientConfig(), 16, (1.0, 1.0, 1.0)),  # isotropic: to_world is the identity
         (GradientConfig(normal_frac_bits=6), 12, (1.0, 0.7, 1.3)),
+        (GradientConfig(source="voxel", normal_frac_bits=12), 12, (0.5, 1.0, 1.0)),
     ],
 )
 def test_normals_and_magnitude_equal_the_model(cfg, sample_bits, spacing):
-    run_case(make_case("gradient", cfg=cfg, sample_bits=sample_bits, spacing_zyx=spacing),
-             count=60, phases=((0.0, 0.0), (0.3, 0.3)))
+    run_case(
+        make_case("gradient", cfg=cfg, sample_bits=sample_bits, spacing_zyx=spacing),
+        count=60,
+        phases=((0.0, 0.0), (0.3, 0.3)),
+    )

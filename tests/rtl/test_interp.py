@@ -27,3 +27,10 @@ def test_latency_and_interval_are_the_models():
 )
 def test_samples_equal_the_model(cfg, voxel_bits):
     run_case(make_case("interp", cfg=cfg, voxel_bits=voxel_bits), count=300)
+
+
+@pytest.mark.parametrize("rounding", ["nearest-up", "nearest-even", "truncate", "floor"])
+def test_signed_voxel_differences_equal_the_model(rounding):
+    """Voxel-gradient source: signed B + 2-bit differences through the same lerps."""
+    cfg = InterpConfig(rounding=rounding)
+    run_case(make_case("interp", cfg=cfg, voxel_bits=14, signed_input=True), count=200)

@@ -64,7 +64,10 @@ def test_verilog_only_needs_no_yosys(tmp_path):
     ("argv", "message"),
     [
         (["rtl", "build", "alu"], "UNIT: unknown unit 'alu' (allowed: all, skew"),
-        (["rtl", "build", "interp", "--set", "interp.weight=6"], "--set: interp.weight: unknown key"),
+        (
+            ["rtl", "build", "interp", "--set", "interp.weight=6"],
+            "--set: interp.weight: unknown key",
+        ),
         (["rtl", "build", "interp", "--set", "interp.weight_bits=six"], "is not an integer"),
         (["rtl", "build", "interp", "--set", "interp.weight_bits=40"], "weight_bits 1..16"),
         (["rtl", "build", "interp", "--set", "interp.voxel_bits=0"], "(allowed: 1 .. 16)"),

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from stream_bench import pack
 
 from hwsim.numerics import SATURATIONS
 from models.units import classify as classify_model
@@ -22,7 +23,6 @@ from models.units import interp as interp_model
 from models.units import shade as shade_model
 from models.units import skew as skew_model
 from rtl import classify, composite, gradient, interp, shade, skew
-from stream_bench import pack
 
 __all__ = ["UNITS", "UnitCase", "make_case"]
 
@@ -90,26 +90,49 @@ def skew_case(cfg=None, n: int = 200) -> UnitCase:
             "vp_address": va,
         }
 
-    return UnitCase("skew", lambda: skew.Skew(cfg), skew.LATENCY, skew.II,
-                    skew.input_layout(cfg), skew.output_layout(cfg), stimulus, model, {"n": n})
+    return UnitCase(
+        "skew",
+        lambda: skew.Skew(cfg),
+        skew.LATENCY,
+        skew.II,
+        skew.input_layout(cfg),
+        skew.output_layout(cfg),
+        stimulus,
+        model,
+        {"n": n},
+    )
 
 
 # ----------------------------------------------------------------------------- interp
 
 
-def interp_case(cfg=None, voxel_bits: int = 12) -> UnitCase:
+def interp_case(cfg=None, voxel_bits: int = 12, signed_input: bool = False) -> UnitCase:
     cfg = cfg or interp_model.InterpConfig()
-    top, one = (1 << voxel_bits) - 1, 1 << cfg.weight_bits
+    one = 1 << cfg.weight_bits
+    # Unsigned voxels 0 .. 2**B - 1, or signed (voxel differences) -2**(B-1) .. 2**(B-1) - 1.
+    bottom = -(1 << (voxel_bits - 1)) if signed_input else 0
+    top = (1 << (voxel_bits - 1)) - 1 if signed_input else (1 << voxel_bits) - 1
 
     def stimulus(rng, count):
-        rand = {"voxels": rng.integers(0, top + 1, (count, 8)),
-                "frac": rng.integers(0, one + 1, (count, 3))}
-        patterns = [np.zeros(8), np.full(8, top), np.tile([0, top], 4), np.tile([top, 0], 4),
-                    np.eye(8)[0] * top, np.eye(8)[7] * top]
+        rand = {
+            "voxels": rng.integers(bottom, top + 1, (count, 8)),
+            "frac": rng.integers(0, one + 1, (count, 3)),
+        }
+        patterns = [
+            np.zeros(8),
+            np.full(8, top),
+            np.full(8, bottom),
+            np.tile([bottom, top], 4),
+            np.tile([top, bottom], 4),
+            np.eye(8)[0] * top,
+            np.eye(8)[7] * top,
+        ]
         fracs = sorted({0, 1, one // 2, one - 1, one})
         combos = [(p, f) for p in patterns for f in itertools.product(fracs, repeat=3)]
-        extremes = {"voxels": np.array([p for p, _ in combos], dtype=np.int64),
-                    "frac": np.array([f for _, f in combos], dtype=np.int64)}
+        extremes = {
+            "voxels": np.array([p for p, _ in combos], dtype=np.int64),
+            "frac": np.array([f for _, f in combos], dtype=np.int64),
+        }
         return _concat(rand, extremes)
 
     def model(v):
@@ -119,9 +142,16 @@ def interp_case(cfg=None, voxel_bits: int = 12) -> UnitCase:
         taps = interp_model.InterpTaps(idx, v["frac"].T)
         return {"sample": interp_model.interpolate(flat, taps, cfg)}
 
-    return UnitCase("interp", lambda: interp.Interp(cfg, voxel_bits), interp.LATENCY, interp.II,
-                    interp.input_layout(cfg, voxel_bits), interp.output_layout(cfg, voxel_bits),
-                    stimulus, model)
+    return UnitCase(
+        "interp",
+        lambda: interp.Interp(cfg, voxel_bits, signed_input),
+        interp.LATENCY,
+        interp.II,
+        interp.input_layout(cfg, voxel_bits, signed_input),
+        interp.output_layout(cfg, voxel_bits, signed_input),
+        stimulus,
+        model,
+    )
 
 
 # --------------------------------------------------------------------------- gradient
@@ -129,8 +159,6 @@ def interp_case(cfg=None, voxel_bits: int = 12) -> UnitCase:
 
 def gradient_case(cfg=None, sample_bits: int = 16, spacing_zyx=(1.0, 0.7, 1.3)) -> UnitCase:
     cfg = cfg or gradient_model.GradientConfig()
-    if cfg.source != "sample":
-        raise ValueError("the gradient case drives six samples (source = 'sample')")
     top = (1 << sample_bits) - 1
     # The host constants are the model's own: to_world of 4096 along each axis.
     ratio = gradient_model.to_world(np.eye(3, dtype=np.int64) << 12, spacing_zyx, 0, cfg)
@@ -139,8 +167,9 @@ def gradient_case(cfg=None, sample_bits: int = 16, spacing_zyx=(1.0, 0.7, 1.3)) 
     def stimulus(rng, count):
         third = count // 3
         behind = rng.integers(0, top + 1, (count, 3))
-        spread = np.concatenate([np.full(third, top + 1), np.full(third, 1024),
-                                 np.full(count - 2 * third, 16)])[:, None]
+        spread = np.concatenate(
+            [np.full(third, top + 1), np.full(third, 1024), np.full(count - 2 * third, 16)]
+        )[:, None]
         delta = (rng.random((count, 3)) * 2 - 1) * spread
         ahead = np.clip(behind + delta.astype(np.int64), 0, top)
         rand = {"ahead": ahead, "behind": behind}
@@ -149,33 +178,57 @@ def gradient_case(cfg=None, sample_bits: int = 16, spacing_zyx=(1.0, 0.7, 1.3)) 
             d = np.array(d)
             rows.append((np.where(d > 0, d, 0), np.where(d < 0, -d, 0)))
         rows.append((np.full(3, top), np.full(3, top)))
-        extremes = {"ahead": np.array([a for a, _ in rows]), "behind": np.array([b for _, b in rows])}
-        return _concat(rand, extremes)
+        extremes = {
+            "ahead": np.array([a for a, _ in rows]),
+            "behind": np.array([b for _, b in rows]),
+        }
+        both = _concat(rand, extremes)
+        if cfg.source == "sample":
+            return both
+        # Interpolated voxel differences: central (v[i+1] - v[i-1]) or one-sided at an
+        # edge (2 (v[1] - v[0])), so up to twice a sample difference.
+        diff = both["ahead"] - both["behind"]
+        doubled = np.arange(diff.shape[0]) % 2 == 1
+        diff[doubled] *= 2
+        return {"diff": diff}
 
     def model(v):
-        g = v["ahead"] - v["behind"]
+        g = v["ahead"] - v["behind"] if cfg.source == "sample" else v["diff"]
         g = gradient_model.to_world(g, spacing_zyx, 0, cfg)
         return {"normal": gradient_model.normals(g, cfg), "magnitude": gradient_model.magnitude(g)}
 
     statics = {"ratio": sum(int(r) << (13 * k) for k, r in enumerate(ratio))}
-    return UnitCase("gradient", lambda: gradient.Gradient(cfg, sample_bits), gradient.LATENCY,
-                    gradient.II, gradient.input_layout(cfg, sample_bits),
-                    gradient.output_layout(cfg, sample_bits), stimulus, model, statics)
+    return UnitCase(
+        "gradient",
+        lambda: gradient.Gradient(cfg, sample_bits),
+        gradient.LATENCY,
+        gradient.II,
+        gradient.input_layout(cfg, sample_bits),
+        gradient.output_layout(cfg, sample_bits),
+        stimulus,
+        model,
+        statics,
+    )
 
 
 # --------------------------------------------------------------------------- classify
 
 
-def classify_case(cfg=None, voxel_bits: int = 12, sample_frac_bits: int = 4, modulate: bool = True,
-                  seed: int = 7) -> UnitCase:
+def classify_case(
+    cfg=None, voxel_bits: int = 12, sample_frac_bits: int = 4, modulate: bool = True, seed: int = 7
+) -> UnitCase:
     cfg = cfg or classify_model.ClassifyConfig()
     rng = np.random.default_rng(seed)
     cmax, amax = (1 << cfg.color_bits) - 1, (1 << cfg.alpha_bits) - 1
     rgb = rng.integers(0, cmax + 1, (cfg.entries, 3))
     alpha = rng.integers(0, amax + 1, cfg.entries)
     rgb[0], alpha[0], rgb[-1], alpha[-1] = 0, 0, cmax, amax  # black/clear and white/opaque ends
-    lut = classify_model.Lut(rgb, alpha, classify_model.expand(rgb, cfg.color_bits),
-                             classify_model.expand(alpha, cfg.alpha_bits))
+    lut = classify_model.Lut(
+        rgb,
+        alpha,
+        classify_model.expand(rgb, cfg.color_bits),
+        classify_model.expand(alpha, cfg.alpha_bits),
+    )
     table = rng.integers(0, 4097, cfg.gm_entries)
     table[0], table[-1] = 4096, 0
     scale = classify_model.gm_scale(1.0, 3000.0, cfg)
@@ -184,31 +237,66 @@ def classify_case(cfg=None, voxel_bits: int = 12, sample_frac_bits: int = 4, mod
     mag_top = (1 << (sample_bits + 3)) - 1
     c = cfg.color_bits
     ll = classify.load_layout(cfg)
-    loads = pack(ll, {"table": np.zeros(cfg.entries, np.int64), "addr": np.arange(cfg.entries),
-                      "data": rgb[:, 0] | rgb[:, 1] << c | rgb[:, 2] << 2 * c | alpha << 3 * c})
-    loads += pack(ll, {"table": np.ones(cfg.gm_entries, np.int64), "addr": np.arange(cfg.gm_entries),
-                       "data": table})
+    loads = pack(
+        ll,
+        {
+            "table": np.zeros(cfg.entries, np.int64),
+            "addr": np.arange(cfg.entries),
+            "data": rgb[:, 0] | rgb[:, 1] << c | rgb[:, 2] << 2 * c | alpha << 3 * c,
+        },
+    )
+    loads += pack(
+        ll,
+        {
+            "table": np.ones(cfg.gm_entries, np.int64),
+            "addr": np.arange(cfg.gm_entries),
+            "data": table,
+        },
+    )
 
     def stimulus(rng, count):
-        rand = {"sample": rng.integers(0, top + 1, count),
-                "magnitude": rng.integers(0, 4000, count)}
+        rand = {
+            "sample": rng.integers(0, top + 1, count),
+            "magnitude": rng.integers(0, 4000, count),
+        }
         step = 1 << max(sample_bits - (cfg.entries.bit_length() - 1), 0)
-        samples = [0, 1, top, top - 1, step // 2 - 1, step // 2, step // 2 + 1, step * 7 + step // 2]
+        samples = [
+            0,
+            1,
+            top,
+            top - 1,
+            step // 2 - 1,
+            step // 2,
+            step // 2 + 1,
+            step * 7 + step // 2,
+        ]
         mags = [0, 1, 3000, 2976, 2977, 4000, mag_top]
         combos = np.array(list(itertools.product(samples, mags)))
         return _concat(rand, {"sample": combos[:, 0], "magnitude": combos[:, 1]})
 
     def model(v):
-        rgb12, alpha12 = classify_model.classify(v["sample"], lut, voxel_bits, sample_frac_bits, cfg)
+        rgb12, alpha12 = classify_model.classify(
+            v["sample"], lut, voxel_bits, sample_frac_bits, cfg
+        )
         if modulate:
             alpha12 = classify_model.modulate(
-                alpha12, classify_model.gm_index(v["magnitude"], scale, cfg), table)
+                alpha12, classify_model.gm_index(v["magnitude"], scale, cfg), table
+            )
         return {"rgb": rgb12, "alpha": alpha12}
 
-    return UnitCase("classify", lambda: classify.Classify(cfg, voxel_bits, sample_frac_bits),
-                    classify.LATENCY, classify.II, classify.input_layout(sample_bits),
-                    classify.output_layout(), stimulus, model,
-                    {"gm_scale": scale, "modulate": int(modulate)}, ll, loads)
+    return UnitCase(
+        "classify",
+        lambda: classify.Classify(cfg, voxel_bits, sample_frac_bits),
+        classify.LATENCY,
+        classify.II,
+        classify.input_layout(sample_bits),
+        classify.output_layout(),
+        stimulus,
+        model,
+        {"gm_scale": scale, "modulate": int(modulate)},
+        ll,
+        loads,
+    )
 
 
 # ------------------------------------------------------------------------------ shade
@@ -233,34 +321,58 @@ def shade_case(cfg=None) -> UnitCase:
         unit = rng.normal(size=(half, 3))
         unit = np.floor(unit / np.linalg.norm(unit, axis=1, keepdims=True) * one_n + 0.5)
         anywhere = rng.integers(-one_n, one_n + 1, (count - half, 3))
-        rand = {"rgb": rng.integers(0, 4097, (count, 3)),
-                "normal": np.concatenate([unit.astype(np.int64), anywhere])}
+        rand = {
+            "rgb": rng.integers(0, 4097, (count, 3)),
+            "normal": np.concatenate([unit.astype(np.int64), anywhere]),
+        }
         normals = [(0, 0, 0)]
         for axis, sign in itertools.product(range(3), (1, -1)):
             e = [0, 0, 0]
             e[axis] = sign * one_n
             normals.append(tuple(e))
-        normals += [(one_n, one_n, 0), (0, -one_n, one_n), (one_n, one_n, one_n),
-                    (-one_n, -one_n, -one_n), (1, 0, 0), (0, 0, -1), (1, -1, 1),
-                    (one_n, -one_n, one_n - 1), (one_n - 1, one_n, -one_n)]
+        normals += [
+            (one_n, one_n, 0),
+            (0, -one_n, one_n),
+            (one_n, one_n, one_n),
+            (-one_n, -one_n, -one_n),
+            (1, 0, 0),
+            (0, 0, -1),
+            (1, -1, 1),
+            (one_n, -one_n, one_n - 1),
+            (one_n - 1, one_n, -one_n),
+        ]
         colours = [(0, 0, 0), (4096, 4096, 4096), (4096, 0, 2048)]
         combos = list(itertools.product(colours, normals))
-        extremes = {"rgb": np.array([c for c, _ in combos]), "normal": np.array([n for _, n in combos])}
+        extremes = {
+            "rgb": np.array([c for c, _ in combos]),
+            "normal": np.array([n for _, n in combos]),
+        }
         return _concat(rand, extremes)
 
     def model(v):
         return {"rgb": shade_model.shade(sh, v["rgb"], v["normal"])}
 
-    return UnitCase("shade", lambda: shade.Shade(cfg), shade.LATENCY, shade.II,
-                    shade.input_layout(cfg), shade.output_layout(), stimulus, model,
-                    {"ka": sh.ka}, ll, loads)
+    return UnitCase(
+        "shade",
+        lambda: shade.Shade(cfg),
+        shade.LATENCY,
+        shade.II,
+        shade.input_layout(cfg),
+        shade.output_layout(),
+        stimulus,
+        model,
+        {"ka": sh.ka},
+        ll,
+        loads,
+    )
 
 
 # -------------------------------------------------------------------------- composite
 
 
-def composite_case(cfg=None, sample_bits: int = 16, k: float = 1.7, threshold: float = 0.95
-                   ) -> UnitCase:
+def composite_case(
+    cfg=None, sample_bits: int = 16, k: float = 1.7, threshold: float = 0.95
+) -> UnitCase:
     cfg = cfg or composite_model.CompositeConfig()
     one = 1 << cfg.acc_frac_bits
     kq = int(cfg.ratio.quantize(k))
@@ -298,7 +410,9 @@ def composite_case(cfg=None, sample_bits: int = 16, k: float = 1.7, threshold: f
         n = v["alpha"].size
         acc = v["acc"].copy()
         rays = np.arange(n)
-        corrected = composite_model.correct_opacity(v["alpha"], kq / (1 << cfg.ratio_frac_bits), cfg)
+        corrected = composite_model.correct_opacity(
+            v["alpha"], kq / (1 << cfg.ratio_frac_bits), cfg
+        )
         composite_model.front_to_back(acc, rays, v["rgb"], corrected, cfg)
         term = composite_model.terminated(acc, threshold, cfg)
         mip = v["mip"].copy()
@@ -306,9 +420,19 @@ def composite_case(cfg=None, sample_bits: int = 16, k: float = 1.7, threshold: f
         return {"acc": acc, "mip": mip, "terminated": term.astype(np.int64)}
 
     statics = {"ert_threshold": thr if enable else 0, "ert_enable": int(enable)}
-    return UnitCase("composite", lambda: composite.Composite(cfg, sample_bits), composite.LATENCY,
-                    composite.II, composite.input_layout(cfg, sample_bits),
-                    composite.output_layout(cfg, sample_bits), stimulus, model, statics, ll, loads)
+    return UnitCase(
+        "composite",
+        lambda: composite.Composite(cfg, sample_bits),
+        composite.LATENCY,
+        composite.II,
+        composite.input_layout(cfg, sample_bits),
+        composite.output_layout(cfg, sample_bits),
+        stimulus,
+        model,
+        statics,
+        ll,
+        loads,
+    )
 
 
 _FACTORIES = {
