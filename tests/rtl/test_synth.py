@@ -40,10 +40,7 @@ def test_build_all_writes_verilog_and_cells_for_every_unit(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("unit", "key", "wide", "narrow"),
-    [
-        ("interp", "weight_bits", 8, 4),
-        ("composite", "acc_frac_bits", 24, 12),
-    ],
+    [("interp", "weight_bits", 8, 4), ("skew", "max_size", 1024, 64)],
 )
 def test_a_narrower_width_costs_fewer_cells(tmp_path, unit, key, wide, narrow):
     _require_yosys()
