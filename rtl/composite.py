@@ -43,8 +43,8 @@ TABLE_ENTRIES = ONE_A + 1
 def input_layout(cfg: CompositeConfig, sample_bits: int):
     """``acc[4]`` (premultiplied R, G, B and A, UQ1.F), ``rgb[3]`` and ``alpha`` (UQ1.12,
     13 bits: values above 1.0 saturate), ``mip`` and ``sample`` (raw ``B + S`` bits)."""
-    acc = unsigned(cfg.acc_frac_bits + 1)
-    one = unsigned(ALPHA_BITS + 1)
+    acc = unsigned(cfg.acc.width)  # composite.acc UQ1.F
+    one = unsigned(model.ALPHA.width)  # composite.alpha UQ1.12
     return data.StructLayout(
         {
             "acc": data.ArrayLayout(acc, 4),
@@ -60,7 +60,7 @@ def output_layout(cfg: CompositeConfig, sample_bits: int):
     """Updated ``acc[4]``, ``mip``, and the ``terminated`` flag."""
     return data.StructLayout(
         {
-            "acc": data.ArrayLayout(unsigned(cfg.acc_frac_bits + 1), 4),
+            "acc": data.ArrayLayout(unsigned(cfg.acc.width), 4),
             "mip": unsigned(sample_bits),
             "terminated": unsigned(1),
         }

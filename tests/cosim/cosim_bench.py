@@ -68,7 +68,7 @@ async def unit_matches_model(dut):
             await RisingEdge(dut.clk)
             assert bench.cycle < limit, "unit stopped producing outputs"
         i_valid.value = 0
-        bench.check(case.latency, idle, stall)
+        bench.check(case.latency, idle, stall, case.ii)
         check_outputs(case, stim, bench.outputs)  # model -> checker
         lat = np.array(bench.out_cycles) - np.array(bench.in_cycles)
         summary.append(

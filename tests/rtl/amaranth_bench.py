@@ -57,7 +57,7 @@ def run_case(case, count: int, seed: int = 1, phases=PHASES) -> dict:
     sim.run()
     report = {}
     for idle, stall, stim, bench in plans:
-        bench.check(case.latency, idle, stall)
+        bench.check(case.latency, idle, stall, case.ii)
         check_outputs(case, stim, bench.outputs)
         report[(idle, stall)] = {"vectors": len(bench.words), "cycles": bench.cycle}
     return report
