@@ -60,7 +60,7 @@ def _registry() -> dict[str, tuple[type, dict, Callable]]:
                 cfg, voxel_bits, sample_frac_bits
             ),
         ),
-        "shade": (ShadeConfig, {"method": "reflectance-map"}, lambda cfg: shade.Shade(cfg)),
+        "shade": (ShadeConfig, {"lights": 1}, lambda cfg, lights: shade.Shade(cfg, lights)),
         "composite": (
             CompositeConfig,
             {"sample_bits": 16},
@@ -69,7 +69,12 @@ def _registry() -> dict[str, tuple[type, dict, Callable]]:
     }
 
 
-_EXTRA_RANGES = {"voxel_bits": (1, 16), "sample_bits": (2, 30), "sample_frac_bits": (0, 12)}
+_EXTRA_RANGES = {
+    "voxel_bits": (1, 16),
+    "sample_bits": (2, 30),
+    "sample_frac_bits": (0, 12),
+    "lights": (1, 8),
+}
 
 
 def parse_settings(items: list[str]) -> dict[str, dict[str, int | str]]:
@@ -112,7 +117,7 @@ def build_unit(unit: str, settings: dict[str, int | str] | None = None):
     settings = dict(settings or {})
     params = {k: settings.pop(k, v) for k, v in extra.items()}
     if unit == "shade":
-        settings["method"] = params.pop("method")
+        settings.setdefault("method", "reflectance-map")  # VolumePro 500's shader
     try:
         cfg = cls(**settings)
         component = factory(cfg, **params)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from unit_cases import UNITS, make_case
+from unit_cases import COSIM_CASES, make_case
 
 REPO = Path(__file__).resolve().parents[2]
 BUILD = REPO / "build" / "cosim"
@@ -41,7 +41,7 @@ def _write_if_changed(path: Path, text: str) -> None:
 
 
 @pytest.mark.parametrize("sim", ["icarus", "verilator"])
-@pytest.mark.parametrize("unit", UNITS)
+@pytest.mark.parametrize("unit", COSIM_CASES)
 def test_unit_on_simulator_equals_model(unit: str, sim: str) -> None:
     _require(sim)
     from cocotb_tools.check_results import get_results

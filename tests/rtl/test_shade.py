@@ -22,10 +22,22 @@ def test_latency_and_interval_are_the_models():
         ShadeConfig(method="reflectance-map", map_size=5, normal_frac_bits=12),
     ],
 )
-def test_colours_equal_the_model(cfg):
+def test_reflectance_map_colours_equal_the_model(cfg):
     run_case(make_case("shade", cfg=cfg), count=250)
 
 
-def test_phong_method_is_refused():
-    with pytest.raises(ValueError, match="reflectance-map"):
-        shade.Shade(ShadeConfig(method="phong"))
+@pytest.mark.parametrize(
+    ("cfg", "lights"),
+    [
+        (ShadeConfig(method="phong"), 2),
+        (ShadeConfig(method="phong", normal_frac_bits=5, spec_table_entries=64), 1),
+        (ShadeConfig(method="phong", normal_frac_bits=14, spec_table_entries=4096), 3),
+    ],
+)
+def test_phong_colours_equal_the_model(cfg, lights):
+    run_case(make_case("shade", cfg=cfg, lights=lights), count=250)
+
+
+def test_no_light_is_refused():
+    with pytest.raises(ValueError, match="lights"):
+        shade.Shade(ShadeConfig(method="phong"), lights=0)

@@ -24,9 +24,11 @@ from models.units import shade as shade_model
 from models.units import skew as skew_model
 from rtl import classify, composite, gradient, interp, shade, skew
 
-__all__ = ["UNITS", "UnitCase", "make_case"]
+__all__ = ["UNITS", "COSIM_CASES", "UnitCase", "make_case"]
 
 UNITS = ("skew", "interp", "gradient", "classify", "shade", "composite")
+#: What the cocotb tier runs: every unit at its default, plus the per-sample Phong shader.
+COSIM_CASES = (*UNITS, "shade_phong")
 
 
 @dataclass
@@ -302,18 +304,40 @@ def classify_case(
 # ------------------------------------------------------------------------------ shade
 
 
-def shade_case(cfg=None) -> UnitCase:
+def shade_case(cfg=None, lights: int = 2) -> UnitCase:
     cfg = cfg or shade_model.ShadeConfig(method="reflectance-map", map_size=16)
     f = cfg.normal_frac_bits
-    lights = [(np.array([0.3, 0.5, -0.8]), 1.0), (np.array([-0.6, 0.2, -0.77]), 0.6)]
-    sh = shade_model.setup(lights, np.array([0.0, 0.0, -1.0]), (0.15, 0.8, 0.5, 20.0), cfg)
-    diffuse, specular = sh.maps
-    if max(diffuse.max(), specular.max()) >= 1 << shade.MAP_BITS:
-        raise ValueError("map entry wider than MAP_BITS")
+    directions = [np.array([0.3, 0.5, -0.8]), np.array([-0.6, 0.2, -0.77]), np.array([0, 0, -1.0])]
+    light_list = [(directions[k % 3], 1.0 - 0.3 * k) for k in range(lights)]
+    sh = shade_model.setup(light_list, np.array([0.0, 0.0, -1.0]), (0.15, 0.8, 0.5, 20.0), cfg)
     ll = shade.load_layout(cfg)
-    k = diffuse.size
-    loads = pack(ll, {"table": np.zeros(k, np.int64), "addr": np.arange(k), "data": diffuse})
-    loads += pack(ll, {"table": np.ones(k, np.int64), "addr": np.arange(k), "data": specular})
+    statics = {"ka": sh.ka}
+    if cfg.method == "reflectance-map":
+        diffuse, specular = sh.maps
+        if max(diffuse.max(), specular.max()) >= 1 << shade.MAP_BITS:
+            raise ValueError("map entry wider than MAP_BITS")
+        k = diffuse.size
+        loads = pack(ll, {"table": np.zeros(k, np.int64), "addr": np.arange(k), "data": diffuse})
+        loads += pack(ll, {"table": np.ones(k, np.int64), "addr": np.arange(k), "data": specular})
+    else:
+        k = sh.spec.size
+        loads = pack(ll, {"table": np.zeros(k, np.int64), "addr": np.arange(k), "data": sh.spec})
+        vbits = f + 2
+
+        def vectors(v):
+            return sum(
+                (int(c) & ((1 << vbits) - 1)) << (vbits * i) for i, c in enumerate(v.ravel())
+            )
+
+        statics.update(
+            {
+                "light": vectors(sh.light),
+                "half": vectors(sh.half),
+                "intensity": sum(int(x) << (12 * i) for i, x in enumerate(sh.intensity)),
+                "kd": sh.kd,
+                "ks": sh.ks,
+            }
+        )
     one_n = 1 << f
 
     def stimulus(rng, count):
@@ -354,14 +378,14 @@ def shade_case(cfg=None) -> UnitCase:
 
     return UnitCase(
         "shade",
-        lambda: shade.Shade(cfg),
+        lambda: shade.Shade(cfg, lights),
         shade_model.LATENCY,
         shade_model.II,
         shade.input_layout(cfg),
         shade.output_layout(),
         stimulus,
         model,
-        {"ka": sh.ka},
+        statics,
         ll,
         loads,
     )
@@ -441,10 +465,12 @@ _FACTORIES = {
     "gradient": gradient_case,
     "classify": classify_case,
     "shade": shade_case,
+    "shade_phong": lambda **o: shade_case(cfg=shade_model.ShadeConfig(method="phong"), **o),
     "composite": composite_case,
 }
 
 
 def make_case(unit: str, **options) -> UnitCase:
-    """The case of ``unit`` (one of :data:`UNITS`) with its default or given options."""
+    """The case of ``unit`` (one of :data:`UNITS` or :data:`COSIM_CASES`) with its default
+    or given options."""
     return _FACTORIES[unit](**options)
