@@ -117,9 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--no-sweep", action="store_true", help="skip the 1 vs 2 worker sweep")
     b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
     b.add_argument("--quiet", action="store_true")
-    for name, text in (("rtl", "Verilog and synthesis statistics"),):
-        p = sub.add_parser(name, help=f"{text} (not yet available)")
-        p.add_argument("args", nargs=argparse.REMAINDER)
+    from rtl.cli import add_parser as add_rtl_parser
+
+    add_rtl_parser(sub)
     return parser
 
 
@@ -280,8 +280,11 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def _not_yet(args: argparse.Namespace) -> int:
-    raise NotAvailableError(f"'hwsim {args.command}' is not yet available", key=args.command)
+def _cmd_rtl(args: argparse.Namespace) -> int:
+    from rtl.cli import run
+
+    with _progress_bar(args.quiet, "rtl build") as progress:
+        return run(args, progress)
 
 
 _COMMANDS = {
@@ -293,7 +296,7 @@ _COMMANDS = {
     "sweep": _cmd_sweep,
     "report": _cmd_report,
     "bench": _cmd_bench,
-    "rtl": _not_yet,
+    "rtl": _cmd_rtl,
 }
 
 

@@ -1,0 +1,72 @@
+"""The ``hwsim rtl`` command: argument parser and runner (hooked into hwsim/cli.py)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from hwsim.errors import InputError
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub) -> None:
+    """Add ``rtl build [UNIT|all] --out DIR [--set UNIT.KEY=VALUE ...]``."""
+    from rtl.build import UNITS
+
+    r = sub.add_parser("rtl", help="Verilog and synthesis statistics of the RTL units")
+    actions = r.add_subparsers(dest="rtl_command", metavar="build", required=True)
+    b = actions.add_parser("build", help="write DIR/<unit>.v and DIR/synth.json")
+    b.add_argument(
+        "unit",
+        nargs="?",
+        default="all",
+        metavar="UNIT|all",
+        help=f"one of {', '.join(UNITS)}, or all (default)",
+    )
+    b.add_argument("--out", metavar="DIR", required=True)
+    b.add_argument(
+        "--set",
+        metavar="UNIT.KEY=VALUE",
+        action="append",
+        default=[],
+        help="a width or parameter of a unit, e.g. interp.weight_bits=6 (repeatable)",
+    )
+    b.add_argument("--no-synth", action="store_true", help="Verilog only, no Yosys statistics")
+    b.add_argument(
+        "--abc", action="store_true", help="map gates with ABC (slow on the gradient unit: minutes)"
+    )
+    b.add_argument("--quiet", action="store_true")
+
+
+def run(args: argparse.Namespace, progress=None) -> int:
+    """Build the requested units; print one line per unit."""
+    from rtl.build import UNITS, build, parse_settings
+
+    if args.unit != "all" and args.unit not in UNITS:
+        raise InputError(
+            f"unknown unit {args.unit!r}", key="UNIT", allowed="all, " + ", ".join(UNITS)
+        )
+    units = list(UNITS) if args.unit == "all" else [args.unit]
+    settings = parse_settings(args.set)
+    for unit in settings:
+        if unit not in units:
+            raise InputError(
+                f"--set names {unit}, which is not being built",
+                source="--set",
+                key=unit,
+                allowed=", ".join(units),
+            )
+    out = Path(args.out)
+    report = build(units, out, settings, synth=not args.no_synth, abc=args.abc, progress=progress)
+    if not args.quiet:
+        for unit, entry in report["units"].items():
+            stats = (
+                f"{entry['cells']:>7} cells {entry['flip_flops']:>5} flip-flops "
+                f"{entry['memory_bits']:>8} SRAM bits"
+                if "cells" in entry
+                else ""
+            )
+            print(f"{unit:<10} latency {entry['latency']}  {stats}")
+        print(f"wrote {out}/" + ("synth.json and " if not args.no_synth else "") + "<unit>.v")
+    return 0

@@ -1,0 +1,162 @@
+"""Shared RTL building blocks: the stalling pipeline, rounding shifts, exact integer square
+root and division, and constant division by a reciprocal multiply.
+
+# Ref: hwsim.numerics.round_shift (the rounding modes these shifts implement bit for bit);
+#      Granlund & Montgomery 1994, "Division by invariant integers using multiplication".
+
+Every unit is a pipeline of ``LATENCY`` register stages that advance together
+(``advance = ~out.valid | out.ready``): with the output accepted, it takes one payload per
+cycle (II = 1); with the output refused, every stage holds and ``in.ready`` drops, so
+nothing is lost.  ``in.ready`` is a combinational function of ``out.ready`` (no skid
+buffer): a pipeline top that chains units sees one ready path through them.
+"""
+
+from __future__ import annotations
+
+from amaranth import Cat, Const, Module, Mux, Signal, signed, unsigned
+from amaranth.hdl import Value
+from amaranth.lib import stream
+
+__all__ = [
+    "StallingPipeline",
+    "round_shift",
+    "isqrt",
+    "divide_bounded",
+    "divide_by_constant",
+    "clamp",
+    "bit_length",
+]
+
+
+def bit_length(n: int) -> int:
+    """Bits of a non-negative Python integer (at least 1)."""
+    return max(int(n).bit_length(), 1)
+
+
+class StallingPipeline:
+    """``latency`` register stages between ``i`` and ``o`` that advance together.
+
+    Parameters
+    ----------
+    m : Module
+    i, o : stream.Interface
+        The unit's input and output streams (``o.payload`` is driven by the caller from
+        the last stage).
+    latency : int
+        Register stages from input handshake to output valid (>= 1).
+    """
+
+    def __init__(self, m: Module, i: stream.Interface, o: stream.Interface, latency: int):
+        if latency < 1:
+            raise ValueError("latency must be >= 1")
+        self.m = m
+        self.advance = Signal(name="advance")
+        self.valid = [Signal(name=f"valid_{k}") for k in range(latency)]
+        m.d.comb += [
+            self.advance.eq(~self.valid[-1] | o.ready),
+            i.ready.eq(self.advance),
+            o.valid.eq(self.valid[-1]),
+        ]
+        with m.If(self.advance):
+            m.d.sync += self.valid[0].eq(i.valid)
+            for k in range(1, latency):
+                m.d.sync += self.valid[k].eq(self.valid[k - 1])
+
+    def register(self, value, *, name: str, shape=None) -> Signal:
+        """A stage register loaded with ``value`` whenever the pipeline advances."""
+        value = Value.cast(value)
+        reg = Signal(shape if shape is not None else value.shape(), name=name)
+        with self.m.If(self.advance):
+            self.m.d.sync += reg.eq(value)
+        return reg
+
+
+def round_shift(value, shift: int, rounding: str) -> Value:
+    """``value / 2**shift`` with ``rounding`` (``shift <= 0`` multiplies), exactly as
+    :func:`hwsim.numerics.round_shift` on the same integers."""
+    value = Value.cast(value)
+    if shift <= 0:
+        return value << (-shift)
+    if rounding == "floor":
+        return value >> shift
+    if rounding == "nearest-up":
+        return (value + (1 << (shift - 1))) >> shift
+    floor = value >> shift
+    rem = value[:shift]
+    if rounding == "truncate":
+        negative = value[-1] if value.shape().signed else Const(0, 1)
+        return floor + (negative & (rem != 0))
+    if rounding == "nearest-even":
+        half = 1 << (shift - 1)
+        return floor + ((rem > half) | ((rem == half) & floor[0]))
+    raise ValueError(f"unknown rounding {rounding!r}")
+
+
+def clamp(m: Module, value, lo: int, hi: int, *, name: str) -> Signal:
+    """``min(max(value, lo), hi)`` as a signal wide enough for ``[lo, hi]``."""
+    shape = signed(max(bit_length(hi), bit_length(-lo)) + 1) if lo < 0 else unsigned(bit_length(hi))
+    out = Signal(shape, name=name)
+    m.d.comb += out.eq(Mux(value < lo, lo, Mux(value > hi, hi, value)))
+    return out
+
+
+def isqrt(m: Module, value, width: int, *, name: str) -> Signal:
+    """``floor(sqrt(value))`` of an unsigned ``width``-bit value, one restoring step per
+    result bit, unrolled (combinational)."""
+    value = Value.cast(value)
+    rbits = (width + 1) // 2
+    rem = Const(0, rbits + 2)
+    root = Const(0, rbits)
+    for k in reversed(range(rbits)):
+        pair = value.as_unsigned()[2 * k : 2 * k + 2] if 2 * k < width else Const(0, 2)
+        shifted = Signal(rbits + 3, name=f"{name}_r{k}")
+        m.d.comb += shifted.eq((rem << 2) | pair)
+        trial = (root << 2) | 1
+        ge = shifted >= trial
+        next_rem = Signal(rbits + 2, name=f"{name}_rem{k}")
+        next_root = Signal(rbits, name=f"{name}_root{k}")
+        m.d.comb += [
+            next_rem.eq(Mux(ge, shifted - trial, shifted)),
+            next_root.eq((root << 1) | ge),
+        ]
+        rem, root = next_rem, next_root
+    out = Signal(rbits, name=name)
+    m.d.comb += out.eq(root)
+    return out
+
+
+def divide_bounded(m: Module, numerator, divisor, quotient_bits: int, *, name: str) -> Signal:
+    """``floor(numerator / divisor)`` of unsigned values known to satisfy
+    ``numerator < divisor * 2**quotient_bits`` (restoring division, unrolled, one step
+    per quotient bit).  A zero divisor gives an all-ones quotient."""
+    numerator, divisor = Value.cast(numerator), Value.cast(divisor)
+    dbits = divisor.shape().width
+    rem = Signal(dbits + 1, name=f"{name}_rem_init")
+    m.d.comb += rem.eq(numerator >> quotient_bits)
+    bits = []
+    for k in reversed(range(quotient_bits)):
+        shifted = Signal(dbits + 2, name=f"{name}_s{k}")
+        m.d.comb += shifted.eq((rem << 1) | numerator.as_unsigned()[k])
+        ge = Signal(name=f"{name}_q{k}")
+        m.d.comb += ge.eq(shifted >= divisor)
+        next_rem = Signal(dbits + 1, name=f"{name}_rem{k}")
+        m.d.comb += next_rem.eq(Mux(ge, shifted - divisor, shifted))
+        bits.append(ge)
+        rem = next_rem
+    out = Signal(quotient_bits, name=name)
+    m.d.comb += out.eq(Cat(*bits[::-1]))
+    return out
+
+
+def divide_by_constant(value, divisor: int, value_bits: int) -> Value:
+    """``floor(value / divisor)`` of an unsigned ``value_bits``-bit value by a reciprocal
+    multiply: ``(value * ceil(2**k / d)) >> k`` with ``k = value_bits + ceil(log2 d)``,
+    exact for every value below ``2**value_bits`` (Granlund & Montgomery, theorem 4.2)."""
+    if divisor < 1:
+        raise ValueError("divisor must be >= 1")
+    value = Value.cast(value)
+    if divisor & (divisor - 1) == 0:
+        return value >> (divisor.bit_length() - 1)
+    k = value_bits + (divisor - 1).bit_length()
+    magic = -(-(1 << k) // divisor)
+    return (value * magic) >> k

@@ -1,0 +1,96 @@
+"""Trilinear interpolator RTL: seven lerps, x then y then z, bit-exact with
+``models.units.interp.interpolate``.
+
+# Ref: architectures.md sections 1.3, 6.4 and 9.1 (TriLin); models/units/interp.py.
+
+Stages (``LATENCY = 4``, ``II = 1``): input register (voxels promoted by ``S`` fraction
+bits), four x lerps, two y lerps, one z lerp.  ``lerp(a, b, f) = a + round((b - a) f /
+2**W)`` with the config's rounding, as the model.
+"""
+
+from __future__ import annotations
+
+from amaranth import Module, signed, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from models.units import interp as model
+from models.units.interp import InterpConfig
+from rtl.common import StallingPipeline, round_shift
+
+__all__ = ["Interp", "LATENCY", "II", "input_layout", "output_layout"]
+
+LATENCY = model.LATENCY
+II = model.II
+
+
+def input_layout(cfg: InterpConfig, voxel_bits: int, signed_input: bool = False):
+    """``voxels[8]`` (corner ``c = 4 dz + 2 dy + dx``) and ``frac[3]`` (raw UQ1.W along
+    ``(z, y, x)``), as :class:`models.units.interp.InterpTaps` orders them."""
+    shape = signed(voxel_bits) if signed_input else unsigned(voxel_bits)
+    return data.StructLayout(
+        {
+            "voxels": data.ArrayLayout(shape, 8),
+            "frac": data.ArrayLayout(unsigned(cfg.weight.width), 3),
+        }
+    )
+
+
+def output_layout(cfg: InterpConfig, voxel_bits: int, signed_input: bool = False):
+    """``sample``: the voxel format plus ``S`` fraction bits (a lerp stays between its
+    ends, so no integer bit is added)."""
+    width = voxel_bits + cfg.sample_frac_bits
+    return data.StructLayout({"sample": signed(width) if signed_input else unsigned(width)})
+
+
+class Interp(wiring.Component):
+    """Trilinear interpolator.
+
+    Parameters
+    ----------
+    cfg : InterpConfig
+        Weight bits ``W``, sample fraction bits ``S``, rounding.
+    voxel_bits : int
+        Width of the voxels entering (``B``; ``B + 2`` signed for voxel differences).
+    signed_input : bool
+        Two's-complement voxels (gradient differences at voxels).
+    """
+
+    def __init__(
+        self, cfg: InterpConfig | None = None, voxel_bits: int = 12, signed_input: bool = False
+    ):
+        cfg = cfg if cfg is not None else InterpConfig()
+        self.cfg, self.voxel_bits, self.signed_input = cfg, voxel_bits, signed_input
+        super().__init__(
+            {
+                "i": In(stream.Signature(input_layout(cfg, voxel_bits, signed_input))),
+                "o": Out(stream.Signature(output_layout(cfg, voxel_bits, signed_input))),
+            }
+        )
+
+    def elaborate(self, platform):
+        m = Module()
+        cfg = self.cfg
+        pipe = StallingPipeline(m, self.i, self.o, LATENCY)
+        s, w = cfg.sample_frac_bits, cfg.weight_bits
+        wide = signed(self.voxel_bits + s + 1)
+        payload = self.i.payload
+        v = [pipe.register(payload.voxels[c] << s, name=f"v{c}", shape=wide) for c in range(8)]
+        fz, fy, fx = (pipe.register(payload.frac[k], name=f"f{k}") for k in range(3))
+
+        def lerp(a, b, f):
+            return a + round_shift((b - a) * f, w, cfg.rounding)
+
+        # The fractions travel with their samples, one register per stage.
+        x = [
+            pipe.register(lerp(v[c], v[c + 1], fx), name=f"x{c}", shape=wide) for c in (0, 2, 4, 6)
+        ]
+        fy2, fz2 = pipe.register(fy, name="fy2"), pipe.register(fz, name="fz2")
+        y = [
+            pipe.register(lerp(x[0], x[1], fy2), name="y0", shape=wide),
+            pipe.register(lerp(x[2], x[3], fy2), name="y1", shape=wide),
+        ]
+        fz3 = pipe.register(fz2, name="fz3")
+        z = pipe.register(lerp(y[0], y[1], fz3), name="z", shape=wide)
+        m.d.comb += self.o.payload.sample.eq(z)
+        return m
