@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from hwsim.errors import HwsimError, InputError, NotAvailableError
+from hwsim.errors import HwsimError, InputError
 
 __all__ = ["main", "build_parser"]
 
