@@ -25,7 +25,10 @@ import numpy as np
 from hwsim.engine import Counters
 from models.units.skew import cube4_address_zyx, cube4_module
 
-__all__ = ["Cube4Memory", "SliceSchedule"]
+__all__ = ["Cube4Memory", "SliceSchedule", "WORD_BYTES"]
+
+#: Bytes of one module word (a voxel of up to 16 bits).
+WORD_BYTES = 2
 
 
 @dataclass(frozen=True)
@@ -151,5 +154,7 @@ class Cube4Memory:
         """Write the per-module read and idle-slot counts into the counters."""
         self.counters.add_lanes("memory.module[{}].reads", self.reads)
         self.counters.add_lanes("memory.module[{}].idle_slots", self.idle_slots)
+        # Modules hold 16-bit words (8- and 12-bit voxels are stored one per word).
+        self.counters.add_lanes("memory.module[{}].read_bytes", self.reads * WORD_BYTES)
         self.reads[:] = 0
         self.idle_slots[:] = 0
