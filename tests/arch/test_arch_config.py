@@ -86,3 +86,15 @@ def test_a_bad_memory_table_is_refused_when_the_file_loads(tmp_path):
     )
     with pytest.raises(InputError, match=r"bad\.toml.*memory\.banks"):
         load_arch_file(path)
+
+
+def test_formats_take_toml_dotted_keys_as_well_as_quoted_ones():
+    from models.datapath import Datapath
+
+    for text in ('"interp.weight_bits" = 9', "interp.weight_bits = 9"):
+        data = tomllib.loads(
+            'schema = 1\n[pipeline]\norder = "shear-warp"\ncount = 4\nclock_hz = 1e8\n'
+            f"[formats]\n{text}\n"
+        )
+        arch = parse_arch(data, source="x.toml", name="x")
+        assert Datapath.from_arch(arch, 12).interp.weight_bits == 9
