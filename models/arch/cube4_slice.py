@@ -87,6 +87,7 @@ class SliceDatapath:
         self._b = b
         self._a = a
         self._read_cache: dict = {}
+        self._route_cache: dict = {}
         counters.set("ring.beam_fifo_depth", self.beam_depth)
 
     def _reads(self, residue: int, L: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
@@ -111,10 +112,33 @@ class SliceDatapath:
         return out
 
     def corners(self, stream: np.ndarray, s: int) -> np.ndarray:
-        """The four corner planes ``(4, n_a + 3, n_b + 3)`` of slice ``s``."""
-        P, C, L = self.P, self.C, stream.shape[1] + self.C + 1
-        ext = np.zeros((P, L), dtype=stream.dtype)
-        ext[:, : stream.shape[1]] = stream
+        """The four corner planes ``(4, n_a + 3, n_b + 3)`` of slice ``s``.
+
+        Which stream entry reaches which corner of which cell depends only on ``s mod P``
+        (and on the link, FIFO and fault settings), never on the data: :meth:`_route`
+        runs the datapath once on a stream of entry numbers, and every slice then moves
+        its voxels along those routes with one gather.
+        """
+        routes = self._route(s % self.P, stream.shape[1])
+        source = np.zeros(self.P * (stream.shape[1] + self.C + 1) + 1, dtype=stream.dtype)
+        source[1:].reshape(self.P, -1)[:, : stream.shape[1]] = stream  # entry 0 reads as 0
+        return np.take(source, routes)
+
+    def _route(self, residue: int, length: int) -> np.ndarray:
+        """Entry numbers (1-based, 0 = nothing arrives) at every corner of every cell."""
+        key = (residue, length)
+        if key not in self._route_cache:
+            if len(self._route_cache) >= 16:
+                self._route_cache.pop(next(iter(self._route_cache)))
+            # A slice's stream followed by C + 1 flush cycles, numbered entry by entry.
+            entries = np.arange(1, self.P * (length + self.C + 1) + 1).reshape(self.P, -1)
+            self._route_cache[key] = self._carry(entries, residue)
+        return self._route_cache[key]
+
+    def _carry(self, ext: np.ndarray, s: int) -> np.ndarray:
+        """Move a ``(P, T + C + 1)`` stream (a slice plus its flush cycles) through the ring
+        links, the delay lines and the boundary multiplexers to every cell's corners."""
+        P, C, L = self.P, self.C, ext.shape[1]
         ring1 = self._link(ext)
         ring2 = self._link(ring1)
         reads = self._reads(s % P, L)
