@@ -38,19 +38,26 @@ class Stage:
         # busy, stall, idle cycles and inputs per lane; published by :meth:`publish`.
         self._sums = np.zeros((4, self.lanes), dtype=np.int64)
 
-    def account(self, busy: np.ndarray, cycles: int, stalled: int = 0) -> None:
-        """Add one block of ``cycles`` cycles: ``busy[i]`` inputs accepted by lane ``i``
-        (at most ``cycles / II``), ``stalled`` cycles every lane spent blocked."""
-        busy = np.asarray(busy, dtype=np.int64)
+    def account(self, busy: np.ndarray, cycles, stalled=0) -> None:
+        """Add blocks of cycles: ``busy[..., i]`` inputs accepted by lane ``i`` in a block of
+        ``cycles`` cycles (at most ``cycles / II``), of which every lane spent ``stalled``
+        blocked.  One block: ``busy (lanes,)`` and scalars; ``k`` blocks at once:
+        ``busy (k, lanes)``, ``cycles`` and ``stalled`` of shape ``(k,)``."""
+        busy = np.asarray(busy, dtype=np.int64).reshape(-1, self.lanes)
+        cycles = np.asarray(cycles, dtype=np.int64).reshape(-1, 1)
+        stalled = np.asarray(stalled, dtype=np.int64).reshape(-1, 1)
         if (busy * self.ii > cycles).any():
-            raise ValueError(f"{self.unit}: {busy.max()} inputs in {cycles} cycles at II {self.ii}")
+            raise ValueError(
+                f"{self.unit}: {busy.max()} inputs in a block of {cycles.min()} "
+                f"cycles at II {self.ii}"
+            )
         idle = cycles - busy * self.ii - stalled
         if (idle < 0).any():
-            raise ValueError(f"{self.unit}: busy + stalled exceeds the block of {cycles} cycles")
-        self._sums[0] += busy * self.ii
-        self._sums[1] += stalled
-        self._sums[2] += idle
-        self._sums[3] += busy
+            raise ValueError(f"{self.unit}: busy + stalled exceeds a block of cycles")
+        self._sums[0] += (busy * self.ii).sum(axis=0)
+        self._sums[1] += np.broadcast_to(stalled, busy.shape).sum(axis=0)
+        self._sums[2] += idle.sum(axis=0)
+        self._sums[3] += busy.sum(axis=0)
 
     def publish(self) -> None:
         """Write the accumulated per-lane counts into the counters (once, at the end)."""

@@ -132,3 +132,18 @@ def test_clock_counts_cycles_and_converts_to_seconds():
         clk.advance(-1)
     with pytest.raises(ValueError):
         Clock(0)
+
+
+def test_stage_accounts_many_blocks_at_once_as_one_by_one():
+    one, many = Counters(), Counters()
+    a, b = Stage("x", 1, 1, 3, one), Stage("x", 1, 1, 3, many)
+    busy = np.array([[4, 0, 2], [7, 7, 1]])
+    cycles, stalled = np.array([6, 9]), np.array([1, 2])
+    for k in range(2):
+        a.account(busy[k], cycles[k], stalled[k])
+    b.account(busy, cycles, stalled)
+    a.publish()
+    b.publish()
+    assert one.as_dict() == many.as_dict()
+    with pytest.raises(ValueError):
+        b.account(np.array([[7, 0, 0]]), np.array([6]))
