@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import platform
 import statistics
 import subprocess
@@ -35,6 +34,7 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.report_io import write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.scene import Scene, TransferSpec, ViewSpec
@@ -205,10 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{m['size']}^3 peak RSS {m['peak_rss_bytes'] / 2**20:.0f} MiB "
             f"(budget {m['budget_bytes'] / 2**20:.0f} MiB)"
         )
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {args.out}")
+    write_report(report, args.out)
     return 0
 
 

@@ -17,7 +17,6 @@ asserted: benchmarks are not tests.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import statistics
 import sys
@@ -31,6 +30,7 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.report_io import write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import psnr
@@ -121,10 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{'yes' if c['goal_met'] else 'no':>6}{c['psnr_db']:>7.1f}"
         )
     print("ratio = golden seconds / functional seconds (goal >= 2)")
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {args.out}")
+    write_report(report, args.out)
     return 0
 
 

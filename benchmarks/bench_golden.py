@@ -39,6 +39,7 @@ import numpy as np
 if __package__ in (None, ""):  # run as a script: make `benchmarks` and `hwsim` importable
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.report_io import write_report
 from hwsim.scene import Light, Material, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import Volume, make_phantom
@@ -519,10 +520,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"bench_golden: error: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 1
     print(format_table(report))
-    if args.out is not None:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {args.out}")
+    write_report(report, args.out)
     return 0
 
 

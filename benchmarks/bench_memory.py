@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import platform
 import sys
 import time
@@ -33,6 +32,7 @@ if __package__ in (None, ""):
 
 import simpy
 
+from benchmarks.report_io import write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.memory import (
     MemoryConfig,
@@ -202,10 +202,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{r['layout']:<32}{r['size']:>5}{r['axis']:>5}{100 * r['efficiency']:>10.2f}%"
             f"{r['stall_bank_cycles']:>11}{r['stall_refresh_cycles']:>9}"
         )
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {args.out}")
+    write_report(report, args.out)
     return 0
 
 

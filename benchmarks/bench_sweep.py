@@ -19,7 +19,6 @@ load of other processes: ``load_average`` is recorded before and after.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -31,6 +30,7 @@ from typing import Any
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.report_io import write_report
 from hwsim.bench import machine_info
 from hwsim.sweep import RunsDB, load_sweep, local_client, run_sweep
 
@@ -170,10 +170,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{'-' if plain is None else f'{plain:.2f}':>9}"
         )
     print(f"goal: 2 workers >= {GOAL_SPEEDUP}x one worker")
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
-        print(f"wrote {args.out}")
+    write_report(report, args.out)
     return 0
 
 

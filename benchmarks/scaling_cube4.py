@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import sys
 import time
 from collections.abc import Sequence
@@ -33,6 +32,7 @@ from typing import Any
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks.report_io import write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
@@ -174,9 +174,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"cube4-teramac 128^3: {tm['cycles']:,} cycles = {tm['seconds']:.3f} s at 0.96 MHz "
         f"vs published {tm['published_seconds']} s ({tm['difference']:+.1%})"
     )
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(report, indent=2) + "\n")
+    write_report(report, args.out)
     if args.plot:
         plot(report, args.plot)
     return 0

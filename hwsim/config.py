@@ -203,3 +203,16 @@ def check_points(value: Any, source: str, key: str, width: int) -> list[Sequence
             )
         out.append([check_number(v, source, f"{key}[{i}][{j}]") for j, v in enumerate(row)])
     return out
+
+
+def flatten_table(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested tables as dotted keys: ``{"interp": {"weight_bits": 9}}`` (how TOML reads
+    ``interp.weight_bits = 9``) becomes ``{"interp.weight_bits": 9}``."""
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, dict):
+            out.update(flatten_table(value, name))
+        else:
+            out[name] = value
+    return out

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hwsim.arch import ArchConfig
+from hwsim.config import flatten_table
 from hwsim.errors import InputError
 from models.units.classify import ClassifyConfig
 from models.units.composite import CompositeConfig
@@ -56,7 +57,7 @@ class Datapath:
         """
         fitting = [b for b in sorted(arch.voxel_bits) if data_bits and b >= data_bits]
         voxel_bits = fitting[0] if fitting else max(arch.voxel_bits)
-        table = {**_flatten(arch.formats), **(overrides or {})}
+        table = {**flatten_table(arch.formats), **(overrides or {})}
         units: dict[str, dict[str, Any]] = {name: {} for name in UNIT_CONFIGS}
         for key, value in table.items():
             unit, _, name = key.partition(".")
@@ -105,16 +106,3 @@ class Datapath:
         for unit in UNIT_CONFIGS:
             out[unit] = dataclasses.asdict(getattr(self, unit))
         return out
-
-
-def _flatten(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """``{"interp": {"weight_bits": 9}}`` (TOML's reading of ``interp.weight_bits = 9``)
-    as ``{"interp.weight_bits": 9}``; quoted flat keys pass unchanged."""
-    out: dict[str, Any] = {}
-    for key, value in table.items():
-        name = f"{prefix}.{key}" if prefix else str(key)
-        if isinstance(value, dict):
-            out.update(_flatten(value, name))
-        else:
-            out[name] = value
-    return out

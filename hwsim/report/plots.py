@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.config import flatten_table
 from hwsim.report.output import image_to_rgb8
 
 __all__ = [
@@ -46,7 +47,7 @@ def unit_counters(counters: dict[str, Any]) -> dict[str, dict[str, float]]:
     (cycles stalled for one reason), e.g. ``pipeline[2].interp.busy_cycles``.
     """
     units: dict[str, dict[str, float]] = {}
-    for path, value in _flat(counters).items():
+    for path, value in flatten_table(counters).items():
         m = _UNIT_COUNTER.match(path)
         if m is None or not isinstance(value, (int, float)):
             continue
@@ -59,20 +60,9 @@ def memory_counters(counters: dict[str, Any]) -> dict[str, float]:
     """Byte counters of the memory system: paths under ``memory`` ending in ``bytes``."""
     return {
         path: float(v)
-        for path, v in _flat(counters).items()
+        for path, v in flatten_table(counters).items()
         if path.startswith("memory") and path.endswith("bytes") and isinstance(v, (int, float))
     }
-
-
-def _flat(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in table.items():
-        name = f"{prefix}.{k}" if prefix else str(k)
-        if isinstance(v, dict):
-            out.update(_flat(v, name))
-        else:
-            out[name] = v
-    return out
 
 
 def plot_images(
