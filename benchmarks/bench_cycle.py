@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import platform
-import statistics
 import subprocess
 import sys
 import time
@@ -34,7 +33,7 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.report_io import write_report
+from benchmarks.report_io import median_seconds, write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.scene import Scene, TransferSpec, ViewSpec
@@ -47,16 +46,6 @@ __all__ = ["run", "main", "RTL_CYCLES_PER_SECOND", "GOAL_SAMPLES_PER_SECOND", "G
 RTL_CYCLES_PER_SECOND = 30e3
 GOAL_SAMPLES_PER_SECOND = 5e6
 GOAL_RTL_RATIO = 30.0
-
-
-def _timed(repeats: int, fn, *args, **kwargs) -> tuple[float, Any]:
-    fn(*args, **kwargs)
-    times, result = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = fn(*args, **kwargs)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), result
 
 
 def _case(n: int, pipelines: int):
@@ -105,8 +94,8 @@ def run(sizes: Sequence[int], pipelines: int, repeats: int, memory: bool) -> dic
     cases = []
     for n in sizes:
         arch, volume, scene, tf, plan = _case(n, pipelines)
-        f_s, fixed = _timed(repeats, render_functional, scene, volume, tf, arch, plan)
-        c_s, cycle = _timed(repeats, render_cycle, scene, volume, tf, arch, plan)
+        f_s, fixed = median_seconds(repeats, render_functional, scene, volume, tf, arch, plan)
+        c_s, cycle = median_seconds(repeats, render_cycle, scene, volume, tf, arch, plan)
         cycles_per_s = cycle.cycles / c_s
         cases.append(
             {
@@ -159,8 +148,10 @@ def elision(n: int, pipelines: int, repeats: int) -> dict[str, Any]:
         ("mip", dataclasses.replace(scene, render=dataclasses.replace(scene.render, mode="mip"))),
         ("lit", scene),
     ):
-        lean_s, lean = _timed(repeats, render_cycle, sc, volume, tf, arch, plan)
-        full_s, full = _timed(repeats, render_cycle, sc, volume, tf, arch, plan, elaborate_all=True)
+        lean_s, lean = median_seconds(repeats, render_cycle, sc, volume, tf, arch, plan)
+        full_s, full = median_seconds(
+            repeats, render_cycle, sc, volume, tf, arch, plan, elaborate_all=True
+        )
         out[label] = {
             "elided_units": lean.elided_units,
             "lean_seconds": lean_s,

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import argparse
 import platform
-import statistics
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -30,7 +28,7 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.report_io import write_report
+from benchmarks.report_io import median_seconds, write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import psnr
@@ -41,16 +39,6 @@ from hwsim.volumes import make_phantom
 __all__ = ["GOAL_RATIO", "run", "main"]
 
 GOAL_RATIO = 2.0
-
-
-def _median_seconds(repeats: int, fn, *args, **kwargs) -> tuple[float, Any]:
-    fn(*args, **kwargs)  # warm-up
-    times, result = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = fn(*args, **kwargs)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), result
 
 
 def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[str, Any]:
@@ -67,10 +55,8 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
         )
         tf = resolve_transfer(scene.transfer, volume)
         plan = make_plan(scene, volume, arch.order)
-        g_s, golden = _median_seconds(
-            repeats, render_golden, scene, volume, tf, sampling=arch.order
-        )
-        f_s, fixed = _median_seconds(repeats, render_functional, scene, volume, tf, arch, plan)
+        g_s, golden = median_seconds(repeats, render_golden, scene, volume, tf, sampling=arch.order)
+        f_s, fixed = median_seconds(repeats, render_functional, scene, volume, tf, arch, plan)
         cases.append(
             {
                 "size": n,

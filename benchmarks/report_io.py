@@ -1,12 +1,14 @@
-"""What every benchmark script does with its report: write it as JSON when asked."""
+"""Shared by the benchmark scripts: timing a call, writing the JSON report."""
 
 from __future__ import annotations
 
 import json
+import statistics
+import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["write_report"]
+__all__ = ["median_seconds", "write_report"]
 
 
 def write_report(report: dict[str, Any], path: Path | None) -> None:
@@ -16,3 +18,14 @@ def write_report(report: dict[str, Any], path: Path | None) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(report, indent=2) + "\n")
     print(f"wrote {path}")
+
+
+def median_seconds(repeats: int, fn, *args, **kwargs) -> tuple[float, Any]:
+    """Median wall seconds of ``repeats`` calls after one warm-up call, and the last result."""
+    fn(*args, **kwargs)
+    times, result = [], None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = fn(*args, **kwargs)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), result
