@@ -23,22 +23,13 @@ cell grid is extended to ``[-2, n]`` the same way, so sample positions in
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from hwsim.engine import Counters
 
-__all__ = ["SliceCorners", "SlicePath", "extend_axis"]
-
-
-@dataclass
-class SliceCorners:
-    """Promoted corner planes ``(4, n_a + 3, n_b + 3)`` of cells ``[-2, n]`` of one slice,
-    per payload channel (``value``, or the pre-classified ``r g b a``)."""
-
-    slice_index: int
-    planes: dict[str, np.ndarray] = field(default_factory=dict)
+__all__ = ["SliceDatapath", "SlicePath", "extend_axis"]
 
 
 @dataclass(frozen=True, kw_only=True)
