@@ -144,6 +144,7 @@ def render(
     volume: Volume | None = None,
     progress: Progress | None = None,
     trace: str | Path | None = None,
+    elaborate_all: bool = False,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -166,6 +167,9 @@ def render(
         ``progress(done, total)`` called as the render advances.
     trace : path, optional
         ``cycle`` rung only: write a VCD waveform of the modelled hardware there.
+    elaborate_all : bool
+        ``cycle`` rung only: simulate every unit, even those the scene does not use (the
+        reference that elision is measured against; same image and cycles).
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -177,6 +181,8 @@ def render(
             key="--fidelity",
             allowed=", ".join(AVAILABLE_FIDELITIES),
         )
+    if elaborate_all and fidelity != "cycle":
+        raise InputError("only the cycle rung elaborates units", key="elaborate_all")
     if trace is not None and fidelity != "cycle":
         raise InputError("a waveform needs --fidelity cycle", key="--trace", allowed="cycle")
     if arch is None and fidelity != "golden":
@@ -215,7 +221,14 @@ def render(
 
         plan = make_plan(scene, volume, sampling)
         result = render_cycle(
-            scene, volume, transfer, machine, plan, trace=trace, progress=progress
+            scene,
+            volume,
+            transfer,
+            machine,
+            plan,
+            trace=trace,
+            progress=progress,
+            elaborate_all=elaborate_all,
         )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         used, elided, derived = result.elaborated_units, result.elided_units, result.derived
