@@ -108,6 +108,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rp.add_argument("--out", metavar="DIR", required=True)
     rp.add_argument("--quiet", action="store_true")
+    f = sub.add_parser("figures", help="published figures of each machine vs every timing rung")
+    f.add_argument(
+        "--arch",
+        metavar="NAME|FILE.toml",
+        action="append",
+        default=[],
+        help="machines (repeatable; default every built-in with [published] figures)",
+    )
+    f.add_argument("--rungs", metavar="R,R,...", help="timing rungs (default: all four)")
+    f.add_argument(
+        "--max-size", metavar="N", type=int, default=256, help="skip scenarios above N^3 (256)"
+    )
+    f.add_argument("--out", metavar="DIR", required=True, help="writes figures.json/.csv/.md")
+    f.add_argument("--quiet", action="store_true")
     b = sub.add_parser("bench", help="speed of every rung and the goal ratios, as JSON")
     b.add_argument("--size", metavar="N", type=int, default=64, help="head phantom side (64)")
     b.add_argument("--image", metavar="N", type=int, default=128, help="image side (128)")
@@ -238,6 +252,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return sweep_command(args, _progress_bar)
 
 
+def _cmd_figures(args: argparse.Namespace) -> int:
+    from hwsim.figures import figures_command
+
+    return figures_command(args)
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from hwsim.report.report import write_report
 
@@ -295,6 +315,7 @@ _COMMANDS = {
     "trade": _cmd_trade,
     "sweep": _cmd_sweep,
     "report": _cmd_report,
+    "figures": _cmd_figures,
     "bench": _cmd_bench,
     "rtl": _cmd_rtl,
 }

@@ -389,13 +389,15 @@ def _sweep_blocks(path: Path) -> list[Block]:
 
 def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     """The report's blocks; plots are written into ``out`` as they are made."""
-    runs, trades, sweeps = [], [], []
+    runs, trades, sweeps, figures = [], [], [], []
     for f in folders:
         folder = Path(f)
         if folder.is_file() and folder.suffix == ".db":
             sweeps.append(folder)
         elif (folder / "trade.json").is_file():
             trades.append(folder)
+        elif (folder / "figures.json").is_file():
+            figures.append(folder / "figures.json")
         else:
             runs.append(load_run(folder))
     blocks: list[Block] = [("h1", "hwsim report")]
@@ -436,7 +438,42 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
         blocks += _trade_blocks(folder, out)
     for db in sweeps:
         blocks += _sweep_blocks(db)
+    if not figures and SHIPPED_FIGURES.is_file():
+        figures.append(SHIPPED_FIGURES)
+    for path in figures:
+        blocks += _figures_blocks(path)
+    if not figures:
+        blocks += [
+            ("h2", "Published figures of every machine"),
+            ("p", "No figures table: run `hwsim figures --out DIR` and give DIR here."),
+        ]
     return blocks
+
+
+#: The table measured for the repository (benchmarks/results), shown when no
+#: ``hwsim figures`` folder is among the inputs.
+SHIPPED_FIGURES = (
+    Path(__file__).resolve().parents[2] / "benchmarks/results/published-figures/figures.json"
+)
+
+
+def _figures_blocks(path: Path) -> list[Block]:
+    from hwsim.figures import table
+
+    data = json.loads(path.read_text())
+    m = data.get("machine", {})
+    header, body = table(data["rows"])
+    return [
+        ("h2", "Published figures of every machine"),
+        (
+            "p",
+            f"Each machine's published figure against hwsim's at every timing rung, on the "
+            f"dense scenario (docs/figures.md); from {path}, measured {m.get('measured', '?')} "
+            f"with hwsim {m.get('hwsim', '?')}. 'diff' is simulated / published - 1; "
+            "'OUT' marks a row beyond its acceptance band.",
+        ),
+        ("table", header, body),
+    ]
 
 
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:

@@ -1,0 +1,113 @@
+"""hwsim figures: each machine's published figures against every timing rung."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from hwsim.cli import main
+from hwsim.fidelity import builtin_archs, render, resolve_arch
+from hwsim.figures import figure_scene, figure_size, measure_figures
+from hwsim.report.report import write_report
+
+pytestmark = pytest.mark.system
+
+CUBE4 = """schema = 1
+name = "tiny-cube4"
+[pipeline]
+order = "slice-parallel"
+count = 2
+clock_hz = 1e6
+[limits]
+voxel_bits = [8, 12, 16]
+max_volume = [16, 16, 16]
+[published]
+fps_8 = {fps8}
+seconds_16 = 1.0
+samples_per_second = 1.5e6
+tolerance = {{ fps_8 = 0.01 }}
+notes = {{ seconds_16 = "a note" }}
+"""
+
+
+@pytest.fixture()
+def tiny(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(CUBE4.format(fps8=100.0))
+    return path
+
+
+def test_figure_sizes_follow_the_keys():
+    vp1000 = builtin_archs()["volumepro1000"]
+    assert figure_size(vp1000, "fps_512") == 512
+    assert figure_size(vp1000, "samples_per_second") == 256  # the smallest scenario
+    assert figure_size(builtin_archs()["cube4-teramac"], "seconds_128") == 128
+    assert figure_size(vp1000, "voxels_per_axis") is None
+    assert figure_size(builtin_archs()["vizard2"], "samples_per_second") == 256
+
+
+@pytest.mark.parametrize("name", sorted(builtin_archs()))
+def test_the_dense_scenario_takes_one_sample_per_voxel_on_every_machine(name):
+    run = render(figure_scene(8), fidelity="functional", arch=name)
+    assert run.samples == 8**3
+
+
+def test_rows_are_the_rungs_own_cycle_counts(tiny):
+    arch = resolve_arch(str(tiny))
+    rows = measure_figures([arch], ("functional", "cycle"), max_size=8)
+    by = {(r.figure, r.rung): r for r in rows}
+    cyc = by["fps_8", "cycle"]
+    direct = render(figure_scene(8), fidelity="cycle", arch=arch)
+    assert cyc.status == "ok" and cyc.cycles == direct.cycles
+    assert cyc.simulated == pytest.approx(1e6 / direct.cycles)
+    assert cyc.difference == pytest.approx(cyc.simulated / 100.0 - 1.0)
+    assert cyc.within is (abs(cyc.difference) <= 0.01)
+    sps = by["samples_per_second", "functional"]
+    assert sps.samples == 8**3 and sps.simulated == pytest.approx(512 * 1e6 / sps.cycles)
+    assert sps.tolerance is None and sps.within is None
+    # 16^3 is above --max-size: skipped with the reason, the file's note kept.
+    skipped = by["seconds_16", "cycle"]
+    assert skipped.status == "skipped" and "max-size 8" in skipped.note
+    assert "a note" in skipped.note
+
+
+def test_a_figure_inside_or_outside_its_band(tmp_path):
+    arch = resolve_arch(str(_tiny(tmp_path, 100.0)))
+    (row,) = [r for r in measure_figures([arch], ("cycle",), max_size=8) if r.figure == "fps_8"]
+    inside = _tiny(tmp_path, row.simulated * 1.005, "b")
+    outside = _tiny(tmp_path, row.simulated * 1.05, "c")
+    for path, expected in ((inside, True), (outside, False)):
+        got = measure_figures([resolve_arch(str(path))], ("cycle",), max_size=8)
+        assert next(r for r in got if r.figure == "fps_8").within is expected
+
+
+def _tiny(tmp_path, fps8: float, tag: str = "a"):
+    path = tmp_path / f"tiny-{tag}.toml"
+    path.write_text(CUBE4.format(fps8=fps8))
+    return path
+
+
+def test_cli_writes_the_table_and_the_report_shows_it(tiny, tmp_path):
+    out = tmp_path / "fig"
+    args = ["figures", "--arch", str(tiny), "--rungs", "functional,cycle", "--max-size", "8"]
+    assert main([*args, "--out", str(out), "--quiet"]) == 0
+    data = json.loads((out / "figures.json").read_text())
+    assert {r["rung"] for r in data["rows"]} == {"functional", "cycle"}
+    assert (out / "figures.csv").read_text().startswith("arch,figure,published")
+    md = (out / "figures.md").read_text()
+    assert "| tiny-cube4 | fps_8 | 100 | dense head 8^3 |" in md
+    run = tmp_path / "run"
+    render_args = ["render", "--phantom", "head:size=12", "--image", "12", "--quiet"]
+    assert main([*render_args, "--fidelity", "functional", "--out", str(run)]) == 0
+    paths = write_report([run, out], tmp_path / "report")
+    text = paths["md"].read_text()
+    assert "## Published figures of every machine" in text
+    assert "| tiny-cube4 | fps_8 |" in text
+
+
+def test_bad_rung_and_size_are_refused(tiny, tmp_path, capsys):
+    assert main(["figures", "--rungs", "golden", "--out", str(tmp_path / "x")]) == 2
+    assert "--rungs" in capsys.readouterr().err
+    assert main(["figures", "--max-size", "0", "--out", str(tmp_path / "y")]) == 2
+    assert "--max-size" in capsys.readouterr().err
