@@ -190,3 +190,18 @@ def test_cli_refuses_two_luts_on_a_one_lut_machine_with_exit_2(tmp_path, capsys)
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "features.classification_luts" in err[0] and "1 .. 1" in err[0]
+
+
+def test_the_documented_feature_examples_parse():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "scenes.md").read_text()
+    (classification,) = re.findall(r"```toml classification\n(.*?)```", text, flags=re.S)
+    (geometry,) = re.findall(r"```toml geometry\n(.*?)```", text, flags=re.S)
+    scene = parse(classification + geometry)
+    c = scene.classification
+    assert [f.name for f in c.fields] == ["density", "tag"]
+    assert [lut.field for lut in c.luts] == ["density", "value", "tag"]
+    assert c.final.ops == ("mul_b_alpha", "mul_b_alpha")
+    assert scene.geometry.depth_test == "<" and len(scene.geometry.boxes) == 1
