@@ -189,3 +189,27 @@ def test_declared_fields_need_unsigned_stored_voxels(head):
     )
     with pytest.raises(InputError, match=r"classification.fields\[0\]"):
         render(head_scene(spec), fidelity="functional", arch=ARCH, volume=head)
+
+
+@pytest.mark.parametrize("order", ["post", "pre"])
+def test_cycle_rung_shares_the_features_bit_for_bit(order):
+    """The hooks live in the shared back end: a Cube-4 variant given both features (the
+    cycle rung models slice-parallel machines) renders the same bits at both rungs."""
+    from hwsim.arch import parse_arch
+    from hwsim.config import read_toml
+    from hwsim.fidelity import resolve_arch
+
+    data = read_toml(resolve_arch("cube4").source)
+    data.setdefault("features", {}).update(classification_luts=4, embedded_geometry=True)
+    arch = parse_arch(data, source="cube4-vp.toml", name="cube4-vp")
+    sc = load_scene("head-vp1000")
+    sc = sc.replace(
+        volume=VolumeSpec(phantom="head", params=(("size", 32),)),
+        view=dataclasses.replace(sc.view, width=32, height=32, projection="perspective"),
+        transfer=dataclasses.replace(sc.transfer, order=order),
+    )
+    volume = make_phantom("head", size=32)
+    f = render(sc, fidelity="functional", arch=arch, volume=volume)
+    c = render(sc, fidelity="cycle", arch=arch, volume=volume)
+    assert f.samples == c.samples > 0
+    assert np.array_equal(f.image, c.image)
