@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from hwsim.config import Table
+from hwsim.errors import InputError
 
 if TYPE_CHECKING:
     from hwsim.scene import TransferSpec
@@ -277,8 +278,6 @@ def parse_geometry(t: Table) -> GeometrySpec:
 
 def check_features(scene) -> None:
     """Refuse feature use the render mode cannot honour (both need composite mode)."""
-    from hwsim.errors import InputError
-
     for key, spec in (("classification", scene.classification), ("geometry", scene.geometry)):
         if spec is not None and scene.render.mode != "composite":
             raise InputError(

@@ -30,6 +30,10 @@ documented subset; ``a`` is the first operand, ``b`` the second)::
     mul_b_alpha     round(a * b_alpha / F_alpha)          final ALU only: every channel of
                                                           a weighted by b's opacity
 
+The opcode categories are vli.h's [V]; the names, the exact subset, the choice of
+``mul_b_alpha`` as the final-only multiply and ALUs working on the stored widths are
+[I] (this model's reading of the API, not a published datapath).
+
 Results stay in ``[0, F]`` by construction (clamps), so nothing overflows and no
 saturation counter is needed.  Against the real-valued operation on ``x = a / F`` the
 result differs by at most half a stored LSB for ``mul``, ``mul_b_alpha`` (one rounding),
