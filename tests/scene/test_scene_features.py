@@ -7,6 +7,8 @@ from __future__ import annotations
 import tomllib
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hwsim.arch import parse_arch
 from hwsim.cli import main
@@ -205,3 +207,45 @@ def test_the_documented_feature_examples_parse():
     assert [lut.field for lut in c.luts] == ["density", "value", "tag"]
     assert c.final.ops == ("mul_b_alpha", "mul_b_alpha")
     assert scene.geometry.depth_test == "<" and len(scene.geometry.boxes) == 1
+
+
+FEATURE_VALUES = st.one_of(
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from(["a", "add", "mul_b_alpha", "value", "<", "x"]),
+    st.booleans(),
+    st.lists(st.integers(-5, 5), max_size=4),
+    st.dictionaries(st.sampled_from(["rgb", "alpha", "x"]), st.sampled_from(["a", "or"])),
+)
+FEATURE_KEYS = {
+    "fields": ["name", "lsb", "bits"],
+    "luts": ["field", "entries", "points", "preset", "order"],
+    "combine": ["leaf0", "leaf1", "final"],
+    "spheres": ["center", "radius", "color"],
+    "boxes": ["lo", "hi", "color"],
+    "geometry": ["depth_test", "color", "depth"],
+}
+
+
+@settings(max_examples=300, deadline=None)
+@given(part=st.sampled_from(sorted(FEATURE_KEYS)), data=st.data(), value=FEATURE_VALUES)
+def test_any_feature_value_is_accepted_or_refused_with_one_line_input_error(part, data, value):
+    key = data.draw(st.sampled_from(FEATURE_KEYS[part]))
+    lut = {"points": [[0, 0, 0, 0, 0], [1, 1, 1, 1, 1]]}
+    ball = {"center": [0, 0, 0], "radius": 1}
+    doc = {
+        "fields": {
+            "classification": {"fields": [{"name": "d", "bits": 8, key: value}], "luts": [lut]}
+        },
+        "luts": {"classification": {"luts": [{**lut, key: value}]}},
+        "combine": {"classification": {"luts": [lut, lut], "combine": {"leaf0": "a", key: value}}},
+        "spheres": {"geometry": {"spheres": [{**ball, key: value}]}},
+        "boxes": {"geometry": {"boxes": [{"lo": [0, 0, 0], "hi": [1, 1, 1], key: value}]}},
+        "geometry": {"geometry": {"spheres": [ball], key: value}},
+    }[part]
+    try:
+        parse_scene(doc, source="t.toml")
+    except InputError as exc:
+        message = str(exc)
+        assert message.startswith("t.toml: ") and "\n" not in message
+        assert "classification" in message or "geometry" in message or "transfer" in message
