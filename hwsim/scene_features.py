@@ -39,6 +39,7 @@ __all__ = [
     "parse_classification",
     "parse_geometry",
     "check_features",
+    "check_machine",
 ]
 
 LUT_ENTRIES = (256, 4096)
@@ -286,3 +287,27 @@ def check_features(scene) -> None:
                 key="render.mode",
                 allowed="composite",
             )
+
+
+def check_machine(scene, arch) -> None:
+    """Refuse the features ``arch`` (an :class:`~hwsim.arch.ArchConfig`) does not have:
+    more LUTs than ``[features] classification_luts``, geometry without
+    ``embedded_geometry``.  Also checks the render mode (:func:`check_features`)."""
+    check_features(scene)
+    if scene.classification is not None:
+        n = len(scene.classification.luts)
+        if n > arch.classification_luts:
+            raise InputError(
+                f"{arch.name} has {arch.classification_luts} classification LUT(s), "
+                f"the scene uses {n}",
+                source=arch.source,
+                key="features.classification_luts",
+                allowed=f"1 .. {arch.classification_luts} [[classification.luts]]",
+            )
+    if scene.geometry is not None and not arch.embedded_geometry:
+        raise InputError(
+            f"{arch.name} has no embedded-geometry depth buffer",
+            source=arch.source,
+            key="features.embedded_geometry",
+            allowed="a machine with embedded_geometry = true (volumepro1000)",
+        )

@@ -30,7 +30,7 @@ from hwsim.golden import geometry
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.scene import Scene
-from hwsim.scene_features import VALUE_FIELD, check_features
+from hwsim.scene_features import VALUE_FIELD, check_machine
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.datapath import Datapath
@@ -347,29 +347,13 @@ class Backend:
         """Multi-LUT classification and embedded geometry: refused on machines without
         them (``[features] classification_luts``, ``embedded_geometry``)."""
         scene, arch, dp = self.scene, self.arch, self.dp
-        check_features(scene)
+        check_machine(scene, arch)
         if scene.classification is not None:
-            n = len(scene.classification.luts)
-            if n > arch.classification_luts:
-                raise InputError(
-                    f"{arch.name} has {arch.classification_luts} classification LUT(s), "
-                    f"the scene uses {n}",
-                    source=arch.source,
-                    key="features.classification_luts",
-                    allowed=f"1 .. {arch.classification_luts} [[classification.luts]]",
-                )
             self.multilut = MultiLut(
                 scene, self.volume, dp.voxel_bits, self.vmap.to_value, dp.classify
             )
             self.field_flat = self.multilut.field_raw(self.raw)
         if scene.geometry is not None:
-            if not arch.embedded_geometry:
-                raise InputError(
-                    f"{arch.name} has no embedded-geometry depth buffer",
-                    source=arch.source,
-                    key="features.embedded_geometry",
-                    allowed="a machine with embedded_geometry = true (volumepro1000)",
-                )
             if self.plan.kind not in ("ray", "shear-image"):
                 raise InputError(
                     "embedded geometry needs rays through image pixels",
