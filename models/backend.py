@@ -151,6 +151,7 @@ class Backend:
         self.ert = scene.render.early_termination
         self.multilut: MultiLut | None = None
         self.depth: depth_unit.DepthBuffers | None = None
+        self.stopped: np.ndarray | None = None  # rays the depth test ended this step
         if scene.classification is not None or scene.geometry is not None:
             self._setup_features()
 
@@ -207,6 +208,8 @@ class Backend:
             keep = factor > 0 if keep is None else keep & (factor > 0)
         if self.depth is not None:
             passed = self._depth_test(step)
+            if self.scene.geometry.depth_test in geometry.STOPPING_TESTS:  # type: ignore[union-attr]
+                self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
         if keep is not None:
             step = subset_step(step, keep)
@@ -221,6 +224,9 @@ class Backend:
         if mode in ("composite", "iso"):
             step = subset_step(step, state.alive[step.rays])
         step, factor = self.masks(step)
+        if self.stopped is not None:  # embedded geometry ends these rays
+            state.alive[self.stopped] = False
+            self.stopped = None
         if not step.rays.size:
             return step
         state.samples += step.rays.size

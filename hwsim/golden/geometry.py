@@ -41,8 +41,12 @@ __all__ = [
     "depth_pass",
     "blend_behind",
     "TEST_OPERATORS",
+    "STOPPING_TESTS",
 ]
 
+#: Depth tests after whose first failure every later sample of a ray fails too (sample
+#: depth grows along the ray, front to back): the ray ends there.
+STOPPING_TESTS = ("<", "<=")
 TEST_OPERATORS = {
     "<": operator.lt,
     "<=": operator.le,

@@ -116,6 +116,7 @@ class _Renderer:
             else:
                 self.pre = transfer.classify(self.flat)  # (N, 4): classified voxels
         self.geometry = None
+        self.stopped: np.ndarray | None = None  # rays the depth test ended this step
         if scene.geometry is not None:
             self.distance = scene.view.distance
             self.geometry = geo.rasterise(
@@ -156,11 +157,14 @@ class _Renderer:
             factor = cut_factor(index_to_world(step.zyx, self.volume), self.scene.cut_planes)
             keep = factor > 0 if keep is None else keep & (factor > 0)
         if self.geometry is not None:
+            test = self.scene.geometry.depth_test  # type: ignore[union-attr]
             passed = geo.depth_pass(
-                self.scene.geometry.depth_test,  # type: ignore[union-attr]
+                test,
                 geo.sample_depth(step.zyx, self.plan.camera, self.volume, self.distance),
                 self.geometry.depth[step.rays],
             )
+            if test in geo.STOPPING_TESTS:
+                self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
         if keep is not None:
             step = _subset(step, keep)
@@ -201,6 +205,9 @@ class _Renderer:
         feedback = alive if mode in ("composite", "iso") else None
         for j, step in enumerate(plan.steps(feedback)):
             step, factor = self.mask(step)
+            if self.stopped is not None:  # embedded geometry ends these rays
+                alive[self.stopped] = False
+                self.stopped = None
             if step.rays.size:
                 samples += step.rays.size
                 touched[step.rays] = True

@@ -201,3 +201,38 @@ def test_geometry_needs_composite_mode_and_image_rays(head):
         render(mip, fidelity="functional", arch=ARCH, volume=head)
     with pytest.raises(InputError, match="geometry"):
         render(sc, fidelity="golden", sampling="shear-warp", volume=head)
+
+
+@pytest.mark.parametrize(("test", "stops"), [("<", True), ("<=", True), (">=", False)])
+def test_rays_end_at_the_geometry_for_front_to_back_tests(head, test, stops):
+    """``<`` / ``<=``: once a sample fails, every later one does (depth grows along the
+    ray), so the back end ends the ray there (as early termination does); other tests
+    leave rays running."""
+    from hwsim.golden import make_plan
+    from models.backend import Backend
+    from models.units import interp
+
+    wall = Sphere(center=(0.0, 0.0, -60.0), radius=50.0, color=(1.0, 1.0, 1.0))
+    sc = scene(GeometrySpec(depth_test=test, spheres=(wall,)))
+    arch = resolve_arch(ARCH)
+    plan = make_plan(sc, head, arch.order)
+    be = Backend(
+        sc, head, resolve_transfer(sc.transfer, head), arch, plan, Datapath.for_volume(arch, head)
+    )
+    state = be.new_state(plan.n_rays)
+
+    class Source:  # unlit, post-classified: only values are read
+        def __init__(self, step):
+            self.taps = interp.interp_taps(step.zyx, head.shape, be.dp.interp)
+
+        def value(self):
+            return interp.interpolate(be.raw.ravel(), self.taps, be.dp.interp)
+
+    for step in plan.steps():
+        be.process(step, Source, state)
+    covered = be.depth.alpha > 0
+    sampled = np.zeros(plan.n_rays, bool)
+    sampled[plan.ray_ids] = True
+    assert (covered & sampled).sum() > 100
+    assert (~state.alive[covered & sampled]).all() == stops
+    assert state.alive[~covered & sampled & (state.acc[:, 3] == 0)].all()
