@@ -70,3 +70,13 @@ def test_blend_behind_matches_float_and_leaves_opaque_pixels_unchanged():
     golden = acc / one
     blend_behind(golden, rgba)
     assert np.abs(fixed / one - golden).max() <= 2.0**-12
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(list(OPS)), st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_quantised_test_agrees_with_the_float_test_unless_within_one_lsb(test, s, p):
+    fixed = bool(
+        du.passes(test, du.quantise_depth(np.array([s])), du.quantise_depth(np.array([p])))[0]
+    )
+    if abs(s - p) > 1.0 / du.FAR:
+        assert fixed == OPS[test](s, p)
