@@ -50,6 +50,10 @@ class ArchConfig:
         Allowed z-supersampling range ``(lo, hi)``.
     cut_planes : int
         Most thick cut planes the machine applies at once.
+    classification_luts : int
+        Classification LUTs merged by combiners (1: a single LUT; VolumePro 1000: 4).
+    embedded_geometry : bool
+        Whether opaque geometry can be embedded through image + depth buffers.
     formats, memory, buffers : dict
         Raw tables for the unit formats, the memory system and on-chip buffer capacities
         (the models layer owns their meaning and validates them).
@@ -73,6 +77,8 @@ class ArchConfig:
     space_leaping: bool = False
     supersampling: tuple[float, float] = (1.0, 1.0)
     cut_planes: int = 4
+    classification_luts: int = 1
+    embedded_geometry: bool = False
     formats: dict[str, Any] = field(default_factory=dict)
     memory: dict[str, Any] = field(default_factory=dict)
     buffers: dict[str, Any] = field(default_factory=dict)
@@ -129,6 +135,8 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         space_leaping=features.boolean("space_leaping", False),
         supersampling=ss,  # type: ignore[arg-type]
         cut_planes=features.integer("cut_planes", 4, 0, 64),
+        classification_luts=features.integer("classification_luts", 1, 1, 4),
+        embedded_geometry=features.boolean("embedded_geometry", False),
         formats=dict(top.raw("formats", {})),
         memory=dict(top.raw("memory", {})),
         buffers=dict(top.raw("buffers", {})),

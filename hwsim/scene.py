@@ -18,6 +18,12 @@ from typing import Any
 
 from hwsim.config import Table, check_points, read_toml
 from hwsim.errors import InputError
+from hwsim.scene_features import (
+    ClassificationSpec,
+    GeometrySpec,
+    parse_classification,
+    parse_geometry,
+)
 
 __all__ = [
     "MODES",
@@ -201,6 +207,8 @@ class Scene:
     render: RenderSpec = field(default_factory=RenderSpec)
     crop: CropSpec | None = None
     cut_planes: tuple[CutPlane, ...] = ()
+    classification: ClassificationSpec | None = None
+    geometry: GeometrySpec | None = None
 
     @property
     def base_dir(self) -> Path:
@@ -271,9 +279,26 @@ def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "s
         render=_render(top.table("render")),
         crop=_crop(top.table("crop")) if top.has("crop") else None,
         cut_planes=tuple(_cut_plane(t) for t in top.tables("cut_planes")),
+        classification=_classification(top),
+        geometry=parse_geometry(top.table("geometry")) if top.has("geometry") else None,
     )
     top.finish()
     return scene
+
+
+def _classification(top: Table) -> ClassificationSpec | None:
+    """``[classification]`` (multi-LUT); it replaces ``[transfer]``'s RGBA function."""
+    if not top.has("classification"):
+        return None
+    transfer = top.data.get("transfer", {})
+    for key in ("points", "table", "preset"):
+        if isinstance(transfer, dict) and key in transfer:
+            raise top.error(
+                f"transfer.{key}",
+                "[classification] LUTs replace the transfer function",
+                "transfer.gradient_opacity and transfer.order only",
+            )
+    return parse_classification(top.table("classification"), _transfer)
 
 
 def _volume(t: Table) -> VolumeSpec:

@@ -25,17 +25,22 @@ from typing import Protocol
 import numpy as np
 
 from hwsim.arch import ArchConfig
+from hwsim.errors import InputError
+from hwsim.golden import geometry
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.scene import Scene
+from hwsim.scene_features import VALUE_FIELD, check_machine
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.datapath import Datapath
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
 from models.units import crop as crop_unit
+from models.units import depth as depth_unit
 from models.units import gradient as gradient_unit
 from models.units import shade as shade_unit
+from models.units.multilut import MultiLut
 from models.units.voxel import convert_volume
 
 __all__ = ["Backend", "RayState", "SampleSource", "subset_step", "ONE"]
@@ -144,9 +149,18 @@ class Backend:
         iso = 0.5 * (lo + hi) if iso is None else iso
         self.iso_raw = int(np.ceil((iso - self.vmap.offset) / self.vmap.scale * (1 << self.S)))
         self.ert = scene.render.early_termination
+        self.multilut: MultiLut | None = None
+        self.depth: depth_unit.DepthBuffers | None = None
+        self.stopped: np.ndarray | None = None  # rays the depth test ended this step
+        if scene.classification is not None or scene.geometry is not None:
+            self._setup_features()
 
     def classified_voxels(self, raw: np.ndarray) -> list[np.ndarray]:
         """Pre-classification: the LUT applied to raw voxels (any shape), RGBA UQ1.12."""
+        if self.multilut is not None:
+            inputs = {VALUE_FIELD: np.asarray(raw, dtype=np.int64).ravel()}
+            rgb, alpha = self.multilut.classify({**inputs, **self.multilut.field_raw(raw)}, 0)
+            return [rgb[:, 0], rgb[:, 1], rgb[:, 2], alpha]
         return classify_unit.classify_voxels(raw, self.lut, self.dp.voxel_bits, self.dp.classify)
 
     # ------------------------------------------------------------------ state
@@ -192,6 +206,11 @@ class Backend:
                 crop_unit.CutConfig(max_planes=max(1, self.arch.cut_planes)),
             )
             keep = factor > 0 if keep is None else keep & (factor > 0)
+        if self.depth is not None:
+            passed = self._depth_test(step)
+            if self.scene.geometry.depth_test in geometry.STOPPING_TESTS:  # type: ignore[union-attr]
+                self.stopped = step.rays[~passed]
+            keep = passed if keep is None else keep & passed
         if keep is not None:
             step = subset_step(step, keep)
             factor = factor[keep] if factor is not None else None
@@ -205,6 +224,9 @@ class Backend:
         if mode in ("composite", "iso"):
             step = subset_step(step, state.alive[step.rays])
         step, factor = self.masks(step)
+        if self.stopped is not None:  # embedded geometry ends these rays
+            state.alive[self.stopped] = False
+            self.stopped = None
         if not step.rays.size:
             return step
         state.samples += step.rays.size
@@ -270,6 +292,8 @@ class Backend:
         ``next_visible[lo] > hi`` is transparent, whatever it interpolates to."""
         alpha = self.lut.alpha12
         entries = alpha.size
+        if self.multilut is not None:  # combined opacity: no bound from one LUT
+            return np.arange(entries)
         idx = np.where(alpha > 0, np.arange(entries), entries)
         return np.minimum.accumulate(idx[::-1])[::-1]
 
@@ -293,7 +317,10 @@ class Backend:
             alpha = (chans[3] + (1 << (self.S - 1))) >> self.S
         else:
             s = src.value()
-            rgb, alpha = classify_unit.classify(s, self.lut, dp.voxel_bits, self.S, dp.classify)
+            if self.multilut is not None:
+                rgb, alpha = self._classify_multi(s, step)
+            else:
+                rgb, alpha = classify_unit.classify(s, self.lut, dp.voxel_bits, self.S, dp.classify)
         if factor is not None:
             alpha = (alpha * factor + (1 << 11)) >> 12
         vis = alpha > 0
@@ -320,6 +347,46 @@ class Backend:
         if self.ert < 1.0:
             state.alive[rays] = ~composite_unit.terminated(state.acc[rays], self.ert, dp.composite)
 
+    # ------------------------------------------------------------------ VP1000 features
+
+    def _setup_features(self) -> None:
+        """Multi-LUT classification and embedded geometry: refused on machines without
+        them (``[features] classification_luts``, ``embedded_geometry``)."""
+        scene, arch, dp = self.scene, self.arch, self.dp
+        check_machine(scene, arch)
+        if scene.classification is not None:
+            self.multilut = MultiLut(
+                scene, self.volume, dp.voxel_bits, self.vmap.to_value, dp.classify
+            )
+            self.field_flat = self.multilut.field_raw(self.raw)
+        if scene.geometry is not None:
+            if self.plan.kind not in ("ray", "shear-image"):
+                raise InputError(
+                    "embedded geometry needs rays through image pixels",
+                    source=arch.source,
+                    key="pipeline.order",
+                    allowed="shear-image",
+                )
+            buffers = geometry.rasterise(
+                scene.geometry, self.plan.camera, scene.view.distance, scene.base_dir
+            )
+            self.depth = depth_unit.DepthBuffers(buffers)
+
+    def _depth_test(self, step: Step) -> np.ndarray:
+        """Samples passing the depth test against their pixel's ``depth.z``."""
+        d = geometry.sample_depth(step.zyx, self.plan.camera, self.volume, self.scene.view.distance)
+        test = self.scene.geometry.depth_test  # type: ignore[union-attr]
+        return depth_unit.passes(test, depth_unit.quantise_depth(d), self.depth.z[step.rays])  # type: ignore[union-attr]
+
+    def _classify_multi(self, s: np.ndarray, step: Step) -> tuple[np.ndarray, np.ndarray]:
+        """Post-classification through the multi-LUT classifier; declared fields are
+        interpolated from their own arrays at the step's positions."""
+        ml = self.multilut
+        fields = ml.interpolate_fields(  # type: ignore[union-attr]
+            self.field_flat, step.zyx, self.volume.shape, self.dp.interp
+        )
+        return ml.classify({VALUE_FIELD: s, **fields}, self.S)  # type: ignore[union-attr]
+
     # ------------------------------------------------------------------ host side
 
     def finish(self, acc: np.ndarray, touched: np.ndarray, dt_sum) -> np.ndarray:
@@ -327,6 +394,8 @@ class Backend:
         mode, plan, vmap = self.mode, self.plan, self.vmap
         lo, hi = self.volume.value_range
         if mode in ("composite", "iso"):
+            if self.depth is not None:
+                depth_unit.blend(acc, self.depth, self.dp.composite)
             out = composite_unit.to_output(acc, self.dp.composite)
             return plan.to_image(composite_unit.output_to_float(out, self.dp.composite), 0.0)
         if mode in ("mip", "minip"):

@@ -24,12 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwsim.errors import InputError
+from hwsim.golden import geometry as geo
 from hwsim.golden import occupancy as occ
 from hwsim.golden.camera import index_to_world
+from hwsim.golden.classification import FloatClassifier
 from hwsim.golden.positions import SamplePlan, Step, make_plan
 from hwsim.golden.sampling import interleave, sample, sample_gradients, taps, trilinear_rows
 from hwsim.golden.shading import crop_keep, cut_factor, magnitude, phong
 from hwsim.scene import Scene
+from hwsim.scene_features import VALUE_FIELD, check_features
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 
@@ -66,6 +70,8 @@ def occupancy_for(scene: Scene, volume: Volume, transfer: TransferFunction):
     mode = scene.render.mode
     if mode not in ("composite", "iso") or scene.render.interpolation == "cubic":
         return None
+    if scene.classification is not None:
+        return None  # combined opacity: no per-block bound from one function; no leaping
     lo, hi = _derived(volume, "blocks", lambda: occ.block_ranges(volume.data))
     if mode == "iso":
         v_lo, v_hi = volume.value_range
@@ -98,9 +104,24 @@ class _Renderer:
             self.flat = _derived(
                 volume, "flat", lambda: np.ascontiguousarray(volume.data, np.float64).ravel()
             )
+        self.classifier = None
+        if scene.classification is not None:
+            self.classifier = FloatClassifier(scene, volume, scene.base_dir)
         self.pre = None
         if composite and transfer.order == "pre":
-            self.pre = transfer.classify(self.flat)  # (N, 4): classified voxels
+            if self.classifier is not None:
+                self.pre = self.classifier.classify(
+                    {VALUE_FIELD: self.flat, **self.classifier.flat_fields}
+                )
+            else:
+                self.pre = transfer.classify(self.flat)  # (N, 4): classified voxels
+        self.geometry = None
+        self.stopped: np.ndarray | None = None  # rays the depth test ended this step
+        if scene.geometry is not None:
+            self.distance = scene.view.distance
+            self.geometry = geo.rasterise(
+                scene.geometry, plan.camera, self.distance, scene.base_dir
+            )
 
     def values(self, zyx: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """Interpolated values ``(n,)`` and, with voxel gradients, gradients ``(n, 3)``."""
@@ -135,10 +156,33 @@ class _Renderer:
         if self.scene.cut_planes:
             factor = cut_factor(index_to_world(step.zyx, self.volume), self.scene.cut_planes)
             keep = factor > 0 if keep is None else keep & (factor > 0)
+        if self.geometry is not None:
+            test = self.scene.geometry.depth_test  # type: ignore[union-attr]
+            passed = geo.depth_pass(
+                test,
+                geo.sample_depth(step.zyx, self.plan.camera, self.volume, self.distance),
+                self.geometry.depth[step.rays],
+            )
+            if test in geo.STOPPING_TESTS:
+                self.stopped = step.rays[~passed]
+            keep = passed if keep is None else keep & passed
         if keep is not None:
             step = _subset(step, keep)
             factor = factor[keep] if factor is not None else None
         return step, factor
+
+    def classified(self, v: np.ndarray, zyx: np.ndarray) -> np.ndarray:
+        """Multi-LUT RGBA ``(n, 4)`` of samples with values ``v`` at ``zyx``."""
+        inputs = {VALUE_FIELD: v}
+        for name, flat in self.classifier.flat_fields.items():  # type: ignore[union-attr]
+            inputs[name] = self.filtered_1(flat, zyx)
+        return self.classifier.classify(inputs)  # type: ignore[union-attr]
+
+    def filtered_1(self, flat: np.ndarray, zyx: np.ndarray) -> np.ndarray:
+        """One raveled per-voxel array filtered at ``zyx``: ``(n,)``."""
+        if self.kind == "trilinear":
+            return trilinear_rows(flat, self.volume.shape, zyx)
+        return sample(flat, taps(zyx, self.volume.shape, self.kind))
 
     def run(self, progress: Callable[[int, int], None] | None) -> GoldenResult:
         plan, mode = self.plan, self.mode
@@ -161,6 +205,9 @@ class _Renderer:
         feedback = alive if mode in ("composite", "iso") else None
         for j, step in enumerate(plan.steps(feedback)):
             step, factor = self.mask(step)
+            if self.stopped is not None:  # embedded geometry ends these rays
+                alive[self.stopped] = False
+                self.stopped = None
             if step.rays.size:
                 samples += step.rays.size
                 touched[step.rays] = True
@@ -179,6 +226,8 @@ class _Renderer:
                         acc[step.rays] += w
             if progress is not None:
                 progress(j + 1, plan.n_steps)
+        if self.geometry is not None:
+            geo.blend_behind(acc, self.geometry.rgba)
         background = {"mip": lo, "minip": hi}.get(mode, 0.0)
         if mode in ("mip", "minip"):
             acc[~touched] = background
@@ -190,6 +239,10 @@ class _Renderer:
         if self.pre is not None:
             rgba = self.filtered(self.pre, zyx)
             a, g = rgba[:, 3], None
+        elif self.classifier is not None:
+            v, g = self.values(zyx)
+            rgba = self.classified(v, zyx)
+            a = rgba[:, 3]
         else:
             v, g = self.values(zyx)
             a = self.transfer.opacity(v)
@@ -199,7 +252,10 @@ class _Renderer:
         if vis.size == 0:
             return
         rays, a, zyx = step.rays[vis], a[vis], zyx[vis]
-        rgb = rgba[vis, :3] if self.pre is not None else self.transfer.classify(v[vis])[:, :3]
+        if self.pre is not None or self.classifier is not None:
+            rgb = rgba[vis, :3]
+        else:
+            rgb = self.transfer.classify(v[vis])[:, :3]
         if self.need_grad:
             if self.rows is None:
                 g = self.sample_gradient(zyx)
@@ -279,6 +335,14 @@ def render_golden(
     GoldenResult
         float64 image, sample and ray counts, and the plan.
     """
+    check_features(scene)
+    if scene.geometry is not None and sampling in ("shear-warp", "slice-parallel"):
+        raise InputError(
+            "embedded geometry needs rays through image pixels",
+            source=scene.source,
+            key="geometry",
+            allowed="sampling ray or shear-image",
+        )
     occupancy = occupancy_for(scene, volume, transfer) if leap else None
     plan = make_plan(scene, volume, sampling, occupancy=occupancy)
     return _Renderer(scene, volume, transfer, plan).run(progress)
