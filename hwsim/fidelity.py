@@ -20,6 +20,7 @@ import numpy as np
 from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.scene import Scene
+from hwsim.scene_features import check_machine
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.volume import Volume
@@ -95,6 +96,7 @@ def resolve_arch(name_or_path: str) -> ArchConfig:
 
 def check_scene_fits(scene: Scene, arch: ArchConfig) -> None:
     """Refuse what the machine cannot render, as the machine did."""
+    check_machine(scene, arch)  # classification LUTs, embedded geometry
     if scene.view.projection == "perspective" and not arch.perspective:
         raise InputError(
             f"{arch.name} renders parallel projection only",

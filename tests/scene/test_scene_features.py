@@ -188,10 +188,12 @@ def test_cli_refuses_two_luts_on_a_one_lut_machine_with_exit_2(tmp_path, capsys)
     scene.write_text(LUT * 2 + "[classification.combine]\nleaf0 = 'add'\n")
     args = [str(scene), "--phantom", "ball:size=8", "--image", "8", "--fidelity", "functional"]
     out = ["--arch", "volumepro500", "--out", str(tmp_path / "o"), "--quiet"]
-    code = main(["render", *args, *out])
-    assert code == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "features.classification_luts" in err[0] and "1 .. 1" in err[0]
+    for fidelity in ("functional", "golden"):  # golden at the machine's positions too
+        args[-1] = fidelity
+        code = main(["render", *args, *out])
+        assert code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "features.classification_luts" in err[0] and "1 .. 1" in err[0]
 
 
 def test_the_documented_feature_examples_parse():
