@@ -6,21 +6,22 @@
 #      early ray termination [V]; ray queueing, Doggett ISCAS 2000 [V]; VoxelCache, Kanus
 #      et al. GH 2003 [V]).  Structure and timing rules below are [I]; docs/cycle.md.
 
-Rays are cast from the image plane (the golden ``ray`` plan).  The ray generator cuts the
-image into tiles (``[buffers] ray_tile``); a tile's rays enter the ray queue
-(``ray_queue_entries`` at a time) as one *packet*, and the packet is marched in lock
-step: step ``j`` issues sample ``j`` of each of its live rays, ``P`` per clock (lane
-``i mod P``), before step ``j + 1`` (several rays at once, so consecutive lookups share
-cache blocks and SDRAM pages).  Each sample's 8 voxels and 8 gradient-table entries come
+Rays are cast from the image plane (the golden ``ray`` plan).  The ray generator emits
+rays tile by tile (``[buffers] ray_tile``, row-major tiles, row-major rays) into the ray
+queue (``ray_queue_entries``).  The pipelines work through the queue in *rounds*: a
+round issues the next sample of every queued ray, ``P`` per clock (lane ``i mod P``);
+between rounds finished rays retire and the generator refills their entries (several
+neighbouring rays in flight at once, so consecutive lookups share cache blocks and
+SDRAM pages: ray queueing).  Each sample's 8 voxels and 8 gradient-table entries come
 from the block cache (:mod:`models.arch.vizard2_memory`); a miss stalls the issue until
-its line is filled over the SDRAM channel (``hwsim.memory.SdramController``, cycle-exact).
-The shared back end (``models.backend``) interpolates, classifies, shades and composites
-what the cache delivered; a packet's accumulators leave through the pixel FIFO when the
-packet retires, and the image is built only from what left.
+its line is filled over the SDRAM channel (``hwsim.memory.SdramController``,
+cycle-exact).  The shared back end (``models.backend``) interpolates, classifies, shades
+and composites what the cache delivered; a retiring ray's accumulator leaves through the
+pixel FIFO, and the image is built only from what left.
 
 Timing (every cycle counted, nothing fitted):
 
-1. a packet step issues its ``n`` samples in ``ceil(n / P)`` clocks;
+1. a round of ``n`` queued rays issues its ``n`` samples in ``ceil(n / P)`` clocks;
 2. a lookup group that misses waits until its last fill's last beat has arrived, plus one
    clock to write the line; the fill's bursts go to the SDRAM when the group reaches the
    cache (blocking, in order);
@@ -32,8 +33,8 @@ Timing (every cycle counted, nothing fitted):
 4. geometry-based space leaping (``features.space_leaping``, composite and iso): each
    ray's first and last samples are moved past 4^3 blocks the host's occupancy geometry
    marks empty (``SamplePlan.leap``), so those samples are never issued;
-5. a packet's pixels enter the pixel FIFO (drained one per clock) when it retires; a full
-   FIFO stalls the issue;
+5. a retiring ray's pixel enters the pixel FIFO (drained one per clock); a full FIFO
+   stalls the issue;
 6. the pipeline latency ``FEEDBACK`` and the final FIFO drain are added once.
 """
 
@@ -44,11 +45,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hwsim.engine import Clock, Counters, DrainFifo, Stage
+from hwsim.engine import Clock, Counters, DeadlockError, DrainFifo, Stage
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, Step
+from hwsim.memory import SdramController
 from models.arch.cube4 import CycleResult
 from models.arch.vizard2_config import VizardFaults, memory_of, parse_buffers
 from models.arch.vizard2_memory import BLOCK, BlockCache, CacheFetch, VolumeImage
@@ -199,26 +201,14 @@ class VizardMachine:
         leaped.leap(occupancy_from_ranges(occupied, BLOCK))
         return leaped
 
-    def _packets(self) -> list[np.ndarray]:
-        """Plan-ray indices of each packet: image tiles in row-major order, each split
-        into chunks of ``ray_queue_entries``."""
+    def _generator_order(self) -> np.ndarray:
+        """Plan-ray indices in the order the ray generator emits them: image tiles
+        (``[buffers] ray_tile``) in row-major order, rays row-major inside a tile."""
         plan, (th, tw) = self.plan, self.buffers.ray_tile
-        depth = self.faults.ray_queue_entries
-        depth = self.buffers.ray_queue_entries if depth is None else depth
         width = plan.shape[1]
         rows, cols = plan.ray_ids // width, plan.ray_ids % width
         tile = (rows // th) * (-(-width // tw)) + cols // tw
-        order = np.lexsort((plan.ray_ids, tile))
-        bounds = np.flatnonzero(np.diff(tile[order])) + 1
-        tiles = np.split(order, bounds) if order.size else []
-        if tiles and depth <= 0:
-            from hwsim.engine import DeadlockError
-
-            raise DeadlockError(
-                f"ray_queue: depth {depth} can never accept the {tiles[0].size} rays of the "
-                "first packet; the ray generator waits forever at cycle 0"
-            )
-        return [t[i : i + depth] for t in tiles for i in range(0, t.size, depth)]
+        return np.lexsort((plan.ray_ids, tile))
 
     # ------------------------------------------------------------------ frame
 
@@ -229,42 +219,59 @@ class VizardMachine:
         depth = self.faults.pixel_fifo_depth
         depth = self.buffers.pixel_fifo_entries if depth is None else depth
         pixel_fifo = DrainFifo("pixel_bus.fifo", depth)
-        sd = self.memory_cfg.sdram
-        from hwsim.memory import SdramController
-
-        self.sdram = SdramController(sd)
+        queue_depth = self.faults.ray_queue_entries
+        queue_depth = self.buffers.ray_queue_entries if queue_depth is None else queue_depth
+        self.sdram = SdramController(self.memory_cfg.sdram)
         self.clock = Clock(self.arch.clock_hz)
         self.issued = 0
-        last_issue = np.zeros(plan.ray_ids.size, dtype=np.int64)
-        retired = 0  # cycle of the last packet's retirement
+        generator = self._generator_order()
+        if generator.size and queue_depth <= 0:
+            raise DeadlockError(
+                f"ray_queue: depth {queue_depth} can never accept a ray; the ray generator "
+                f"waits forever with {generator.size} rays pending at cycle 0"
+            )
+        last_issue = np.zeros(plan.ray_ids.size, dtype=np.int64)  # issue cycle + 1
+        self._where = np.zeros(plan.ray_ids.size, dtype=np.int64)
         blocks: list[tuple[np.ndarray, int, int]] = []
-        packets = self._packets()
-        for k, packet in enumerate(packets):
-            j_lo, j_hi = plan.j_lo[packet], plan.j_hi[packet]
-            for j in range(int(j_lo.min()), int(j_hi.max()) + 1):
-                live = packet[(j_lo <= j) & (j <= j_hi)]
-                if self.ert:
-                    live = live[state.alive[plan.ray_ids[live]]]
-                if live.size:
-                    blocks.append(self._step(j, live, state, last_issue))
-            # The packet retires: its accumulators leave through the pixel FIFO.
-            rays = plan.ray_ids[packet]
-            bus.acc[rays] = state.acc[rays]
-            bus.touched[rays] = state.touched[rays]
-            if bus.dt_sum is not None:
-                bus.dt_sum[rays] = state.dt_sum[rays]
-            stall = pixel_fifo.advance(self.clock.cycle - retired, int(rays.size), retired)
-            if stall:
-                blocks.append((np.zeros(P, np.int64), stall, stall))
-                self.clock.advance(stall)
-            retired = self.clock.cycle
-            if progress is not None:
-                progress(k + 1, len(packets))
+        queue = np.empty(0, dtype=np.int64)  # plan-ray indices, in queue order
+        j = np.empty(0, dtype=np.int64)  # next step of each queued ray
+        emitted = 0
+        retired = 0  # cycle of the last retirement
+        while True:
+            # Retire rays past their last sample (or terminated, with ERT hardware):
+            # their accumulators leave through the pixel FIFO.
+            done = j > plan.j_hi[queue]
+            if self.ert:
+                done |= ~state.alive[plan.ray_ids[queue]]
+            if done.any() or not queue.size:
+                rays = plan.ray_ids[queue[done]]
+                bus.acc[rays] = state.acc[rays]
+                bus.touched[rays] = state.touched[rays]
+                if bus.dt_sum is not None:
+                    bus.dt_sum[rays] = state.dt_sum[rays]
+                stall = pixel_fifo.advance(self.clock.cycle - retired, int(rays.size), retired)
+                if stall:
+                    blocks.append((np.zeros(P, np.int64), stall, stall))
+                    self.clock.advance(stall)
+                retired = self.clock.cycle
+                queue, j = queue[~done], j[~done]
+                # Refill the freed entries from the generator, in its order.
+                new = generator[emitted : emitted + queue_depth - queue.size]
+                emitted += new.size
+                queue = np.concatenate([queue, new])
+                j = np.concatenate([j, plan.j_lo[new]])
+                if progress is not None and new.size:
+                    progress(emitted, generator.size)
+            if not queue.size:
+                break
+            blocks.append(self._round(queue, j, state, last_issue))
+            j = j + 1
         return self._finish(state, bus, blocks, pixel_fifo)
 
-    def _step(self, j: int, live: np.ndarray, state, last_issue: np.ndarray):
-        """Issue packet step ``j`` (plan rays ``live``): cache lookups, fills, timing and
-        the back end.  Returns the block's (busy per lane, cycles, stall cycles)."""
+    def _round(self, live: np.ndarray, j: np.ndarray, state, last_issue: np.ndarray):
+        """Issue one sample of every queued ray (plan rays ``live`` at steps ``j``): cache
+        lookups, fills, timing and the back end.  Returns the block's (busy per lane,
+        cycles, stall cycles)."""
         plan, P, be = self.plan, self.P, self.be
         rays = plan.ray_ids[live]
         zyx = plan.position(j, live)
@@ -275,33 +282,16 @@ class VizardMachine:
         now = self.clock.cycle
         start = now
         if self.ert:  # rule 3: a ray's previous opacity must have come back
-            earlier = last_issue[live] > 0
+            before = last_issue[live]
+            earlier = before > 0
             if earlier.any():
-                due = last_issue[live][earlier] - 1 + FEEDBACK - group[earlier]
+                due = before[earlier] - 1 + FEEDBACK - group[earlier]
                 start = max(start, int(due.max()))
-        stall = np.zeros(-(-n // P) + 1, dtype=np.int64)
+        stall = np.zeros(-(-n // P), dtype=np.int64)
         if fetch.miss_blocks.size:
-            miss_group = fetch.miss_samples // P
-            cuts = np.flatnonzero(np.diff(miss_group)) + 1
-            waited = 0
-            for g, blocks in zip(
-                np.split(miss_group, cuts), np.split(fetch.miss_blocks, cuts), strict=True
-            ):
-                arrive = start + int(g[0]) + waited
-                banks, rows_ = self.image.bursts(blocks)
-                order = np.lexsort((rows_, banks))  # ray queue sorting: page by page
-                first = len(self.sdram)
-                self.sdram.issue_many(
-                    banks[order], rows_[order], np.full(order.size, self._mem_cycle(arrive))
-                )
-                ends = [self.sdram.data_end(i) for i in range(first, len(self.sdram))]
-                ready = int(self.memory_cfg.sdram.to_pipeline_cycles(max(ends))) + FILL_WRITE
-                if ready > arrive:
-                    stall[int(g[0])] += ready - arrive
-                    waited += ready - arrive
-        stall_before = np.cumsum(stall)
-        issue = start + group + stall_before[group] + 1  # +1: 0 means "never issued"
-        last_issue[live] = issue
+            self._fill(fetch, start, stall)
+        issue = start + group + np.cumsum(stall)[group]
+        last_issue[live] = issue + 1
         end = start + -(-n // P) + int(stall.sum())
         self.clock.advance(end - now)
         self.issued += n
@@ -311,18 +301,40 @@ class VizardMachine:
             plan._dt if np.isscalar(plan._dt) else plan._dt[live],
             plan._view[live] if plan._view.ndim == 2 else plan._view,
         )
+        where = self._where
+        where[live] = np.arange(n)
         frac = taps.frac
 
         def source(s: Step) -> CacheSource:
-            pick = np.arange(n) if s is step else np.searchsorted(rays, s.rays)
+            # The back end may drop samples (terminated rays, crop): find the rest.
+            pick = np.arange(n) if s is step else where[np.searchsorted(plan.ray_ids, s.rays)]
             return CacheSource(self, fetch, frac, pick)
 
         be.process(step, source, state)
         busy = np.bincount(np.arange(n) % P, minlength=P)
         return busy, end - now, int(stall.sum())
 
-    def _mem_cycle(self, cycle: int) -> int:
-        return int(self.memory_cfg.sdram.to_memory_cycles(cycle))
+    def _fill(self, fetch: CacheFetch, start: int, stall: np.ndarray) -> None:
+        """Rule 2: each lookup group that misses sends its fills' bursts to the SDRAM when
+        it reaches the cache and waits for the last beat (``stall[g]`` += the wait)."""
+        sd = self.memory_cfg.sdram
+        miss_group = fetch.miss_samples // self.P
+        cuts = np.flatnonzero(np.diff(miss_group)) + 1
+        waited = 0
+        for g, blocks in zip(
+            np.split(miss_group, cuts), np.split(fetch.miss_blocks, cuts), strict=True
+        ):
+            arrive = start + int(g[0]) + waited
+            banks, rows = self.image.bursts(blocks)
+            order = np.lexsort((rows, banks))  # the fills of one group sorted page by page
+            first = len(self.sdram)
+            earliest = int(sd.to_memory_cycles(arrive))
+            self.sdram.issue_many(banks[order], rows[order], np.full(order.size, earliest))
+            last = max(self.sdram.data_end(i) for i in range(first, len(self.sdram)))
+            ready = int(sd.to_pipeline_cycles(last)) + FILL_WRITE
+            if ready > arrive:
+                stall[int(g[0])] += ready - arrive
+                waited += ready - arrive
 
     def _finish(self, state, bus, blocks, pixel_fifo) -> CycleResult:
         c, P = self.counters, self.P
@@ -348,6 +360,7 @@ class VizardMachine:
         c.set("cache.hits", self.cache.hits)
         c.set("cache.misses", self.cache.lookups - self.cache.hits)
         c.set("cache.fills", self.cache.fills)
+        c.set("ray_generator.rays", self.plan.ray_ids.size)
         c.set("pixel_bus.pixels", pixel_fifo.pushed)
         c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
         c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)

@@ -1,0 +1,284 @@
+"""The ``cycle`` rung on VIZARD II: bit-identical images, cache and SDRAM timing, ERT and
+space leaping as timing mechanisms, counters that add up.
+
+Design section 3: functional and cycle images are bit-identical for the same scene and
+machine; the VIZARD II cycle image is built from the voxels its block cache delivered
+(test_cycle_vizard2_faults.py breaks the structures to prove it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.fidelity import render, resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+from models.arch.vizard2 import FEEDBACK, UNITS
+from models.arch.vizard2_memory import BLOCK
+from models.cycle import render_cycle
+from models.functional import render_functional
+from models.units import interp as interp_unit
+
+pytestmark = pytest.mark.model
+
+MODES = ["composite", "mip", "minip", "xray", "iso"]
+
+
+def vizard(**changes):
+    """The built-in vizard2 with fields (and ``buffers`` keys) replaced."""
+    base = resolve_arch("vizard2")
+    buffers = {**base.buffers, **changes.pop("buffers", {})}
+    return dataclasses.replace(base, buffers=buffers, **changes)
+
+
+def scene_of(az=30, el=20, *, size=20, mode="composite", projection="parallel", **extra):
+    render_kw = extra.pop("render", {})
+    return Scene(
+        volume=VolumeSpec(phantom="head"),
+        transfer=extra.pop("transfer", TransferSpec(preset="ct")),
+        view=ViewSpec(
+            azimuth=az, elevation=el, width=size, height=size, zoom=1.2, projection=projection
+        ),
+        render=RenderSpec(mode=mode, **render_kw),
+        **extra,
+    )
+
+
+def both(scene, volume, arch=None, **kw):
+    machine = arch or resolve_arch("vizard2")
+    tf = resolve_transfer(scene.transfer, volume)
+    plan = make_plan(scene, volume, machine.order)
+    fixed = render_functional(scene, volume, tf, machine, plan)
+    cycle = render_cycle(scene, volume, tf, machine, plan, **kw)
+    return fixed, cycle, plan
+
+
+def assert_identical(fixed, cycle):
+    assert cycle.image.dtype == fixed.image.dtype and cycle.image.shape == fixed.image.shape
+    assert np.array_equal(cycle.image, fixed.image), "cycle image differs from functional"
+
+
+@pytest.fixture(scope="module")
+def head():
+    return make_phantom("head", size=19)  # odd: edge blocks are partial
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20), (135, -40)])
+def test_cycle_equals_functional_bit_for_bit_parallel(head, mode, az, el):
+    fixed, cycle, _ = both(scene_of(az, el, mode=mode), head)
+    assert_identical(fixed, cycle)
+    if mode == "composite":
+        assert cycle.image[..., 3].max() > 0.5  # not a trivially empty picture
+
+
+@pytest.mark.parametrize("mode", ["composite", "mip", "xray", "iso"])
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (40, 25)])
+def test_cycle_equals_functional_bit_for_bit_perspective(head, mode, az, el):
+    scene = scene_of(az, el, mode=mode, projection="perspective")
+    assert_identical(*both(scene, head)[:2])
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        {"transfer": TransferSpec(preset="ct", order="pre")},
+        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 16.0), z=(0.0, 12.5))},
+        {"cut_planes": (CutPlane(normal=(1.0, 0.3, 0.2), offset=0.5, thickness=4.0, falloff=2.0),)},
+        {"transfer": TransferSpec(preset="ct", gradient_opacity=((0.0, 0.2), (200.0, 1.0)))},
+        {"render": {"lighting": False}},
+        {"render": {"early_termination": 0.8}},
+        {"render": {"supersampling": 2.0}},
+        {"render": {"supersampling": 0.5}},
+    ],
+    ids=["pre-classified", "crop", "cut-plane", "gm-modulation", "unlit", "ert", "ss2", "ss0.5"],
+)
+def test_scene_features_stay_bit_identical(head, extra):
+    assert_identical(*both(scene_of(40, 15, **extra), head)[:2])
+
+
+@pytest.mark.parametrize("pipelines", [1, 3, 8])
+def test_any_pipeline_count_renders_the_same_image(head, pipelines):
+    fixed, cycle, _ = both(scene_of(60, 25), head, vizard(pipelines=pipelines))
+    assert_identical(fixed, cycle)
+
+
+def test_marschner_lobb_and_ball():
+    for name in ("marschner-lobb", "ball"):
+        vol = make_phantom(name, size=18)
+        for mode in ("composite", "mip"):
+            tf = TransferSpec(preset="auto")
+            assert_identical(*both(scene_of(25, 35, mode=mode, transfer=tf), vol)[:2])
+
+
+def test_counters_add_up_and_throughput_never_exceeds_P(head):
+    P = 3
+    fixed, cycle, plan = both(scene_of(33, 21), head, vizard(pipelines=P))
+    c = cycle.counters
+    issued = c["frame.issued_samples"]
+    assert 0 < issued <= P * cycle.cycles
+    for unit in ["cache", *(u for u in cycle.elaborated_units if u in UNITS)]:
+        inputs = 0
+        for lane in range(P):
+            parts = [c[f"pipeline[{lane}].{unit}.{k}_cycles"] for k in ("busy", "stall", "idle")]
+            assert sum(parts) == cycle.cycles, (unit, lane, parts)
+            inputs += c[f"pipeline[{lane}].{unit}.inputs"]
+        assert inputs == issued
+    assert c["cache.hits"] + c["cache.misses"] == c["cache.lookups"]
+    assert c["cache.fills"] == c["cache.misses"] > 0
+    # Every fill reads a block's values (64 x 16 bits: 16 words, 2 bursts of 8) and its
+    # gradient-table entries (64 x 3 differences of 16 bits for <= 12-bit voxels, 24
+    # bits for 16-bit voxels: 48 or 72 words, 6 or 9 bursts).
+    bits = fixed_datapath(resolve_arch("vizard2"), head).voxel_bits
+    per_fill = 2 + (6 if bits <= 12 else 9)
+    assert c["memory.bursts"] == per_fill * c["cache.fills"]
+    assert (
+        c["memory.row_hits"] + c["memory.row_misses"] + c["memory.row_conflicts"]
+        == (c["memory.bursts"])
+    )
+    # Rays that space leaping empties are never generated; the rest leave as pixels.
+    assert c["pixel_bus.pixels"] == c["ray_generator.rays"] <= plan.ray_ids.size
+    assert cycle.derived["samples_per_cycle"] <= P
+
+
+def test_a_cache_that_holds_the_volume_misses_only_once_per_block():
+    """16^3 voxels are 4^3 blocks: with 4 x 4 x 4 lines every block has its own line, so
+    the misses are exactly the distinct blocks the samples touch (computed here from the
+    sample positions, independently of the cache model)."""
+    vol = make_phantom("head", size=16)
+    scene = scene_of(30, 20, size=24, mode="mip")
+    arch = vizard(buffers={"cache_sets": [4, 4, 4]})
+    fixed, cycle, plan = both(scene, vol, arch)
+    assert_identical(fixed, cycle)
+    blocks = set()
+    for step in plan.steps():
+        idx = interp_unit.interp_taps(step.zyx, vol.shape, fixed_datapath(arch, vol).interp).idx
+        z, rem = np.divmod(idx, 16 * 16)
+        y, x = np.divmod(rem, 16)
+        blocks.update(((z // BLOCK) * 16 + (y // BLOCK) * 4 + x // BLOCK).ravel().tolist())
+    assert cycle.counters["cache.misses"] == len(blocks)
+    # A 2 x 2 x 2 cache thrashes: more misses, more cycles, the same image.
+    _, small, _ = both(scene, vol, vizard(buffers={"cache_sets": [2, 2, 2]}))
+    assert np.array_equal(small.image, cycle.image)
+    assert small.counters["cache.misses"] > len(blocks) and small.cycles > cycle.cycles
+
+
+def fixed_datapath(arch, vol):
+    from models.datapath import Datapath
+
+    return Datapath.for_volume(arch, vol)
+
+
+def test_issue_cycles_stalls_and_tail_make_the_frame(head):
+    """Rules 1, 2, 5, 6 of docs/cycle.md: without ERT feedback the frame is the issue
+    clocks (ceil(n / P) per round of n queued rays), the stalls (cache fills, pixel FIFO),
+    the pipeline latency and the final pixel drain -- nothing else.  The rounds are
+    replayed here with a plain list as the ray queue."""
+    P, R, tile = 2, 16, 4
+    scene = scene_of(20, 10, mode="mip")
+    arch = vizard(pipelines=P, buffers={"ray_queue_entries": R, "ray_tile": [tile, tile]})
+    fixed, cycle, plan = both(scene, head, arch)
+    assert_identical(fixed, cycle)
+    width = plan.shape[1]
+    rows, cols = plan.ray_ids // width, plan.ray_ids % width
+    tiles = (rows // tile) * -(-width // tile) + cols // tile
+    pending = [int(plan.j_hi[i] - plan.j_lo[i] + 1) for i in np.lexsort((plan.ray_ids, tiles))]
+    queue: list[int] = []
+    issue = 0
+    while pending or queue:
+        while pending and len(queue) < R:
+            queue.append(pending.pop(0))
+        issue += -(-len(queue) // P)
+        queue = [left - 1 for left in queue if left > 1]
+    c = cycle.counters
+    stalls = c["pipeline[0].cache.stall_cycles"]
+    assert stalls > 0  # fills cost real SDRAM time
+    assert cycle.cycles == issue + stalls + FEEDBACK + c["pixel_bus.drain_cycles"]
+    assert c["pipeline.latency_cycles"] == FEEDBACK
+
+
+def test_a_short_ray_queue_costs_cycles_not_pixels(head):
+    """With ERT, a ray's next sample waits for its previous opacity (FEEDBACK clocks): a
+    queue of 4 rays cannot hide that latency; 64 can.  The cache holds the whole volume
+    (5^3 blocks in 8^3 lines), so both miss exactly once per block and differ only there."""
+    scene = scene_of(30, 20, size=24, render={"early_termination": 0.9})
+    big = {"cache_sets": [8, 8, 8]}
+    fixed, deep, _ = both(scene, head, vizard(buffers=big))
+    _, short, _ = both(scene, head, vizard(buffers={**big, "ray_queue_entries": 4}))
+    assert_identical(fixed, deep)
+    assert np.array_equal(short.image, deep.image)
+    assert short.counters["cache.misses"] == deep.counters["cache.misses"]
+    assert short.cycles > deep.cycles
+    lane = "pipeline[0].interp"
+    assert short.counters[f"{lane}.idle_cycles"] > deep.counters[f"{lane}.idle_cycles"]
+
+
+def test_early_termination_saves_cycles_not_pixels(head):
+    scene = scene_of(30, 20, size=24, render={"early_termination": 0.9})
+    fixed, with_ert, plan = both(scene, head)
+    _, without, _ = both(scene, head, vizard(early_termination=False))
+    assert_identical(fixed, with_ert)
+    assert np.array_equal(without.image, with_ert.image)  # the compositor ignores dead rays
+    issued = with_ert.counters["frame.issued_samples"]
+    assert issued == with_ert.samples < without.counters["frame.issued_samples"]
+    assert with_ert.cycles < without.cycles
+    # The threshold effect, and only it: a ray stops once its opacity reaches 0.9, so it
+    # misses at most 1 - 0.9 of opacity (plus one LSB of each output channel).
+    _, full, _ = both(scene_of(30, 20, size=24), head)
+    gap = np.abs(full.image[..., 3] - with_ert.image[..., 3])
+    assert 0 < gap.max() <= 0.1 + 2.0**-11
+
+
+def test_space_leaping_saves_cycles_not_pixels(head):
+    scene = scene_of(30, 20, size=24)
+    fixed, leaping, plan = both(scene, head)
+    _, plain, _ = both(scene, head, vizard(space_leaping=False))
+    assert_identical(fixed, leaping)
+    assert np.array_equal(plain.image, leaping.image)
+    assert leaping.counters["frame.leaped_samples"] > 0
+    assert plain.counters["frame.issued_samples"] == plan.samples  # every planned sample
+    assert plain.counters["ray_generator.rays"] == plan.ray_ids.size
+    assert (
+        leaping.counters["frame.issued_samples"]
+        == plan.samples - leaping.counters["frame.leaped_samples"]
+    )
+    assert leaping.cycles < plain.cycles
+    # MIP sees every sample: nothing to leap.
+    mip = both(scene_of(30, 20, size=24, mode="mip"), head)[1]
+    assert mip.counters["frame.leaped_samples"] == 0
+
+
+def test_elision_changes_neither_image_nor_cycles(head):
+    for scene in (scene_of(30, 20, mode="mip"), scene_of(30, 20, render={"lighting": False})):
+        fixed, lean, _ = both(scene, head)
+        _, full, _ = both(scene, head, elaborate_all=True)
+        assert_identical(fixed, lean)
+        assert np.array_equal(full.image, lean.image) and full.cycles == lean.cycles
+        assert lean.elided_units and not full.elided_units
+        assert "shade" in full.elaborated_units and "shade" not in lean.elaborated_units
+
+
+def test_render_entry_point_and_refusals(head):
+    run = render(scene_of(30, 20), fidelity="cycle", arch="vizard2", volume=head)
+    assert run.cycles > 0 and run.clock_hz == 100e6
+    assert "cache" in run.elaborated_units and "crop" in run.elided_units
+    assert run.counters["cache.lookups"] > 0
+    with pytest.raises(NotAvailableError, match="waveform"):
+        render(scene_of(), fidelity="cycle", arch="vizard2", volume=head, trace="x.vcd")
+    bad = [
+        (vizard(buffers={"cache_sets": [1, 4, 4]}), "buffers.cache_sets"),
+        (vizard(buffers={"ray_tiles": [8, 8]}), "buffers.ray_tiles"),
+        (vizard(buffers={"ray_queue_entries": -1}), "buffers.ray_queue_entries"),
+        (vizard(formats={}), "formats.gradient.source"),
+        (vizard(memory={**resolve_arch("vizard2").memory, "rows": 1}), "memory.rows"),
+        (vizard(memory={**resolve_arch("vizard2").memory, "modules": 2}), "memory.modules"),
+    ]
+    for arch, key in bad:
+        with pytest.raises(InputError, match=key.replace(".", r"\.")):
+            both(scene_of(), head, arch)
