@@ -6,34 +6,35 @@
 #      early ray termination [V]; ray queueing, Doggett ISCAS 2000 [V]; VoxelCache, Kanus
 #      et al. GH 2003 [V]).  Structure and timing rules below are [I]; docs/cycle.md.
 
-Rays are cast from the image plane (the golden ``ray`` plan).  The ray generator emits
-rays tile by tile (``[buffers] ray_tile``, row-major tiles, row-major rays) into the ray
-queue (``ray_queue_entries``).  The pipelines work through the queue in *rounds*: a
-round issues the next sample of every queued ray, ``P`` per clock (lane ``i mod P``);
-between rounds finished rays retire and the generator refills their entries (several
-neighbouring rays in flight at once, so consecutive lookups share cache blocks and
-SDRAM pages: ray queueing).  Each sample's 8 voxels and 8 gradient-table entries come
-from the block cache (:mod:`models.arch.vizard2_memory`); a miss stalls the issue until
-its line is filled over the SDRAM channel (``hwsim.memory.SdramController``,
-cycle-exact).  The shared back end (``models.backend``) interpolates, classifies, shades
-and composites what the cache delivered; a retiring ray's accumulator leaves through the
-pixel FIFO, and the image is built only from what left.
+Rays are cast from the image plane (the golden ``ray`` plan).  The ray generator cuts the
+image into tiles (``[buffers] ray_tile``, row-major); a tile's rays enter the ray queue
+(``ray_queue_entries`` at a time) as one *packet*, and the packet is marched in lock
+step: round ``j`` issues sample ``j`` of each of its live rays, ``P`` per clock (lane
+``i mod P``), then round ``j + 1`` (ray queueing: neighbouring rays at the same depth, so
+consecutive lookups share cache blocks and SDRAM pages).  Each sample's 8 voxels and 8
+gradient-table entries come from the block cache (:mod:`models.arch.vizard2_memory`); a
+miss stalls the issue until its line is filled over the SDRAM channel
+(``hwsim.memory.SdramController``, cycle-exact).  The shared back end
+(``models.backend``) interpolates, classifies, shades and composites what the cache
+delivered; a packet's accumulators leave through the pixel FIFO when it retires, and
+the image is built only from what left.
 
 Timing (every cycle counted, nothing fitted):
 
-1. a round of ``n`` queued rays issues its ``n`` samples in ``ceil(n / P)`` clocks;
+1. a round of ``n`` live rays issues its ``n`` samples in ``ceil(n / P)`` clocks;
 2. a lookup group that misses waits until its last fill's last beat has arrived, plus one
    clock to write the line; the fill's bursts go to the SDRAM when the group reaches the
    cache (blocking, in order);
-3. with early ray termination (``features.early_termination`` and a scene threshold < 1)
-   a ray's next sample issues no earlier than ``FEEDBACK`` clocks after its previous one
-   (the compositor's opacity comes back to the ray generator); a terminated ray issues
-   nothing more.  Without the feature, dead rays keep issuing (and fetching) samples the
-   compositor ignores;
+3. with early ray termination (``features.early_termination``; composite with a scene
+   threshold < 1, or iso's first hit) a ray stops issuing from the first round that
+   starts ``FEEDBACK`` clocks or more after its terminating sample issued (the
+   compositor's verdict travels back to the ray generator); samples issued meanwhile are
+   fetched and discarded (``ert.speculative_samples``).  Without the feature, dead rays
+   keep issuing (and fetching) samples the compositor ignores;
 4. geometry-based space leaping (``features.space_leaping``, composite and iso): each
    ray's first and last samples are moved past 4^3 blocks the host's occupancy geometry
    marks empty (``SamplePlan.leap``), so those samples are never issued;
-5. a retiring ray's pixel enters the pixel FIFO (drained one per clock); a full FIFO
+5. a retiring packet's pixels enter the pixel FIFO (drained one per clock); a full FIFO
    stalls the issue;
 6. the pipeline latency ``FEEDBACK`` and the final FIFO drain are added once.
 """
@@ -155,7 +156,9 @@ class VizardMachine:
             corrupt_line=self.faults.corrupt_line,
             dropped_fill=self.faults.dropped_fill,
         )
-        self.ert = arch.early_termination and backend.ert < 1.0
+        # Rays end early on an opacity threshold (composite) or a first hit (iso).
+        ert = backend.ert < 1.0 if backend.mode == "composite" else backend.mode == "iso"
+        self.ert = arch.early_termination and ert
         self.full_plan = plan
         self.plan = self._leaped(plan) if arch.space_leaping else plan
 
@@ -204,11 +207,19 @@ class VizardMachine:
     def _generator_order(self) -> np.ndarray:
         """Plan-ray indices in the order the ray generator emits them: image tiles
         (``[buffers] ray_tile``) in row-major order, rays row-major inside a tile."""
+        order = np.lexsort((self.plan.ray_ids, self._tile_of()))
+        return order
+
+    def _tile_of(self) -> np.ndarray:
         plan, (th, tw) = self.plan, self.buffers.ray_tile
         width = plan.shape[1]
         rows, cols = plan.ray_ids // width, plan.ray_ids % width
-        tile = (rows // th) * (-(-width // tw)) + cols // tw
-        return np.lexsort((plan.ray_ids, tile))
+        return (rows // th) * (-(-width // tw)) + cols // tw
+
+    def _tiles(self, order: np.ndarray) -> list[np.ndarray]:
+        """``order`` (generator order) cut where the tile changes."""
+        tile = self._tile_of()[order]
+        return np.split(order, np.flatnonzero(np.diff(tile)) + 1) if order.size else []
 
     # ------------------------------------------------------------------ frame
 
@@ -230,48 +241,43 @@ class VizardMachine:
                 f"ray_queue: depth {queue_depth} can never accept a ray; the ray generator "
                 f"waits forever with {generator.size} rays pending at cycle 0"
             )
-        last_issue = np.zeros(plan.ray_ids.size, dtype=np.int64)  # issue cycle + 1
         self._where = np.zeros(plan.ray_ids.size, dtype=np.int64)
+        self.terminated_at = np.full(plan.ray_ids.size, np.iinfo(np.int64).max // 2)
+        self.speculative = 0
         blocks: list[tuple[np.ndarray, int, int]] = []
-        queue = np.empty(0, dtype=np.int64)  # plan-ray indices, in queue order
-        j = np.empty(0, dtype=np.int64)  # next step of each queued ray
-        emitted = 0
+        packets = [
+            tile[i : i + queue_depth]
+            for tile in self._tiles(generator)
+            for i in range(0, tile.size, queue_depth)
+        ]
         retired = 0  # cycle of the last retirement
-        while True:
-            # Retire rays past their last sample (or terminated, with ERT hardware):
-            # their accumulators leave through the pixel FIFO.
-            done = j > plan.j_hi[queue]
-            if self.ert:
-                done |= ~state.alive[plan.ray_ids[queue]]
-            if done.any() or not queue.size:
-                rays = plan.ray_ids[queue[done]]
-                bus.acc[rays] = state.acc[rays]
-                bus.touched[rays] = state.touched[rays]
-                if bus.dt_sum is not None:
-                    bus.dt_sum[rays] = state.dt_sum[rays]
-                stall = pixel_fifo.advance(self.clock.cycle - retired, int(rays.size), retired)
-                if stall:
-                    blocks.append((np.zeros(P, np.int64), stall, stall))
-                    self.clock.advance(stall)
-                retired = self.clock.cycle
-                queue, j = queue[~done], j[~done]
-                # Refill the freed entries from the generator, in its order.
-                new = generator[emitted : emitted + queue_depth - queue.size]
-                emitted += new.size
-                queue = np.concatenate([queue, new])
-                j = np.concatenate([j, plan.j_lo[new]])
-                if progress is not None and new.size:
-                    progress(emitted, generator.size)
-            if not queue.size:
-                break
-            blocks.append(self._round(queue, j, state, last_issue))
-            j = j + 1
+        for k, packet in enumerate(packets):
+            j_lo, j_hi = plan.j_lo[packet], plan.j_hi[packet]
+            for j in range(int(j_lo.min()), int(j_hi.max()) + 1):
+                live = packet[(j_lo <= j) & (j <= j_hi)]
+                if self.ert:  # rule 3: known terminations stop the issue
+                    known = self.clock.cycle >= self.terminated_at[live] + FEEDBACK
+                    live = live[state.alive[plan.ray_ids[live]] | ~known]
+                if live.size:
+                    blocks.append(self._round(live, j, state))
+            # The packet retires: its accumulators leave through the pixel FIFO.
+            rays = plan.ray_ids[packet]
+            bus.acc[rays] = state.acc[rays]
+            bus.touched[rays] = state.touched[rays]
+            if bus.dt_sum is not None:
+                bus.dt_sum[rays] = state.dt_sum[rays]
+            stall = pixel_fifo.advance(self.clock.cycle - retired, int(rays.size), retired)
+            if stall:
+                blocks.append((np.zeros(P, np.int64), stall, stall))
+                self.clock.advance(stall)
+            retired = self.clock.cycle
+            if progress is not None:
+                progress(k + 1, len(packets))
         return self._finish(state, bus, blocks, pixel_fifo)
 
-    def _round(self, live: np.ndarray, j: np.ndarray, state, last_issue: np.ndarray):
-        """Issue one sample of every queued ray (plan rays ``live`` at steps ``j``): cache
-        lookups, fills, timing and the back end.  Returns the block's (busy per lane,
-        cycles, stall cycles)."""
+    def _round(self, live: np.ndarray, j: int, state):
+        """Issue packet step ``j`` (plan rays ``live``): cache lookups, fills, timing and
+        the back end.  Returns the block's (busy per lane, cycles, stall cycles)."""
         plan, P, be = self.plan, self.P, self.be
         rays = plan.ray_ids[live]
         zyx = plan.position(j, live)
@@ -279,19 +285,11 @@ class VizardMachine:
         fetch = self.cache.fetch(taps.idx)
         n = live.size
         group = np.arange(n) // P
-        now = self.clock.cycle
-        start = now
-        if self.ert:  # rule 3: a ray's previous opacity must have come back
-            before = last_issue[live]
-            earlier = before > 0
-            if earlier.any():
-                due = before[earlier] - 1 + FEEDBACK - group[earlier]
-                start = max(start, int(due.max()))
+        now = start = self.clock.cycle
         stall = np.zeros(-(-n // P), dtype=np.int64)
         if fetch.miss_blocks.size:
             self._fill(fetch, start, stall)
         issue = start + group + np.cumsum(stall)[group]
-        last_issue[live] = issue + 1
         end = start + -(-n // P) + int(stall.sum())
         self.clock.advance(end - now)
         self.issued += n
@@ -310,7 +308,13 @@ class VizardMachine:
             pick = np.arange(n) if s is step else where[np.searchsorted(plan.ray_ids, s.rays)]
             return CacheSource(self, fetch, frac, pick)
 
+        if self.ert:
+            before = state.alive[rays]
+            self.speculative += n - int(before.sum())
         be.process(step, source, state)
+        if self.ert:  # the issue cycle of each ray's terminating sample
+            ended = before & ~state.alive[rays]
+            self.terminated_at[live[ended]] = issue[ended]
         busy = np.bincount(np.arange(n) % P, minlength=P)
         return busy, end - now, int(stall.sum())
 
@@ -368,6 +372,7 @@ class VizardMachine:
         c.set("pipeline.latency_cycles", FEEDBACK)
         c.set("frame.cycles", cycles)
         c.set("frame.issued_samples", self.issued)
+        c.set("ert.speculative_samples", self.speculative)
         c.set("frame.samples", state.samples)
         c.set("frame.planned_samples", self.full_plan.samples)
         c.set("frame.leaped_samples", self.full_plan.samples - self.plan.samples)
