@@ -46,7 +46,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hwsim.engine import Clock, Counters, DeadlockError, DrainFifo, Stage
+from hwsim.engine import Clock, Counters, DeadlockError, DrainFifo, Stage, VcdTrace
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
@@ -118,8 +118,10 @@ class VizardMachine:
         *,
         faults: VizardFaults | None = None,
         elaborate_all: bool = False,
+        trace: VcdTrace | None = None,
     ) -> None:
         self.be, self.dp, self.arch = backend, backend.dp, backend.arch
+        self.trace = trace
         arch = self.arch
         self.faults = faults or VizardFaults()
         self.P = arch.pipelines
@@ -291,6 +293,8 @@ class VizardMachine:
             self._fill(fetch, start, stall)
         issue = start + group + np.cumsum(stall)[group]
         end = start + -(-n // P) + int(stall.sum())
+        if self.trace is not None:
+            self._trace_round(now, end, issue, rays)
         self.clock.advance(end - now)
         self.issued += n
         step = Step(
@@ -317,6 +321,30 @@ class VizardMachine:
             self.terminated_at[live[ended]] = issue[ended]
         busy = np.bincount(np.arange(n) % P, minlength=P)
         return busy, end - now, int(stall.sum())
+
+    def _trace_round(self, now: int, end: int, issue: np.ndarray, rays: np.ndarray) -> None:
+        """Per lane: ``i__valid`` high in the clocks it issues a sample, ``i__payload`` the
+        sample's ray (pixel index)."""
+        cycles = np.arange(now, end)
+        lanes = np.arange(issue.size) % self.P
+        for m in range(self.P):
+            valid = np.zeros(cycles.size, dtype=np.int64)
+            payload = np.zeros(cycles.size, dtype=np.int64)
+            mine = lanes == m
+            valid[issue[mine] - now] = 1
+            payload[issue[mine] - now] = rays[mine]
+            self.trace.record(f"pipeline[{m}].cache", "i__valid", 1, cycles, valid)
+            self.trace.record(f"pipeline[{m}].cache", "i__payload", 32, cycles, payload)
+
+    def _trace_memory(self, schedule, cycles: int) -> None:
+        """``memory.o__valid``: high in every clock a data beat arrives."""
+        sd = self.memory_cfg.sdram
+        beats = np.zeros(cycles + 1, dtype=np.int64)
+        first = sd.to_pipeline_cycles(schedule.data_first)
+        end = sd.to_pipeline_cycles(schedule.data_end)
+        np.add.at(beats, np.minimum(first, cycles), 1)
+        np.add.at(beats, np.minimum(end, cycles), -1)
+        self.trace.record("memory", "o__valid", 1, np.arange(cycles + 1), np.cumsum(beats) > 0)
 
     def _fill(self, fetch: CacheFetch, start: int, stall: np.ndarray) -> None:
         """Rule 2: each lookup group that misses sends its fills' bursts to the SDRAM when
@@ -357,6 +385,8 @@ class VizardMachine:
             stage.account(idle, tail)
             stage.publish()
         schedule = self.sdram.schedule()
+        if self.trace is not None:
+            self._trace_memory(schedule, cycles)
         for key, value in schedule.stats.to_counters("memory").items():
             c.set(key, value)
         c.set("cache.lines", self.cache.lines)
@@ -397,15 +427,14 @@ def render_vizard2(
     scene, volume, transfer, arch, plan, faults, elaborate_all, trace, datapath, progress
 ) -> CycleResult:
     """The cycle rung's entry for ``order = "ray"`` machines (``models.cycle``)."""
-    from hwsim.errors import NotAvailableError
-
-    if trace is not None:
-        raise NotAvailableError(
-            "the VIZARD II model writes no waveform yet", key="--trace", allowed="omit it"
-        )
     if faults is not None and not isinstance(faults, VizardFaults):
         raise TypeError("VIZARD II takes models.arch.vizard2.VizardFaults")
     if datapath is None:
         datapath = Datapath.for_volume(arch, volume)
     backend = Backend(scene, volume, transfer, arch, plan, datapath, exercise_unused=elaborate_all)
-    return VizardMachine(backend, plan, faults=faults, elaborate_all=elaborate_all).run(progress)
+    vcd = VcdTrace() if trace is not None else None
+    machine = VizardMachine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd)
+    result = machine.run(progress)
+    if vcd is not None:
+        vcd.write(trace)
+    return result

@@ -14,9 +14,9 @@ pytestmark = pytest.mark.system
 
 
 def test_vizard2_cycle_render_writes_exact_cycles_and_cache_counters(tmp_path, capsys):
-    out = tmp_path / "run"
+    out, vcd = tmp_path / "run", tmp_path / "wave.vcd"
     args = ["render", "--phantom", "head:size=16", "--image", "20", "--arch", "vizard2"]
-    assert main([*args, "--fidelity", "cycle", "--out", str(out)]) == 0
+    assert main([*args, "--fidelity", "cycle", "--out", str(out), "--trace", str(vcd)]) == 0
     assert "cycles at 100 MHz" in capsys.readouterr().out
     stats = json.loads((out / "stats.json").read_text())
     assert stats["fidelity"] == "cycle" and isinstance(stats["cycles"], int)
@@ -27,6 +27,8 @@ def test_vizard2_cycle_render_writes_exact_cycles_and_cache_counters(tmp_path, c
     assert c["memory.bursts"] > 0 and derived["samples_per_cycle"] <= 1
     rows = list(csv.DictReader((out / "units.csv").read_text().splitlines()))
     assert rows and all(int(r["total_cycles"]) == stats["cycles"] for r in rows)
+    text = vcd.read_text()
+    assert "$enddefinitions $end" in text and "i__payload" in text and "o__valid" in text
     assert main([*args, "--fidelity", "functional", "--out", str(tmp_path / "f"), "--quiet"]) == 0
     assert np.array_equal(np.load(out / "image.npy"), np.load(tmp_path / "f" / "image.npy"))
 
