@@ -96,8 +96,16 @@ def parse_buffers(arch: ArchConfig) -> VizardBuffers:
 
 
 def memory_of(arch: ArchConfig) -> MemoryConfig:
-    """The ``[memory]`` table (one channel: ``modules = 1``)."""
+    """The ``[memory]`` table (one channel: ``modules = 1``, blocks stored one after
+    another: ``skew = "block"``)."""
     memory = parse_memory(arch.memory, source=arch.source)
+    if memory.skew != "block":
+        raise InputError(
+            f"the VIZARD II memory stores 4^3 blocks one after another, not {memory.skew!r}",
+            source=arch.source,
+            key="memory.skew",
+            allowed="block",
+        )
     if memory.modules != 1:
         raise InputError(
             f"the VIZARD II model has one memory channel, not {memory.modules}",

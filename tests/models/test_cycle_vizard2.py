@@ -266,6 +266,7 @@ def test_render_entry_point_and_refusals(head):
         (vizard(formats={}), "formats.gradient.source"),
         (vizard(memory={**resolve_arch("vizard2").memory, "rows": 1}), "memory.rows"),
         (vizard(memory={**resolve_arch("vizard2").memory, "modules": 2}), "memory.modules"),
+        (vizard(memory={**resolve_arch("vizard2").memory, "skew": "cube4"}), "memory.skew"),
     ]
     for arch, key in bad:
         with pytest.raises(InputError, match=key.replace(".", r"\.")):
