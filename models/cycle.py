@@ -4,7 +4,8 @@
 #      per-unit busy/stall counters, optional VCD); architectures.md section 1 (Cube-4).
 
 Today the Cube-4 family (processing order ``slice-parallel``: ``cube4``,
-``cube4-teramac`` and user variants) is modelled; other machines raise
+``cube4-teramac`` and user variants) and VIZARD II (order ``ray``:
+:mod:`models.arch.vizard2`) are modelled; other machines raise
 :class:`~hwsim.errors.NotAvailableError` naming what is.
 """
 
@@ -27,7 +28,7 @@ from models.datapath import Datapath
 __all__ = ["render_cycle", "CYCLE_ORDERS", "Faults", "CycleResult"]
 
 #: Processing orders the cycle rung models.
-CYCLE_ORDERS = ("slice-parallel",)
+CYCLE_ORDERS = ("slice-parallel", "ray")
 
 
 def render_cycle(
@@ -55,6 +56,12 @@ def render_cycle(
     trace : path, optional
         Write a VCD of memory reads, interpolator inputs and the pixel bus there.
     """
+    if arch.order == "ray":  # VIZARD II (docs/cycle.md)
+        from models.arch.vizard2 import render_vizard2
+
+        return render_vizard2(
+            scene, volume, transfer, arch, plan, faults, elaborate_all, trace, datapath, progress
+        )
     if arch.order not in CYCLE_ORDERS:
         raise NotAvailableError(
             f"the cycle rung models the Cube-4 family so far; {arch.name} "

@@ -13,7 +13,8 @@ def derive(
     """Samples per cycle, utilisation per unit and lane, frame time and rate at ``clock_hz``.
 
     ``utilisation`` of ``pipeline[i].<unit>`` is ``busy_cycles / cycles``; ``stall_share``
-    is ``stall_cycles / cycles``.
+    is ``stall_cycles / cycles``; ``hit_rates[<cache>]`` is ``<cache>.hits /
+    <cache>.lookups``.
     """
     out: dict[str, Any] = {
         "samples_per_cycle": samples / cycles if cycles else 0.0,
@@ -30,4 +31,10 @@ def derive(
             key = "utilisation" if kind == "busy_cycles" else "stall_share"
             entry[key] = value / cycles if cycles else 0.0
     out["units"] = units
+    # Caches: ``<cache>.hits`` / ``<cache>.lookups``.
+    out["hit_rates"] = {
+        path[: -len(".hits")]: value / counters[path[: -len("hits")] + "lookups"]
+        for path, value in counters.items()
+        if path.endswith(".hits") and counters.get(path[: -len("hits")] + "lookups")
+    }
     return out
