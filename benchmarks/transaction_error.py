@@ -1,0 +1,207 @@
+"""Transaction-rung cycle error against the cycle rung: the measured table for the report.
+
+Usage::
+
+    .venv/bin/python benchmarks/transaction_error.py [--quick] [--out FILE.json]
+
+For every case (phantoms head, ball, Marschner-Lobb at several parallel and perspective
+views; the real CT and MR of ../shared/data when present; pipeline counts 4 and 8; the
+Teramac machine; a shallow pixel FIFO) the cycle rung renders the frame and the
+transaction rung's event model times it; the relative error
+``(transaction - cycle) / cycle`` is written per case, with the worst per architecture
+family and per kind of view.  The images are not compared here (tests/models prove them
+bit-identical).  ``--quick`` keeps the small phantoms only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.report_io import write_report
+from hwsim.bench import machine_info
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom, read_volume
+from models.cycle import render_cycle
+from models.transaction import transaction_timing
+
+__all__ = ["CONTRACT", "cases", "measure", "run", "main"]
+
+#: The issue's bound on the transaction rung's cycle error.
+CONTRACT = 0.02
+SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+
+PARALLEL = [(0, 0), (30, 20), (45, 0), (150, -30), (90, 45)]
+PERSPECTIVE = [(-35, 10), (20, 15), (160, -20)]
+
+
+def _scene(source, az, el, projection, image, *, mode="composite", preset="ct", zoom=1.2):
+    spec = VolumeSpec(path=str(source)) if isinstance(source, Path) else VolumeSpec(phantom=source)
+    return Scene(
+        volume=spec,
+        transfer=TransferSpec(preset=preset),
+        view=ViewSpec(
+            azimuth=az,
+            elevation=el,
+            width=image,
+            height=image,
+            zoom=zoom,
+            projection=projection,
+            distance=3.0,
+        ),
+        render=dataclasses.replace(Scene().render, mode=mode),
+    )
+
+
+def cases(quick: bool = False) -> list[dict[str, Any]]:
+    """The measured cases: name, volume, scene, architecture."""
+    cube4 = resolve_arch("cube4")
+    out = []
+    sizes = [("head", 48, "ct", "composite"), ("ball", 40, "ct", "xray")]
+    sizes.append(("marschner-lobb", 41, "ct", "mip"))
+    if not quick:
+        sizes.append(("head", 96, "ct", "composite"))
+    for phantom, n, preset, mode in sizes:
+        volume = make_phantom(phantom, size=n)
+        for P in (4, 8):
+            arch = dataclasses.replace(cube4, name=f"cube4-P{P}", pipelines=P)
+            for projection, views in (("parallel", PARALLEL), ("perspective", PERSPECTIVE)):
+                for az, el in views:
+                    for image in (n, 2 * n) if projection == "perspective" else (n,):
+                        scene = _scene(phantom, az, el, projection, image, mode=mode, preset=preset)
+                        out.append(
+                            {
+                                "name": f"{phantom}{n} {projection} {az},{el} img{image} P{P}",
+                                "volume": volume,
+                                "scene": scene,
+                                "arch": arch,
+                                "projection": projection,
+                            }
+                        )
+    head = make_phantom("head", size=64)
+    shallow = dataclasses.replace(cube4, name="cube4-pixfifo64", buffers={"pixel_fifo_entries": 64})
+    for az, el in [(0, 0), (30, 20)]:
+        out.append(
+            {
+                "name": f"head64 parallel {az},{el} pixel FIFO 64",
+                "volume": head,
+                "scene": _scene("head", az, el, "parallel", 64),
+                "arch": shallow,
+                "projection": "parallel",
+            }
+        )
+    if not quick:
+        teramac = resolve_arch("cube4-teramac")
+        out.append(
+            {
+                "name": "head128 parallel 30,20 teramac",
+                "volume": make_phantom("head", size=128),
+                "scene": _scene("head", 30, 20, "parallel", 128),
+                "arch": teramac,
+                "projection": "parallel",
+            }
+        )
+        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
+            path = SHARED / fname
+            if not path.is_file():
+                continue
+            volume = read_volume(path)
+            preset = "ct" if fname.startswith("ct") else "mr"
+            for projection, views in (
+                ("parallel", [(30, 20), (0, 0)]),
+                ("perspective", [(-35, 10)]),
+            ):
+                for az, el in views:
+                    scene = _scene(path, az, el, projection, 128, preset=preset)
+                    out.append(
+                        {
+                            "name": f"{fname} {projection} {az},{el}",
+                            "volume": volume,
+                            "scene": scene,
+                            "arch": cube4,
+                            "projection": projection,
+                        }
+                    )
+    return out
+
+
+def measure(case: dict[str, Any]) -> dict[str, Any]:
+    """Cycle-rung cycles, transaction cycles and the relative error of one case."""
+    scene, volume, arch = case["scene"], case["volume"], case["arch"]
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    start = time.perf_counter()
+    cycle = render_cycle(scene, volume, tf, arch, plan)
+    cycle_seconds = time.perf_counter() - start
+    txn = transaction_timing(scene, arch, plan)
+    c = txn.counters
+    return {
+        "case": case["name"],
+        "arch": arch.name,
+        "pipelines": arch.pipelines,
+        "projection": case["projection"],
+        "volume": list(volume.shape),
+        "cycle_cycles": cycle.cycles,
+        "transaction_cycles": txn.cycles,
+        "error": (txn.cycles - cycle.cycles) / cycle.cycles,
+        "cycle_seconds": cycle_seconds,
+        "timing_model_seconds": c["transaction.timing_seconds"],
+        "events": c["transaction.events"],
+        "stretch_cycles": c["pipelines.stretch_cycles"],
+        "pixel_stall_cycles": c["pipelines.stall_cycles"],
+    }
+
+
+def run(quick: bool = False, log=print) -> dict[str, Any]:
+    """Measure every case; summarise the worst error per pipeline count and projection."""
+    rows = []
+    for case in cases(quick):
+        row = measure(case)
+        rows.append(row)
+        log(
+            f"{row['case']:<46} {row['cycle_cycles']:>9} {row['transaction_cycles']:>9} "
+            f"{100 * row['error']:+7.3f}%"
+        )
+    worst: dict[str, Any] = {}
+    for row in rows:
+        key = f"{row['arch']} {row['projection']}"
+        if key not in worst or abs(row["error"]) > abs(worst[key]["error"]):
+            worst[key] = {"case": row["case"], "error": row["error"]}
+    return {
+        "schema": 1,
+        "benchmark": "transaction-error",
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "machine": machine_info(),
+        "contract": CONTRACT,
+        "within_contract": all(abs(r["error"]) <= CONTRACT for r in rows),
+        "max_abs_error": max(abs(r["error"]) for r in rows),
+        "worst": worst,
+        "real_volumes": sorted({r["case"].split()[0] for r in rows if ".nrrd" in r["case"]}),
+        "cases": rows,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small phantoms only")
+    parser.add_argument("--out", type=Path, default=None, help="JSON report path")
+    args = parser.parse_args(argv)
+    report = run(args.quick)
+    print(f"max |error| {100 * report['max_abs_error']:.3f}% (contract {100 * CONTRACT:g}%)")
+    write_report(report, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
