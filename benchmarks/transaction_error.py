@@ -69,7 +69,7 @@ def cases(quick: bool = False) -> list[dict[str, Any]]:
     cube4 = resolve_arch("cube4")
     out = []
     sizes = [("head", 48, "ct", "composite"), ("ball", 40, "ct", "xray")]
-    sizes.append(("marschner-lobb", 41, "ct", "mip"))
+    sizes += [("marschner-lobb", 41, "ct", "mip"), ("ball", 20, "ct", "xray")]
     if not quick:
         sizes.append(("head", 96, "ct", "composite"))
     for phantom, n, preset, mode in sizes:
@@ -112,24 +112,24 @@ def cases(quick: bool = False) -> list[dict[str, Any]]:
                 "projection": "parallel",
             }
         )
+        cube4_p8 = dataclasses.replace(cube4, name="cube4-P8", pipelines=8)
         for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
             path = SHARED / fname
             if not path.is_file():
                 continue
             volume = read_volume(path)
             preset = "ct" if fname.startswith("ct") else "mr"
-            for projection, views in (
-                ("parallel", [(30, 20), (0, 0)]),
-                ("perspective", [(-35, 10)]),
-            ):
-                for az, el in views:
-                    scene = _scene(path, az, el, projection, 128, preset=preset)
+            views = [("parallel", 30, 20, 128), ("parallel", 0, 0, 128)]
+            views += [("perspective", -35, 10, 128), ("perspective", -35, 10, 256)]
+            for arch in (cube4, cube4_p8):
+                for projection, az, el, image in views:
+                    scene = _scene(path, az, el, projection, image, preset=preset)
                     out.append(
                         {
-                            "name": f"{fname} {projection} {az},{el}",
+                            "name": f"{fname} {projection} {az},{el} img{image} P{arch.pipelines}",
                             "volume": volume,
                             "scene": scene,
-                            "arch": cube4,
+                            "arch": arch,
                             "projection": projection,
                         }
                     )

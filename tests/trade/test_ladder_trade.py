@@ -21,12 +21,16 @@ ARCHS = ["volumepro500", "vizard2", "cube4"]
 
 
 def runs_on(rung: str, arch: str) -> bool:
-    """Whether this build has ``rung`` for ``arch`` (the cycle rung: the Cube-4 family)."""
+    """Whether this build has ``rung`` for ``arch`` (cycle, transaction: the Cube-4 family)."""
     from models.cycle import CYCLE_ORDERS
+    from models.transaction import TRANSACTION_ORDERS
 
     if rung not in fidelity.AVAILABLE_FIDELITIES:
         return False
-    return rung != "cycle" or fidelity.resolve_arch(arch).order in CYCLE_ORDERS
+    order = fidelity.resolve_arch(arch).order
+    if rung == "cycle":
+        return order in CYCLE_ORDERS
+    return rung != "transaction" or order in TRANSACTION_ORDERS
 
 
 @pytest.fixture(scope="module")
@@ -82,6 +86,22 @@ def test_numerical_and_algorithmic_errors_compare_the_documented_pairs(cases, ro
     # VIZARD II casts the ideal rays; VolumePro 500's shear-warp resamples them.
     assert pick(rows, "head", "vizard2", "golden")["algorithmic_rmse"] == 0.0
     assert pick(rows, "head", "volumepro500", "golden")["algorithmic_rmse"] > 1e-3
+
+
+def test_transaction_rows_carry_their_cycle_error_against_the_cycle_rung(cases, rows):
+    """Issue 7: the transaction rung's row has its cycle-count error against the cycle
+    rung; its image is the functional image, so its image errors are the functional's."""
+    head = cases[[c.label for c in cases].index("head")]
+    for scene in ("head", "ball"):
+        txn, cyc = pick(rows, scene, "cube4", "transaction"), pick(rows, scene, "cube4", "cycle")
+        fun = pick(rows, scene, "cube4", "functional")
+        assert txn["cycle_reference"] == "cycle"
+        assert txn["cycle_error"] == pytest.approx(txn["cycles"] / cyc["cycles"] - 1)
+        assert abs(txn["cycle_error"]) <= 0.02
+        assert txn["numerical_rmse"] == fun["numerical_rmse"]
+    run = fidelity.render(head.scene, fidelity="transaction", arch="cube4", volume=head.volume)
+    assert pick(rows, "head", "cube4", "transaction")["cycles"] == run.cycles
+    assert pick(rows, "head", "volumepro500", "transaction")["status"] == "not available"
 
 
 def test_elision_saving_is_the_share_of_units_the_scene_does_not_need(rows):
