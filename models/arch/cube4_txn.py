@@ -36,10 +36,10 @@ import numpy as np
 import simpy
 
 from hwsim.arch import ArchConfig
-from hwsim.engine.fifo import DeadlockError
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
+from models.arch.pixel_bus_txn import PixelBus
 from models.units import classify, composite, crop, gradient, interp, shade, skew
 
 __all__ = ["Cube4Geometry", "Cube4Transaction", "slice_loads", "TxnTiming"]
@@ -161,21 +161,8 @@ class Cube4Transaction:
         samples, finishing = slice_loads(self.plan)
         env = simpy.Environment()
         slice_fifo = simpy.Store(env, capacity=1)
-        depth = geo.pixel_fifo_depth
-        pixels = simpy.Container(env, capacity=max(depth, 1), init=0)
-        stats = {
-            "events": 0,
-            "stretch": 0,
-            "stall": 0,
-            "bus_busy": 0,
-            "max_occ": 0,
-            "pipe_end": 0,
-            "bus_end": 0,
-        }
-        work = env.event()  # re-armed whenever the bus has nothing to send
-        # Pixels move in batches of one base-plane row, or an eighth of a shallow FIFO
-        # (a batch holds its slots until its last pixel has left).
-        batch = max(1, min(self.row_pixels, -(-depth // 8)))
+        bus = PixelBus(env, geo.pixel_fifo_depth, self.row_pixels)
+        stats = {"events": 0, "stretch": 0, "pipe_end": 0}
 
         def memory():
             for j in range(geo.slices):
@@ -184,7 +171,6 @@ class Cube4Transaction:
                 stats["events"] += 2
 
         def pipelines():
-            nonlocal work
             for j in range(len(samples)):
                 yield slice_fifo.get()
                 busiest = -(-int(samples[j]) // P)
@@ -192,45 +178,13 @@ class Cube4Transaction:
                 stats["stretch"] += stretch
                 yield env.timeout(T + geo.slice_overhead + stretch)
                 stats["events"] += 2
-                left = int(finishing[j])
-                if left and depth <= 0:
-                    raise DeadlockError(
-                        f"pixel_bus.fifo: depth {depth} can never accept the {left} "
-                        f"pixels pending at cycle {int(env.now)}; the compositors wait forever"
-                    )
-                waited = env.now
-                while left:
-                    chunk = min(left, batch)
-                    yield pixels.put(chunk)
-                    stats["events"] += 1
-                    stats["max_occ"] = max(stats["max_occ"], pixels.level)
-                    left -= chunk
-                    if not work.triggered:
-                        work.succeed()
-                stats["stall"] += int(env.now - waited)
+                yield from bus.push(int(finishing[j]))
             stats["pipe_end"] = int(env.now)
-
-        def bus():
-            nonlocal work
-            while True:
-                if pixels.level == 0:
-                    work = env.event()
-                    yield work
-                    continue
-                chunk = min(pixels.level, batch)
-                yield env.timeout(chunk)  # one pixel per clock; the slots free as they leave
-                yield pixels.get(chunk)
-                stats["events"] += 2
-                stats["bus_busy"] += chunk
-                stats["bus_end"] = int(env.now)
 
         env.process(memory())
         env.process(pipelines())
-        env.process(bus())
         env.run()  # until nothing is scheduled: the bus has sent every pixel
-        if stats["bus_busy"] != int(finishing.sum()):
-            raise RuntimeError("transaction model ended with pixels still in the FIFO")
-        end = max(stats["pipe_end"], stats["bus_end"])
+        end = max(stats["pipe_end"], bus.end)
         # Frame start: the memory begins reading slice 0 (the primed slice) at cycle 0.
         cycles = end + geo.latency
         voxels = geo.slices * geo.beams * geo.beam_voxels
@@ -239,17 +193,13 @@ class Cube4Transaction:
             "memory.reads": voxels,
             "memory.read_bytes": 2 * voxels,  # 16-bit words, as the cycle model counts
             "pipelines.busy_cycles": -(-int(samples.sum()) // P) if P else 0,
-            "pipelines.stall_cycles": stats["stall"],
+            "pipelines.stall_cycles": bus.stall_cycles,
             "pipelines.stretch_cycles": stats["stretch"],
-            "pixel_bus.fifo_depth": depth,
-            "pixel_bus.pixels": int(finishing.sum()),
-            "pixel_bus.busy_cycles": stats["bus_busy"],
-            "pixel_bus.max_occupancy": stats["max_occ"],
-            "pixel_bus.drain_cycles": max(0, stats["bus_end"] - stats["pipe_end"]),
+            **bus.counters(stats["pipe_end"]),
             "pipeline.latency_cycles": geo.latency,
             "frame.cycles": cycles,
             "frame.samples": int(samples.sum()),
-            "transaction.events": stats["events"],
+            "transaction.events": stats["events"] + bus.events,
             "transaction.granularity": "slice (n_a beam batch) / pixel row",
             "transaction.timing_seconds": time.perf_counter() - start,
         }
