@@ -11,7 +11,11 @@ cycle rung (slices, beam batches, pixel rows), which never calls the cycle machi
 Machines with a transaction model, by processing order:
 
 ``slice-parallel``
-    the Cube-4 family (:class:`models.arch.cube4_txn.Cube4Transaction`).
+    the Cube-4 family (:class:`models.arch.cube4_txn.Cube4Transaction`);
+``shear-warp``, ``shear-image``
+    the VolumePro family's SDRAM-fed slab machines
+    (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube;
+    machines that skip beams (VolumePro 1000) or render in sections are refused.
 
 Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
 """
@@ -33,13 +37,18 @@ from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4_txn import Cube4Transaction
+from models.arch.volumepro_txn import SlabTransaction
 from models.datapath import Datapath
 from models.functional import render_functional
 
 __all__ = ["TRANSACTION_ORDERS", "TransactionResult", "render_transaction", "transaction_timing"]
 
 #: Processing orders with a transaction model, and the model's class.
-TRANSACTION_ORDERS = {"slice-parallel": Cube4Transaction}
+TRANSACTION_ORDERS = {
+    "slice-parallel": Cube4Transaction,
+    "shear-warp": SlabTransaction,
+    "shear-image": SlabTransaction,
+}
 
 
 @dataclass
@@ -66,10 +75,9 @@ def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **optio
     model = TRANSACTION_ORDERS.get(arch.order)
     if model is None:
         raise NotAvailableError(
-            f"the transaction rung models the Cube-4 family so far; {arch.name} "
-            f"({arch.order} order) has no transaction model yet",
+            f"{arch.name} ({arch.order} order) has no transaction model yet",
             key="--arch",
-            allowed="cube4, cube4-teramac or a slice-parallel FILE.toml",
+            allowed="cube4, cube4-teramac, volumepro500, em-cube",
         )
     return model(scene, arch, plan, **options).run()
 

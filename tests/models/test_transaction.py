@@ -229,8 +229,8 @@ def test_counters_describe_the_frame(phantoms):
 
 
 def test_machines_without_a_transaction_model_are_not_available(phantoms):
-    with pytest.raises(NotAvailableError, match="volumepro500 .shear-warp order. has no"):
-        render(scene_of(), fidelity="transaction", arch="volumepro500", volume=phantoms["head"])
+    with pytest.raises(NotAvailableError, match="vizard2 .ray order. has no transaction model"):
+        render(scene_of(), fidelity="transaction", arch="vizard2", volume=phantoms["head"])
 
 
 def test_cube4_refusals_hold_at_the_transaction_rung(phantoms):

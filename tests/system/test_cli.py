@@ -141,8 +141,8 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
         (["render", "--fidelity", "rtl"], "not yet available"),
         (
-            ["render", "--fidelity", "transaction", "--arch", "volumepro500"],
-            "volumepro500 (shear-warp order) has no transaction model yet",
+            ["render", "--fidelity", "transaction", "--arch", "volumepro1000"],
+            "volumepro1000 skips beams (early ray termination, space leaping)",
         ),
         (
             ["render", "--fidelity", "cycle", "--arch", "volumepro500"],
