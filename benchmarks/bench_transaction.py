@@ -3,22 +3,23 @@
 Usage::
 
     .venv/bin/python benchmarks/bench_transaction.py [--sizes 128 256] [--repeats 3]
-                                                     [--perspective] [--out FILE.json]
+                                                     [--perspective] [--arch cube4 ...]
+                                                     [--out FILE.json]
 
 For each size the CT-like head phantom (composite + Phong, ``ct`` preset, image N x N,
-view 30,15; ``--perspective`` adds the same view in perspective) is rendered on
-``cube4`` by the cycle rung and by the transaction rung in the same run (median of
-``--repeats`` after a warm-up), the images checked bit-identical.  Reported: wall
-seconds of each, the ratio cycle / transaction (issue 5's goal: >= 10), and the
-transaction rung split into its two parts: the SimPy event model (the timing) and the
-functional datapath (the image), with the ratio cycle / event model alone.  The cycle
-error of the transaction count is recorded beside.  Nothing is asserted.
+view 30,15; ``--perspective`` adds the same view in perspective where the machine has
+it) is rendered on each ``--arch`` (default ``cube4``) by the cycle rung and by the
+transaction rung in the same run (median of ``--repeats`` after a warm-up), the images
+checked bit-identical.  Reported: wall seconds of each, the ratio cycle / transaction
+(issue 5's goal: >= 10), and the transaction rung split into its two parts: the SimPy
+event model (the timing) and the functional datapath (the image), with the ratio
+cycle / event model alone.  The cycle error of the transaction count is recorded
+beside.  Nothing is asserted.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import statistics
 import sys
 import time
@@ -47,8 +48,8 @@ __all__ = ["GOAL", "run", "main"]
 GOAL = 10.0
 
 
-def _case(n: int, projection: str):
-    arch = resolve_arch("cube4")
+def _case(n: int, projection: str, arch_name: str = "cube4"):
+    arch = resolve_arch(arch_name)
     volume = make_phantom("head", size=n)
     view = ViewSpec(azimuth=30, elevation=15, width=n, height=n, zoom=1.3, projection=projection)
     scene = Scene(transfer=TransferSpec(preset="ct"), view=view)
@@ -56,9 +57,9 @@ def _case(n: int, projection: str):
     return arch, volume, scene, tf, make_plan(scene, volume, arch.order)
 
 
-def measure(n: int, projection: str, repeats: int) -> dict[str, Any]:
+def measure(n: int, projection: str, repeats: int, arch_name: str = "cube4") -> dict[str, Any]:
     """One size and projection: both rungs timed, the transaction rung split in two."""
-    arch, volume, scene, tf, plan = _case(n, projection)
+    arch, volume, scene, tf, plan = _case(n, projection, arch_name)
     cycle_s, cycle = median_seconds(repeats, render_cycle, scene, volume, tf, arch, plan)
     txn_runs = []
 
@@ -73,6 +74,7 @@ def measure(n: int, projection: str, repeats: int) -> dict[str, Any]:
     image_s = statistics.median(r.counters["transaction.image_seconds"] for r in timed)
     return {
         "size": n,
+        "arch": arch.name,
         "projection": projection,
         "pipelines": arch.pipelines,
         "samples": cycle.samples,
@@ -92,27 +94,38 @@ def measure(n: int, projection: str, repeats: int) -> dict[str, Any]:
     }
 
 
-def run(sizes: Sequence[int], repeats: int, perspective: bool = False) -> dict[str, Any]:
-    """Every size (and projection); the JSON-ready report."""
+def run(
+    sizes: Sequence[int],
+    repeats: int,
+    perspective: bool = False,
+    archs: Sequence[str] = ("cube4",),
+    note: str | None = None,
+) -> dict[str, Any]:
+    """Every machine, size (and projection); the JSON-ready report."""
     projections = ["parallel"] + (["perspective"] if perspective else [])
     cases = []
-    for n in sizes:
-        for projection in projections:
-            case = measure(n, projection, repeats)
-            cases.append(case)
-            print(
-                f"{n}^3 {projection}: cycle {case['cycle_seconds']:.2f} s, transaction "
-                f"{case['transaction_seconds']:.2f} s ({case['transaction_vs_cycle']:.2f}x; "
-                f"event model {case['timing_model_seconds'] * 1e3:.1f} ms = "
-                f"{case['timing_model_vs_cycle']:.0f}x), error {100 * case['cycle_error']:+.3f}%"
-            )
+    for arch_name in archs:
+        for n in sizes:
+            for projection in projections:
+                if projection == "perspective" and not resolve_arch(arch_name).perspective:
+                    continue
+                cases.append(measure(n, projection, repeats, arch_name))
+                case = cases[-1]
+                print(
+                    f"{arch_name} {n}^3 {projection}: cycle {case['cycle_seconds']:.2f} s, "
+                    f"transaction {case['transaction_seconds']:.2f} s "
+                    f"({case['transaction_vs_cycle']:.2f}x; event model "
+                    f"{case['timing_model_seconds'] * 1e3:.1f} ms = "
+                    f"{case['timing_model_vs_cycle']:.0f}x), "
+                    f"error {100 * case['cycle_error']:+.3f}%"
+                )
     return {
         "schema": 1,
         "benchmark": "transaction-vs-cycle",
         "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "machine": machine_info(),
         "repeats": repeats,
-        "arch": dataclasses.asdict(resolve_arch("cube4"))["name"],
+        "note": note,
         "cases": cases,
         "machine_after": {"load_average": machine_info()["load_average"]},
     }
@@ -123,9 +136,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=[128, 256])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--perspective", action="store_true", help="also a perspective view")
+    parser.add_argument("--arch", nargs="+", default=["cube4"], help="machines to time")
+    parser.add_argument("--note", default=None, help="recorded in the report (e.g. the tree)")
     parser.add_argument("--out", type=Path, default=None, help="JSON report path")
     args = parser.parse_args(argv)
-    write_report(run(args.sizes, args.repeats, args.perspective), args.out)
+    report = run(args.sizes, args.repeats, args.perspective, args.arch, args.note)
+    write_report(report, args.out)
     return 0
 
 

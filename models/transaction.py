@@ -41,7 +41,13 @@ from models.arch.volumepro_txn import SlabTransaction
 from models.datapath import Datapath
 from models.functional import render_functional
 
-__all__ = ["TRANSACTION_ORDERS", "TransactionResult", "render_transaction", "transaction_timing"]
+__all__ = [
+    "TRANSACTION_ORDERS",
+    "TransactionResult",
+    "has_transaction_model",
+    "render_transaction",
+    "transaction_timing",
+]
 
 #: Processing orders with a transaction model, and the model's class.
 TRANSACTION_ORDERS = {
@@ -61,6 +67,15 @@ class TransactionResult:
     cycles: int
     counters: dict[str, Any] = field(default_factory=dict)
     derived: dict[str, Any] = field(default_factory=dict)
+
+
+def has_transaction_model(arch: ArchConfig) -> bool:
+    """Whether the transaction rung models ``arch`` (its order, and for the slab machines
+    no beam skipping and no sections)."""
+    model = TRANSACTION_ORDERS.get(arch.order)
+    if model is SlabTransaction:
+        return not (arch.early_termination or arch.space_leaping or arch.section_width)
+    return model is not None
 
 
 def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
