@@ -289,6 +289,8 @@ class SlabTransaction:
         counters.update(
             {
                 "memory.bursts": int(sdram.bursts),
+                # data-bus cycles of one module (the modules share the load evenly)
+                "memory.busy_cycles": int(sdram.data_busy_cycles) // self.memory.modules,
                 "memory.read_bytes": int(sdram.bursts) * 8 * 2,  # 8 16-bit words a burst
                 "memory.mbb_reads": self.n_slabs * self.n_u,
                 "memory.stall_cycles": stats["stall"],

@@ -89,6 +89,10 @@ def test_sdram_counters_follow_the_mini_block_layout(head, arch):
         c["memory.sdram.row_hits"] + c["memory.sdram.row_misses"] + c["memory.sdram.row_conflicts"]
         == c["memory.bursts"]
     )
+    memory = parse_memory(machine.memory, source="t")
+    assert (
+        c["memory.busy_cycles"] * memory.modules == c["memory.bursts"] * memory.sdram.burst_cycles
+    )
     assert c["memory.stall_cycles"] > 0  # the first fill at least
     assert c["pixel_bus.pixels"] == plan.ray_ids.size
 
