@@ -179,8 +179,25 @@ def test_cli_trade_on_the_real_ct(tmp_path, shared_data, capsys):
     ct = {r["rung"]: r for r in rows if r["scene"] == "ct_cranium" and r["arch"] == "volumepro500"}
     assert set(ct) == set(fidelity.FIDELITIES)
     assert ct["functional"]["status"] == "ok" and ct["functional"]["numerical_psnr_db"] > 30
+    assert ct["transaction"]["status"] == "ok"
+    assert ct["transaction"]["numerical_rmse"] == ct["functional"]["numerical_rmse"]
     assert "ct_cranium" in capsys.readouterr().out
     assert (out / "trade.png").is_file()
+
+
+@pytest.mark.slow
+def test_trade_on_the_real_ct_has_transaction_rows_with_their_cycle_error(tmp_path, shared_data):
+    """Issue 7: golden, functional, transaction and cycle rows on the real CT, the
+    transaction row with its cycle-count error against the cycle rung."""
+    case = ladder_cases([str(shared_data / "ct_cranium.nrrd")], 24, 16)[-1]
+    rows = ladder_trade([case], ["cube4"], ["golden", "functional", "transaction", "cycle"])
+    c4 = {r["rung"]: r for r in rows if r["arch"] == "cube4"}
+    assert all(c4[r]["status"] == "ok" for r in ("golden", "functional", "transaction", "cycle"))
+    assert c4["transaction"]["cycle_reference"] == "cycle"
+    assert c4["transaction"]["cycle_error"] == pytest.approx(
+        c4["transaction"]["cycles"] / c4["cycle"]["cycles"] - 1
+    )
+    assert abs(c4["transaction"]["cycle_error"]) <= 0.02
 
 
 def test_cli_trade_rejects_bad_sizes(capsys):
