@@ -176,6 +176,20 @@ def _volumepro_cases(quick: bool) -> list[dict[str, Any]]:
                 "projection": "parallel",
             }
         )
+    for width, overhead in [(8, 0), (6, 50), (16, 200)]:
+        sectioned = dataclasses.replace(
+            vp500, section_width=width, section_overhead_cycles=overhead
+        )
+        for az, el in [(30, 20), (150, -30)]:
+            out.append(
+                {
+                    "name": f"head48 parallel {az},{el} sections {width} (+{overhead})",
+                    "volume": make_phantom("head", size=48),
+                    "scene": _scene("head", az, el, "parallel", 48),
+                    "arch": sectioned,
+                    "projection": "parallel",
+                }
+            )
     if not quick:
         for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
             path = SHARED / fname

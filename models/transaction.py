@@ -14,8 +14,8 @@ Machines with a transaction model, by processing order:
     the Cube-4 family (:class:`models.arch.cube4_txn.Cube4Transaction`);
 ``shear-warp``, ``shear-image``
     the VolumePro family's SDRAM-fed slab machines
-    (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube;
-    machines that skip beams (VolumePro 1000) or render in sections are refused.
+    (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube,
+    sections included; machines that skip beams (VolumePro 1000) are refused.
 
 Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
 """
@@ -71,10 +71,10 @@ class TransactionResult:
 
 def has_transaction_model(arch: ArchConfig) -> bool:
     """Whether the transaction rung models ``arch`` (its order, and for the slab machines
-    no beam skipping and no sections)."""
+    no beam skipping)."""
     model = TRANSACTION_ORDERS.get(arch.order)
     if model is SlabTransaction:
-        return not (arch.early_termination or arch.space_leaping or arch.section_width)
+        return not (arch.early_termination or arch.space_leaping)
     return model is not None
 
 

@@ -21,12 +21,16 @@ as cooperating SimPy processes at *beam-group* granularity:
   per-slice overhead, the perspective stretch (the slice's samples shared evenly over
   the pipelines, as the Cube-4 model) and the pixel FIFO (:class:`PixelBus`).
 
+With ``[overheads] section_width`` the slices' beams are processed band by band
+(:mod:`models.arch.sections_txn`): each band re-reads the mbbs of its rows, pays the
+section overhead and reloads the rays the last band parked (one clock each); parked
+rays leave over the pixel bus at the end of their band.
+
 What is coarser than the cycle rung (the error's sources): readiness and freeing per
 chunk of mbbs instead of per mbb and per beam, so pipelines wait for a whole chunk at the
 first fill and wherever the memory is the bottleneck; and the buffer's capacity counted
-in whole chunks.  Not modelled yet: sections (``[overheads] section_width``) and beam
-skipping (early ray termination, space leaping: VolumePro 1000); such machines and
-scenes are refused as not available.
+in whole chunks.  Not modelled yet: beam skipping (early ray termination, space leaping:
+VolumePro 1000); such machines are refused as not available.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_m
 from hwsim.scene import Scene
 from models.arch.cube4_txn import TxnTiming, slice_loads
 from models.arch.pixel_bus_txn import PixelBus
+from models.arch.sections_txn import band_loads, bands_of
 from models.units import classify, composite, crop, gradient, interp, shade, skew
 
 __all__ = ["SlabTransaction", "miniblock_layout"]
@@ -84,7 +89,8 @@ class SlabTransaction:
     ----------
     scene : Scene
     arch : ArchConfig
-        A machine with a ``[memory]`` table of mini-block SDRAM modules.
+        A machine with a ``[memory]`` table of mini-block SDRAM modules (sections from
+        ``[overheads] section_width``).
     plan : SamplePlan
     groups : int
         Beam groups per slice (and mbb chunks per slab): the model's granularity.
@@ -109,14 +115,6 @@ class SlabTransaction:
                 key="--arch",
                 allowed="cube4, cube4-teramac, volumepro500, em-cube",
             )
-        if 0 < arch.section_width < plan.volume.shape[_other_axes(plan)[0]]:
-            raise NotAvailableError(
-                f"{arch.name} renders in sections; the transaction rung does not model "
-                "sections yet",
-                source=arch.source,
-                key="overheads.section_width",
-                allowed="0",
-            )
         self.memory = parse_memory(arch.memory, source=arch.source)
         if self.memory.sdram.clock_ratio != 1.0:
             raise NotAvailableError(
@@ -136,7 +134,7 @@ class SlabTransaction:
         self.n_u = -(-self.n_a // 2)  # mbbs per slab
         self.n_slabs = -(-self.n_k // 2)
         self.U = max(1, -(-self.n_u // max(1, int(groups))))  # mbbs per chunk
-        self.G = -(-self.n_u // self.U)  # chunks per slab = beam groups per slice
+        self.bands = bands_of(plan, arch.section_width, self.n_a, a_ax, arch.source)
         buffers = _buffers(arch, self.P)
         self.capacity_mbbs = buffers["slab_buffer_entries"] // (4 * self.C)
         depth = buffers["pixel_fifo_entries"]
@@ -161,15 +159,9 @@ class SlabTransaction:
         i0 = int(min(np.floor(p), max(n - 2, 0)))
         return max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2
 
-    def _group_chunks(self, h: int) -> tuple[int, int, int]:
-        """Rows of beam group ``h`` and the first and last chunk (of a slab) they need."""
-        rows_lo, rows_hi = 2 * self.U * h, min(2 * self.U * (h + 1), self.n_a)
-        u_lo = max(rows_lo - 1, 0) // 2
-        u_hi = min(rows_hi - 1 + 2, self.n_a - 1) // 2
-        return rows_hi - rows_lo, u_lo // self.U, u_hi // self.U
-
-    def _chunk_bursts(self, slab: int) -> list[list[tuple[np.ndarray, np.ndarray]]]:
-        """Per chunk of ``slab``, per module: the ``(banks, rows)`` of its bursts in order."""
+    def _slab_layout(self, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Module, bank and row of every mini-block of ``slab``, ``(n_u, n_b / 2)``: mbb
+        ``u`` (rows ``2u, 2u + 1``), mini-blocks along the beam in read order."""
         n_mb = -(-self.n_b // 2)
         coords: list[Any] = [None, None, None]
         coords[self.kp] = np.full((self.n_u, n_mb), 2 * slab)
@@ -178,13 +170,45 @@ class SlabTransaction:
         module, bank, address = miniblock_layout(
             self.memory, self.n_even, coords[2], coords[1], coords[0]
         )
-        row = address // self.memory.sdram.columns
-        out = []
-        for c in range(self.G):
-            rows = slice(c * self.U, min((c + 1) * self.U, self.n_u))
-            m, b, r = module[rows].ravel(), bank[rows].ravel(), row[rows].ravel()
-            out.append([(b[m == k], r[m == k]) for k in range(self.memory.modules)])
-        return out
+        return module, bank, address // self.memory.sdram.columns
+
+    def _schedule(self, n_steps: int):
+        """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
+        order ``(band, j, rows, last chunk needed)``; and for each chunk the last group
+        that needs it (its buffer slot is freed when that group ends)."""
+        U, n_a = self.U, self.n_a
+        slab_order = list(range(self.n_slabs))
+        if not self.forward:
+            slab_order.reverse()
+        chunks, index = [], {}
+        for bi, (a0, a1) in enumerate(self.bands):
+            u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
+            for slab in slab_order:
+                for k, u in enumerate(range(u0, u1 + 1, U)):
+                    index[bi, slab, k] = len(chunks)
+                    chunks.append((bi, slab, u, min(u + U - 1, u1)))
+        groups, needs = [], []
+        for bi, (a0, a1) in enumerate(self.bands):
+            u0 = max(a0 - 1, 0) // 2
+            spans = []
+            for r0 in range(a0, a1, 2 * U):
+                r1 = min(r0 + 2 * U, a1)
+                u_lo, u_hi = max(r0 - 1, 0) // 2, min(r1 + 1, n_a - 1) // 2
+                spans.append((r1 - r0, (u_lo - u0) // U, (u_hi - u0) // U))
+            for j in range(n_steps):
+                s_lo, s_hi = self._window_slabs(j)
+                for rows, k_lo, k_hi in spans:
+                    ids = [
+                        index[bi, s, k]
+                        for s in range(s_lo, s_hi + 1)
+                        for k in range(k_lo, k_hi + 1)
+                    ]
+                    groups.append((bi, j, rows, max(ids)))
+                    needs.append(ids)
+        free_after = np.full(len(chunks), -1, dtype=np.int64)
+        for g, ids in enumerate(needs):
+            free_after[ids] = g  # groups are numbered in processing order
+        return chunks, groups, free_after
 
     # ------------------------------------------------------------------ frame
 
@@ -193,93 +217,84 @@ class SlabTransaction:
         start = time.perf_counter()
         samples, finishing = slice_loads(self.plan)
         n_steps = len(samples)
-        slab_order = list(range(self.n_slabs))
-        if not self.forward:
-            slab_order.reverse()
-        rank = {s: i for i, s in enumerate(slab_order)}  # slab -> read position
-        G = self.G
-        n_chunks = self.n_slabs * G
-
-        def chunk_id(slab: int, c: int) -> int:
-            return rank[slab] * G + c
-
-        # Which chunks each (slice, group) needs, the last one it waits for, and the last
-        # group that needs each chunk (its slot is freed when that group ends).
-        need_last = np.full((n_steps, G), -1, dtype=np.int64)
-        free_after = np.full(n_chunks, -1, dtype=np.int64)
-        for j in range(n_steps):
-            s_lo, s_hi = self._window_slabs(j)
-            for h in range(G):
-                _, c_lo, c_hi = self._group_chunks(h)
-                ids = [chunk_id(s, c) for s in range(s_lo, s_hi + 1) for c in range(c_lo, c_hi + 1)]
-                need_last[j, h] = max(ids)
-                free_after[ids] = np.maximum(free_after[ids], j * G + h)
+        by_band, parked = band_loads(self.plan, self.bands, self.n_a, finishing)
+        chunks, groups, free_after = self._schedule(n_steps)
         cap = self.capacity_mbbs // self.U
         if cap <= 0:
             raise DeadlockError(
                 f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
             )
-
         env = simpy.Environment()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        ready = [env.event() for _ in range(n_chunks)]
-        freed = [env.event() for _ in range(n_chunks)]
-        group_end = np.zeros(n_steps * G, dtype=np.int64)
+        ready = [env.event() for _ in chunks]
+        freed = [env.event() for _ in chunks]
         frees_at: dict[int, list[int]] = {}
-        for g, f in enumerate(free_after.tolist()):
-            frees_at.setdefault(f, []).append(g)
+        for c, g in enumerate(free_after.tolist()):
+            frees_at.setdefault(g, []).append(c)
+        for c in frees_at.pop(-1, []):  # no group needs it
+            freed[c].succeed()
         bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
         stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
-
-        for c in np.flatnonzero(free_after < 0).tolist():  # no group needs it
-            freed[c].succeed()
+        stats["section"] = 0
+        M = self.memory.modules
 
         def memory():
-            g = 0
-            for slab in slab_order:
-                for bursts in self._chunk_bursts(slab):
-                    if g >= cap and not freed[g - cap].triggered:
-                        waited = env.now
-                        yield freed[g - cap]
-                        stats["buffer_full"] += int(env.now - waited)
-                    done = [ports[k].read(b, r) for k, (b, r) in enumerate(bursts) if b.size]
-                    env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
-                    stats["events"] += len(done) + 1
-                    g += 1
+            layout = (-1, -1, None)
+            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks):
+                if layout[:2] != (bi, slab):
+                    layout = (bi, slab, self._slab_layout(slab))
+                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
+                if g >= cap and not freed[g - cap].triggered:
+                    waited = env.now
+                    yield freed[g - cap]
+                    stats["buffer_full"] += int(env.now - waited)
+                done = []
+                for k in range(M):
+                    on = module == k
+                    if on.any():
+                        done.append(ports[k].read(bank[on], row[on]))
+                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
+                stats["events"] += len(done) + 1
 
         def pipelines():
             T = self.n_a * self.C
-            for j in range(n_steps):
-                for h in range(G):
-                    rows, _, _ = self._group_chunks(h)
-                    g = int(need_last[j, h])
-                    if not ready[g].triggered:
-                        if g - cap >= 0 and free_after[g - cap] >= j * G + h:
-                            raise DeadlockError(
-                                f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
-                                f"hold the sample window of slice {j}"
-                            )
-                        waited = env.now
-                        yield ready[g]
-                        stats["stall"] += int(env.now - waited)
-                    yield env.timeout(rows * self.C)
-                    stats["events"] += 2
-                    k = j * G + h
-                    group_end[k] = int(env.now)
-                    for c in frees_at.get(k, ()):
-                        freed[c].succeed()
-                stretch = max(0, -(-int(samples[j]) // self.P) - T)
+            single = len(self.bands) == 1
+            for k, (bi, j, rows, need) in enumerate(groups):
+                if bi and j == 0 and (k == 0 or groups[k - 1][0] != bi):
+                    # Section change: overhead, then reload the rays parked by the last band.
+                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
+                    stats["section"] += pre
+                    yield env.timeout(pre)
+                if not ready[need].triggered:
+                    if need - cap >= 0 and free_after[need - cap] >= k:
+                        raise DeadlockError(
+                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
+                            f"hold the sample window of slice {j}"
+                        )
+                    waited = env.now
+                    yield ready[need]
+                    stats["stall"] += int(env.now - waited)
+                yield env.timeout(rows * self.C)
+                stats["events"] += 2
+                for c in frees_at.get(k, ()):
+                    freed[c].succeed()
+                if k + 1 < len(groups) and groups[k + 1][:2] == (bi, j):
+                    continue  # more beam groups of this slice
+                # Sections are parallel-only, where a slice never has more samples than
+                # voxels: the perspective stretch applies to the unsectioned frame.
+                stretch = max(0, -(-int(samples[j]) // self.P) - T) if single else 0
                 stats["stretch"] += stretch
                 extra = self.arch.slice_overhead_cycles + stretch
                 if extra:
                     yield env.timeout(extra)
-                yield from bus.push(int(finishing[j]))
+                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
+                yield from bus.push(leaving)
             stats["pipe_end"] = int(env.now)
 
         env.process(memory())
         env.process(pipelines())
         env.run()
-        if stats["pipe_end"] == 0 and n_steps:
+        if stats["pipe_end"] == 0 and groups:
             raise DeadlockError("the pipelines never finished: the input buffer is too small")
         end = max(stats["pipe_end"], bus.end)
         latency = skew.LATENCY + self.C + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
@@ -290,9 +305,9 @@ class SlabTransaction:
             {
                 "memory.bursts": int(sdram.bursts),
                 # data-bus cycles of one module (the modules share the load evenly)
-                "memory.busy_cycles": int(sdram.data_busy_cycles) // self.memory.modules,
+                "memory.busy_cycles": int(sdram.data_busy_cycles) // M,
                 "memory.read_bytes": int(sdram.bursts) * 8 * 2,  # 8 16-bit words a burst
-                "memory.mbb_reads": self.n_slabs * self.n_u,
+                "memory.mbb_reads": sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks),
                 "memory.stall_cycles": stats["stall"],
                 "memory.buffer_full_cycles": stats["buffer_full"],
                 "memory.slab_buffer_chunks": cap,
@@ -300,6 +315,9 @@ class SlabTransaction:
                 "pipelines.stall_cycles": stats["stall"] + bus.stall_cycles,
                 "pipelines.stretch_cycles": stats["stretch"],
                 **bus.counters(stats["pipe_end"]),
+                "section.count": len(self.bands),
+                "section.parked_rays": int(parked.sum()),
+                "section.overhead_cycles": stats["section"],
                 "pipeline.latency_cycles": latency,
                 "frame.cycles": cycles,
                 "frame.samples": int(samples.sum()),

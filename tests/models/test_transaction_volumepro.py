@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from hwsim.engine.fifo import DeadlockError
-from hwsim.errors import NotAvailableError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
 from hwsim.memory import parse_memory
@@ -139,12 +139,52 @@ def test_a_small_input_buffer_waits_and_one_too_small_deadlocks(head):
         timing(scene_of(), head, tiny)
 
 
-def test_beam_skipping_and_sections_are_refused_not_ignored(head):
+def test_beam_skipping_is_refused_not_ignored(head):
     with pytest.raises(NotAvailableError, match="skips beams"):
         render(scene_of(), fidelity="transaction", arch="volumepro1000", volume=head)
-    arch = dataclasses.replace(resolve_arch("volumepro500"), section_width=8)
-    with pytest.raises(NotAvailableError, match="sections"):
-        timing(scene_of(), head, arch)
+
+
+def sectioned(width, overhead=0):
+    arch = resolve_arch("volumepro500")
+    return dataclasses.replace(arch, section_width=width, section_overhead_cycles=overhead)
+
+
+def test_sections_park_the_rays_that_cross_a_band_and_reread_the_overlap(head):
+    whole, _ = timing(scene_of(az=30, el=20), head, resolve_arch("volumepro500"))
+    oblique, plan = timing(scene_of(az=30, el=20), head, sectioned(8, 100))
+    straight, _ = timing(scene_of(az=0, el=0), head, sectioned(8, 100))
+    c = oblique.counters
+    n = head.shape[0]
+    assert c["section.count"] == -(-n // 8) and whole.counters["section.count"] == 1
+    assert c["section.parked_rays"] > 0 and straight.counters["section.parked_rays"] == 0
+    # Every band re-reads the mini-block beams of its rows a0 - 2 .. a1 + 1.
+    assert c["memory.bursts"] > whole.counters["memory.bursts"] == (n // 2) ** 3
+    bands = -(-n // 8)
+    overheads = (bands - 1) * 100 + c["section.parked_rays"]  # reload one ray per clock
+    assert c["section.overhead_cycles"] == overheads
+    assert c["pixel_bus.pixels"] == plan.ray_ids.size + c["section.parked_rays"]
+    assert oblique.cycles > whole.cycles
+
+
+def test_sections_need_a_parallel_view():
+    from models.arch.sections_txn import bands_of
+
+    volume = make_phantom("head", size=16)
+    scene = scene_of(image=16)
+    scene = scene.replace(view=dataclasses.replace(scene.view, projection="perspective"))
+    plan = make_plan(scene, volume, "shear-image")
+    with pytest.raises(InputError, match="overheads.section_width"):
+        bands_of(plan, 4, 16, 1, "t.toml")
+
+
+@pytest.mark.parametrize(("width", "overhead"), [(6, 50), (8, 0), (5, 10)])
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20), (150, -30), (-60, 35)])
+def test_sectioned_cycles_within_the_contract(width, overhead, az, el):
+    volume, arch = make_phantom("head", size=24), sectioned(width, overhead)
+    scene = scene_of(az=az, el=el, image=24)
+    exact = cycle_count(scene, volume, arch)
+    approx = timing(scene, volume, arch)[0].cycles
+    assert abs(approx - exact) <= CONTRACT * exact, (exact, approx)
 
 
 @pytest.mark.parametrize("arch", MACHINES)
