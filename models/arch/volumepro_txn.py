@@ -1,6 +1,6 @@
 """The VolumePro-family machines as a SimPy event model (the ``transaction`` rung's timing).
 
-# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-5 and 8 (the rules this
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-5, 7 and 8 (the rules this
 #      model approximates); architectures.md section 3 (VolumePro 500: two-level
 #      mini-block skew, US 6,266,733 [V abstract]), section 2 (EM-Cube) and 9.1 (voxel
 #      memory controller, burst scheduling, refresh).
