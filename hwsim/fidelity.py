@@ -36,7 +36,7 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-AVAILABLE_FIDELITIES = ("golden", "functional", "cycle")
+AVAILABLE_FIDELITIES = ("golden", "functional", "transaction", "cycle")
 #: The machine a timed rung models when no --arch is given.
 DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
@@ -234,6 +234,13 @@ def render(
         )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         used, elided, derived = result.elaborated_units, result.elided_units, result.derived
+    elif fidelity == "transaction":
+        from models.transaction import render_transaction
+
+        plan = make_plan(scene, volume, sampling)
+        result = render_transaction(scene, volume, transfer, machine, plan, progress=progress)
+        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
+        derived = result.derived
     else:
         from models.functional import render_functional
 

@@ -102,8 +102,8 @@ def test_an_override_to_the_default_value_is_the_same_machine(tmp_path):
             "s.toml: sweep.pipelines[1]: 0 is out of range (allowed: 1 .. 4096)",
         ),
         (
-            {"fidelity": ["transaction"]},
-            "s.toml: sweep.fidelity[0]: fidelity 'transaction' is not yet available",
+            {"fidelity": ["rtl"]},
+            "s.toml: sweep.fidelity[0]: fidelity 'rtl' is not yet available",
         ),
         ({"fidelity": ["fast"]}, "s.toml: sweep.fidelity[0]: unknown fidelity 'fast'"),
         ({"arch": ["vp9"]}, "s.toml: sweep.arch[0]: unknown architecture 'vp9'"),

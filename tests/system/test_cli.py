@@ -139,7 +139,11 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--image", "axb"], "not an integer"),
         (["render", "--phantom", "teapot"], "teapot"),
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
-        (["render", "--fidelity", "transaction"], "not yet available"),
+        (["render", "--fidelity", "rtl"], "not yet available"),
+        (
+            ["render", "--fidelity", "transaction", "--arch", "volumepro1000"],
+            "volumepro1000 skips beams (early ray termination, space leaping)",
+        ),
         (
             ["render", "--fidelity", "cycle", "--arch", "volumepro500"],
             "volumepro500 (shear-warp order) is not modelled at cycle fidelity",

@@ -42,4 +42,4 @@ def test_archs_lists_every_machine_and_its_rungs(capsys):
     text = capsys.readouterr().out
     for name in ("cube4", "cube4-teramac", "em-cube", "volumepro500", "volumepro1000", "vizard2"):
         assert name in text
-    assert "golden functional cycle" in text
+    assert "golden functional transaction cycle" in text

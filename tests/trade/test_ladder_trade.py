@@ -21,12 +21,16 @@ ARCHS = ["volumepro500", "vizard2", "cube4"]
 
 
 def runs_on(rung: str, arch: str) -> bool:
-    """Whether this build has ``rung`` for ``arch`` (the cycle rung: the Cube-4 family)."""
+    """Whether this build has ``rung`` for ``arch`` (cycle, transaction: the Cube-4 family)."""
     from models.cycle import CYCLE_ORDERS
+    from models.transaction import has_transaction_model
 
     if rung not in fidelity.AVAILABLE_FIDELITIES:
         return False
-    return rung != "cycle" or fidelity.resolve_arch(arch).order in CYCLE_ORDERS
+    machine = fidelity.resolve_arch(arch)
+    if rung == "cycle":
+        return machine.order in CYCLE_ORDERS
+    return rung != "transaction" or has_transaction_model(machine)
 
 
 @pytest.fixture(scope="module")
@@ -82,6 +86,28 @@ def test_numerical_and_algorithmic_errors_compare_the_documented_pairs(cases, ro
     # VIZARD II casts the ideal rays; VolumePro 500's shear-warp resamples them.
     assert pick(rows, "head", "vizard2", "golden")["algorithmic_rmse"] == 0.0
     assert pick(rows, "head", "volumepro500", "golden")["algorithmic_rmse"] > 1e-3
+
+
+def test_transaction_rows_carry_their_cycle_error_against_the_cycle_rung(cases, rows):
+    """Issue 7: the transaction rung's row has its cycle-count error against the cycle
+    rung; its image is the functional image, so its image errors are the functional's."""
+    head = cases[[c.label for c in cases].index("head")]
+    for scene in ("head", "ball"):
+        txn, cyc = pick(rows, scene, "cube4", "transaction"), pick(rows, scene, "cube4", "cycle")
+        fun = pick(rows, scene, "cube4", "functional")
+        assert txn["cycle_reference"] == "cycle"
+        assert txn["cycle_error"] == pytest.approx(txn["cycles"] / cyc["cycles"] - 1)
+        assert abs(txn["cycle_error"]) <= 0.02
+        assert txn["numerical_rmse"] == fun["numerical_rmse"]
+    run = fidelity.render(head.scene, fidelity="transaction", arch="cube4", volume=head.volume)
+    assert pick(rows, "head", "cube4", "transaction")["cycles"] == run.cycles
+    assert pick(rows, "head", "vizard2", "transaction")["status"] == "not available"
+    vp500 = pick(rows, "head", "volumepro500", "transaction")
+    assert (
+        vp500["status"] == "ok"
+        and vp500["numerical_rmse"]
+        == pick(rows, "head", "volumepro500", "functional")["numerical_rmse"]
+    )
 
 
 def test_elision_saving_is_the_share_of_units_the_scene_does_not_need(rows):
@@ -153,8 +179,25 @@ def test_cli_trade_on_the_real_ct(tmp_path, shared_data, capsys):
     ct = {r["rung"]: r for r in rows if r["scene"] == "ct_cranium" and r["arch"] == "volumepro500"}
     assert set(ct) == set(fidelity.FIDELITIES)
     assert ct["functional"]["status"] == "ok" and ct["functional"]["numerical_psnr_db"] > 30
+    assert ct["transaction"]["status"] == "ok"
+    assert ct["transaction"]["numerical_rmse"] == ct["functional"]["numerical_rmse"]
     assert "ct_cranium" in capsys.readouterr().out
     assert (out / "trade.png").is_file()
+
+
+@pytest.mark.slow
+def test_trade_on_the_real_ct_has_transaction_rows_with_their_cycle_error(tmp_path, shared_data):
+    """Issue 7: golden, functional, transaction and cycle rows on the real CT, the
+    transaction row with its cycle-count error against the cycle rung."""
+    case = ladder_cases([str(shared_data / "ct_cranium.nrrd")], 24, 16)[-1]
+    rows = ladder_trade([case], ["cube4"], ["golden", "functional", "transaction", "cycle"])
+    c4 = {r["rung"]: r for r in rows if r["arch"] == "cube4"}
+    assert all(c4[r]["status"] == "ok" for r in ("golden", "functional", "transaction", "cycle"))
+    assert c4["transaction"]["cycle_reference"] == "cycle"
+    assert c4["transaction"]["cycle_error"] == pytest.approx(
+        c4["transaction"]["cycles"] / c4["cycle"]["cycles"] - 1
+    )
+    assert abs(c4["transaction"]["cycle_error"]) <= 0.02
 
 
 def test_cli_trade_rejects_bad_sizes(capsys):

@@ -1,0 +1,297 @@
+"""Transaction-rung cycle error against the cycle rung: the measured table for the report.
+
+Usage::
+
+    .venv/bin/python benchmarks/transaction_error.py [--quick] [--out FILE.json]
+
+For every case (phantoms head, ball, Marschner-Lobb at several parallel and perspective
+views; the real CT and MR of ../shared/data when present; pipeline counts 4 and 8; the
+Teramac machine; a shallow pixel FIFO) the cycle rung renders the frame and the
+transaction rung's event model times it; the relative error
+``(transaction - cycle) / cycle`` is written per case, with the worst per architecture
+family and per kind of view.  The images are not compared here (tests/models prove them
+bit-identical).  ``--quick`` keeps the small phantoms only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.report_io import write_report
+from hwsim.bench import machine_info
+from hwsim.errors import NotAvailableError
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom, read_volume
+from models.cycle import render_cycle
+from models.transaction import transaction_timing
+
+__all__ = ["CONTRACT", "cases", "measure", "run", "main"]
+
+#: The issue's bound on the transaction rung's cycle error.
+CONTRACT = 0.02
+SHARED = Path(
+    os.environ.get(
+        "HWSIM_SHARED_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+    )
+)
+
+PARALLEL = [(0, 0), (30, 20), (45, 0), (150, -30), (90, 45)]
+PERSPECTIVE = [(-35, 10), (20, 15), (160, -20)]
+
+
+def _scene(source, az, el, projection, image, *, mode="composite", preset="ct", zoom=1.2):
+    spec = VolumeSpec(path=str(source)) if isinstance(source, Path) else VolumeSpec(phantom=source)
+    return Scene(
+        volume=spec,
+        transfer=TransferSpec(preset=preset),
+        view=ViewSpec(
+            azimuth=az,
+            elevation=el,
+            width=image,
+            height=image,
+            zoom=zoom,
+            projection=projection,
+            distance=3.0,
+        ),
+        render=dataclasses.replace(Scene().render, mode=mode),
+    )
+
+
+def cases(quick: bool = False) -> list[dict[str, Any]]:
+    """The measured cases: name, volume, scene, architecture."""
+    cube4 = resolve_arch("cube4")
+    out = []
+    sizes = [("head", 48, "ct", "composite"), ("ball", 40, "ct", "xray")]
+    sizes += [("marschner-lobb", 41, "ct", "mip"), ("ball", 20, "ct", "xray")]
+    if not quick:
+        sizes.append(("head", 96, "ct", "composite"))
+    for phantom, n, preset, mode in sizes:
+        volume = make_phantom(phantom, size=n)
+        for P in (4, 8):
+            arch = dataclasses.replace(cube4, name=f"cube4-P{P}", pipelines=P)
+            for projection, views in (("parallel", PARALLEL), ("perspective", PERSPECTIVE)):
+                for az, el in views:
+                    for image in (n, 2 * n) if projection == "perspective" else (n,):
+                        scene = _scene(phantom, az, el, projection, image, mode=mode, preset=preset)
+                        out.append(
+                            {
+                                "name": f"{phantom}{n} {projection} {az},{el} img{image} P{P}",
+                                "volume": volume,
+                                "scene": scene,
+                                "arch": arch,
+                                "projection": projection,
+                            }
+                        )
+    head = make_phantom("head", size=64)
+    shallow = dataclasses.replace(cube4, name="cube4-pixfifo64", buffers={"pixel_fifo_entries": 64})
+    for az, el in [(0, 0), (30, 20)]:
+        out.append(
+            {
+                "name": f"head64 parallel {az},{el} pixel FIFO 64",
+                "volume": head,
+                "scene": _scene("head", az, el, "parallel", 64),
+                "arch": shallow,
+                "projection": "parallel",
+            }
+        )
+    if not quick:
+        teramac = resolve_arch("cube4-teramac")
+        out.append(
+            {
+                "name": "head128 parallel 30,20 teramac",
+                "volume": make_phantom("head", size=128),
+                "scene": _scene("head", 30, 20, "parallel", 128),
+                "arch": teramac,
+                "projection": "parallel",
+            }
+        )
+        cube4_p8 = dataclasses.replace(cube4, name="cube4-P8", pipelines=8)
+        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
+            path = SHARED / fname
+            if not path.is_file():
+                continue
+            volume = read_volume(path)
+            preset = "ct" if fname.startswith("ct") else "mr"
+            views = [("parallel", 30, 20, 128), ("parallel", 0, 0, 128)]
+            views += [("perspective", -35, 10, 128), ("perspective", -35, 10, 256)]
+            for arch in (cube4, cube4_p8):
+                for projection, az, el, image in views:
+                    scene = _scene(path, az, el, projection, image, preset=preset)
+                    out.append(
+                        {
+                            "name": f"{fname} {projection} {az},{el} img{image} P{arch.pipelines}",
+                            "volume": volume,
+                            "scene": scene,
+                            "arch": arch,
+                            "projection": projection,
+                        }
+                    )
+    out += _volumepro_cases(quick)
+    return out
+
+
+def _volumepro_cases(quick: bool) -> list[dict[str, Any]]:
+    """VolumePro 500 and EM-Cube (parallel only), with z-supersampling on VolumePro 500."""
+    out = []
+    phantoms = [("head", 32), ("ball", 32), ("marschner-lobb", 32)]
+    if not quick:
+        phantoms.append(("head", 64))
+    for name in ("volumepro500", "em-cube"):
+        arch = resolve_arch(name)
+        for phantom, n in phantoms:
+            volume = make_phantom(phantom, size=n)
+            for az, el in [(0, 0), (30, 20), (150, -30), (90, 45)]:
+                out.append(
+                    {
+                        "name": f"{phantom}{n} parallel {az},{el} {name}",
+                        "volume": volume,
+                        "scene": _scene(phantom, az, el, "parallel", n),
+                        "arch": arch,
+                        "projection": "parallel",
+                    }
+                )
+    vp500 = resolve_arch("volumepro500")
+    for ss in (2.0, 3.0):
+        scene = _scene("head", 30, 20, "parallel", 48)
+        scene = scene.replace(render=dataclasses.replace(scene.render, supersampling=ss))
+        out.append(
+            {
+                "name": f"head48 parallel 30,20 supersampling {ss:g} volumepro500",
+                "volume": make_phantom("head", size=48),
+                "scene": scene,
+                "arch": vp500,
+                "projection": "parallel",
+            }
+        )
+    for width, overhead in [(8, 0), (6, 50), (16, 200)]:
+        sectioned = dataclasses.replace(
+            vp500, section_width=width, section_overhead_cycles=overhead
+        )
+        for az, el in [(30, 20), (150, -30)]:
+            out.append(
+                {
+                    "name": f"head48 parallel {az},{el} sections {width} (+{overhead})",
+                    "volume": make_phantom("head", size=48),
+                    "scene": _scene("head", az, el, "parallel", 48),
+                    "arch": sectioned,
+                    "projection": "parallel",
+                }
+            )
+    if not quick:
+        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
+            path = SHARED / fname
+            if not path.is_file():
+                continue
+            volume = read_volume(path)
+            preset = "ct" if fname.startswith("ct") else "mr"
+            for az, el in [(30, 20), (100, 10)]:
+                out.append(
+                    {
+                        "name": f"{fname} parallel {az},{el} img128 volumepro500",
+                        "volume": volume,
+                        "scene": _scene(path, az, el, "parallel", 128, preset=preset),
+                        "arch": vp500,
+                        "projection": "parallel",
+                    }
+                )
+    return out
+
+
+def measure(case: dict[str, Any]) -> dict[str, Any]:
+    """Cycle-rung cycles, transaction cycles and the relative error of one case."""
+    scene, volume, arch = case["scene"], case["volume"], case["arch"]
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    txn = transaction_timing(scene, arch, plan)
+    c = txn.counters
+    start = time.perf_counter()
+    try:
+        cycle = render_cycle(scene, volume, tf, arch, plan)
+    except NotAvailableError as exc:  # no cycle rung for this machine in this tree
+        return {
+            "case": case["name"],
+            "arch": arch.name,
+            "pipelines": arch.pipelines,
+            "projection": case["projection"],
+            "volume": list(volume.shape),
+            "cycle_cycles": None,
+            "transaction_cycles": txn.cycles,
+            "error": None,
+            "note": f"not yet compared: {exc.message}",
+            "timing_model_seconds": c["transaction.timing_seconds"],
+        }
+    cycle_seconds = time.perf_counter() - start
+    return {
+        "case": case["name"],
+        "arch": arch.name,
+        "pipelines": arch.pipelines,
+        "projection": case["projection"],
+        "volume": list(volume.shape),
+        "cycle_cycles": cycle.cycles,
+        "transaction_cycles": txn.cycles,
+        "error": (txn.cycles - cycle.cycles) / cycle.cycles,
+        "cycle_seconds": cycle_seconds,
+        "timing_model_seconds": c["transaction.timing_seconds"],
+        "events": c["transaction.events"],
+        "stretch_cycles": c["pipelines.stretch_cycles"],
+        "pipeline_stall_cycles": c["pipelines.stall_cycles"],
+    }
+
+
+def run(quick: bool = False, log=print, note: str | None = None) -> dict[str, Any]:
+    """Measure every case; summarise the worst error per pipeline count and projection."""
+    rows = []
+    for case in cases(quick):
+        row = measure(case)
+        rows.append(row)
+        err = "not yet compared" if row["error"] is None else f"{100 * row['error']:+7.3f}%"
+        log(f"{row['case']:<52} {row['cycle_cycles']!s:>9} {row['transaction_cycles']:>9} {err}")
+    compared = [r for r in rows if r["error"] is not None]
+    worst: dict[str, Any] = {}
+    for row in compared:
+        key = f"{row['arch']} {row['projection']}"
+        if key not in worst or abs(row["error"]) > abs(worst[key]["error"]):
+            worst[key] = {"case": row["case"], "error": row["error"]}
+    return {
+        "schema": 1,
+        "benchmark": "transaction-error",
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "machine": machine_info(),
+        "contract": CONTRACT,
+        "note": note,
+        "within_contract": all(abs(r["error"]) <= CONTRACT for r in compared),
+        "max_abs_error": max(abs(r["error"]) for r in compared),
+        "not_yet_compared": sorted({r["arch"] for r in rows if r["error"] is None}),
+        "worst": worst,
+        "real_volumes": sorted({r["case"].split()[0] for r in rows if ".nrrd" in r["case"]}),
+        "cases": rows,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small phantoms only")
+    parser.add_argument("--out", type=Path, default=None, help="JSON report path")
+    parser.add_argument("--note", default=None, help="recorded in the report (e.g. the tree)")
+    args = parser.parse_args(argv)
+    report = run(args.quick, note=args.note)
+    print(f"max |error| {100 * report['max_abs_error']:.3f}% (contract {100 * CONTRACT:g}%)")
+    write_report(report, args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,91 @@
+"""The pixel bus of the slice-order machines as SimPy processes (``transaction`` rung).
+
+# Ref: architectures.md section 1.4 (Cube-4: finished rays leave over one pixel bus) and
+#      docs/cycle.md timing rules 4 and 6 (a full pixel FIFO stalls the compositors; the
+#      bus drains one pixel per clock, and what is left at the end).
+
+The compositors push finished rays into a :class:`simpy.Container` (the pixel FIFO) in
+batches; the bus process sends them one pixel per clock, in batches of at most one
+base-plane row or an eighth of the FIFO, and a batch holds its slots until its last pixel
+has left.  Shared by the Cube-4 and VolumePro-family event models.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+
+import simpy
+
+from hwsim.engine.fifo import DeadlockError
+
+__all__ = ["PixelBus"]
+
+
+class PixelBus:
+    """Pixel FIFO of ``depth`` entries drained one pixel per clock.
+
+    Parameters
+    ----------
+    env : simpy.Environment
+    depth : int
+        FIFO entries (0: any push is a deadlock).
+    row_pixels : int
+        Pixels of one base-plane row (the batch size of a deep FIFO).
+    """
+
+    def __init__(self, env: simpy.Environment, depth: int, row_pixels: int) -> None:
+        self.env, self.depth = env, int(depth)
+        self.fifo = simpy.Container(env, capacity=max(self.depth, 1), init=0)
+        self.batch = max(1, min(int(row_pixels), -(-self.depth // 8)))
+        self.pushed = self.sent = self.max_occupancy = self.stall_cycles = 0
+        self.events = 0
+        self.end = 0
+        self._work = env.event()
+        env.process(self._drain())
+
+    def push(self, count: int) -> Generator:
+        """Process step: put ``count`` finished rays, waiting while the FIFO is full."""
+        env = self.env
+        if count and self.depth <= 0:
+            raise DeadlockError(
+                f"pixel_bus.fifo: depth {self.depth} can never accept the {count} pixels "
+                f"pending at cycle {int(env.now)}; the compositors wait forever"
+            )
+        waited = env.now
+        left = int(count)
+        while left:
+            chunk = min(left, self.batch)
+            yield self.fifo.put(chunk)
+            self.events += 1
+            self.pushed += chunk
+            self.max_occupancy = max(self.max_occupancy, self.fifo.level)
+            left -= chunk
+            if not self._work.triggered:
+                self._work.succeed()
+        self.stall_cycles += int(env.now - waited)
+
+    def _drain(self) -> Generator:
+        env = self.env
+        while True:
+            if self.fifo.level == 0:
+                self._work = env.event()
+                yield self._work
+                continue
+            chunk = min(self.fifo.level, self.batch)
+            yield env.timeout(chunk)  # one pixel per clock; the slots free as they leave
+            yield self.fifo.get(chunk)
+            self.events += 2
+            self.sent += chunk
+            self.end = int(env.now)
+
+    def counters(self, pipe_end: int) -> dict[str, int]:
+        """``pixel_bus.*`` counters once the frame has run (``pipe_end``: compositors done)."""
+        if self.sent != self.pushed:
+            raise RuntimeError("transaction model ended with pixels still in the FIFO")
+        return {
+            "pixel_bus.fifo_depth": self.depth,
+            "pixel_bus.pixels": self.pushed,
+            "pixel_bus.busy_cycles": self.sent,
+            "pixel_bus.max_occupancy": self.max_occupancy,
+            "pixel_bus.drain_cycles": max(0, self.end - pipe_end),
+        }

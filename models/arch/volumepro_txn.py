@@ -1,0 +1,369 @@
+"""The VolumePro-family machines as a SimPy event model (the ``transaction`` rung's timing).
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-5, 7 and 8 (the rules this
+#      model approximates); architectures.md section 3 (VolumePro 500: two-level
+#      mini-block skew, US 6,266,733 [V abstract]), section 2 (EM-Cube) and 9.1 (voxel
+#      memory controller, burst scheduling, refresh).
+
+P pipelines fed by ``[memory] modules`` SDRAM devices through an input (slab) buffer,
+as cooperating SimPy processes at *beam-group* granularity:
+
+* **memory**: reads the volume slab by slab (two voxel slices, front to back), each slab
+  in ``groups`` chunks of mini-block beams (mbbs: two beams of a slab, ``n_b / 2`` bursts);
+  a chunk's bursts go to each module's :class:`hwsim.memory.SdramTransactionPort` in one
+  call (row hits, misses, refresh and CAS timed by the shared SDRAM model) and the chunk
+  is *ready* when every module has delivered it.  A chunk may not issue before the input
+  buffer has room: the chunk ``capacity`` places earlier must have been freed;
+* **pipelines**: every sample slice (z-supersampling included) is ``groups`` groups of
+  beams, ``C = ceil(n_b / P)`` clocks per beam; a group starts when the chunks its rows'
+  trilinear windows need (voxel slices ``i0 - 1 .. i0 + 2``, rows ``a - 2 .. a + 2``)
+  are ready, and frees the chunks no later group needs; after a slice come the
+  per-slice overhead, the perspective stretch (the slice's samples shared evenly over
+  the pipelines, as the Cube-4 model) and the pixel FIFO (:class:`PixelBus`).
+
+With ``[overheads] section_width`` the slices' beams are processed band by band
+(:mod:`models.arch.sections_txn`): each band re-reads the mbbs of its rows, pays the
+section overhead and reloads the rays the last band parked (one clock each); parked
+rays leave over the pixel bus at the end of their band.
+
+What is coarser than the cycle rung (the error's sources): readiness and freeing per
+chunk of mbbs instead of per mbb and per beam, so pipelines wait for a whole chunk at the
+first fill and wherever the memory is the bottleneck; and the buffer's capacity counted
+in whole chunks.  Not modelled yet: beam skipping (early ray termination, space leaping:
+VolumePro 1000); such machines are refused as not available.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import simpy
+
+from hwsim.arch import ArchConfig
+from hwsim.engine.fifo import DeadlockError
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.golden.positions import SamplePlan
+from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_memory
+from hwsim.scene import Scene
+from models.arch.cube4_txn import TxnTiming, slice_loads
+from models.arch.pixel_bus_txn import PixelBus
+from models.arch.sections_txn import band_loads, bands_of
+from models.units import classify, composite, crop, gradient, interp, shade, skew
+
+__all__ = ["SlabTransaction", "miniblock_layout"]
+
+_PIPELINE_UNITS = (interp, gradient, classify, shade, composite, crop)
+
+
+def miniblock_layout(memory: MemoryConfig, n: int, x, y, z):
+    """Module, bank and word address of voxels ``(x, y, z)`` of an ``n``-cube (``n``
+    even) in ``memory``'s mini-block layout (``miniblock``: both skew levels; ``block``:
+    the module skew only, banks from the top address bits)."""
+    M, K = memory.modules, memory.sdram.banks
+    if memory.skew == "miniblock":
+        return skew.vp500_miniblock(x, y, z, n, M, K)
+    if memory.skew == "block":
+        x, y, z = (np.asarray(v, dtype=np.int64) for v in (x, y, z))
+        nb = n // 2
+        bx, by, bz = x >> 1, y >> 1, z >> 1
+        pitch = -(-nb // M) * M
+        o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
+        linear = 8 * (((bz * nb + by) * pitch + bx) // M) + o
+        per_bank = -(-int(8 * nb * nb * pitch // M) // K)
+        per_bank = -(-per_bank // memory.sdram.columns) * memory.sdram.columns
+        bank, address = np.divmod(linear, per_bank)
+        return (bx + by + bz) % M, bank, address
+    raise NotAvailableError(
+        f"the transaction model reads mini-blocks; skew {memory.skew!r} is not modelled",
+        key="memory.skew",
+        allowed="miniblock, block",
+    )
+
+
+class SlabTransaction:
+    """SimPy model of one VolumePro 500 / EM-Cube frame (shear-warp or shear-image order).
+
+    Parameters
+    ----------
+    scene : Scene
+    arch : ArchConfig
+        A machine with a ``[memory]`` table of mini-block SDRAM modules (sections from
+        ``[overheads] section_width``).
+    plan : SamplePlan
+    groups : int
+        Beam groups per slice (and mbb chunks per slab): the model's granularity.
+    pixel_fifo_depth : int, optional
+        Override of ``[buffers] pixel_fifo_entries``.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        arch: ArchConfig,
+        plan: SamplePlan,
+        *,
+        groups: int = 8,
+        pixel_fifo_depth: int | None = None,
+    ) -> None:
+        self.scene, self.arch, self.plan = scene, arch, plan
+        if arch.early_termination or arch.space_leaping:
+            raise NotAvailableError(
+                f"{arch.name} skips beams (early ray termination, space leaping); the "
+                "transaction rung does not model beam skipping yet",
+                key="--arch",
+                allowed="cube4, cube4-teramac, volumepro500, em-cube",
+            )
+        self.memory = parse_memory(arch.memory, source=arch.source)
+        if self.memory.sdram.clock_ratio != 1.0:
+            raise NotAvailableError(
+                "the transaction model runs the SDRAM at the pipeline clock",
+                source=arch.source,
+                key="memory.clock_ratio",
+                allowed="1.0",
+            )
+        kp = plan.principal_axis
+        a_ax, b_ax = _other_axes(plan)
+        shape = plan.volume.shape
+        self.kp, self.a_ax, self.b_ax = kp, a_ax, b_ax
+        self.n_k, self.n_a, self.n_b = shape[kp], shape[a_ax], shape[b_ax]
+        self.P = arch.pipelines
+        self.C = -(-self.n_b // self.P)
+        self.n_even = max(2, max(shape) + max(shape) % 2)
+        self.n_u = -(-self.n_a // 2)  # mbbs per slab
+        self.n_slabs = -(-self.n_k // 2)
+        self.U = max(1, -(-self.n_u // max(1, int(groups))))  # mbbs per chunk
+        self.bands = bands_of(plan, arch.section_width, self.n_a, a_ax, arch.source)
+        buffers = _buffers(arch, self.P)
+        self.capacity_mbbs = buffers["slab_buffer_entries"] // (4 * self.C)
+        depth = buffers["pixel_fifo_entries"]
+        self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
+        self.forward = _forward(plan)
+        self.row_pixels = max(1, plan.shape[1])
+
+    # ------------------------------------------------------------------ geometry
+
+    def _slice_position(self, j: int) -> float:
+        plan = self.plan
+        if plan.kind == "shear-warp":
+            return float(plan.order[j])
+        ss = self.scene.render.supersampling
+        q0 = 0.0 if self.forward else (plan.slice_count - 1) / ss
+        return q0 + (1.0 if self.forward else -1.0) * (j / ss)
+
+    def _window_slabs(self, j: int) -> tuple[int, int]:
+        """Slabs holding voxel slices ``i0 - 1 .. i0 + 2`` of sample slice ``j``."""
+        n = self.n_k
+        p = min(max(self._slice_position(j), 0.0), n - 1.0)
+        i0 = int(min(np.floor(p), max(n - 2, 0)))
+        return max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2
+
+    def _slab_layout(self, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Module, bank and row of every mini-block of ``slab``, ``(n_u, n_b / 2)``: mbb
+        ``u`` (rows ``2u, 2u + 1``), mini-blocks along the beam in read order."""
+        n_mb = -(-self.n_b // 2)
+        coords: list[Any] = [None, None, None]
+        coords[self.kp] = np.full((self.n_u, n_mb), 2 * slab)
+        coords[self.a_ax] = np.repeat(2 * np.arange(self.n_u)[:, None], n_mb, axis=1)
+        coords[self.b_ax] = np.repeat(2 * np.arange(n_mb)[None, :], self.n_u, axis=0)
+        module, bank, address = miniblock_layout(
+            self.memory, self.n_even, coords[2], coords[1], coords[0]
+        )
+        return module, bank, address // self.memory.sdram.columns
+
+    def _schedule(self, n_steps: int):
+        """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
+        order ``(band, j, rows, last chunk needed)``; and for each chunk the last group
+        that needs it (its buffer slot is freed when that group ends)."""
+        U, n_a = self.U, self.n_a
+        slab_order = list(range(self.n_slabs))
+        if not self.forward:
+            slab_order.reverse()
+        chunks, index = [], {}
+        for bi, (a0, a1) in enumerate(self.bands):
+            u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
+            for slab in slab_order:
+                for k, u in enumerate(range(u0, u1 + 1, U)):
+                    index[bi, slab, k] = len(chunks)
+                    chunks.append((bi, slab, u, min(u + U - 1, u1)))
+        groups, needs = [], []
+        for bi, (a0, a1) in enumerate(self.bands):
+            u0 = max(a0 - 1, 0) // 2
+            spans = []
+            for r0 in range(a0, a1, 2 * U):
+                r1 = min(r0 + 2 * U, a1)
+                u_lo, u_hi = max(r0 - 1, 0) // 2, min(r1 + 1, n_a - 1) // 2
+                spans.append((r1 - r0, (u_lo - u0) // U, (u_hi - u0) // U))
+            for j in range(n_steps):
+                s_lo, s_hi = self._window_slabs(j)
+                for rows, k_lo, k_hi in spans:
+                    ids = [
+                        index[bi, s, k]
+                        for s in range(s_lo, s_hi + 1)
+                        for k in range(k_lo, k_hi + 1)
+                    ]
+                    groups.append((bi, j, rows, max(ids)))
+                    needs.append(ids)
+        free_after = np.full(len(chunks), -1, dtype=np.int64)
+        for g, ids in enumerate(needs):
+            free_after[ids] = g  # groups are numbered in processing order
+        return chunks, groups, free_after
+
+    # ------------------------------------------------------------------ frame
+
+    def run(self) -> TxnTiming:
+        """Simulate the frame; return its cycles and the event model's counters."""
+        start = time.perf_counter()
+        samples, finishing = slice_loads(self.plan)
+        n_steps = len(samples)
+        by_band, parked = band_loads(self.plan, self.bands, self.n_a, finishing)
+        chunks, groups, free_after = self._schedule(n_steps)
+        cap = self.capacity_mbbs // self.U
+        if cap <= 0:
+            raise DeadlockError(
+                f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
+            )
+        env = simpy.Environment()
+        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
+        ready = [env.event() for _ in chunks]
+        freed = [env.event() for _ in chunks]
+        frees_at: dict[int, list[int]] = {}
+        for c, g in enumerate(free_after.tolist()):
+            frees_at.setdefault(g, []).append(c)
+        for c in frees_at.pop(-1, []):  # no group needs it
+            freed[c].succeed()
+        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
+        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
+        stats["section"] = 0
+        M = self.memory.modules
+
+        def memory():
+            layout = (-1, -1, None)
+            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks):
+                if layout[:2] != (bi, slab):
+                    layout = (bi, slab, self._slab_layout(slab))
+                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
+                if g >= cap and not freed[g - cap].triggered:
+                    waited = env.now
+                    yield freed[g - cap]
+                    stats["buffer_full"] += int(env.now - waited)
+                done = []
+                for k in range(M):
+                    on = module == k
+                    if on.any():
+                        done.append(ports[k].read(bank[on], row[on]))
+                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
+                stats["events"] += len(done) + 1
+
+        def pipelines():
+            T = self.n_a * self.C
+            single = len(self.bands) == 1
+            for k, (bi, j, rows, need) in enumerate(groups):
+                if bi and j == 0 and (k == 0 or groups[k - 1][0] != bi):
+                    # Section change: overhead, then reload the rays parked by the last band.
+                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
+                    stats["section"] += pre
+                    yield env.timeout(pre)
+                if not ready[need].triggered:
+                    if need - cap >= 0 and free_after[need - cap] >= k:
+                        raise DeadlockError(
+                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
+                            f"hold the sample window of slice {j}"
+                        )
+                    waited = env.now
+                    yield ready[need]
+                    stats["stall"] += int(env.now - waited)
+                yield env.timeout(rows * self.C)
+                stats["events"] += 2
+                for c in frees_at.get(k, ()):
+                    freed[c].succeed()
+                if k + 1 < len(groups) and groups[k + 1][:2] == (bi, j):
+                    continue  # more beam groups of this slice
+                # Sections are parallel-only, where a slice never has more samples than
+                # voxels: the perspective stretch applies to the unsectioned frame.
+                stretch = max(0, -(-int(samples[j]) // self.P) - T) if single else 0
+                stats["stretch"] += stretch
+                extra = self.arch.slice_overhead_cycles + stretch
+                if extra:
+                    yield env.timeout(extra)
+                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
+                yield from bus.push(leaving)
+            stats["pipe_end"] = int(env.now)
+
+        env.process(memory())
+        env.process(pipelines())
+        env.run()
+        if stats["pipe_end"] == 0 and groups:
+            raise DeadlockError("the pipelines never finished: the input buffer is too small")
+        end = max(stats["pipe_end"], bus.end)
+        latency = skew.LATENCY + self.C + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
+        cycles = end + latency
+        sdram = SdramStats.combine([p.schedule().stats for p in ports])
+        counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
+        counters.update(
+            {
+                "memory.bursts": int(sdram.bursts),
+                # data-bus cycles of one module (the modules share the load evenly)
+                "memory.busy_cycles": int(sdram.data_busy_cycles) // M,
+                "memory.read_bytes": int(sdram.bursts) * 8 * 2,  # 8 16-bit words a burst
+                "memory.mbb_reads": sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks),
+                "memory.stall_cycles": stats["stall"],
+                "memory.buffer_full_cycles": stats["buffer_full"],
+                "memory.slab_buffer_chunks": cap,
+                "pipelines.busy_cycles": -(-int(samples.sum()) // self.P),
+                "pipelines.stall_cycles": stats["stall"] + bus.stall_cycles,
+                "pipelines.stretch_cycles": stats["stretch"],
+                **bus.counters(stats["pipe_end"]),
+                "section.count": len(self.bands),
+                "section.parked_rays": int(parked.sum()),
+                "section.overhead_cycles": stats["section"],
+                "pipeline.latency_cycles": latency,
+                "frame.cycles": cycles,
+                "frame.samples": int(samples.sum()),
+                "transaction.events": stats["events"] + bus.events,
+                "transaction.granularity": f"{self.U} mbbs / {2 * self.U} beams",
+                "transaction.timing_seconds": time.perf_counter() - start,
+            }
+        )
+        return TxnTiming(int(cycles), counters)
+
+
+def _other_axes(plan: SamplePlan) -> tuple[int, int]:
+    a_ax, b_ax = (ax for ax in range(3) if ax != plan.principal_axis)
+    return a_ax, b_ax
+
+
+def _forward(plan: SamplePlan) -> bool:
+    """True when slices are processed in increasing index order."""
+    if plan.kind == "shear-warp":
+        return bool(plan.order[0] <= plan.order[-1])
+    signs = np.unique(plan._sign) if plan.ray_ids.size else np.array([1.0])
+    if signs.size > 1:
+        raise InputError(
+            "slices are processed in one order: the eye must not sit between the "
+            "volume's first and last slice along the principal axis",
+            key="view",
+            allowed="a view from outside the volume's slab",
+        )
+    return bool(signs[0] > 0)
+
+
+def _buffers(arch: ArchConfig, P: int) -> dict[str, int]:
+    """``slab_buffer_entries`` (default ``8 n ceil(n / P)``: four mini-block slabs of the
+    largest volume) and ``pixel_fifo_entries`` (default ``n^2``) per pipeline."""
+    n_max = max(arch.max_volume)
+    c_max = -(-n_max // P)
+    defaults = {"slab_buffer_entries": 8 * n_max * c_max, "pixel_fifo_entries": n_max * n_max}
+    out = {}
+    for key, default in defaults.items():
+        value = arch.buffers.get(key, default)
+        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+            raise InputError(
+                f"invalid {value!r}",
+                source=arch.source,
+                key=f"buffers.{key}",
+                allowed="an integer >= 0",
+            )
+        out[key] = value
+    return out

@@ -1,0 +1,138 @@
+"""The ``transaction`` rung: the functional image, timed by a SimPy event model.
+
+# Ref: design.md section 3 (transaction rung: image = functional; timing from a SimPy
+#      event model at beam/burst granularity, its error against the cycle rung measured
+#      and bounded per architecture); docs/transaction.md.
+
+The image is the functional rung's (:func:`models.functional.render_functional`, called,
+not duplicated), so it is bit-identical to the functional and cycle images.  The cycle
+count comes from a discrete-event model of the machine at a coarser granularity than the
+cycle rung (slices, beam batches, pixel rows), which never calls the cycle machine.
+Machines with a transaction model, by processing order:
+
+``slice-parallel``
+    the Cube-4 family (:class:`models.arch.cube4_txn.Cube4Transaction`);
+``shear-warp``, ``shear-image``
+    the VolumePro family's SDRAM-fed slab machines
+    (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube,
+    sections included; machines that skip beams (VolumePro 1000) are refused.
+
+Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.engine.metrics import derive
+from hwsim.errors import NotAvailableError
+from hwsim.golden.positions import SamplePlan
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction
+from hwsim.volumes.volume import Volume
+from models.arch.cube4_txn import Cube4Transaction
+from models.arch.volumepro_txn import SlabTransaction
+from models.datapath import Datapath
+from models.functional import render_functional
+
+__all__ = [
+    "TRANSACTION_ORDERS",
+    "TransactionResult",
+    "has_transaction_model",
+    "render_transaction",
+    "transaction_timing",
+]
+
+#: Processing orders with a transaction model, and the model's class.
+TRANSACTION_ORDERS = {
+    "slice-parallel": Cube4Transaction,
+    "shear-warp": SlabTransaction,
+    "shear-image": SlabTransaction,
+}
+
+
+@dataclass
+class TransactionResult:
+    """Image (the functional rung's), samples, the event model's cycles and counters."""
+
+    image: np.ndarray
+    samples: int
+    rays: int
+    cycles: int
+    counters: dict[str, Any] = field(default_factory=dict)
+    derived: dict[str, Any] = field(default_factory=dict)
+
+
+def has_transaction_model(arch: ArchConfig) -> bool:
+    """Whether the transaction rung models ``arch`` (its order, and for the slab machines
+    no beam skipping)."""
+    model = TRANSACTION_ORDERS.get(arch.order)
+    if model is SlabTransaction:
+        return not (arch.early_termination or arch.space_leaping)
+    return model is not None
+
+
+def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
+    """Run only the event model of ``arch`` over ``plan`` (no image).
+
+    Returns
+    -------
+    models.arch.cube4_txn.TxnTiming
+        Cycles and counters.  ``options`` go to the machine's model (e.g.
+        ``pixel_fifo_depth`` for the Cube-4 family).
+    """
+    model = TRANSACTION_ORDERS.get(arch.order)
+    if model is None:
+        raise NotAvailableError(
+            f"{arch.name} ({arch.order} order) has no transaction model yet",
+            key="--arch",
+            allowed="cube4, cube4-teramac, volumepro500, em-cube",
+        )
+    return model(scene, arch, plan, **options).run()
+
+
+def render_transaction(
+    scene: Scene,
+    volume: Volume,
+    transfer: TransferFunction,
+    arch: ArchConfig,
+    plan: SamplePlan,
+    *,
+    datapath: Datapath | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> TransactionResult:
+    """Render one frame: functional image, cycles from ``arch``'s event model.
+
+    The event model runs first, so a machine without one (or a scene it refuses) fails
+    before the image is computed.  ``counters["transaction.timing_seconds"]`` and
+    ``["transaction.image_seconds"]`` split the wall time between the two parts.
+    """
+    timing = transaction_timing(scene, arch, plan)
+    start = time.perf_counter()
+    image = render_functional(
+        scene, volume, transfer, arch, plan, datapath=datapath, progress=progress
+    )
+    counters = dict(timing.counters)
+    counters["transaction.image_seconds"] = time.perf_counter() - start
+    counters["functional.saturated"] = image.counters.get("functional.saturated", {})
+    derived = derive(
+        counters,
+        cycles=timing.cycles,
+        samples=image.samples,
+        pipelines=arch.pipelines,
+        clock_hz=arch.clock_hz,
+    )
+    return TransactionResult(
+        image=image.image,
+        samples=image.samples,
+        rays=image.rays,
+        cycles=timing.cycles,
+        counters=counters,
+        derived=derived,
+    )

@@ -1,0 +1,44 @@
+"""Smoke test of the transaction-rung harnesses (``benchmarks/bench_transaction.py``,
+``benchmarks/transaction_error.py``): complete reports, no wall-clock assertions."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+
+def test_bench_transaction_reports_both_rungs_and_the_event_model_apart():
+    from benchmarks.bench_transaction import GOAL, measure
+
+    case = measure(16, "perspective", 1)
+    assert case["identical_images"] is True and case["goal"] == GOAL
+    for key in ("cycle_seconds", "transaction_seconds", "timing_model_seconds", "image_seconds"):
+        assert case[key] > 0, key
+    assert case["timing_model_seconds"] < case["transaction_seconds"]
+    assert case["transaction_vs_cycle"] == pytest.approx(
+        case["cycle_seconds"] / case["transaction_seconds"]
+    )
+    assert case["cycle_error"] == pytest.approx(
+        case["transaction_cycles"] / case["cycle_cycles"] - 1
+    )
+
+
+def test_error_table_measures_a_case_and_says_when_it_cannot_compare():
+    from benchmarks.transaction_error import cases, measure
+    from models.cycle import CYCLE_ORDERS
+
+    quick = cases(quick=True)
+    row = measure(quick[0])
+    assert row["error"] == pytest.approx(row["transaction_cycles"] / row["cycle_cycles"] - 1)
+    vp = next(c for c in quick if c["arch"].name == "volumepro500")
+    vp_row = measure(vp)
+    if vp["arch"].order in CYCLE_ORDERS:
+        assert vp_row["error"] is not None
+    else:
+        assert vp_row["error"] is None and vp_row["note"].startswith("not yet compared")

@@ -1,0 +1,244 @@
+"""The ``transaction`` rung on the Cube-4 family: functional image, event-model timing.
+
+Design section 3: the transaction image is the functional image (so bit-identical to the
+cycle image), and its cycle count is within the documented bound of the cycle rung's
+(issue 5: 2 % on the phantoms and the real CT and MR).  The event model must not run the
+cycle machine: its error has to come from its coarser granularity.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import models.arch.cube4 as cube4_module
+import models.cycle as cycle_module
+from hwsim.engine.fifo import DeadlockError
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.fidelity import render, resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec, load_scene
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom, read_volume
+from models.arch.cube4 import UNITS
+from models.arch.cube4_txn import slice_loads
+from models.cycle import render_cycle
+from models.transaction import render_transaction, transaction_timing
+
+pytestmark = pytest.mark.model
+
+#: Issue 5: transaction cycle counts within 2 % of the cycle rung.
+CONTRACT = 0.02
+
+
+def scene_of(phantom="head", az=30, el=20, *, image=24, mode="composite", projection="parallel"):
+    return Scene(
+        volume=VolumeSpec(phantom=phantom),
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(
+            azimuth=az, elevation=el, width=image, height=image, zoom=1.2, projection=projection
+        ),
+        render=dataclasses.replace(Scene().render, mode=mode),
+    )
+
+
+def cube4(P=4, **changes):
+    return dataclasses.replace(resolve_arch("cube4"), pipelines=P, **changes)
+
+
+def cycles_of(scene, volume, arch):
+    """(cycle-rung cycles, transaction cycles, transaction counters) of one frame."""
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    exact = render_cycle(scene, volume, tf, arch, plan)
+    txn = transaction_timing(scene, arch, plan)
+    return exact.cycles, txn.cycles, txn.counters
+
+
+def error(exact, approx):
+    return (approx - exact) / exact
+
+
+@pytest.fixture(scope="module")
+def phantoms():
+    return {
+        "head": make_phantom("head", size=23),
+        "ball": make_phantom("ball", size=20),
+        "marschner-lobb": make_phantom("marschner-lobb", size=21),
+    }
+
+
+@pytest.mark.parametrize("mode", ["composite", "mip", "xray"])
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+def test_image_is_the_functional_image_and_bit_identical_to_cycle(phantoms, mode, projection):
+    volume, scene = phantoms["head"], scene_of(mode=mode, projection=projection)
+    txn = render(scene, fidelity="transaction", arch="cube4", volume=volume)
+    fixed = render(scene, fidelity="functional", arch="cube4", volume=volume)
+    cycle = render(scene, fidelity="cycle", arch="cube4", volume=volume)
+    assert np.array_equal(txn.image, fixed.image) and np.array_equal(txn.image, cycle.image)
+    assert txn.samples == cycle.samples and txn.rays == cycle.rays
+    assert txn.fidelity == "transaction" and txn.clock_hz == cycle.clock_hz
+    assert txn.cycles != fixed.cycles or projection == "parallel"  # not the closed form
+    assert txn.derived["samples_per_cycle"] == pytest.approx(txn.samples / txn.cycles)
+
+
+@pytest.mark.parametrize("P", [4, 8])
+@pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
+@pytest.mark.parametrize(
+    ("az", "el", "projection"),
+    [
+        (0, 0, "parallel"),
+        (30, 20, "parallel"),
+        (150, -30, "parallel"),
+        (90, 45, "parallel"),
+        (-35, 10, "perspective"),
+        (20, 15, "perspective"),
+        (160, -20, "perspective"),
+    ],
+)
+def test_cycles_within_the_contract_on_the_phantoms(phantoms, phantom, az, el, projection, P):
+    volume = phantoms[phantom]
+    scene = scene_of(phantom, az, el, image=volume.shape[0], projection=projection)
+    exact, approx, _ = cycles_of(scene, volume, cube4(P))
+    assert abs(error(exact, approx)) <= CONTRACT, (exact, approx)
+
+
+@pytest.mark.parametrize("phantom", ["head", "ball"])
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20), (45, 0)])
+def test_teramac_cycles_within_the_contract(phantoms, phantom, az, el):
+    volume = phantoms[phantom]
+    scene = scene_of(phantom, az, el, image=volume.shape[0])
+    exact, approx, _ = cycles_of(scene, volume, resolve_arch("cube4-teramac"))
+    assert abs(error(exact, approx)) <= CONTRACT, (exact, approx)
+
+
+@pytest.mark.parametrize(("az", "el"), [(-35, 10), (20, 15), (160, -20)])
+def test_magnified_perspective_on_cube4_within_the_contract(az, el):
+    """Rays denser than voxels (image twice the slice): slices stretch, and the event
+    model's even lane split shows.  On the built-in 4-pipeline cube4 at 48^3 it stays
+    inside the contract (docs/transaction.md has where it does not: small volumes, P=8)."""
+    volume = make_phantom("head", size=48)
+    scene = scene_of("head", az, el, image=96, projection="perspective")
+    exact, approx, counters = cycles_of(scene, volume, resolve_arch("cube4"))
+    assert counters["pipelines.stretch_cycles"] > 0
+    assert abs(error(exact, approx)) <= CONTRACT, (exact, approx)
+
+
+@pytest.mark.parametrize("name", ["head", "head-perspective", "marschner-lobb", "ball-xray"])
+def test_built_in_scenes_within_the_contract(name):
+    scene = load_scene(name)
+    volume = make_phantom(scene.volume.phantom, **dict(scene.volume.params))
+    if volume.shape[0] > 64:  # same scene, smaller volume and image: keeps the suite quick
+        scene = scene.replace(volume=VolumeSpec(phantom=scene.volume.phantom))
+        scene = scene.replace(view=dataclasses.replace(scene.view, width=64, height=64))
+        volume = make_phantom(scene.volume.phantom, size=64)
+    exact, approx, _ = cycles_of(scene, volume, resolve_arch("cube4"))
+    assert abs(error(exact, approx)) <= CONTRACT, (exact, approx)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
+def test_real_volumes_within_the_contract(shared_data, name):
+    volume = read_volume(shared_data / name)
+    for az, el, projection in ((30, 20, "parallel"), (-35, 10, "perspective")):
+        scene = scene_of("head", az, el, image=96, projection=projection)
+        scene = scene.replace(transfer=TransferSpec(preset="auto"))
+        exact, approx, _ = cycles_of(scene, volume, resolve_arch("cube4"))
+        assert abs(error(exact, approx)) <= CONTRACT, (name, projection, exact, approx)
+
+
+def test_even_lane_split_is_a_lower_bound_where_rays_outnumber_voxels(phantoms):
+    """The one approximation: the busiest pipeline's samples estimated as the slice's
+    samples over P.  A mean never exceeds a maximum, so with a deep pixel FIFO the
+    transaction count can only be low; magnified perspective (more rays than a slice has
+    voxels) is where slices stretch and the error shows."""
+    volume = phantoms["ball"]
+    scene = scene_of("ball", 20, 15, image=2 * volume.shape[0], projection="perspective")
+    exact, approx, counters = cycles_of(scene, volume, cube4(8))
+    assert counters["pipelines.stretch_cycles"] > 0
+    assert approx < exact
+
+
+def test_axis_aligned_frame_has_the_cycle_rules_closed_form():
+    """docs/cycle.md timing rules, as the event model reproduces them: (n + 1) slices of
+    n C clocks, the pipeline latency, the pixel bus draining every ray of the last slice."""
+    n, P = 16, 4
+    volume = make_phantom("head", size=n)
+    scene = scene_of(az=0, el=0, image=n)
+    plan = make_plan(scene, volume, "slice-parallel")
+    timing = transaction_timing(scene, cube4(P), plan)
+    C = -(-n // P)
+    latency = 1 + C + 1 + sum(u.LATENCY for u in UNITS.values())
+    assert timing.cycles == (n + 1) * n * C + latency + plan.ray_ids.size
+    assert timing.counters["pixel_bus.drain_cycles"] == plan.ray_ids.size
+
+
+def test_slice_loads_count_every_sample_and_every_ray_once(phantoms):
+    volume = phantoms["head"]
+    plan = make_plan(scene_of(projection="perspective"), volume, "slice-parallel")
+    samples, finishing = slice_loads(plan)
+    assert samples.sum() == plan.samples and finishing.sum() == plan.ray_ids.size
+    steps = [s.rays.size for s in plan.steps()]
+    assert samples.tolist() == steps
+
+
+def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("the transaction rung ran the cycle machine")
+
+    monkeypatch.setattr(cube4_module.Cube4Machine, "run", refuse)
+    monkeypatch.setattr(cycle_module, "render_cycle", refuse)
+    run = render(scene_of(), fidelity="transaction", arch="cube4", volume=phantoms["head"])
+    assert run.cycles > 0 and run.counters["transaction.events"] > 0
+
+
+def test_a_shallow_pixel_fifo_stalls_and_depth_zero_deadlocks(phantoms):
+    volume = make_phantom("head", size=32)
+    scene = scene_of(az=0, el=0, image=32)
+    deep = cycles_of(scene, volume, cube4())
+    shallow = cycles_of(scene, volume, cube4(buffers={"pixel_fifo_entries": 16}))
+    # Every ray finishes on the last slice: the compositors wait, the frame does not grow
+    # (the bus was going to send those pixels one per clock anyway).
+    assert shallow[2]["pipelines.stall_cycles"] > 0 and shallow[2]["pixel_bus.max_occupancy"] <= 16
+    assert shallow[0] == deep[0] and shallow[1] == deep[1]
+    assert abs(error(shallow[0], shallow[1])) <= CONTRACT
+    oblique = scene_of(az=30, el=20, image=32)
+    exact, approx, counters = cycles_of(oblique, volume, cube4(buffers={"pixel_fifo_entries": 4}))
+    assert exact > deep[0]  # here the stalls lengthen the frame, at both rungs
+    assert counters["pipelines.stall_cycles"] > 0 and approx > deep[1]
+    assert counters["pixel_bus.max_occupancy"] <= 4
+    assert abs(error(exact, approx)) <= CONTRACT, (exact, approx)
+    plan = make_plan(oblique, volume, "slice-parallel")
+    with pytest.raises(DeadlockError, match="pixel_bus.fifo: depth 0"):
+        transaction_timing(oblique, cube4(), plan, pixel_fifo_depth=0)
+
+
+def test_counters_describe_the_frame(phantoms):
+    volume = phantoms["head"]
+    scene = scene_of()
+    run = render(scene, fidelity="transaction", arch="cube4", volume=volume)
+    c = run.counters
+    plan = make_plan(scene, volume, "slice-parallel")
+    assert c["frame.cycles"] == run.cycles and c["frame.samples"] == plan.samples
+    assert c["pixel_bus.pixels"] == c["pixel_bus.busy_cycles"] == plan.ray_ids.size
+    assert c["memory.reads"] == volume.data.size
+    assert c["transaction.timing_seconds"] > 0 and c["transaction.image_seconds"] > 0
+    assert 0 < run.derived["efficiency"] <= 1
+
+
+def test_machines_without_a_transaction_model_are_not_available(phantoms):
+    with pytest.raises(NotAvailableError, match="vizard2 .ray order. has no transaction model"):
+        render(scene_of(), fidelity="transaction", arch="vizard2", volume=phantoms["head"])
+
+
+def test_cube4_refusals_hold_at_the_transaction_rung(phantoms):
+    volume = phantoms["head"]
+    scene = scene_of()
+    scene = scene.replace(render=dataclasses.replace(scene.render, supersampling=2.0))
+    arch = cube4(supersampling=(1.0, 2.0))
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    with pytest.raises(InputError, match="render.supersampling"):
+        render_transaction(scene, volume, tf, arch, plan)
