@@ -71,6 +71,12 @@ class Faults:
     ``dropped_handoff = k``: accumulators handed to pipeline ``k`` are lost;
     ``beam_fifo_adjust`` / ``slice_fifo_adjust``: entries added to (negative: removed
     from) the beam and slice delay FIFOs; ``pixel_fifo_depth``: the pixel-bus FIFO depth.
+
+    VolumePro-family machines (:mod:`models.arch.volumepro`) also take
+    ``stuck_bank = (k, b, value)``: bank ``b`` of SDRAM module ``k`` returns ``value``;
+    ``lost_spill = s``: the partial rays parked at the end of section ``s`` are lost;
+    ``slab_buffer_adjust``: entries per pipeline added to (removed from) the input buffer.
+    Cube-4 has none of these structures and ignores them.
     """
 
     stuck_module: tuple[int, int] | None = None
@@ -79,6 +85,9 @@ class Faults:
     beam_fifo_adjust: int = 0
     slice_fifo_adjust: int = 0
     pixel_fifo_depth: int | None = None
+    stuck_bank: tuple[int, int, int] | None = None
+    lost_spill: int | None = None
+    slab_buffer_adjust: int = 0
 
 
 @dataclass
