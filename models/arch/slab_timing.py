@@ -45,12 +45,14 @@ class SliceWork:
     """One sample slice of one section as the pipelines see it.
 
     ``needs``: per processed beam, the index of the last delivery it needs (-1: none);
+    ``cycles``: per processed beam, its clocks (``C``, fewer when skipping, rule 6);
     ``extra``: cycles after the last beam (slice overhead, perspective stretch);
     ``pre``: stall cycles before the first beam (a section change);
     ``arrivals``: accumulators pushed into the pixel FIFO at the slice's end.
     """
 
     needs: np.ndarray
+    cycles: np.ndarray
     extra: int = 0
     pre: int = 0
     arrivals: int = 0
@@ -73,7 +75,6 @@ def run_timing(
     deliveries: list[Delivery],
     slices: list[SliceWork],
     *,
-    beam_cycles: int,
     capacity: int,
     pixel_fifo: DrainFifo,
     counters: Counters,
@@ -88,8 +89,6 @@ def run_timing(
         Mini-block beams in read order, ``free_after`` set.
     slices : list of SliceWork
         Processing order.
-    beam_cycles : int
-        ``C``, clocks per beam.
     capacity : int
         Input-buffer capacity in deliveries (>= 0).
     pixel_fifo : DrainFifo
@@ -118,30 +117,29 @@ def run_timing(
                     f"pipelines wait for it at beam {state['bi']}"
                 )
             earliest = int(ends[f])
-            if capacity == 0:
-                raise DeadlockError("input buffer of depth 0 never accepts a burst")
         e_mem = int(np.ceil(earliest * dev.clock_ratio))
         last = 0
         for ctl, (banks, rows) in zip(controllers, deliveries[g].bursts, strict=True):
             if not banks:
                 continue
-            ctl.issue_many(banks, rows, [e_mem] + [0] * (len(banks) - 1))
+            # The controller's own loop (``issue_many`` without re-validating lists the
+            # layout built): any split of a stream gives the batch schedule.
+            ctl._run(banks, rows, [e_mem] + [0] * (len(banks) - 1))
             last = max(last, ctl.reads[-1] + tail)
         ready[g] = int(np.ceil(last / dev.clock_ratio))
         state["g"] = g + 1
 
     t = 0
-    C = int(beam_cycles)
     for work in slices:
         start_block = t
         t += work.pre
         stall = 0
-        for need in work.needs.tolist():
+        for need, clocks in zip(work.needs.tolist(), work.cycles.tolist(), strict=True):
             while need >= state["g"]:
                 deliver()
             begin = t if need < 0 or ready[need] <= t else int(ready[need])
             stall += begin - t
-            t = begin + C
+            t = begin + clocks
             ends[state["bi"]] = t
             state["bi"] += 1
         t += work.extra

@@ -54,7 +54,7 @@ class _SliceRecord:
 
     section: int
     window: tuple[int, int]  # voxel slices [lo, hi] the slice's beams read
-    active: np.ndarray | None  # rows processed (None: every row of the section)
+    cost: np.ndarray | None  # clocks of each row's beam (None: C for every row of the section)
     busy: np.ndarray  # samples per lane
     arrivals: int  # accumulators pushed into the pixel FIFO at its end
 
@@ -434,6 +434,12 @@ class SlabMachine(Cube4Machine):
         sram_dt = None if state.dt_sum is None else np.zeros_like(state.dt_sum)
         parked = np.zeros(0, dtype=np.int64)
         live_modes = be.mode in ("composite", "iso")
+        n_slabs, n_u, n_mb = -(-self.n_kp // 2), -(-self.n_a // 2), -(-self.n_b // 2)
+        # Mini-blocks a processed beam needs, per section (rule 6: the others are not read).
+        needed = np.zeros((len(sections), n_slabs, n_u, n_mb), dtype=bool)
+        if not self.skipping:
+            for si, (a0, a1) in enumerate(sections):
+                needed[si, :, max(a0 - 1, 0) // 2 : (min(a1 + 1, self.n_a - 1)) // 2 + 1] = True
         total = plan.n_steps * len(sections)
         for si, (a0, a1) in enumerate(sections):
             if parked.size:  # reload the partial rays this section continues
@@ -452,7 +458,7 @@ class SlabMachine(Cube4Machine):
                     inside = (rows >= a0) & (rows < a1)
                     step = subset_step(step, inside)
                 busy = np.zeros(P, dtype=np.int64)
-                active = None
+                cost = None
                 fin = np.zeros(0, dtype=np.int64)
                 if step.rays.size:
                     seen[step.rays] = True
@@ -461,9 +467,7 @@ class SlabMachine(Cube4Machine):
                     live = state.alive[step.rays] if live_modes else np.ones(step.rays.size, bool)
                     busy = np.bincount(lanes[live] if self.skipping else lanes, minlength=P)
                     if self.skipping:
-                        rows = np.clip(np.floor(source.pa[live]), 0, self.n_a - 1).astype(np.int64)
-                        active = np.zeros(self.n_a, dtype=bool)
-                        active[rows] = True
+                        cost = self._live_cells(source, live, si, (lo, hi), needed)
                     self._hand_off(step.rays, lanes, prev_lane, state)
                     be.process(
                         step,
@@ -480,8 +484,8 @@ class SlabMachine(Cube4Machine):
                         if bus["dt_sum"] is not None:
                             bus["dt_sum"][fin] = state.dt_sum[fin]
                 elif self.skipping:
-                    active = np.zeros(self.n_a, dtype=bool)
-                records.append(_SliceRecord(si, (lo, hi), active, busy, int(fin.size)))
+                    cost = np.zeros(self.n_a, dtype=np.int64)
+                records.append(_SliceRecord(si, (lo, hi), cost, busy, int(fin.size)))
                 if progress is not None:
                     progress(si * plan.n_steps + j + 1, total)
             parked = np.flatnonzero(seen & ~done)
@@ -496,51 +500,71 @@ class SlabMachine(Cube4Machine):
                     state.dt_sum[parked] = 0
                 if records:
                     records[-1].arrivals += int(parked.size)
-        return self._finish(state, bus, records, sections, parked_counts)
+        return self._finish(state, bus, records, sections, parked_counts, needed)
+
+    def _live_cells(self, source, live, si, window, needed) -> np.ndarray:
+        """Rule 6 at one sample slice: the clocks each beam costs (clock groups of P cells
+        holding a live sample) and the mini-blocks its live cells need (marked in
+        ``needed``): cell ``(a, b)`` reads voxel rows ``a - 1 .. a + 2`` and columns
+        ``b - 1 .. b + 2`` of the window's slices (corners and gradient neighbours)."""
+        P, C = self.P, self.C
+        cells = np.zeros((self.n_a, C * P), dtype=bool)
+        ra = np.clip(np.floor(source.pa[live]), 0, self.n_a - 1).astype(np.int64)
+        rb = np.clip(np.floor(source.pb[live]), 0, self.n_b - 1).astype(np.int64)
+        cells[ra, rb] = True
+        cost = cells.reshape(self.n_a, C, P).any(axis=2).sum(axis=1)
+        voxels = cells[:, : self.n_b]
+        for axis in (0, 1):
+            v = np.moveaxis(voxels, axis, 0)
+            out = v.copy()
+            out[:-1] |= v[1:]
+            out[1:] |= v[:-1]
+            out[2:] |= v[:-2]
+            voxels = np.moveaxis(out, 0, axis)
+        pad = np.zeros((-(-self.n_a // 2) * 2, -(-self.n_b // 2) * 2), dtype=bool)
+        pad[: self.n_a, : self.n_b] = voxels
+        blocks = pad.reshape(pad.shape[0] // 2, 2, pad.shape[1] // 2, 2).any(axis=(1, 3))
+        needed[si, window[0] // 2 : window[1] // 2 + 1] |= blocks
+        return cost
 
     # ------------------------------------------------------------------ timing
 
-    def _timing_inputs(self, records, sections, parked_counts):
+    def _timing_inputs(self, records, sections, parked_counts, needed):
         """Deliveries (mini-block beams to read, in order) and the pipelines' slices."""
-        n_u = -(-self.n_a // 2)
-        n_slabs = -(-self.n_kp // 2)
+        n_slabs = needed.shape[1]
         slab_order = range(n_slabs) if self.forward else range(n_slabs - 1, -1, -1)
-        # Which mini-block beams each section reads: those a processed beam needs.
-        needed = np.zeros((len(sections), n_slabs, n_u), dtype=bool)
-        per_beam = []
-        for rec in records:
-            a0, a1 = sections[rec.section]
-            rows = np.arange(a0, a1)
-            if rec.active is not None:
-                rows = rows[rec.active[a0:a1]]
-            u_lo = np.maximum(rows - 1, 0) // 2
-            u_hi = np.minimum(rows + 2, self.n_a - 1) // 2
-            slabs = np.arange(rec.window[0] // 2, rec.window[1] // 2 + 1)
-            per_beam.append((rows, u_lo, u_hi, slabs))
-            for d in range(3):
-                u = np.minimum(u_lo + d, u_hi)
-                needed[rec.section][np.ix_(slabs, u)] = True
-        index = np.full(needed.shape, -1, dtype=np.int64)
+        index = np.full(needed.shape[:3], -1, dtype=np.int64)
         deliveries: list[Delivery] = []
         M = self.memory_cfg.modules
         for si in range(len(sections)):
             for slab in slab_order:
-                us = np.flatnonzero(needed[si, slab])
+                us = np.flatnonzero(needed[si, slab].any(axis=1))
                 if not us.size:
                     continue
                 module, bank, row = self.memory.slab_bursts(self.kp, slab)
                 for u in us.tolist():
                     index[si, slab, u] = len(deliveries)
+                    keep = needed[si, slab, u]
                     bursts = []
                     for m in range(M):
-                        sel = module[u] == m
+                        sel = (module[u] == m) & keep
                         bursts.append((bank[u][sel].tolist(), row[u][sel].tolist()))
                     deliveries.append(Delivery(bursts))
         free_after = np.full(len(deliveries), -1, dtype=np.int64)
         slices: list[SliceWork] = []
         beam = 0
         prev_section = 0
-        for rec, (rows, u_lo, u_hi, slabs) in zip(records, per_beam, strict=True):
+        for rec in records:
+            a0, a1 = sections[rec.section]
+            rows = np.arange(a0, a1)
+            if rec.cost is None:
+                cycles = np.full(rows.size, self.C, dtype=np.int64)
+            else:
+                cycles = rec.cost[a0:a1]
+                rows, cycles = rows[cycles > 0], cycles[cycles > 0]
+            u_lo = np.maximum(rows - 1, 0) // 2
+            u_hi = np.minimum(rows + 2, self.n_a - 1) // 2
+            slabs = np.arange(rec.window[0] // 2, rec.window[1] // 2 + 1)
             need = np.full(rows.size, -1, dtype=np.int64)
             ids = np.arange(beam, beam + rows.size)
             for d in range(3):
@@ -555,10 +579,11 @@ class SlabMachine(Cube4Machine):
             if rec.section != prev_section:
                 pre = self.arch.section_overhead_cycles + parked_counts[prev_section]
                 prev_section = rec.section
-            stretch = max(0, int(rec.busy.max(initial=0)) - rows.size * self.C)
+            stretch = max(0, int(rec.busy.max(initial=0)) - int(cycles.sum()))
             slices.append(
                 SliceWork(
                     need,
+                    cycles,
                     extra=self.arch.slice_overhead_cycles + stretch,
                     pre=pre,
                     arrivals=rec.arrivals,
@@ -567,11 +592,11 @@ class SlabMachine(Cube4Machine):
             )
         for g, f in enumerate(free_after.tolist()):
             deliveries[g].free_after = f
-        return deliveries, slices, needed
+        return deliveries, slices
 
-    def _finish(self, state, bus, records, sections, parked_counts) -> CycleResult:
+    def _finish(self, state, bus, records, sections, parked_counts, needed) -> CycleResult:
         be, c, P = self.be, self.counters, self.P
-        deliveries, slices, needed = self._timing_inputs(records, sections, parked_counts)
+        deliveries, slices = self._timing_inputs(records, sections, parked_counts, needed)
         depth = self.faults.pixel_fifo_depth
         pixel_fifo = DrainFifo(
             "pixel_bus.fifo", self.capacity["pixel_fifo_entries"] if depth is None else depth
@@ -585,7 +610,6 @@ class SlabMachine(Cube4Machine):
             self.memory_cfg,
             deliveries,
             slices,
-            beam_cycles=self.C,
             capacity=capacity,
             pixel_fifo=pixel_fifo,
             counters=c,
@@ -616,12 +640,13 @@ class SlabMachine(Cube4Machine):
         n_beams = sum(s.needs.size for s in slices)
         all_beams = sum(sections[r.section][1] - sections[r.section][0] for r in records)
         c.set("memory.mbb_reads", len(deliveries))
-        c.set("memory.mbb_skipped", int(needed.size - needed.sum()))
+        c.set("memory.bursts_skipped", int(needed.size - needed.sum()))
         c.set("memory.bursts", sdram.bursts)
         c.set("memory.stall_cycles", timing.memory_stall)
         c.set("memory.buffer_full_cycles", sdram.stall_arrival_cycles)
         c.set("pipeline.beams_processed", n_beams)
         c.set("pipeline.beams_skipped", all_beams - n_beams)
+        c.set("pipeline.beam_cycles", int(sum(int(s.cycles.sum()) for s in slices)))
         c.set(
             "pipeline.slice_stretch_cycles",
             sum(s.extra for s in slices) - len(slices) * self.arch.slice_overhead_cycles,
@@ -654,4 +679,3 @@ class SlabMachine(Cube4Machine):
             elided_units=list(self.elided),
             derived=derived,
         )
-
