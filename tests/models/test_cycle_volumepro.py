@@ -236,8 +236,9 @@ def test_elision_changes_neither_image_nor_cycles(head):
 
 def test_early_ray_termination_saves_cycles_on_volumepro1000_only(head):
     """Rule 6: clock groups of a beam holding only terminated rays are not processed, nor
-    the mini-blocks only they need read, on VolumePro 1000; the image differs from the untermination one only by the threshold
-    effect (a ray stops once its opacity reaches the threshold)."""
+    the mini-blocks only they need read, on VolumePro 1000; the image differs from the
+    unterminated one only by the threshold effect (a ray stops once its opacity reaches
+    the threshold)."""
     dense = TransferSpec(points=((0.0, 1, 1, 1, 0.0), (200.0, 1, 1, 1, 0.9), (4095.0, 1, 1, 1, 1)))
     scene = scene_of(30, 20, transfer=dense, render={"early_termination": 0.95})
     plain = scene_of(30, 20, transfer=dense, render={"early_termination": 1.0})
