@@ -16,6 +16,13 @@ latency; no efficiency factor):
 * ``volumepro1000``: brute-force samples per second, one ray per voxel column, no early
   termination or space leaping (published 10^9 [V]; tolerance 5 %).
 
+Published rates are for continuous rendering, so the figure uses the *frame period*:
+the cycles between the ends of two frames rendered back to back on the same memory
+controllers and pixel FIFO (the next frame's first slabs are read while the last slices
+of this one are processed; this frame's pixels drain while the next is processed).  The
+single-frame figure (fill, last slices, pixel-bus drain, latency in one frame) is
+reported beside it.
+
 Each row also lists where the cycles went (ideal sample clocks, memory stalls with the
 SDRAM refresh and row-miss counts, pixel-bus drain, pipeline latency).  With ``--ct``
 (default ``../shared/data/ct_cranium.nrrd`` when present) it adds the speed-ups of
@@ -69,14 +76,14 @@ def _scene(arch: str, n: int, mode: str = "mip", **render: Any) -> Scene:
     )
 
 
-def _run(arch, scene, volume):
+def _run(arch, scene, volume, **kw):
     from models.cycle import render_cycle
 
     machine = resolve_arch(arch) if isinstance(arch, str) else arch
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
     start = time.perf_counter()
-    result = render_cycle(scene, volume, tf, machine, plan)
+    result = render_cycle(scene, volume, tf, machine, plan, **kw)
     return result, time.perf_counter() - start
 
 
@@ -85,9 +92,14 @@ def measure(arch: str, n: int = 256) -> dict[str, Any]:
     metric, published, tolerance, source = FIGURES[arch]
     machine = resolve_arch(arch)
     volume = make_phantom("head", size=n)
-    result, wall = _run(arch, _scene(arch, n), volume)
+    result, wall = _run(arch, _scene(arch, n), volume, steady_state=True)
     c, f = result.counters, machine.clock_hz
-    value = f / result.cycles if metric == "fps" else result.samples * f / result.cycles
+    period = c["frame.period_cycles"]
+
+    def figure(cycles: int) -> float:
+        return f / cycles if metric == "fps" else result.samples * f / cycles
+
+    value = figure(period)
     return {
         "arch": arch,
         "metric": metric,
@@ -97,9 +109,13 @@ def measure(arch: str, n: int = 256) -> dict[str, Any]:
         "model": value,
         "difference": value / published - 1.0,
         "within_tolerance": abs(value / published - 1.0) <= tolerance,
+        "basis": "continuous rendering: cycles between the ends of two frames back to back",
+        "single_frame": figure(result.cycles),
+        "single_frame_difference": figure(result.cycles) / published - 1.0,
         "size": n,
         "pipelines": machine.pipelines,
         "clock_hz": f,
+        "period_cycles": period,
         "cycles": result.cycles,
         "samples": result.samples,
         "breakdown": {
@@ -167,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(
             f"{arch:14s} {row['metric']:20s} published {row['published']:.4g}  model "
-            f"{row['model']:.4g}  ({row['difference']:+.1%}, tolerance {row['tolerance']:.0%})",
+            f"{row['model']:.4g}  ({row['difference']:+.1%}, tolerance {row['tolerance']:.0%}); "
+            f"single frame {row['single_frame']:.4g} ({row['single_frame_difference']:+.1%})",
             file=sys.stderr,
         )
     report: dict[str, Any] = {"figures": rows}

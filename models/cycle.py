@@ -51,6 +51,7 @@ def render_cycle(
     trace: str | Path | None = None,
     datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
+    steady_state: bool = False,
 ) -> CycleResult:
     """Render one frame on ``arch``'s modelled hardware.
 
@@ -63,6 +64,9 @@ def render_cycle(
         compute (a fixed pipeline with disabled units): the elision check.
     trace : path, optional
         Write a VCD of memory reads, interpolator inputs and the pixel bus there.
+    steady_state : bool
+        VolumePro family: also time a second frame back to back and report the cycles
+        between the two frames' ends (``frame.period_cycles``: the continuous frame rate).
     """
     if arch.order not in CYCLE_ORDERS:
         raise NotAvailableError(
@@ -74,8 +78,9 @@ def render_cycle(
         datapath = Datapath.for_volume(arch, volume)
     backend = Backend(scene, volume, transfer, arch, plan, datapath, exercise_unused=elaborate_all)
     vcd = VcdTrace() if trace is not None else None
+    extra = {"steady_state": True} if steady_state else {}
     machine = MACHINES[arch.order](
-        backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd
+        backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd, **extra
     )
     result = machine.run(progress)
     if vcd is not None:

@@ -25,6 +25,7 @@ Timing never changes data, so the order of the passes changes nothing.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -161,8 +162,10 @@ class SlabMachine(Cube4Machine):
         faults: Faults | None = None,
         elaborate_all: bool = False,
         trace: VcdTrace | None = None,
+        steady_state: bool = False,
     ) -> None:
         self.be, self.dp = backend, backend.dp
+        self.steady_state = steady_state
         self.faults = faults or Faults()
         self.arch = arch = backend.arch
         self.P = P = arch.pipelines
@@ -594,6 +597,30 @@ class SlabMachine(Cube4Machine):
             deliveries[g].free_after = f
         return deliveries, slices
 
+    def _period(self, deliveries, slices, capacity: int) -> int:
+        """Cycles between the ends of two frames rendered back to back (the continuous frame
+        rate): the same memory controllers and pixel FIFO carry on into a second frame, so
+        its fill overlaps the first frame's last slices and the first frame's pixels drain
+        while the second is processed."""
+        n_beams = sum(s.needs.size for s in slices)
+        n_del = len(deliveries)
+        again = [Delivery(d.bursts, d.free_after + n_beams) for d in deliveries]
+        shifted = [
+            dataclasses.replace(s, needs=np.where(s.needs >= 0, s.needs + n_del, -1))
+            for s in slices
+        ]
+        fifo = DrainFifo("pixel_bus.fifo", self.capacity["pixel_fifo_entries"])
+        timing = run_timing(
+            self.memory_cfg,
+            deliveries + again,
+            slices + shifted,
+            capacity=capacity,
+            pixel_fifo=fifo,
+            counters=Counters(),
+        )
+        first = sum(b[0] for b in timing.blocks[: len(slices)])
+        return int(timing.end - first)
+
     def _finish(self, state, bus, records, sections, parked_counts, needed) -> CycleResult:
         be, c, P = self.be, self.counters, self.P
         deliveries, slices = self._timing_inputs(records, sections, parked_counts, needed)
@@ -626,6 +653,8 @@ class SlabMachine(Cube4Machine):
         latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
         drain = pixel_fifo.flush()
         cycles = timing.end + latency + drain
+        if self.steady_state:
+            c.set("frame.period_cycles", self._period(deliveries, slices, capacity))
         idle = np.zeros(P, dtype=np.int64)
         for stage in stages.values():
             stage.account(idle, latency + drain)
