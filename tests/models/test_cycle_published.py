@@ -6,8 +6,9 @@ model (pipelines x clock, SDRAM bursts, refresh and row misses, the input buffer
 pixel bus, the pipeline latency): nothing is fitted, and the test also checks that the
 cycles are accounted for by those mechanisms.  Published rates are continuous frame
 rates, so the figure uses the frame period (two frames back to back on the same SDRAM
-controllers); the single-frame figure is reported beside it in the benchmark JSON.  benchmarks/published_figures.py writes
-the same rows to benchmarks/results/published-figures.json.
+controllers); the single-frame figure is reported beside it.
+benchmarks/published_figures.py writes the same rows to
+benchmarks/results/published-figures.json.
 """
 
 from __future__ import annotations
