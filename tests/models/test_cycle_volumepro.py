@@ -91,6 +91,16 @@ def test_volumepro1000_perspective_is_bit_identical(head, mode, az, el):
     assert_identical(*both(scene, head, "volumepro1000")[:2])
 
 
+@pytest.mark.parametrize("pipelines", [1, 3, 8])
+def test_any_pipeline_count_against_four_sdram_modules(head, pipelines):
+    """The de-skew network feeds P pipelines from M = 4 modules for any P."""
+    for arch in ("volumepro500", "volumepro1000"):
+        scene = scene_of(60, 25, render={"supersampling": 2.0})
+        fixed, cycle, _ = both(scene, head, with_(arch, pipelines=pipelines))
+        assert_identical(fixed, cycle)
+        assert cycle.counters["memory.conflicts"] == 0
+
+
 @pytest.mark.parametrize(
     ("arch", "factor"),
     [
