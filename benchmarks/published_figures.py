@@ -28,7 +28,8 @@ SDRAM refresh and row-miss counts, pixel-bus drain, pipeline latency).  With ``-
 (default ``../shared/data/ct_cranium.nrrd`` when present) it adds the speed-ups of
 VolumePro 1000's early ray termination and of space leaping (a feature the file leaves
 off; ``[features] space_leaping = true`` turns it on) on the real CT, with the image
-difference each causes.  tests/models/test_cycle_published.py asserts the tolerances
+difference each causes, and what sectioning (64 beams) costs VolumePro 500.
+tests/models/test_cycle_published.py asserts the tolerances
 with :func:`measure`.
 """
 
@@ -53,7 +54,7 @@ from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 
-__all__ = ["FIGURES", "measure", "acceleration", "main"]
+__all__ = ["FIGURES", "measure", "sectioning", "acceleration", "main"]
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -134,6 +135,40 @@ def measure(arch: str, n: int = 256) -> dict[str, Any]:
     }
 
 
+def sectioning(n: int = 256, width: int = 64) -> dict[str, Any]:
+    """What sectioning costs VolumePro 500 on a dense ``n^3`` volume at a sheared view
+    (30/20 degrees, MIP): sections of ``width`` beams against none, continuous rate.
+    No per-section overhead is published ([?]); the cost shown is the mechanisms':
+    mini-block beams re-read at section overlaps, parked rays reloaded."""
+    base = resolve_arch("volumepro500")
+    volume = make_phantom("head", size=n)
+    scene = Scene(
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(azimuth=30, elevation=20, width=n, height=n, zoom=1.0),
+        render=RenderSpec(mode="mip"),
+    )
+    out: dict[str, Any] = {"size": n, "section_width": width, "view": [30, 20]}
+    for name, arch in (
+        ("whole", base),
+        ("sections", dataclasses.replace(base, section_width=width)),
+    ):
+        result, wall = _run(arch, scene, volume, steady_state=True)
+        c = result.counters
+        out[name] = {
+            "period_cycles": c["frame.period_cycles"],
+            "fps": base.clock_hz / c["frame.period_cycles"],
+            "sections": c["section.count"],
+            "sdram_bursts": c["memory.bursts"],
+            "parked_rays": c["section.parked_rays"],
+            "reload_cycles": c["section.reload_cycles"],
+            "wall_seconds": wall,
+        }
+    whole, cut = out["whole"], out["sections"]
+    out["reread_bursts"] = cut["sdram_bursts"] - whole["sdram_bursts"]
+    out["slowdown"] = cut["period_cycles"] / whole["period_cycles"]
+    return out
+
+
 def acceleration(path: Path, size: int = 96) -> dict[str, Any]:
     """Speed-ups of VolumePro 1000's early ray termination and of space leaping on a real
     volume (composite, ``ct`` preset, lit, a 30/20 degree view, ``size``-pixel image)."""
@@ -188,6 +223,12 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
     report: dict[str, Any] = {"figures": rows}
+    report["volumepro500_sectioning"] = sec = sectioning(args.size)
+    print(
+        f"volumepro500 sections of {sec['section_width']}: {sec['sections']['fps']:.2f} fps "
+        f"against {sec['whole']['fps']:.2f} ({sec['reread_bursts']} bursts re-read)",
+        file=sys.stderr,
+    )
     if args.ct.exists():
         report["volumepro1000_acceleration"] = acc = acceleration(args.ct, args.ct_image)
         for name in ("ert_0.95", "space_leaping", "ert_0.95_and_space_leaping"):

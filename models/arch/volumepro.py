@@ -26,6 +26,7 @@ Timing never changes data, so the order of the passes changes nothing.
 from __future__ import annotations
 
 import dataclasses
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -220,6 +221,10 @@ class SlabMachine(Cube4Machine):
             self.next_visible = backend.transparent_ranges()
         self._planes: dict[int, dict[str, np.ndarray]] = {}
         self._voxels: dict[int, np.ndarray] = {}
+        # Rule 6: the sequencer reads a slab up to two slabs (four voxel slices) before
+        # the slice that consumes it, so it knows the termination mask of that many sample
+        # slices earlier.
+        self.read_lag = int(np.ceil(4 * plan.scene.render.supersampling))
 
     # ------------------------------------------------------------------ set-up
 
@@ -436,7 +441,8 @@ class SlabMachine(Cube4Machine):
         sram_acc = np.zeros_like(state.acc)
         sram_dt = None if state.dt_sum is None else np.zeros_like(state.dt_sum)
         parked = np.zeros(0, dtype=np.int64)
-        live_modes = be.mode in ("composite", "iso")
+        # Terminated rays save work only on a machine with ERT hardware (rule 6).
+        ert_hardware = self.arch.early_termination and be.mode in ("composite", "iso")
         n_slabs, n_u, n_mb = -(-self.n_kp // 2), -(-self.n_a // 2), -(-self.n_b // 2)
         # Mini-blocks a processed beam needs, per section (rule 6: the others are not read).
         needed = np.zeros((len(sections), n_slabs, n_u, n_mb), dtype=bool)
@@ -450,6 +456,9 @@ class SlabMachine(Cube4Machine):
                 if sram_dt is not None:
                     state.dt_sum[parked] = sram_dt[parked]
             seen = np.zeros(plan.n_rays, dtype=bool)
+            # Termination masks of the last slices: the memory reads a slab while the
+            # pipelines are up to ``lag`` sample slices behind (rule 6).
+            history: deque[np.ndarray] = deque(maxlen=self.read_lag)
             done = np.zeros(plan.n_rays, dtype=bool)
             self._planes.clear()
             self._voxels.clear()
@@ -467,10 +476,15 @@ class SlabMachine(Cube4Machine):
                     seen[step.rays] = True
                     source = TrilinearSource(self, step)
                     lanes = self._lanes(source)
-                    live = state.alive[step.rays] if live_modes else np.ones(step.rays.size, bool)
+                    live = np.ones(step.rays.size, dtype=bool)
+                    if ert_hardware:
+                        live = state.alive[step.rays]
                     busy = np.bincount(lanes[live] if self.skipping else lanes, minlength=P)
                     if self.skipping:
-                        cost = self._live_cells(source, live, si, (lo, hi), needed)
+                        known = np.ones(step.rays.size, dtype=bool)
+                        if ert_hardware and len(history) == history.maxlen:
+                            known = history[0][step.rays]
+                        cost = self._live_cells(source, live, known, si, (lo, hi), needed)
                     self._hand_off(step.rays, lanes, prev_lane, state)
                     be.process(
                         step,
@@ -489,6 +503,8 @@ class SlabMachine(Cube4Machine):
                 elif self.skipping:
                     cost = np.zeros(self.n_a, dtype=np.int64)
                 records.append(_SliceRecord(si, (lo, hi), cost, busy, int(fin.size)))
+                if ert_hardware:
+                    history.append(state.alive.copy())
                 if progress is not None:
                     progress(si * plan.n_steps + j + 1, total)
             parked = np.flatnonzero(seen & ~done)
@@ -505,17 +521,20 @@ class SlabMachine(Cube4Machine):
                     records[-1].arrivals += int(parked.size)
         return self._finish(state, bus, records, sections, parked_counts, needed)
 
-    def _live_cells(self, source, live, si, window, needed) -> np.ndarray:
+    def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:
         """Rule 6 at one sample slice: the clocks each beam costs (clock groups of P cells
-        holding a live sample) and the mini-blocks its live cells need (marked in
-        ``needed``): cell ``(a, b)`` reads voxel rows ``a - 1 .. a + 2`` and columns
-        ``b - 1 .. b + 2`` of the window's slices (corners and gradient neighbours)."""
+        holding a sample of a live ray, ``live``) and the mini-blocks the memory reads for
+        it (marked in ``needed``): those of the cells of rays the sequencer still knew
+        alive when it read the slab (``known``, a superset of ``live``); cell ``(a, b)``
+        reads voxel rows ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` of the window's
+        slices (corners and gradient neighbours)."""
         P, C = self.P, self.C
+        ra = np.clip(np.floor(source.pa), 0, self.n_a - 1).astype(np.int64)
+        rb = np.clip(np.floor(source.pb), 0, self.n_b - 1).astype(np.int64)
         cells = np.zeros((self.n_a, C * P), dtype=bool)
-        ra = np.clip(np.floor(source.pa[live]), 0, self.n_a - 1).astype(np.int64)
-        rb = np.clip(np.floor(source.pb[live]), 0, self.n_b - 1).astype(np.int64)
-        cells[ra, rb] = True
+        cells[ra[live], rb[live]] = True
         cost = cells.reshape(self.n_a, C, P).any(axis=2).sum(axis=1)
+        cells[ra[known], rb[known]] = True
         voxels = cells[:, : self.n_b]
         for axis in (0, 1):
             v = np.moveaxis(voxels, axis, 0)

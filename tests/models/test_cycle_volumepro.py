@@ -283,6 +283,13 @@ def test_space_leaping_is_a_feature_users_turn_on(head):
     assert on[1].samples < off[1].samples
     assert on[1].cycles < off[1].cycles
     assert on[1].counters["memory.mbb_reads"] < off[1].counters["memory.mbb_reads"]
+    # Space leaping without ERT hardware (VP500 with the feature on): a scene's ERT
+    # threshold is honoured in the image but saves no cycle.
+    vp500 = with_("volumepro500", space_leaping=True)
+    ert = both(scene_of(30, 20, transfer=sparse, render={"early_termination": 0.5}), head, vp500)
+    assert np.array_equal(ert[1].image, ert[0].image)
+    plain = both(scene, head, vp500)[1]
+    assert ert[1].cycles == plain.cycles and plain.cycles < off[1].cycles * 1.1
 
 
 @pytest.mark.parametrize("arch", ["volumepro500", "em-cube", "volumepro1000"])
