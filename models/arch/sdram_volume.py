@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from hwsim.engine import Counters
+from hwsim.errors import InputError
 from hwsim.memory import MemoryConfig
 from models.arch.cube4_memory import Cube4Memory
 from models.units import skew as sk
@@ -74,6 +75,8 @@ class SdramVolume:
         Fault: module ``k`` returns ``value`` for every word.
     stuck_bank : (int, int, int), optional
         Fault: bank ``b`` of module ``k`` returns ``value`` for every word.
+    source : str, optional
+        The arch file, named when the volume does not fit the devices.
     """
 
     def __init__(
@@ -85,6 +88,7 @@ class SdramVolume:
         *,
         stuck_module: tuple[int, int] | None = None,
         stuck_bank: tuple[int, int, int] | None = None,
+        source: str | None = None,
     ) -> None:
         self.shape = tuple(int(v) for v in raw.shape)
         self.memory, self.P, self.counters = memory, int(pipelines), counters
@@ -94,8 +98,11 @@ class SdramVolume:
         self.words = self._load(raw)
         rows = -(-self.words.shape[2] // memory.sdram.columns)
         if rows > memory.sdram.rows:
-            raise ValueError(
-                f"volume needs {rows} rows per bank, the device has {memory.sdram.rows}"
+            raise InputError(
+                f"the volume needs {rows} SDRAM rows per bank, the device has {memory.sdram.rows}",
+                source=source,
+                key="memory.rows",
+                allowed=f">= {rows} (or a smaller volume)",
             )
         counters.set("memory.words_per_bank", self.words.shape[2])
         # Reads through the de-skew network reuse Cube-4's stream order and schedules.

@@ -205,6 +205,7 @@ class SlabMachine(Cube4Machine):
             self.counters,
             stuck_module=self.faults.stuck_module,
             stuck_bank=self.faults.stuck_bank,
+            source=arch.source,
         )
         self.datapath = SliceDatapath(
             SlicePath(

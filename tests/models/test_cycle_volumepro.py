@@ -310,6 +310,14 @@ def test_sections_park_partial_rays_and_keep_the_image(head, arch):
             assert c["section.parked_rays"] > 0  # sheared rays cross band boundaries
 
 
+def test_a_volume_too_big_for_the_sdram_is_refused_naming_the_key(head):
+    from hwsim.errors import InputError
+
+    tiny = with_("volumepro500", memory={**resolve_arch("volumepro500").memory, "rows": 1})
+    with pytest.raises(InputError, match=r"volumepro500.toml: memory.rows: .* \(allowed: >= 2"):
+        both(scene_of(30, 20), head, tiny)
+
+
 def test_perspective_refuses_sections(head):
     from hwsim.errors import InputError
 
