@@ -209,6 +209,25 @@ def test_skew_is_conflict_free_along_every_principal_axis(head, axis_view):
         assert cycle.counters["memory.conflicts"] == 0
 
 
+def test_block_layout_without_the_bank_skew_renders_the_same_and_stalls_more(head):
+    """``skew = "block"``: mini-blocks skewed across modules only (EM-Cube's block
+    skewing without VolumePro's second, bank level): the same image, but consecutive
+    bursts of a module now often hit one bank, and the row conflicts that the bank skew
+    hides behind other banks' bursts stall the pipelines."""
+    memory = dict(resolve_arch("em-cube").memory)
+    one_level_arch = with_("em-cube", memory={**memory, "skew": "block"})
+    for view in [(90, 0), (0, 90)]:
+        scene = scene_of(*view, mode="mip")
+        two_level = both(scene, head, "em-cube")[1]
+        fixed, one_level, _ = both(scene, head, one_level_arch)
+        assert_identical(fixed, one_level)
+        assert np.array_equal(one_level.image, two_level.image)
+        assert one_level.counters["memory.conflicts"] == 0
+        stall = "memory.stall_cycles"
+        assert one_level.counters[stall] > two_level.counters[stall]
+        assert one_level.cycles > two_level.cycles
+
+
 def test_refresh_and_slower_memory_cost_cycles_by_mechanism(head):
     """Rules 1-3: the pipelines stall exactly when data is late."""
     scene = scene_of(0, 0, mode="mip")
