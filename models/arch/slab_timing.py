@@ -64,6 +64,9 @@ class FrameTiming:
     """Per-slice blocks (cycles, stall cycles) and the totals the counters report."""
 
     blocks: list[tuple[int, int]] = field(default_factory=list)
+    beam_ends: np.ndarray | None = None
+    beam_cycles: np.ndarray | None = None
+    schedules: list = field(default_factory=list)
     end: int = 0
     memory_stall: int = 0
     pixel_stall: int = 0
@@ -151,5 +154,8 @@ def run_timing(
     while state["g"] < len(deliveries):  # reads no beam waits for (none by construction)
         deliver()
     out.end = t
-    out.stats = [ctl.schedule().stats for ctl in controllers]
+    out.schedules = [ctl.schedule() for ctl in controllers]
+    out.stats = [sched.stats for sched in out.schedules]
+    out.beam_ends = ends[:n_beams]
+    out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else ends[:0]
     return out

@@ -170,13 +170,7 @@ class SlabMachine(Cube4Machine):
         self.faults = faults or Faults()
         self.arch = arch = backend.arch
         self.P = P = arch.pipelines
-        if trace is not None:
-            raise InputError(
-                f"the {arch.name} cycle model writes no waveform yet",
-                key="--trace",
-                allowed="a Cube-4 machine",
-            )
-        self.trace = None
+        self.trace = trace
         self.skipping = arch.early_termination or arch.space_leaping
         if arch.space_leaping and backend.mode == "composite":
             plan = make_plan(backend.scene, backend.volume, plan.kind, occupancy=self._occupancy())
@@ -617,6 +611,28 @@ class SlabMachine(Cube4Machine):
             deliveries[g].free_after = f
         return deliveries, slices
 
+    def _record(self, timing) -> None:
+        """VCD: each SDRAM module's data bus (``memory[m]/o__valid``, pipeline clocks) and
+        the pipelines' beams (``pipelines/i__valid``: a beam is being processed)."""
+        ratio = self.memory_cfg.sdram.clock_ratio
+
+        def ranges(first: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            edges = np.concatenate([first, end])
+            values = np.concatenate([np.ones(first.size), np.zeros(end.size)]).astype(np.int64)
+            # A range starting where the previous one ended keeps the signal high.
+            keep = ~np.isin(end, first)
+            edges = np.concatenate([first, end[keep]])
+            values = values[np.concatenate([np.ones(first.size, bool), keep])]
+            return edges, values
+
+        for m, sched in enumerate(timing.schedules):
+            first = np.floor(sched.data_first / ratio).astype(np.int64)
+            end = np.ceil(sched.data_end / ratio).astype(np.int64)
+            self.trace.record(f"memory[{m}]", "o__valid", 1, *ranges(first, end))
+        ends = timing.beam_ends
+        starts = ends - timing.beam_cycles
+        self.trace.record("pipelines", "i__valid", 1, *ranges(starts, ends))
+
     def _period(self, deliveries, slices, capacity: int) -> int:
         """Cycles between the ends of two frames rendered back to back (the continuous frame
         rate): the same memory controllers and pixel FIFO carry on into a second frame, so
@@ -670,6 +686,8 @@ class SlabMachine(Cube4Machine):
             stall_k = np.array([b[1] for b in timing.blocks])
             for stage in stages.values():
                 stage.account(busy_k, cycles_k, stall_k)
+        if self.trace is not None:
+            self._record(timing)
         latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
         drain = pixel_fifo.flush()
         cycles = timing.end + latency + drain

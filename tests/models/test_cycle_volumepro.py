@@ -352,6 +352,21 @@ def test_render_entry_point_runs_the_volumepro_machines(head):
     assert run.counters["memory.bursts"] > 0
 
 
+def test_trace_shows_the_sdram_data_buses_and_the_beams(head, tmp_path):
+    from models.cycle import render_cycle as rc
+
+    scene = scene_of(30, 20, mode="mip")
+    arch = resolve_arch("volumepro500")
+    tf = resolve_transfer(scene.transfer, head)
+    plan = make_plan(scene, head, arch.order)
+    plain = rc(scene, head, tf, arch, plan)
+    traced = rc(scene, head, tf, arch, plan, trace=tmp_path / "w.vcd")
+    assert np.array_equal(plain.image, traced.image) and plain.cycles == traced.cycles
+    text = (tmp_path / "w.vcd").read_text()
+    assert "$scope module memory_3 $end" in text and "$scope module pipelines $end" in text
+    assert "o__valid" in text and "i__valid" in text and "$enddefinitions $end" in text
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
 def test_real_volumes_are_bit_identical(shared_data, name):

@@ -141,8 +141,8 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
         (["render", "--fidelity", "transaction"], "not yet available"),
         (
-            ["render", "--fidelity", "cycle", "--arch", "volumepro500", "--trace", "t.vcd"],
-            "--trace: the volumepro500 cycle model writes no waveform yet",
+            ["render", "--fidelity", "cycle", "--arch", "vizard2"],
+            "vizard2 (ray order) is not modelled at cycle fidelity",
         ),
         (["render", "--trace", "t.vcd"], "--trace: a waveform needs --fidelity cycle"),
         (["render", "--arch", "cray-1"], "--arch: unknown architecture 'cray-1'"),
