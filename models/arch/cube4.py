@@ -259,6 +259,13 @@ class Cube4Machine:
             "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
             "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
         }
+        needs = {"beam_fifo_entries": self.C + 1, "slice_fifo_entries": self.T}
+        return self._buffer_table(defaults, needs)
+
+    def _buffer_table(self, defaults: dict[str, int], needs: dict[str, int]) -> dict[str, int]:
+        """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
+        refused naming the file and key) and checked against what this volume ``needs``."""
+        arch = self.arch
         table = dict(arch.buffers)
         out = {}
         for key, default in defaults.items():
@@ -278,7 +285,6 @@ class Cube4Machine:
                 key=f"buffers.{sorted(table)[0]}",
                 allowed=", ".join(defaults),
             )
-        needs = {"beam_fifo_entries": self.C + 1, "slice_fifo_entries": self.T}
         for key, need in needs.items():
             if out[key] < need:
                 raise InputError(

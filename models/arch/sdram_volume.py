@@ -33,7 +33,7 @@ import numpy as np
 from hwsim.engine import Counters
 from hwsim.errors import InputError
 from hwsim.memory import MemoryConfig
-from models.arch.cube4_memory import Cube4Memory
+from models.arch.cube4_memory import SliceSchedule, slice_schedule
 from models.units import skew as sk
 
 __all__ = ["SdramVolume", "layout"]
@@ -105,9 +105,7 @@ class SdramVolume:
                 allowed=f">= {rows} (or a smaller volume)",
             )
         counters.set("memory.words_per_bank", self.words.shape[2])
-        # Reads through the de-skew network reuse Cube-4's stream order and schedules.
-        self._order = Cube4Memory.__new__(Cube4Memory)
-        self._order.shape, self._order.P, self._order._schedules = self.shape, self.P, {}
+        self._schedules: dict = {}  # the de-skew network's output order (Cube-4's)
         self.reads = np.zeros(self.M, dtype=np.int64)
 
     def _load(self, raw: np.ndarray) -> np.ndarray:
@@ -125,10 +123,14 @@ class SdramVolume:
             words[m, b, a] = raw[z].ravel()
         return words
 
+    def schedule(self, kp: int, q: int) -> SliceSchedule:
+        """Where each pipeline's voxel of slice ``q`` comes from, clock by clock."""
+        return slice_schedule(self.shape, self.P, kp, q, self._schedules)
+
     def read_slice(self, kp: int, q: int) -> np.ndarray:
         """Voxel slice ``q`` along ``kp`` as the de-skewed ``(P, T)`` stream (0 in idle
         slots), read word by word from the modules that hold it; checks the skew."""
-        sched = self._order.schedule(kp, q)
+        sched = self.schedule(kp, q)
         z, y, x = sched.zyx
         module, bank, address = layout(self.memory, self.n, x, y, z)
         stream = self.words[module, bank, address].astype(np.int64)

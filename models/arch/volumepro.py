@@ -251,33 +251,7 @@ class SlabMachine(Cube4Machine):
             "beam_fifo_entries": c_max + 1,
             "pixel_fifo_entries": n_max * n_max,
         }
-        table = dict(arch.buffers)
-        out = {}
-        for key, default in defaults.items():
-            value = table.pop(key, default)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-                raise InputError(
-                    f"invalid {value!r}",
-                    source=arch.source,
-                    key=f"buffers.{key}",
-                    allowed="an integer >= 0",
-                )
-            out[key] = value
-        if table:
-            raise InputError(
-                "unknown key",
-                source=arch.source,
-                key=f"buffers.{sorted(table)[0]}",
-                allowed=", ".join(defaults),
-            )
-        if out["beam_fifo_entries"] < self.C + 1:
-            raise InputError(
-                f"{arch.name} cannot hold this volume's beam ({self.C + 1} entries per pipeline)",
-                source=arch.source,
-                key="buffers.beam_fifo_entries",
-                allowed=f">= {self.C + 1}",
-            )
-        return out
+        return self._buffer_table(defaults, {"beam_fifo_entries": self.C + 1})
 
     # ------------------------------------------------------------------ geometry
 
@@ -396,7 +370,7 @@ class SlabMachine(Cube4Machine):
                 dv[0] = 2 * (v[1] - v[0])
                 dv[-1] = 2 * (v[-1] - v[-2])
             diffs[ax] = d
-        sched = self.memory._order.schedule(self.kp, q)
+        sched = self.memory.schedule(self.kp, q)
         b = np.where(sched.valid, sched.b, 0)
         out = {}
         for name, axis in (("dx", 2), ("dy", 1), ("dz", 0)):
