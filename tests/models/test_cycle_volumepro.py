@@ -247,6 +247,26 @@ def test_refresh_and_slower_memory_cost_cycles_by_mechanism(head):
     assert half.cycles > 1.8 * 21 * T and half.counters["memory.stall_cycles"] > 21 * T * 0.8
 
 
+@pytest.mark.parametrize("factor", [1.0, 2.0])
+def test_with_memory_never_late_the_rules_have_their_closed_form(head, factor):
+    """Rules 3, 8, 9 with a memory 64x faster than the pipelines and no refresh: the
+    continuous period is exactly the beam clocks (sample slices x n_a x C); one frame
+    adds the first burst's arrival, the pipeline latency and the pixel-bus drain."""
+    memory = dict(resolve_arch("volumepro500").memory)
+    fast = with_("volumepro500", memory={**memory, "t_refi": 0, "clock_ratio": 64.0})
+    scene = scene_of(0, 0, mode="mip", render={"supersampling": factor})
+    tf = resolve_transfer(scene.transfer, head)
+    plan = make_plan(scene, head, fast.order)
+    result = render_cycle(scene, head, tf, fast, plan, steady_state=True)
+    c, C = result.counters, -(-21 // 4)
+    beams = plan.n_steps * 21 * C
+    assert c["frame.period_cycles"] == beams == c["pipeline.beam_cycles"]
+    first = c["memory.stall_cycles"]
+    assert 0 < first <= 16  # the first mini-block beam's bursts: ACT, CAS, 8 beats / 64
+    assert result.cycles == beams + first + c["pipeline.latency_cycles"] + plan.ray_ids.size
+    assert c["pixel_bus.drain_cycles"] == plan.ray_ids.size  # all finish on the last slice
+
+
 def test_a_pipeline_slice_overhead_adds_per_slice(head):
     scene = scene_of(0, 0, mode="mip")
     base = both(scene, head, "volumepro500")[1]
