@@ -25,10 +25,8 @@ Timing never changes data, so the order of the passes changes nothing.
 
 from __future__ import annotations
 
-import dataclasses
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,120 +34,19 @@ from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
-from hwsim.golden.positions import SamplePlan, Step, make_plan
+from hwsim.golden.positions import SamplePlan, make_plan
 from hwsim.memory import SdramStats, parse_memory
 from models.arch.cube4 import UNITS, Cube4Machine, CycleResult, Faults
 from models.arch.cube4_slice import SliceDatapath, SlicePath
 from models.arch.sdram_volume import SdramVolume
-from models.arch.slab_timing import Delivery, SliceWork, run_timing
+from models.arch.slab_timing import run_timing
+from models.arch.trilinear import TrilinearSource
+from models.arch.volumepro_timing import SliceRecord, frame_period, record_trace, timing_inputs
 from models.backend import Backend, subset_step
 from models.units import classify as classify_unit
-from models.units import interp as interp_unit
 from models.units import skew as skew_unit
 
 __all__ = ["SlabMachine", "TrilinearSource"]
-
-
-@dataclass
-class _SliceRecord:
-    """What one sample slice of one section did (the data pass's record for timing)."""
-
-    section: int
-    window: tuple[int, int]  # voxel slices [lo, hi] the slice's beams read
-    cost: np.ndarray | None  # clocks of each row's beam (None: C for every row of the section)
-    busy: np.ndarray  # samples per lane
-    arrivals: int  # accumulators pushed into the pixel FIFO at its end
-
-
-class TrilinearSource:
-    """Samples of one step, trilinear across the two voxel slices around the sample slice.
-
-    In-slice cells and weights are Cube-4's (:meth:`Cube4Machine.cell`); the principal
-    axis taps are the functional rung's (``i0 = min(floor(q), n - 2)``, weight quantised
-    from ``q - i0``), and the eight corners are combined with ``models.units.interp.lerp``
-    in its order (x, then y, then z), so every sample is the functional rung's bit for bit.
-    """
-
-    def __init__(self, machine: SlabMachine, step: Step) -> None:
-        m = self.m = machine
-        self.pa = step.zyx[:, m.a_ax]
-        self.pb = step.zyx[:, m.b_ax]
-        self.pk = step.zyx[:, m.kp]
-        self._cells = m.cell(self.pa), m.cell(self.pb)
-        self.q = m.nearest_slice(self.pk)
-
-    def subset(self, sel: np.ndarray) -> TrilinearSource:
-        out = object.__new__(TrilinearSource)
-        out.m, out.q = self.m, self.q
-        out.pa, out.pb, out.pk = self.pa[sel], self.pb[sel], self.pk[sel]
-        out._cells = tuple(tuple(x[sel] for x in cell) for cell in self._cells)
-        return out
-
-    def _tri(self, channel: str, cells_a, cells_b, ktaps) -> np.ndarray:
-        m = self.m
-        (ca, fa, _), (cb, fb, _) = cells_a, cells_b
-        i0, i1, w = ktaps
-        idx = (ca + 2) * m.plane_width + (cb + 2)
-        if w == 0 or w == m.weight_one:
-            # lerp(a, b, 0) = a and lerp(a, b, 1.0) = b exactly: one slice's bilinear.
-            c = np.take(m.planes(i0 if w == 0 else i1)[channel], idx, axis=0)
-            return interp_unit.bilinear(c[:, 0], c[:, 1], c[:, 2], c[:, 3], fa, fb, m.dp.interp)
-        c0 = np.take(m.planes(i0)[channel], idx, axis=0)
-        c1 = np.take(m.planes(i1)[channel], idx, axis=0)
-        f = [None, None, None]
-        f[m.kp], f[m.a_ax], f[m.b_ax] = w, fa, fb
-        v = []
-        for corner in range(8):
-            d = ((corner >> 2) & 1, (corner >> 1) & 1, corner & 1)  # (z, y, x)
-            src = c1 if d[m.kp] else c0
-            v.append(src[:, 2 * d[m.a_ax] + d[m.b_ax]])
-        cfg = m.dp.interp
-        fz, fy, fx = f
-        x = [interp_unit.lerp(v[c], v[c + 1], fx, cfg) for c in (0, 2, 4, 6)]
-        y = [interp_unit.lerp(x[0], x[1], fy, cfg), interp_unit.lerp(x[2], x[3], fy, cfg)]
-        return interp_unit.lerp(y[0], y[1], fz, cfg)
-
-    def maybe_visible(self) -> np.ndarray | None:
-        """False where every voxel of a sample's two cells classifies to opacity 0."""
-        m = self.m
-        if not m.skip_transparent:
-            return None
-        (ca, _, _), (cb, _, _) = self._cells
-        idx = (ca + 2) * m.plane_width + (cb + 2)
-        i0, i1, w = m.k_taps(self.pk)
-        slices = [i0] if w == 0 else [i1] if w == m.weight_one else [i0, i1]
-        if m.be.pre_classified:
-            return np.logical_or.reduce([m.planes(s)["amax"][idx] > 0 for s in slices])
-        lo = np.minimum.reduce([m.planes(s)["lo"][idx] for s in slices])
-        hi = np.maximum.reduce([m.planes(s)["hi"][idx] for s in slices])
-        return m.next_visible[lo] <= hi
-
-    def value(self) -> np.ndarray:
-        return self._tri("value", *self._cells, self.m.k_taps(self.pk))
-
-    def channels(self) -> list[np.ndarray]:
-        k = self.m.k_taps(self.pk)
-        return [self._tri(c, *self._cells, k) for c in "rgba"]
-
-    def gradient(self, sel: np.ndarray) -> np.ndarray:
-        m = self.m
-        cells_a, cells_b = (tuple(x[sel] for x in cell) for cell in self._cells)
-        pk = self.pk[sel]
-        k = m.k_taps(pk)
-        g = np.empty((pk.size, 3), dtype=np.int64)
-        if m.voxel_gradients:
-            for col, ch in enumerate(("dx", "dy", "dz")):
-                g[:, col] = self._tri(ch, cells_a, cells_b, k)
-            return g
-        g[:, 2 - m.kp] = self._tri("value", cells_a, cells_b, m.k_taps(pk + 1.0)) - self._tri(
-            "value", cells_a, cells_b, m.k_taps(pk - 1.0)
-        )
-        pa, pb = self.pa[sel], self.pb[sel]
-        up, down = m.cell(pa + 1.0, cells_a), m.cell(pa - 1.0, cells_a)
-        g[:, 2 - m.a_ax] = self._tri("value", up, cells_b, k) - self._tri("value", down, cells_b, k)
-        up, down = m.cell(pb + 1.0, cells_b), m.cell(pb - 1.0, cells_b)
-        g[:, 2 - m.b_ax] = self._tri("value", cells_a, up, k) - self._tri("value", cells_a, down, k)
-        return g
 
 
 class SlabMachine(Cube4Machine):
@@ -405,7 +302,7 @@ class SlabMachine(Cube4Machine):
         last_j = np.full(plan.n_rays, -1, dtype=np.int64)
         last_j[plan.ray_ids] = plan.j_hi
         prev_lane = np.full(plan.n_rays, -1, dtype=np.int64)
-        records: list[_SliceRecord] = []
+        records: list[SliceRecord] = []
         parked_counts: list[int] = []
         sram_acc = np.zeros_like(state.acc)
         sram_dt = None if state.dt_sum is None else np.zeros_like(state.dt_sum)
@@ -471,7 +368,7 @@ class SlabMachine(Cube4Machine):
                             bus["dt_sum"][fin] = state.dt_sum[fin]
                 elif self.skipping:
                     cost = np.zeros(self.n_a, dtype=np.int64)
-                records.append(_SliceRecord(si, (lo, hi), cost, busy, int(fin.size)))
+                records.append(SliceRecord(si, (lo, hi), cost, busy, int(fin.size)))
                 if ert_hardware:
                     history.append(state.alive.copy())
                 if progress is not None:
@@ -518,122 +415,9 @@ class SlabMachine(Cube4Machine):
         needed[si, window[0] // 2 : window[1] // 2 + 1] |= blocks
         return cost
 
-    # ------------------------------------------------------------------ timing
-
-    def _timing_inputs(self, records, sections, parked_counts, needed):
-        """Deliveries (mini-block beams to read, in order) and the pipelines' slices."""
-        n_slabs = needed.shape[1]
-        slab_order = range(n_slabs) if self.forward else range(n_slabs - 1, -1, -1)
-        index = np.full(needed.shape[:3], -1, dtype=np.int64)
-        deliveries: list[Delivery] = []
-        M = self.memory_cfg.modules
-        for si in range(len(sections)):
-            for slab in slab_order:
-                us = np.flatnonzero(needed[si, slab].any(axis=1))
-                if not us.size:
-                    continue
-                module, bank, row = self.memory.slab_bursts(self.kp, slab)
-                for u in us.tolist():
-                    index[si, slab, u] = len(deliveries)
-                    keep = needed[si, slab, u]
-                    bursts = []
-                    for m in range(M):
-                        sel = (module[u] == m) & keep
-                        bursts.append((bank[u][sel].tolist(), row[u][sel].tolist()))
-                    deliveries.append(Delivery(bursts))
-        free_after = np.full(len(deliveries), -1, dtype=np.int64)
-        slices: list[SliceWork] = []
-        beam = 0
-        prev_section = 0
-        for rec in records:
-            a0, a1 = sections[rec.section]
-            rows = np.arange(a0, a1)
-            if rec.cost is None:
-                cycles = np.full(rows.size, self.C, dtype=np.int64)
-            else:
-                cycles = rec.cost[a0:a1]
-                rows, cycles = rows[cycles > 0], cycles[cycles > 0]
-            u_lo = np.maximum(rows - 1, 0) // 2
-            u_hi = np.minimum(rows + 2, self.n_a - 1) // 2
-            slabs = np.arange(rec.window[0] // 2, rec.window[1] // 2 + 1)
-            need = np.full(rows.size, -1, dtype=np.int64)
-            ids = np.arange(beam, beam + rows.size)
-            for d in range(3):
-                u = np.minimum(u_lo + d, u_hi)
-                got = index[rec.section][np.ix_(slabs, u)]  # (slabs, beams)
-                need = np.maximum(need, got.max(axis=0, initial=-1))
-                for row_ids in got:
-                    ok = row_ids >= 0
-                    np.maximum.at(free_after, row_ids[ok], ids[ok])
-            beam += rows.size
-            pre = 0
-            if rec.section != prev_section:
-                pre = self.arch.section_overhead_cycles + parked_counts[prev_section]
-                prev_section = rec.section
-            stretch = max(0, int(rec.busy.max(initial=0)) - int(cycles.sum()))
-            slices.append(
-                SliceWork(
-                    need,
-                    cycles,
-                    extra=self.arch.slice_overhead_cycles + stretch,
-                    pre=pre,
-                    arrivals=rec.arrivals,
-                    busy=rec.busy,
-                )
-            )
-        for g, f in enumerate(free_after.tolist()):
-            deliveries[g].free_after = f
-        return deliveries, slices
-
-    def _record(self, timing) -> None:
-        """VCD: each SDRAM module's data bus (``memory[m]/o__valid``, pipeline clocks) and
-        the pipelines' beams (``pipelines/i__valid``: a beam is being processed)."""
-        ratio = self.memory_cfg.sdram.clock_ratio
-
-        def ranges(first: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            edges = np.concatenate([first, end])
-            values = np.concatenate([np.ones(first.size), np.zeros(end.size)]).astype(np.int64)
-            # A range starting where the previous one ended keeps the signal high.
-            keep = ~np.isin(end, first)
-            edges = np.concatenate([first, end[keep]])
-            values = values[np.concatenate([np.ones(first.size, bool), keep])]
-            return edges, values
-
-        for m, sched in enumerate(timing.schedules):
-            first = np.floor(sched.data_first / ratio).astype(np.int64)
-            end = np.ceil(sched.data_end / ratio).astype(np.int64)
-            self.trace.record(f"memory[{m}]", "o__valid", 1, *ranges(first, end))
-        ends = timing.beam_ends
-        starts = ends - timing.beam_cycles
-        self.trace.record("pipelines", "i__valid", 1, *ranges(starts, ends))
-
-    def _period(self, deliveries, slices, capacity: int) -> int:
-        """Cycles between the ends of two frames rendered back to back (the continuous frame
-        rate): the same memory controllers and pixel FIFO carry on into a second frame, so
-        its fill overlaps the first frame's last slices and the first frame's pixels drain
-        while the second is processed."""
-        n_beams = sum(s.needs.size for s in slices)
-        n_del = len(deliveries)
-        again = [Delivery(d.bursts, d.free_after + n_beams) for d in deliveries]
-        shifted = [
-            dataclasses.replace(s, needs=np.where(s.needs >= 0, s.needs + n_del, -1))
-            for s in slices
-        ]
-        fifo = DrainFifo("pixel_bus.fifo", self.capacity["pixel_fifo_entries"])
-        timing = run_timing(
-            self.memory_cfg,
-            deliveries + again,
-            slices + shifted,
-            capacity=capacity,
-            pixel_fifo=fifo,
-            counters=Counters(),
-        )
-        first = sum(b[0] for b in timing.blocks[: len(slices)])
-        return int(timing.end - first)
-
     def _finish(self, state, bus, records, sections, parked_counts, needed) -> CycleResult:
         be, c, P = self.be, self.counters, self.P
-        deliveries, slices = self._timing_inputs(records, sections, parked_counts, needed)
+        deliveries, slices = timing_inputs(self, records, sections, parked_counts, needed)
         depth = self.faults.pixel_fifo_depth
         pixel_fifo = DrainFifo(
             "pixel_bus.fifo", self.capacity["pixel_fifo_entries"] if depth is None else depth
@@ -661,12 +445,12 @@ class SlabMachine(Cube4Machine):
             for stage in stages.values():
                 stage.account(busy_k, cycles_k, stall_k)
         if self.trace is not None:
-            self._record(timing)
+            record_trace(self, timing)
         latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
         drain = pixel_fifo.flush()
         cycles = timing.end + latency + drain
         if self.steady_state:
-            c.set("frame.period_cycles", self._period(deliveries, slices, capacity))
+            c.set("frame.period_cycles", frame_period(self, deliveries, slices, capacity))
         idle = np.zeros(P, dtype=np.int64)
         for stage in stages.values():
             stage.account(idle, latency + drain)
