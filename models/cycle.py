@@ -3,9 +3,11 @@
 # Ref: design.md section 3 (cycle rung: bit-identical to functional, exact cycle count,
 #      per-unit busy/stall counters, optional VCD); architectures.md section 1 (Cube-4).
 
-Today the Cube-4 family (processing order ``slice-parallel``: ``cube4``,
-``cube4-teramac`` and user variants) and VIZARD II (order ``ray``:
-:mod:`models.arch.vizard2`) are modelled; other machines raise
+Modelled: the Cube-4 family (processing order ``slice-parallel``: ``cube4``,
+``cube4-teramac`` and user variants; :class:`models.arch.cube4.Cube4Machine`) and the
+VolumePro family (``shear-warp``: ``volumepro500``, ``em-cube``; ``shear-image``:
+``volumepro1000``; :class:`models.arch.volumepro.SlabMachine`) and VIZARD II (``ray``:
+:mod:`models.arch.vizard2`).  Other machines raise
 :class:`~hwsim.errors.NotAvailableError` naming what is.
 """
 
@@ -22,13 +24,20 @@ from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4 import Cube4Machine, CycleResult, Faults
+from models.arch.volumepro import SlabMachine
 from models.backend import Backend
 from models.datapath import Datapath
 
 __all__ = ["render_cycle", "CYCLE_ORDERS", "Faults", "CycleResult"]
 
+#: The machine model of each processing order the cycle rung models.
+MACHINES = {
+    "slice-parallel": Cube4Machine,
+    "shear-warp": SlabMachine,
+    "shear-image": SlabMachine,
+}
 #: Processing orders the cycle rung models.
-CYCLE_ORDERS = ("slice-parallel", "ray")
+CYCLE_ORDERS = (*MACHINES, "ray")
 
 
 def render_cycle(
@@ -43,6 +52,7 @@ def render_cycle(
     trace: str | Path | None = None,
     datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
+    steady_state: bool = False,
 ) -> CycleResult:
     """Render one frame on ``arch``'s modelled hardware.
 
@@ -55,6 +65,9 @@ def render_cycle(
         compute (a fixed pipeline with disabled units): the elision check.
     trace : path, optional
         Write a VCD of memory reads, interpolator inputs and the pixel bus there.
+    steady_state : bool
+        VolumePro family: also time a second frame back to back and report the cycles
+        between the two frames' ends (``frame.period_cycles``: the continuous frame rate).
     """
     if arch.order == "ray":  # VIZARD II (docs/cycle.md)
         from models.arch.vizard2 import render_vizard2
@@ -64,16 +77,18 @@ def render_cycle(
         )
     if arch.order not in CYCLE_ORDERS:
         raise NotAvailableError(
-            f"the cycle rung models the Cube-4 family so far; {arch.name} "
-            f"({arch.order} order) is not modelled at cycle fidelity",
+            f"{arch.name} ({arch.order} order) is not modelled at cycle fidelity",
             key="--arch",
-            allowed="cube4, cube4-teramac or a slice-parallel FILE.toml",
+            allowed=f"a machine of order {', '.join(CYCLE_ORDERS)}",
         )
     if datapath is None:
         datapath = Datapath.for_volume(arch, volume)
     backend = Backend(scene, volume, transfer, arch, plan, datapath, exercise_unused=elaborate_all)
     vcd = VcdTrace() if trace is not None else None
-    machine = Cube4Machine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd)
+    extra = {"steady_state": True} if steady_state else {}
+    machine = MACHINES[arch.order](
+        backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd, **extra
+    )
     result = machine.run(progress)
     if vcd is not None:
         vcd.write(trace)

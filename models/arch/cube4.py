@@ -71,6 +71,12 @@ class Faults:
     ``dropped_handoff = k``: accumulators handed to pipeline ``k`` are lost;
     ``beam_fifo_adjust`` / ``slice_fifo_adjust``: entries added to (negative: removed
     from) the beam and slice delay FIFOs; ``pixel_fifo_depth``: the pixel-bus FIFO depth.
+
+    VolumePro-family machines (:mod:`models.arch.volumepro`) also take
+    ``stuck_bank = (k, b, value)``: bank ``b`` of SDRAM module ``k`` returns ``value``;
+    ``lost_spill = s``: the partial rays parked at the end of section ``s`` are lost;
+    ``slab_buffer_adjust``: entries per pipeline added to (removed from) the input buffer.
+    Cube-4 has none of these structures and ignores them.
     """
 
     stuck_module: tuple[int, int] | None = None
@@ -79,6 +85,9 @@ class Faults:
     beam_fifo_adjust: int = 0
     slice_fifo_adjust: int = 0
     pixel_fifo_depth: int | None = None
+    stuck_bank: tuple[int, int, int] | None = None
+    lost_spill: int | None = None
+    slab_buffer_adjust: int = 0
 
 
 @dataclass
@@ -250,6 +259,13 @@ class Cube4Machine:
             "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
             "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
         }
+        needs = {"beam_fifo_entries": self.C + 1, "slice_fifo_entries": self.T}
+        return self._buffer_table(defaults, needs)
+
+    def _buffer_table(self, defaults: dict[str, int], needs: dict[str, int]) -> dict[str, int]:
+        """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
+        refused naming the file and key) and checked against what this volume ``needs``."""
+        arch = self.arch
         table = dict(arch.buffers)
         out = {}
         for key, default in defaults.items():
@@ -269,7 +285,6 @@ class Cube4Machine:
                 key=f"buffers.{sorted(table)[0]}",
                 allowed=", ".join(defaults),
             )
-        needs = {"beam_fifo_entries": self.C + 1, "slice_fifo_entries": self.T}
         for key, need in needs.items():
             if out[key] < need:
                 raise InputError(

@@ -25,7 +25,7 @@ import numpy as np
 from hwsim.engine import Counters
 from models.units.skew import cube4_address_zyx, cube4_module
 
-__all__ = ["Cube4Memory", "SliceSchedule", "WORD_BYTES"]
+__all__ = ["Cube4Memory", "SliceSchedule", "WORD_BYTES", "slice_schedule"]
 
 #: Bytes of one module word (a voxel of up to 16 bits).
 WORD_BYTES = 2
@@ -43,6 +43,32 @@ class SliceSchedule:
     b: np.ndarray
     valid: np.ndarray
     zyx: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def slice_schedule(
+    shape: tuple[int, int, int], P: int, kp: int, s: int, cache: dict | None = None
+) -> SliceSchedule:
+    """Which voxel each of P pipelines receives at each clock of slice ``s`` along ``kp``
+    of a ``shape`` volume: the Cube-4 stream order (also the VolumePro de-skew network's
+    output).  ``cache`` (a dict) keeps the ``(a, b)`` arrays per ``(kp, s mod P)``."""
+    axes = [ax for ax in range(3) if ax != kp]
+    n_a, n_b = shape[axes[0]], shape[axes[1]]
+    C = -(-n_b // P)
+    key = (kp, s % P)
+    cache = {} if cache is None else cache
+    if key not in cache:
+        m = np.arange(P)[:, None]
+        t = np.arange(n_a * C)[None, :]
+        a = np.broadcast_to(t // C, (P, n_a * C))
+        b = (t % C) * P + (m - s - a) % P
+        cache[key] = (a, b)
+    a, b = cache[key]
+    valid = b < n_b
+    coords: list[np.ndarray] = [None, None, None]  # type: ignore[list-item]
+    coords[kp] = np.full(a.shape, s, dtype=np.int64)
+    coords[axes[0]] = a
+    coords[axes[1]] = np.where(valid, b, 0)
+    return SliceSchedule(a, b, valid, (coords[0], coords[1], coords[2]))
 
 
 class Cube4Memory:
@@ -104,24 +130,7 @@ class Cube4Memory:
 
     def schedule(self, kp: int, s: int) -> SliceSchedule:
         """The read schedule of slice ``s`` along axis ``kp`` (cached per ``s mod P``)."""
-        P = self.P
-        axes = [ax for ax in range(3) if ax != kp]
-        n_a, n_b = self.shape[axes[0]], self.shape[axes[1]]
-        C = -(-n_b // P)
-        key = (kp, s % P)
-        if key not in self._schedules:
-            m = np.arange(P)[:, None]
-            t = np.arange(n_a * C)[None, :]
-            a = np.broadcast_to(t // C, (P, n_a * C))
-            b = (t % C) * P + (m - s - a) % P
-            self._schedules[key] = (a, b)
-        a, b = self._schedules[key]
-        valid = b < n_b
-        coords: list[np.ndarray] = [None, None, None]  # type: ignore[list-item]
-        coords[kp] = np.full(a.shape, s, dtype=np.int64)
-        coords[axes[0]] = a
-        coords[axes[1]] = np.where(valid, b, 0)
-        return SliceSchedule(a, b, valid, (coords[0], coords[1], coords[2]))
+        return slice_schedule(self.shape, self.P, kp, s, self._schedules)
 
     def read_slice(self, kp: int, s: int) -> tuple[np.ndarray, SliceSchedule]:
         """Read slice ``s``: the ``(P, T)`` voxel stream (0 in idle slots) and its schedule."""

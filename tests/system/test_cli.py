@@ -144,10 +144,6 @@ def test_scene_file_and_listing_commands(tmp_path):
             ["render", "--fidelity", "transaction", "--arch", "volumepro1000"],
             "volumepro1000 skips beams (early ray termination, space leaping)",
         ),
-        (
-            ["render", "--fidelity", "cycle", "--arch", "volumepro500"],
-            "volumepro500 (shear-warp order) is not modelled at cycle fidelity",
-        ),
         (["render", "--trace", "t.vcd"], "--trace: a waveform needs --fidelity cycle"),
         (["render", "--arch", "cray-1"], "--arch: unknown architecture 'cray-1'"),
         (

@@ -1,0 +1,54 @@
+"""The published figures of issue 5, reproduced by the cycle rung's mechanisms.
+
+VolumePro 500 on a dense 256^3 volume: 29.8 fps +-5 %; EM-Cube 256^3 x 16 bit: 30 fps
++-7 %; VolumePro 1000 brute force: 10^9 samples/s +-5 %.  The numbers come from the
+model (pipelines x clock, SDRAM bursts, refresh and row misses, the input buffer, the
+pixel bus, the pipeline latency): nothing is fitted, and the test also checks that the
+cycles are accounted for by those mechanisms.  Published rates are continuous frame
+rates, so the figure uses the frame period (two frames back to back on the same SDRAM
+controllers); the single-frame figure is reported beside it.
+benchmarks/published_figures.py writes the same rows to
+benchmarks/results/published-figures.json.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+from benchmarks.published_figures import FIGURES, measure  # noqa: E402
+
+pytestmark = [pytest.mark.model, pytest.mark.slow]
+
+
+@pytest.mark.parametrize("arch", list(FIGURES))
+def test_published_figure_from_mechanisms(arch):
+    row = measure(arch, 256)
+    assert abs(row["difference"]) <= row["tolerance"], row
+    b = row["breakdown"]
+    # Every clock of the frame is a beam clock, a memory stall, a pixel-bus stall or drain,
+    # or the pipeline latency: no unexplained (fitted) cycles.
+    parts = (
+        b["beam_clocks"]
+        + b["memory_stall_cycles"]
+        + b["pixel_bus_stall_cycles"]
+        + b["pixel_bus_drain_cycles"]
+        + b["pipeline_latency_cycles"]
+    )
+    assert parts == row["cycles"]
+    # Brute force: every beam of every slice is processed, one voxel slot per pipeline per
+    # clock, and every mini-block is read once (one burst of 8).
+    n, P = 256, row["pipelines"]
+    assert b["beam_clocks"] == n * n * (n // P)
+    assert b["sdram_bursts"] == (n // 2) ** 3
+    assert b["sdram_refreshes"] > 0  # refresh is part of why the figure is below ideal
+    # Continuous rendering (the published basis): the next frame's fill hides behind this
+    # frame's last slices and the pixel-bus drain behind the next frame; what remains is
+    # the pipelines' beam clocks plus the memory's own losses (refresh, row misses).
+    assert b["beam_clocks"] < row["period_cycles"] < row["cycles"]

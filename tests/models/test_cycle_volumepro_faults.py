@@ -1,0 +1,122 @@
+"""VolumePro-family cycle images come from the modelled hardware: break a structure, see it.
+
+Issue 5: fault-injection as for Cube-4.  A stuck SDRAM module or bank, a dropped ring
+link or accumulator hand-off, a short beam FIFO, a lost section spill each change the
+cycle image while the functional image, which has none of these structures, stays the
+same; a short input buffer or pixel FIFO costs cycles, not pixels, and one too short for
+the machine to progress is a DeadlockError naming the structure.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hwsim.engine import DeadlockError
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+from models.cycle import Faults, render_cycle
+from models.functional import render_functional
+
+pytestmark = pytest.mark.model
+
+ARCHS = ["volumepro500", "em-cube", "volumepro1000"]
+
+
+def scene_of(mode="composite", lighting=True, **extra):
+    return Scene(
+        volume=VolumeSpec(phantom="head"),
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(azimuth=35, elevation=20, width=36, height=36, zoom=1.2),
+        render=RenderSpec(mode=mode, lighting=lighting),
+        **extra,
+    )
+
+
+@pytest.fixture(scope="module")
+def head():
+    return make_phantom("head", size=24)
+
+
+def run(scene, volume, arch, **kw):
+    machine = resolve_arch(arch) if isinstance(arch, str) else arch
+    tf = resolve_transfer(scene.transfer, volume)
+    plan = make_plan(scene, volume, machine.order)
+    return render_functional(scene, volume, tf, machine, plan), render_cycle(
+        scene, volume, tf, machine, plan, **kw
+    )
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+@pytest.mark.parametrize(
+    "faults",
+    [
+        Faults(stuck_module=(1, 4095)),
+        Faults(stuck_bank=(2, 1, 4095)),
+        Faults(dropped_link=2),
+        Faults(dropped_handoff=0),
+        Faults(beam_fifo_adjust=-1),
+    ],
+    ids=["stuck-module", "stuck-bank", "dropped-ring-link", "dropped-acc-handoff", "beam-fifo"],
+)
+def test_each_data_fault_changes_the_cycle_image_only(head, arch, faults):
+    scene = scene_of()
+    fixed, healthy = run(scene, head, arch)
+    _, broken = run(scene, head, arch, faults=faults)
+    assert np.array_equal(healthy.image, fixed.image)
+    assert not np.array_equal(broken.image, fixed.image), "the fault did not reach the image"
+    # The functional rung has no such structure: its image is the same as before.
+    again, _ = run(scene, head, arch)
+    assert np.array_equal(again.image, fixed.image)
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_a_lost_section_spill_loses_the_parked_partial_rays(head, arch):
+    banded = dataclasses.replace(resolve_arch(arch), section_width=8)
+    scene = scene_of()
+    fixed, healthy = run(scene, head, banded)
+    _, lost = run(scene, head, banded, faults=Faults(lost_spill=0))
+    assert np.array_equal(healthy.image, fixed.image)
+    assert healthy.counters["section.parked_rays"] > 0
+    assert not np.array_equal(lost.image, fixed.image)
+    # A spill at the last section parks nothing: harmless exactly there.
+    _, last = run(scene, head, banded, faults=Faults(lost_spill=2))
+    assert np.array_equal(last.image, fixed.image)
+
+
+def test_a_short_input_buffer_costs_cycles_then_deadlocks(head):
+    scene = scene_of("mip", lighting=False)
+    arch = resolve_arch("volumepro500")
+    _, roomy = run(scene, head, arch)
+    C = -(-24 // 4)
+    mbb = 4 * C  # entries per pipeline of one mini-block beam; 12 of them per slab
+    # Two and a half slabs: the window (slices q - 1 .. q + 1, two slabs) fits, but the
+    # memory can no longer read a whole slab ahead: the pipelines wait for it.
+    small = dataclasses.replace(arch, buffers={"slab_buffer_entries": 30 * mbb})
+    _, tight = run(scene, head, small)
+    assert np.array_equal(tight.image, roomy.image)
+    assert tight.cycles > roomy.cycles
+    assert tight.counters["memory.buffer_full_cycles"] > roomy.counters["memory.buffer_full_cycles"]
+    # Two slabs: the window plus the next mini-block beam never fits.
+    starved = dataclasses.replace(arch, buffers={"slab_buffer_entries": 24 * mbb})
+    with pytest.raises(DeadlockError, match="input buffer"):
+        run(scene, head, starved)
+    with pytest.raises(DeadlockError, match="input buffer"):
+        run(scene, head, arch, faults=Faults(slab_buffer_adjust=-(10**9)))
+
+
+@pytest.mark.parametrize("arch", ARCHS)
+def test_pixel_fifo_depth_zero_deadlocks_and_a_shallow_one_costs_cycles(head, arch):
+    scene = scene_of("mip", lighting=False)
+    with pytest.raises(DeadlockError, match="pixel_bus.fifo"):
+        run(scene, head, arch, faults=Faults(pixel_fifo_depth=0))
+    _, roomy = run(scene, head, arch)
+    _, tight = run(scene, head, arch, faults=Faults(pixel_fifo_depth=4))
+    assert np.array_equal(tight.image, roomy.image)
+    assert tight.cycles > roomy.cycles
+    assert tight.counters["pixel_bus.stall_cycles"] > 0
