@@ -147,6 +147,7 @@ def render(
     progress: Progress | None = None,
     trace: str | Path | None = None,
     elaborate_all: bool = False,
+    steady_state: bool = False,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -172,6 +173,9 @@ def render(
     elaborate_all : bool
         ``cycle`` rung only: simulate every unit, even those the scene does not use (the
         reference that elision is measured against; same image and cycles).
+    steady_state : bool
+        ``cycle`` rung, VolumePro family: also time the next frame back to back
+        (``frame.period_cycles`` in the counters: the continuous frame rate).
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -183,6 +187,8 @@ def render(
             key="--fidelity",
             allowed=", ".join(AVAILABLE_FIDELITIES),
         )
+    if steady_state and fidelity != "cycle":
+        raise InputError("only the cycle rung times back-to-back frames", key="steady_state")
     if elaborate_all and fidelity != "cycle":
         raise InputError("only the cycle rung elaborates units", key="elaborate_all")
     if trace is not None and fidelity != "cycle":
@@ -231,6 +237,7 @@ def render(
             trace=trace,
             progress=progress,
             elaborate_all=elaborate_all,
+            steady_state=steady_state,
         )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         used, elided, derived = result.elaborated_units, result.elided_units, result.derived

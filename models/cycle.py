@@ -18,7 +18,7 @@ from pathlib import Path
 
 from hwsim.arch import ArchConfig
 from hwsim.engine import VcdTrace
-from hwsim.errors import NotAvailableError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
@@ -28,7 +28,7 @@ from models.arch.volumepro import SlabMachine
 from models.backend import Backend
 from models.datapath import Datapath
 
-__all__ = ["render_cycle", "CYCLE_ORDERS", "Faults", "CycleResult"]
+__all__ = ["render_cycle", "CYCLE_ORDERS", "STEADY_STATE_ORDERS", "Faults", "CycleResult"]
 
 #: The machine model of each processing order the cycle rung models.
 MACHINES = {
@@ -38,6 +38,8 @@ MACHINES = {
 }
 #: Processing orders the cycle rung models.
 CYCLE_ORDERS = (*MACHINES, "ray")
+#: Orders whose machine times back-to-back frames (``steady_state``).
+STEADY_STATE_ORDERS = ("shear-warp", "shear-image")
 
 
 def render_cycle(
@@ -69,6 +71,12 @@ def render_cycle(
         VolumePro family: also time a second frame back to back and report the cycles
         between the two frames' ends (``frame.period_cycles``: the continuous frame rate).
     """
+    if steady_state and arch.order not in STEADY_STATE_ORDERS:
+        raise InputError(
+            f"{arch.name} ({arch.order} order) times single frames only",
+            key="steady_state",
+            allowed=f"a machine of order {', '.join(STEADY_STATE_ORDERS)}",
+        )
     if arch.order == "ray":  # VIZARD II (docs/cycle.md)
         from models.arch.vizard2 import render_vizard2
 

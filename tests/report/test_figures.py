@@ -111,3 +111,40 @@ def test_bad_rung_and_size_are_refused(tiny, tmp_path, capsys):
     assert "--rungs" in capsys.readouterr().err
     assert main(["figures", "--max-size", "0", "--out", str(tmp_path / "y")]) == 2
     assert "--max-size" in capsys.readouterr().err
+
+
+def test_the_cycle_rung_reports_the_back_to_back_period_where_it_times_one(tmp_path):
+    import re
+    from pathlib import Path
+
+    from hwsim.fidelity import builtin_archs as archs
+
+    body = Path(archs()["volumepro500"].source).read_text()
+    body = re.sub(
+        r"\[published\].*?\n\[memory\]",
+        "[published]\nfps_16 = 1000.0\n\n[memory]",
+        body,
+        flags=re.S,
+    )
+    body = body.replace('name = "volumepro500"', 'name = "vp500-16"')
+    path = tmp_path / "vp500-16.toml"
+    path.write_text(body)
+    arch = resolve_arch(str(path))
+    (row,) = measure_figures([arch], ("cycle",), max_size=16)
+    run = render(figure_scene(16), fidelity="cycle", arch=arch, steady_state=True)
+    period = run.counters["frame.period_cycles"]
+    assert row.basis == "frame period" and row.cycles == run.cycles
+    assert row.simulated == pytest.approx(arch.clock_hz / period)
+    assert row.single_frame == pytest.approx(arch.clock_hz / run.cycles)
+    assert period <= run.cycles  # the next frame's fill overlaps this one's drain
+    assert "back-to-back" in row.note
+
+
+def test_back_to_back_frames_only_where_a_machine_times_them():
+    from hwsim.errors import InputError
+
+    scene = figure_scene(8)
+    with pytest.raises(InputError, match="steady_state"):
+        render(scene, fidelity="functional", arch="volumepro500", steady_state=True)
+    with pytest.raises(InputError, match="cube4 .slice-parallel order. times single frames"):
+        render(scene, fidelity="cycle", arch="cube4", steady_state=True)
