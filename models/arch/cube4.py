@@ -549,9 +549,12 @@ class Cube4Machine:
             b = np.clip(np.floor(step.zyx[:, self.b_ax] + 0.5), 0, self.n_b - 1).astype(np.int64)
             t = self.clock.cycle + a * self.C + b // self.P + self.C + 1 + skew_unit.LATENCY
             for m in range(self.P):
-                on = lanes == m
-                cyc = np.concatenate([t[on], t[on] + 1])
-                val = np.concatenate([np.ones(on.sum(), np.int64), np.zeros(on.sum(), np.int64)])
+                # High on every cycle with a sample, low after the last of each run (a
+                # back-to-back sample keeps valid high).
+                busy = np.unique(t[lanes == m])
+                ends = np.setdiff1d(busy + 1, busy, assume_unique=True)
+                cyc = np.concatenate([busy, ends])
+                val = np.r_[np.ones(busy.size, np.int64), np.zeros(ends.size, np.int64)]
                 self.trace.record(f"pipeline[{m}].interp", "i__valid", 1, cyc, val)
         if finished:
             end = self.clock.cycle + self.T
