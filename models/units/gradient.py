@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.numerics import round_shift
-from models.units.interp import InterpConfig, interp_taps, interpolate
+from models.units.interp import InterpConfig, axis_cells, corner_offsets, lerp_corners
 
 __all__ = [
     "GradientConfig",
@@ -77,14 +77,33 @@ def voxel_differences(raw: np.ndarray) -> list[np.ndarray]:
 def sample_differences(
     flat: np.ndarray, zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig
 ) -> np.ndarray:
-    """``s(p + e) - s(p - e)`` per axis, ``(n, 3)`` in ``(x, y, z)``, S fraction bits."""
-    g = np.empty((zyx.shape[0], 3), dtype=np.int64)
+    """``s(p + e) - s(p - e)`` per axis, ``(n, 3)`` in ``(x, y, z)``, S fraction bits.
+
+    Each neighbour ``p +- e`` (``e`` one voxel along one axis, added in float64) is
+    interpolated exactly as :func:`~models.units.interp.interpolate` would at that
+    position: only the moved axis's cell and weight change, so the other two axes' cells
+    are computed once, and the six neighbours share one gather and one set of lerps.
+    """
+    n = zyx.shape[0]
+    hi = np.asarray(shape, dtype=np.float64) - 1.0
+    i0, frac = axis_cells(zyx.T, hi[:, None], cfg)
+    strides = (shape[1] * shape[2], shape[2], 1)
+    base = i0[0] * strides[0] + i0[1] * strides[1] + i0[2]
+    cells = np.empty((6, n), dtype=np.int64)  # neighbour k = 2 axis + (0 ahead, 1 behind)
+    fracs = np.empty((3, 6, n), dtype=np.int64)
+    fracs[:] = frac[:, None, :]
+    p = zyx.T
     for axis in range(3):
-        step = np.zeros(3)
-        step[axis] = 1.0
-        ahead = interpolate(flat, interp_taps(zyx + step, shape, cfg), cfg)
-        behind = interpolate(flat, interp_taps(zyx - step, shape, cfg), cfg)
-        g[:, 2 - axis] = ahead - behind
+        for k, sign in ((2 * axis, 1.0), (2 * axis + 1, -1.0)):
+            ia, fa = axis_cells(p[axis] + sign, hi[axis], cfg)
+            cells[k] = base + (ia - i0[axis]) * strides[axis]
+            fracs[axis, k] = fa
+    idx = cells[None] + corner_offsets(shape)[:, None, None]  # (8, 6, n)
+    v = np.take(flat, idx).astype(np.int64, copy=False) << cfg.sample_frac_bits
+    s = lerp_corners(v, fracs, cfg)  # (6, n)
+    g = np.empty((n, 3), dtype=np.int64)
+    for axis in range(3):
+        g[:, 2 - axis] = s[2 * axis] - s[2 * axis + 1]
     return g
 
 

@@ -32,7 +32,10 @@ __all__ = [
     "InterpConfig",
     "InterpTaps",
     "interp_taps",
+    "axis_cells",
+    "corner_offsets",
     "interpolate",
+    "lerp_corners",
     "lerp",
     "bilinear",
     "error_bound",
@@ -76,24 +79,37 @@ class InterpTaps:
     frac: np.ndarray
 
 
+def axis_cells(
+    p: np.ndarray, hi: float | np.ndarray, cfg: InterpConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cell index ``i0 = min(floor(p), n - 2)`` (``p`` clamped to ``[0, n - 1]``, ``hi =
+    n - 1``; ``i0 = 0`` when ``n = 1``) and the quantised UQ1.W fraction ``p - i0``.
+
+    ``p`` is one axis's coordinates with scalar ``hi``, or ``(3, n)`` with ``hi`` of shape
+    ``(3, 1)``.  Returns int64 ``i0`` and raw fractions, both shaped like ``p``.
+    """
+    p = np.clip(p, 0.0, hi)
+    i0 = np.minimum(np.floor(p), np.maximum(np.subtract(hi, 1.0), 0.0))
+    return i0.astype(np.int64), cfg.weight.quantize(p - i0)
+
+
+def corner_offsets(shape: tuple[int, int, int]) -> np.ndarray:
+    """Flat-index offsets ``(8,)`` of a cell's corners ``c = 4 dz + 2 dy + dx`` from its
+    low corner (0 along an axis of one voxel, where ``i0 + 1`` clamps to ``i0``)."""
+    ny, nx = shape[1], shape[2]
+    dz, dy, dx = (s if n > 1 else 0 for s, n in zip((ny * nx, nx, 1), shape, strict=True))
+    c = np.arange(8)
+    return ((c >> 2) & 1) * dz + ((c >> 1) & 1) * dy + (c & 1) * dx
+
+
 def interp_taps(zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig) -> InterpTaps:
     """Voxel indices and quantised weights of the cells holding positions ``zyx (n, 3)``."""
-    lows, highs, fracs = [], [], []
-    for axis in range(3):
-        n = shape[axis]
-        p = np.clip(zyx[:, axis], 0.0, n - 1.0)
-        i0 = np.minimum(np.floor(p), max(n - 2, 0)).astype(np.int64)
-        fracs.append(cfg.weight.quantize(p - i0))
-        lows.append(i0)
-        highs.append(np.minimum(i0 + 1, n - 1))
-    ny, nx = shape[1], shape[2]
-    idx = np.empty((8, zyx.shape[0]), dtype=np.int64)
-    for c in range(8):
-        z = highs[0] if c & 4 else lows[0]
-        y = highs[1] if c & 2 else lows[1]
-        x = highs[2] if c & 1 else lows[2]
-        idx[c] = (z * ny + y) * nx + x
-    return InterpTaps(idx, np.stack(fracs))
+    # One clip / floor / quantise over all three axes, then the low corner's flat index
+    # plus constant corner offsets.
+    hi = np.asarray(shape, dtype=np.float64)[:, None] - 1.0
+    i0, frac = axis_cells(zyx.T, hi, cfg)
+    base = (i0[0] * shape[1] + i0[1]) * shape[2] + i0[2]
+    return InterpTaps(base + corner_offsets(shape)[:, None], frac)
 
 
 def interpolate(
@@ -101,10 +117,17 @@ def interpolate(
 ) -> np.ndarray:
     """Interpolate a raveled raw array (any sign) at the taps: ``(n,)`` int64 with
     ``in_frac_bits + sample_frac_bits`` fraction bits."""
-    v = flat[t.idx].astype(np.int64) << cfg.sample_frac_bits
-    fz, fy, fx = t.frac
-    x = [lerp(v[c], v[c + 1], fx, cfg) for c in (0, 2, 4, 6)]
-    y = [lerp(x[0], x[1], fy, cfg), lerp(x[2], x[3], fy, cfg)]
+    v = np.take(flat, t.idx).astype(np.int64, copy=False) << cfg.sample_frac_bits
+    return lerp_corners(v, t.frac, cfg)
+
+
+def lerp_corners(v: np.ndarray, frac: np.ndarray, cfg: InterpConfig) -> np.ndarray:
+    """The seven lerps of promoted corners ``v (8, n)`` (``c = 4 dz + 2 dy + dx``) with
+    raw fractions ``frac (3, n)`` along ``(z, y, x)``: x first (four lerps at once), then
+    y (two), then z."""
+    fz, fy, fx = frac
+    x = lerp(v[0::2], v[1::2], fx, cfg)  # corners (dz, dy) = 00, 01, 10, 11
+    y = lerp(x[0::2], x[1::2], fy, cfg)  # dz = 0, 1
     return lerp(y[0], y[1], fz, cfg)
 
 
