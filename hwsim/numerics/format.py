@@ -158,14 +158,20 @@ class FixedFormat:
         return np.asarray(raw, dtype=np.float64) * self.lsb
 
 
-def round_shift(raw: np.ndarray, shift: int, rounding: str) -> np.ndarray:
-    """Divide raw integers by ``2**shift`` with ``rounding`` (``shift <= 0`` multiplies)."""
-    raw = np.asarray(raw, dtype=np.int64)
+def round_shift(
+    raw: np.ndarray, shift: int, rounding: str, *, keep_dtype: bool = False
+) -> np.ndarray:
+    """Divide raw integers by ``2**shift`` with ``rounding`` (``shift <= 0`` multiplies).
+
+    The result is int64, or, with ``keep_dtype``, the input's integer type (the caller
+    guarantees that the values and the rounding addend fit it, e.g. int32 lerps).
+    """
+    raw = np.asarray(raw) if keep_dtype else np.asarray(raw, dtype=np.int64)
     if shift <= 0:
         return raw << (-shift)
     if rounding == "floor":
         return raw >> shift
-    half = np.int64(1) << (shift - 1)
+    half = 1 << (shift - 1)  # a Python int: keeps raw's dtype
     if rounding == "nearest-up":
         return (raw + half) >> shift
     floor = raw >> shift
@@ -174,7 +180,7 @@ def round_shift(raw: np.ndarray, shift: int, rounding: str) -> np.ndarray:
         return np.where((raw < 0) & (rem != 0), floor + 1, floor)
     # nearest-even
     up = (rem > half) | ((rem == half) & ((floor & 1) == 1))
-    return floor + up.astype(np.int64)
+    return floor + up.astype(floor.dtype)
 
 
 def rescale(raw: np.ndarray, src: FixedFormat, dst: FixedFormat) -> np.ndarray:

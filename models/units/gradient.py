@@ -27,7 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.numerics import round_shift
-from models.units.interp import InterpConfig, axis_cells, corner_offsets, lerp_corners
+from models.units.interp import (
+    InterpConfig,
+    axis_cells,
+    corner_offsets,
+    lerp_corners,
+    lerp_plan,
+)
 
 __all__ = [
     "GradientConfig",
@@ -75,36 +81,40 @@ def voxel_differences(raw: np.ndarray) -> list[np.ndarray]:
 
 
 def sample_differences(
-    flat: np.ndarray, zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig
+    flat: np.ndarray,
+    zyx: np.ndarray,
+    shape: tuple[int, int, int],
+    cfg: InterpConfig,
+    *,
+    promoted: bool = False,
 ) -> np.ndarray:
     """``s(p + e) - s(p - e)`` per axis, ``(n, 3)`` in ``(x, y, z)``, S fraction bits.
 
     Each neighbour ``p +- e`` (``e`` one voxel along one axis, added in float64) is
     interpolated exactly as :func:`~models.units.interp.interpolate` would at that
-    position: only the moved axis's cell and weight change, so the other two axes' cells
-    are computed once, and the six neighbours share one gather and one set of lerps.
+    position: only the moved axis's cell and weight differ from the sample's own, so one
+    cell computation covers the sample's axes and the six moved coordinates, and the six
+    neighbours share one gather and one set of lerps.  ``promoted``: ``flat`` is already
+    :func:`~models.units.interp.promote`-d.
     """
     n = zyx.shape[0]
+    axis_of = np.array([0, 0, 1, 1, 2, 2])  # neighbour k moves axis k // 2, ahead if even
     hi = np.asarray(shape, dtype=np.float64) - 1.0
-    i0, frac = axis_cells(zyx.T, hi[:, None], cfg)
-    strides = (shape[1] * shape[2], shape[2], 1)
+    p = np.empty((9, n))
+    p[:3] = zyx.T
+    p[3:] = p[axis_of] + np.array([1.0, -1.0] * 3)[:, None]
+    i0, frac = axis_cells(p, np.concatenate([hi, hi[axis_of]])[:, None], cfg)
+    strides = np.array([shape[1] * shape[2], shape[2], 1])
     base = i0[0] * strides[0] + i0[1] * strides[1] + i0[2]
-    cells = np.empty((6, n), dtype=np.int64)  # neighbour k = 2 axis + (0 ahead, 1 behind)
-    fracs = np.empty((3, 6, n), dtype=np.int64)
-    fracs[:] = frac[:, None, :]
-    p = zyx.T
-    for axis in range(3):
-        for k, sign in ((2 * axis, 1.0), (2 * axis + 1, -1.0)):
-            ia, fa = axis_cells(p[axis] + sign, hi[axis], cfg)
-            cells[k] = base + (ia - i0[axis]) * strides[axis]
-            fracs[axis, k] = fa
-    idx = cells[None] + corner_offsets(shape)[:, None, None]  # (8, 6, n)
-    v = np.take(flat, idx).astype(np.int64, copy=False) << cfg.sample_frac_bits
-    s = lerp_corners(v, fracs, cfg)  # (6, n)
-    g = np.empty((n, 3), dtype=np.int64)
-    for axis in range(3):
-        g[:, 2 - axis] = s[2 * axis] - s[2 * axis + 1]
-    return g
+    cells = base + (i0[3:] - i0[axis_of]) * strides[axis_of][:, None]  # (6, n)
+    fracs = np.repeat(frac[:3, None, :], 6, axis=1)  # (3, 6, n)
+    fracs[axis_of, np.arange(6)] = frac[3:]
+    free, corners = lerp_plan(fracs, cfg)
+    v = np.take(flat, cells + corner_offsets(shape)[corners, None, None])  # (2**k, 6, n)
+    if not promoted:
+        v = v.astype(np.int64, copy=False) << cfg.sample_frac_bits
+    s = lerp_corners(v, fracs, cfg, free).astype(np.int64)  # (6, n)
+    return (s[0::2] - s[1::2])[::-1].T.copy()
 
 
 def to_world(

@@ -36,6 +36,8 @@ __all__ = [
     "corner_offsets",
     "interpolate",
     "lerp_corners",
+    "lerp_plan",
+    "promote",
     "lerp",
     "bilinear",
     "error_bound",
@@ -70,13 +72,44 @@ class InterpConfig:
         )
 
 
-@dataclass(frozen=True)
 class InterpTaps:
-    """``idx (8, n)`` flat voxel indices, corner ``c = 4 dz + 2 dy + dx``; ``frac (3, n)``
-    raw UQ1.W fractions along ``(z, y, x)``."""
+    """Cells and weights of ``n`` samples: ``idx (8, n)`` flat voxel indices, corner
+    ``c = 4 dz + 2 dy + dx``; ``frac (3, n)`` raw UQ1.W fractions along ``(z, y, x)``.
 
-    idx: np.ndarray
-    frac: np.ndarray
+    Built either from explicit ``idx`` or, by :func:`interp_taps`, from the low corner's
+    index ``base (n,)`` and constant corner ``offsets (8,)`` (``idx`` is then formed only
+    if asked for; :func:`interpolate` gathers just the corners it needs).
+    """
+
+    def __init__(
+        self,
+        idx: np.ndarray | None,
+        frac: np.ndarray,
+        *,
+        base: np.ndarray | None = None,
+        offsets: np.ndarray | None = None,
+    ) -> None:
+        if idx is None and (base is None or offsets is None):
+            raise ValueError("InterpTaps needs idx, or base and offsets")
+        self._idx, self.frac, self.base, self.offsets = idx, frac, base, offsets
+
+    @property
+    def idx(self) -> np.ndarray:
+        if self._idx is None:
+            self._idx = self.base + self.offsets[:, None]
+        return self._idx
+
+    def rows(self, corners: list[int]) -> np.ndarray:
+        """Flat indices ``(len(corners), n)`` of the listed corners."""
+        if self._idx is None:
+            return self.base + self.offsets[corners, None]
+        return self._idx[corners]
+
+    def subset(self, sel: np.ndarray) -> InterpTaps:
+        """The taps of samples ``sel`` (index array)."""
+        if self._idx is None:
+            return InterpTaps(None, self.frac[:, sel], base=self.base[sel], offsets=self.offsets)
+        return InterpTaps(self._idx[:, sel], self.frac[:, sel])
 
 
 def axis_cells(
@@ -109,31 +142,87 @@ def interp_taps(zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig)
     hi = np.asarray(shape, dtype=np.float64)[:, None] - 1.0
     i0, frac = axis_cells(zyx.T, hi, cfg)
     base = (i0[0] * shape[1] + i0[1]) * shape[2] + i0[2]
-    return InterpTaps(base + corner_offsets(shape)[:, None], frac)
+    return InterpTaps(None, frac, base=base, offsets=corner_offsets(shape))
+
+
+def promote(flat: np.ndarray, cfg: InterpConfig) -> np.ndarray:
+    """``flat << sample_frac_bits`` (the interpolator's input promotion) in the narrowest
+    integer type in which every lerp of it is exact: int32 when ``(2 M + 1) 2**W < 2**31``
+    for ``M`` the largest promoted magnitude (``(b - a) f`` plus the rounding addend),
+    else int64.  Interpolating the promoted array gives the same integers either way."""
+    v = np.asarray(flat, dtype=np.int64) << cfg.sample_frac_bits
+    top = int(np.abs(v).max()) if v.size else 0
+    if (2 * top + 1) << cfg.weight_bits < 1 << 31:
+        return v.astype(np.int32)
+    return v
 
 
 def interpolate(
-    flat: np.ndarray, t: InterpTaps, cfg: InterpConfig, in_frac_bits: int = 0
+    flat: np.ndarray,
+    t: InterpTaps,
+    cfg: InterpConfig,
+    in_frac_bits: int = 0,
+    *,
+    promoted: bool = False,
 ) -> np.ndarray:
     """Interpolate a raveled raw array (any sign) at the taps: ``(n,)`` int64 with
-    ``in_frac_bits + sample_frac_bits`` fraction bits."""
-    v = np.take(flat, t.idx).astype(np.int64, copy=False) << cfg.sample_frac_bits
-    return lerp_corners(v, t.frac, cfg)
+    ``in_frac_bits + sample_frac_bits`` fraction bits.  ``promoted``: ``flat`` is
+    already :func:`promote`-d."""
+    free, corners = lerp_plan(t.frac, cfg)
+    v = np.take(flat, t.rows(corners))
+    if not promoted:
+        v = v.astype(np.int64, copy=False) << cfg.sample_frac_bits
+    return lerp_corners(v, t.frac, cfg, free).astype(np.int64, copy=False)
 
 
-def lerp_corners(v: np.ndarray, frac: np.ndarray, cfg: InterpConfig) -> np.ndarray:
-    """The seven lerps of promoted corners ``v (8, n)`` (``c = 4 dz + 2 dy + dx``) with
-    raw fractions ``frac (3, n)`` along ``(z, y, x)``: x first (four lerps at once), then
-    y (two), then z."""
-    fz, fy, fx = frac
-    x = lerp(v[0::2], v[1::2], fx, cfg)  # corners (dz, dy) = 00, 01, 10, 11
-    y = lerp(x[0::2], x[1::2], fy, cfg)  # dz = 0, 1
-    return lerp(y[0], y[1], fz, cfg)
+def lerp_plan(frac: np.ndarray, cfg: InterpConfig) -> tuple[list[int], list[int]]:
+    """The axes whose lerps matter and the corners they read, for fractions ``(3, ...)``.
+
+    A lerp with weight 0 returns its first operand and one with weight 1.0 (``2**W``)
+    its second, exactly, in every rounding mode (the rounded term is 0, or ``b - a`` with
+    nothing dropped).  So an axis whose weight is 0 for every sample (samples on a voxel
+    slice, as in shear-warp and shear-image orders) or 1.0 for every sample is not
+    lerped: its near or far corners are the result, and only those are read.  Returns the
+    free axes in ``(z, y, x)`` order and the ``2**k`` corners, ordered by the free axes'
+    bits (z most significant), that :func:`lerp_corners` expects.
+    """
+    one = 1 << cfg.weight_bits
+    free, fixed = [], 0
+    for axis in range(3):
+        f = frac[axis]
+        lo, hi = (int(f.min()), int(f.max())) if f.size else (-1, -1)
+        if lo == hi and lo in (0, one):
+            fixed |= (4 >> axis) if lo == one else 0
+        else:
+            free.append(axis)
+    k = len(free)
+    corners = []
+    for m in range(1 << k):
+        c = fixed
+        for i, axis in enumerate(free):
+            if (m >> (k - 1 - i)) & 1:
+                c |= 4 >> axis
+        corners.append(c)
+    return free, corners
+
+
+def lerp_corners(
+    v: np.ndarray, frac: np.ndarray, cfg: InterpConfig, free: list[int] | None = None
+) -> np.ndarray:
+    """The lerps of promoted corners ``v (2**k, ...)`` over the ``free`` axes (default all
+    three: ``v`` is ``(8, ...)``, ``c = 4 dz + 2 dy + dx``) with raw fractions ``frac (3,
+    ...)`` along ``(z, y, x)``: x first (four lerps at once), then y (two), then z.
+    Computed in ``v``'s integer type (see :func:`promote`)."""
+    f = frac.astype(v.dtype, copy=False)
+    for axis in reversed(free if free is not None else [0, 1, 2]):
+        v = lerp(v[0::2], v[1::2], f[axis], cfg)  # corners differing in this axis's bit
+    return v[0]
 
 
 def lerp(a: np.ndarray, b: np.ndarray, f: np.ndarray, cfg: InterpConfig) -> np.ndarray:
-    """One linear interpolation step: ``a + round((b - a) f / 2**W)`` (``f`` raw UQ1.W)."""
-    return a + round_shift((b - a) * f, cfg.weight_bits, cfg.rounding)
+    """One linear interpolation step: ``a + round((b - a) f / 2**W)`` (``f`` raw UQ1.W),
+    in the operands' integer type."""
+    return a + round_shift((b - a) * f, cfg.weight_bits, cfg.rounding, keep_dtype=True)
 
 
 def bilinear(v00, v01, v10, v11, fa, fb, cfg: InterpConfig) -> np.ndarray:
