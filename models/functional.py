@@ -60,6 +60,9 @@ class FunctionalResult:
     rays: int
     cycles: int
     counters: dict[str, Any] = field(default_factory=dict)
+    #: Samples the simulation actually computed (``samples`` minus those skipped as
+    #: provably invisible by :mod:`models.leap`); wall-time bookkeeping only.
+    simulated: int = 0
 
 
 class TapSource:
@@ -116,11 +119,13 @@ class _Functional:
         blocks = leap.invisible_blocks(be) if self.leap else None
         if blocks is None:
             for j, step in enumerate(plan.steps()):
-                be.process(step, self._source, state)
+                for part in _chunks(step) if self.leap else [step]:
+                    be.process(part, self._source, state)
                 if progress is not None:
                     progress(j + 1, plan.n_steps)
+            simulated = state.samples
         else:
-            self._run_leapt(leap.leapt_plan(plan, blocks), state, progress)
+            simulated = self._run_leapt(leap.leapt_plan(plan, blocks), state, progress)
         sections = 0
         if self.arch.section_width and plan.shape[1] > 0:
             sections = -(-plan.shape[1] // self.arch.section_width)
@@ -133,14 +138,14 @@ class _Functional:
             "functional.saturated": clipped,
         }
         return FunctionalResult(
-            image, state.samples, int(state.touched.sum()), int(cycles), counters
+            image, state.samples, int(state.touched.sum()), int(cycles), counters, simulated
         )
 
     def _run_leapt(
         self, sim: SamplePlan, state: RayState, progress: Callable[[int, int], None] | None
-    ) -> None:
+    ) -> int:
         """Simulate only the samples of ``sim`` (the plan minus invisible blocks), then
-        recount what the machine visits in the full plan."""
+        recount what the machine visits in the full plan; returns the samples simulated."""
         be = self.backend
         stops = be.ert < 1.0 or be.mode == "iso"
         stopped = np.full(state.alive.shape, np.iinfo(np.int64).max // 2, dtype=np.int64)
@@ -152,7 +157,9 @@ class _Functional:
                 stopped[rays[~state.alive[rays]]] = j
             if progress is not None:
                 progress(j + 1, sim.n_steps)
+        simulated = state.samples
         leap.visits(self.plan, be, stopped, state)
+        return simulated
 
     def _source(self, step: Step) -> TapSource:
         return TapSource(self, step)
