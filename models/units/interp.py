@@ -150,11 +150,13 @@ def promote(flat: np.ndarray, cfg: InterpConfig) -> np.ndarray:
     integer type in which every lerp of it is exact: int32 when ``(2 M + 1) 2**W < 2**31``
     for ``M`` the largest promoted magnitude (``(b - a) f`` plus the rounding addend),
     else int64.  Interpolating the promoted array gives the same integers either way."""
-    v = np.asarray(flat, dtype=np.int64) << cfg.sample_frac_bits
-    top = int(np.abs(v).max()) if v.size else 0
-    if (2 * top + 1) << cfg.weight_bits < 1 << 31:
-        return v.astype(np.int32)
-    return v
+    flat = np.asarray(flat)
+    lo, hi = (int(flat.min()), int(flat.max())) if flat.size else (0, 0)
+    top = max(abs(lo), abs(hi)) << cfg.sample_frac_bits
+    narrow = (2 * top + 1) << cfg.weight_bits < 1 << 31
+    out = flat.astype(np.int32 if narrow else np.int64)
+    out <<= cfg.sample_frac_bits  # fits: top is below 2**31 (int32) or 2**62 (int64)
+    return out
 
 
 def interpolate(
