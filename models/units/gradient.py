@@ -49,6 +49,7 @@ __all__ = [
 LATENCY = 3  # cycles, [I] architectures.md 9.3 (gradient 2-3)
 II = 1
 _RATIO_BITS = 12
+_PART = 8192  # samples per part in sample_differences (speed only)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -98,6 +99,13 @@ def sample_differences(
     :func:`~models.units.interp.promote`-d.
     """
     n = zyx.shape[0]
+    if n > _PART:  # 48 corner reads per sample: parts keep the temporaries in cache
+        return np.concatenate(
+            [
+                sample_differences(flat, zyx[s : s + _PART], shape, cfg, promoted=promoted)
+                for s in range(0, n, _PART)
+            ]
+        )
     axis_of = np.array([0, 0, 1, 1, 2, 2])  # neighbour k moves axis k // 2, ahead if even
     hi = np.asarray(shape, dtype=np.float64) - 1.0
     p = np.empty((9, n))
