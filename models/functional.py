@@ -87,7 +87,12 @@ class TapSource:
             ts = t.subset(sel)
             return np.stack([self._interpolate(d, ts) for d in rung.diffs], axis=1)
         return gradient_unit.sample_differences(
-            rung.flat, self.step.zyx[sel], rung.volume.shape, rung.dp.interp, promoted=True
+            rung.flat,
+            self.step.zyx[sel],
+            rung.volume.shape,
+            rung.dp.interp,
+            promoted=True,
+            center=(t.cells[:, sel], t.frac[:, sel]),
         )
 
 

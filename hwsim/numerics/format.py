@@ -135,6 +135,7 @@ class FixedFormat:
         """
         x = np.asarray(x, dtype=np.float64)
         scaled = x * (2.0**self.frac_bits)
+        inside = True
         if x.size:
             # NaN and Inf show in the extremes, so two reductions check everything.
             lo, hi = x.min(), x.max()
@@ -143,15 +144,22 @@ class FixedFormat:
             limit = 2.0**62
             if not -limit <= lo * 2.0**self.frac_bits <= hi * 2.0**self.frac_bits <= limit:
                 scaled = np.clip(scaled, -limit, limit)
+            # Every rounding mode is monotone: when the extremes land inside the format,
+            # every value does, and the overflow rule has nothing to check.
+            ends = self._round(np.array([lo, hi]) * 2.0**self.frac_bits)
+            inside = self.raw_min <= ends[0] and ends[1] <= self.raw_max
+        raw = self._round(scaled).astype(np.int64)
+        return raw if inside else self.saturate(raw)
+
+    def _round(self, scaled: np.ndarray) -> np.ndarray:
+        """Scaled reals to integral float64 with this format's rounding."""
         if self.rounding == "nearest-up":
-            raw = np.floor(scaled + 0.5)
-        elif self.rounding == "nearest-even":
-            raw = np.round(scaled)
-        elif self.rounding == "truncate":
-            raw = np.trunc(scaled)
-        else:
-            raw = np.floor(scaled)
-        return self.saturate(raw.astype(np.int64))
+            return np.floor(scaled + 0.5)
+        if self.rounding == "nearest-even":
+            return np.round(scaled)
+        if self.rounding == "truncate":
+            return np.trunc(scaled)
+        return np.floor(scaled)
 
     def to_float(self, raw: np.ndarray) -> np.ndarray:
         """Raw integers to their real values (float64, exact for widths <= 53)."""

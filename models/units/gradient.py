@@ -88,35 +88,51 @@ def sample_differences(
     cfg: InterpConfig,
     *,
     promoted: bool = False,
+    center: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """``s(p + e) - s(p - e)`` per axis, ``(n, 3)`` in ``(x, y, z)``, S fraction bits.
 
     Each neighbour ``p +- e`` (``e`` one voxel along one axis, added in float64) is
     interpolated exactly as :func:`~models.units.interp.interpolate` would at that
     position: only the moved axis's cell and weight differ from the sample's own, so one
-    cell computation covers the sample's axes and the six moved coordinates, and the six
-    neighbours share one gather and one set of lerps.  ``promoted``: ``flat`` is already
-    :func:`~models.units.interp.promote`-d.
+    cell computation covers the six moved coordinates, and the six neighbours share one
+    gather and one set of lerps.  ``promoted``: ``flat`` is already
+    :func:`~models.units.interp.promote`-d; ``center``: the samples' own cells and
+    weights ``(i0 (3, n), frac (3, n))`` when the caller has them (``InterpTaps.cells``
+    and ``frac``).
     """
     n = zyx.shape[0]
     if n > _PART:  # 48 corner reads per sample: parts keep the temporaries in cache
         return np.concatenate(
             [
-                sample_differences(flat, zyx[s : s + _PART], shape, cfg, promoted=promoted)
+                sample_differences(
+                    flat,
+                    zyx[s : s + _PART],
+                    shape,
+                    cfg,
+                    promoted=promoted,
+                    center=None if center is None else tuple(c[:, s : s + _PART] for c in center),
+                )
                 for s in range(0, n, _PART)
             ]
         )
     axis_of = np.array([0, 0, 1, 1, 2, 2])  # neighbour k moves axis k // 2, ahead if even
     hi = np.asarray(shape, dtype=np.float64) - 1.0
-    p = np.empty((9, n))
-    p[:3] = zyx.T
-    p[3:] = p[axis_of] + np.array([1.0, -1.0] * 3)[:, None]
-    i0, frac = axis_cells(p, np.concatenate([hi, hi[axis_of]])[:, None], cfg)
+    p = zyx.T
+    moved = p[axis_of] + np.array([1.0, -1.0] * 3)[:, None]
+    if center is None:
+        i0, frac = axis_cells(
+            np.concatenate([p, moved]), np.concatenate([hi, hi[axis_of]])[:, None], cfg
+        )
+        i0, frac, ia, fa = i0[:3], frac[:3], i0[3:], frac[3:]
+    else:
+        i0, frac = center
+        ia, fa = axis_cells(moved, hi[axis_of][:, None], cfg)
     strides = np.array([shape[1] * shape[2], shape[2], 1])
     base = i0[0] * strides[0] + i0[1] * strides[1] + i0[2]
-    cells = base + (i0[3:] - i0[axis_of]) * strides[axis_of][:, None]  # (6, n)
-    fracs = np.repeat(frac[:3, None, :], 6, axis=1)  # (3, 6, n)
-    fracs[axis_of, np.arange(6)] = frac[3:]
+    cells = base + (ia - i0[axis_of]) * strides[axis_of][:, None]  # (6, n)
+    fracs = np.repeat(frac[:, None, :], 6, axis=1)  # (3, 6, n)
+    fracs[axis_of, np.arange(6)] = fa
     free, corners = lerp_plan(fracs, cfg)
     v = np.take(flat, cells + corner_offsets(shape)[corners, None, None])  # (2**k, 6, n)
     if not promoted:

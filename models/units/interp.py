@@ -88,10 +88,12 @@ class InterpTaps:
         *,
         base: np.ndarray | None = None,
         offsets: np.ndarray | None = None,
+        cells: np.ndarray | None = None,
     ) -> None:
         if idx is None and (base is None or offsets is None):
             raise ValueError("InterpTaps needs idx, or base and offsets")
         self._idx, self.frac, self.base, self.offsets = idx, frac, base, offsets
+        self.cells = cells  # (3, n) low-corner indices along (z, y, x), when known
 
     @property
     def idx(self) -> np.ndarray:
@@ -107,9 +109,12 @@ class InterpTaps:
 
     def subset(self, sel: np.ndarray) -> InterpTaps:
         """The taps of samples ``sel`` (index array)."""
+        cells = None if self.cells is None else self.cells[:, sel]
         if self._idx is None:
-            return InterpTaps(None, self.frac[:, sel], base=self.base[sel], offsets=self.offsets)
-        return InterpTaps(self._idx[:, sel], self.frac[:, sel])
+            return InterpTaps(
+                None, self.frac[:, sel], base=self.base[sel], offsets=self.offsets, cells=cells
+            )
+        return InterpTaps(self._idx[:, sel], self.frac[:, sel], cells=cells)
 
 
 def axis_cells(
@@ -142,7 +147,7 @@ def interp_taps(zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig)
     hi = np.asarray(shape, dtype=np.float64)[:, None] - 1.0
     i0, frac = axis_cells(zyx.T, hi, cfg)
     base = (i0[0] * shape[1] + i0[1]) * shape[2] + i0[2]
-    return InterpTaps(None, frac, base=base, offsets=corner_offsets(shape))
+    return InterpTaps(None, frac, base=base, offsets=corner_offsets(shape), cells=i0)
 
 
 def promote(flat: np.ndarray, cfg: InterpConfig) -> np.ndarray:

@@ -124,6 +124,11 @@ def test_interpolation_and_sample_gradient_fast_paths_equal_the_oracle(cfg, shap
         g = gradient_unit.sample_differences(src, zyx, shape, cfg, promoted=is_promoted)
         assert g.dtype == np.int64
         np.testing.assert_array_equal(g, want_g)
+        # The sample's own cells handed over from its taps (as the functional rung does).
+        g = gradient_unit.sample_differences(
+            src, zyx, shape, cfg, promoted=is_promoted, center=(taps.cells, taps.frac)
+        )
+        np.testing.assert_array_equal(g, want_g)
     # Explicit (8, n) indices, as the RTL bench builds them, take the same path.
     explicit = interp_unit.InterpTaps(taps.idx, taps.frac)
     np.testing.assert_array_equal(interp_unit.interpolate(flat, explicit, cfg), want)
