@@ -173,7 +173,10 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
     bits = np.floor(np.log2(np.maximum(m0, 1).astype(np.float64))).astype(np.int64) + 1
     shift = np.clip(f + 2 - bits, 0, 40)
     g = g << shift[:, None]
-    m = magnitude(g)
+    m = m0.copy()  # rows not shifted keep their magnitude: recompute only the others
+    moved = np.flatnonzero(shift)
+    if moved.size:
+        m[moved] = magnitude(g[moved])
     safe = np.maximum(m, 1)[:, None]
     num = -g << f
     n = (2 * num + safe) // (2 * safe)  # round half up, exact

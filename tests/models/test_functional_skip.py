@@ -321,3 +321,29 @@ def test_closed_form_step_counts_equal_iterating_the_plan(head21):
         plan = make_plan(scene, head21, resolve_arch(arch).order)
         sizes = [step.rays.size for step in plan.steps()]
         np.testing.assert_array_equal(leap.step_sample_counts(plan), sizes)
+
+
+def _oracle_normal(g, f: int) -> list[int]:
+    """The gradient unit's documented normal of one vector, in Python integers."""
+    import math
+
+    m0 = math.isqrt(sum(c * c for c in g))
+    if m0 == 0:
+        return [0, 0, 0]
+    shift = min(max(f + 2 - m0.bit_length(), 0), 40)
+    g = [c << shift for c in g]
+    m = math.isqrt(sum(c * c for c in g))
+    limit = 1 << f
+    return [min(max((2 * (-c << f) + m) // (2 * m), -limit), limit) for c in g]
+
+
+@pytest.mark.parametrize("scale", [1, 7, 300, 5000, 2**20])
+def test_normals_equal_the_oracle_with_mixed_shifted_and_unshifted_rows(scale):
+    rng = np.random.default_rng(scale)
+    g = rng.integers(-scale, scale + 1, size=(400, 3))
+    g[:5] = 0
+    g[5:200] *= rng.integers(1, 4000, size=(195, 1))  # large rows: no normaliser shift
+    g = np.clip(g, -(2**24), 2**24)  # the unit's domain: |g|^2 fits int64
+    for f in (2, 10, 20):
+        got = gradient_unit.normals(g, gradient_unit.GradientConfig(normal_frac_bits=f))
+        np.testing.assert_array_equal(got, [_oracle_normal([int(c) for c in row], f) for row in g])
