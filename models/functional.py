@@ -13,6 +13,11 @@ rest of the pipeline is :class:`models.backend.Backend`, shared with the cycle r
 Timing is a closed-form estimate: each slice (or ray step) costs
 ``ceil(samples / pipelines) + slice_overhead_cycles`` cycles, plus
 ``section_overhead_cycles`` per section and the pipeline fill latency once.
+
+The estimate, ``samples`` and ``rays`` count every planned sample; the simulation skips
+blocks whose samples provably cannot change the image (:mod:`models.leap`) and processes
+each step in parts of :data:`CHUNK` samples.  ``render_functional(..., leap_blocks=False)``
+is the reference loop (every planned sample, step by step); both give the same bits.
 """
 
 from __future__ import annotations
