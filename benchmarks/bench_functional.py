@@ -14,7 +14,9 @@ timed in interleaved rounds (golden, functional, reference; ``--repeats`` rounds
 reported) so that load from other processes on the shared machine falls on all three
 alike; the load average is recorded before and after.  The functional image is checked
 bit-identical to the reference one.  The issue's goal is a ratio (golden seconds /
-functional seconds) of at least 2.  Nothing here is asserted: benchmarks are not tests.
+functional seconds) of at least 2; ``cpu_ratio`` is the same from CPU (user + system)
+seconds, steadier than wall time when other processes share the cores.  Nothing here
+is asserted: benchmarks are not tests.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import os
+import resource
 import statistics
 import time
 from functools import partial
@@ -49,17 +52,26 @@ __all__ = ["GOAL_RATIO", "run", "main"]
 GOAL_RATIO = 2.0
 
 
-def _interleaved(repeats: int, calls: dict[str, Any]) -> tuple[dict[str, list[float]], dict]:
-    """Wall seconds of each named call over ``repeats`` rounds (one warm-up round first);
-    returns the times and the last result of each."""
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _interleaved(
+    repeats: int, calls: dict[str, Any]
+) -> tuple[dict[str, list[float]], dict[str, list[float]], dict]:
+    """Wall and CPU (user + system) seconds of each named call over ``repeats`` rounds
+    (one warm-up round first); returns both lists of times and the last results."""
     results = {name: fn() for name, fn in calls.items()}
-    times: dict[str, list[float]] = {name: [] for name in calls}
+    wall: dict[str, list[float]] = {name: [] for name in calls}
+    cpu: dict[str, list[float]] = {name: [] for name in calls}
     for _ in range(repeats):
         for name, fn in calls.items():
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), _cpu_seconds()
             results[name] = fn()
-            times[name].append(time.perf_counter() - start)
-    return times, results
+            wall[name].append(time.perf_counter() - start)
+            cpu[name].append(_cpu_seconds() - start_cpu)
+    return wall, cpu, results
 
 
 def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[str, Any]:
@@ -77,7 +89,7 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
         tf = resolve_transfer(scene.transfer, volume)
         plan = make_plan(scene, volume, arch.order)
         load_before = os.getloadavg()
-        times, out = _interleaved(
+        times, cpu, out = _interleaved(
             repeats,
             {
                 "golden": partial(render_golden, scene, volume, tf, sampling=arch.order),
@@ -89,6 +101,7 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
         )
         load_after = os.getloadavg()
         g_s, f_s, r_s = (statistics.median(times[k]) for k in ("golden", "functional", "reference"))
+        g_cpu, f_cpu = (statistics.median(cpu[k]) for k in ("golden", "functional"))
         golden, fixed, ref = out["golden"], out["functional"], out["reference"]
         cases.append(
             {
@@ -114,7 +127,11 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
                 "goal_met": g_s / f_s >= GOAL_RATIO,
                 "psnr_db": psnr(golden.image, fixed.image),
                 "simulated_fps": arch.clock_hz / fixed.cycles,
+                "golden_cpu_seconds": g_cpu,
+                "functional_cpu_seconds": f_cpu,
+                "cpu_ratio": g_cpu / f_cpu,
                 "seconds_all": {k: v for k, v in times.items()},
+                "cpu_seconds_all": {k: v for k, v in cpu.items()},
                 "load_average_before": list(load_before),
                 "load_average_after": list(load_after),
             }
@@ -143,14 +160,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     report = run(args.sizes, args.arch, args.repeats, args.image)
     print(
         f"{'case':<22}{'golden s':>10}{'funct s':>10}{'Msamp/s':>9}{'ref s':>9}"
-        f"{'ratio':>8}{'goal':>6}{'PSNR':>7}{'same':>6}"
+        f"{'ratio':>8}{'cpu':>6}{'goal':>6}{'PSNR':>7}{'same':>6}"
     )
     for c in report["cases"]:
         print(
             f"{c['size']}^3 {c['arch']:<15}{c['golden_seconds']:>10.3f}"
             f"{c['functional_seconds']:>10.3f}"
             f"{c['functional_samples_per_second'] / 1e6:>9.2f}{c['reference_seconds']:>9.3f}"
-            f"{c['ratio']:>8.2f}{'yes' if c['goal_met'] else 'no':>6}{c['psnr_db']:>7.1f}"
+            f"{c['ratio']:>8.2f}{c['cpu_ratio']:>6.2f}"
+            f"{'yes' if c['goal_met'] else 'no':>6}{c['psnr_db']:>7.1f}"
             f"{'yes' if c['identical_to_reference'] else 'NO':>6}"
         )
     print("ratio = golden seconds / functional seconds (goal >= 2); ref = no work skipping")
