@@ -91,13 +91,14 @@ class TapSource:
         if rung.diffs is not None:
             ts = t.subset(sel)
             return np.stack([self._interpolate(d, ts) for d in rung.diffs], axis=1)
+        # np.take: row and column gathers, much faster than 2-D fancy indexing.
         return gradient_unit.sample_differences(
             rung.flat,
-            self.step.zyx[sel],
+            np.take(self.step.zyx, sel, axis=0),
             rung.volume.shape,
             rung.dp.interp,
             promoted=True,
-            center=(t.cells[:, sel], t.frac[:, sel]),
+            center=(np.take(t.cells, sel, axis=1), np.take(t.frac, sel, axis=1)),
         )
 
 

@@ -118,7 +118,7 @@ def sample_differences(
         )
     axis_of = np.array([0, 0, 1, 1, 2, 2])  # neighbour k moves axis k // 2, ahead if even
     hi = np.asarray(shape, dtype=np.float64) - 1.0
-    p = zyx.T
+    p = np.ascontiguousarray(zyx.T)  # (3, n), rows contiguous
     moved = p[axis_of] + np.array([1.0, -1.0] * 3)[:, None]
     if center is None:
         i0, frac = axis_cells(
@@ -176,7 +176,7 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
     m = m0.copy()  # rows not shifted keep their magnitude: recompute only the others
     moved = np.flatnonzero(shift)
     if moved.size:
-        m[moved] = magnitude(g[moved])
+        m[moved] = magnitude(np.take(g, moved, axis=0))
     safe = np.maximum(m, 1)[:, None]
     num = -g << f
     n = (2 * num + safe) // (2 * safe)  # round half up, exact

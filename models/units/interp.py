@@ -109,12 +109,11 @@ class InterpTaps:
 
     def subset(self, sel: np.ndarray) -> InterpTaps:
         """The taps of samples ``sel`` (index array)."""
-        cells = None if self.cells is None else self.cells[:, sel]
+        cells = None if self.cells is None else np.take(self.cells, sel, axis=1)
+        frac = np.take(self.frac, sel, axis=1)
         if self._idx is None:
-            return InterpTaps(
-                None, self.frac[:, sel], base=self.base[sel], offsets=self.offsets, cells=cells
-            )
-        return InterpTaps(self._idx[:, sel], self.frac[:, sel], cells=cells)
+            return InterpTaps(None, frac, base=self.base[sel], offsets=self.offsets, cells=cells)
+        return InterpTaps(np.take(self._idx, sel, axis=1), frac, cells=cells)
 
 
 def axis_cells(
@@ -145,7 +144,7 @@ def interp_taps(zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig)
     # One clip / floor / quantise over all three axes, then the low corner's flat index
     # plus constant corner offsets.
     hi = np.asarray(shape, dtype=np.float64)[:, None] - 1.0
-    i0, frac = axis_cells(zyx.T, hi, cfg)
+    i0, frac = axis_cells(np.ascontiguousarray(zyx.T), hi, cfg)  # rows contiguous
     base = (i0[0] * shape[1] + i0[1]) * shape[2] + i0[2]
     return InterpTaps(None, frac, base=base, offsets=corner_offsets(shape), cells=i0)
 
