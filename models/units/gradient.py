@@ -102,6 +102,8 @@ def sample_differences(
     and ``frac``).
     """
     n = zyx.shape[0]
+    if n == 0:
+        return np.empty((0, 3), dtype=np.int64)
     if n > _PART:  # 48 corner reads per sample: parts keep the temporaries in cache
         return np.concatenate(
             [
@@ -131,13 +133,28 @@ def sample_differences(
     strides = np.array([shape[1] * shape[2], shape[2], 1])
     base = i0[0] * strides[0] + i0[1] * strides[1] + i0[2]
     cells = base + (ia - i0[axis_of]) * strides[axis_of][:, None]  # (6, n)
-    fracs = np.repeat(frac[:, None, :], 6, axis=1)  # (3, 6, n)
-    fracs[axis_of, np.arange(6)] = fa
-    free, corners = lerp_plan(fracs, cfg)
+    # Neighbour k's weight along axis a is the sample's own, except fa[k] when k moves a.
+    # Which axes need lerps is decided from each axis's extremes over all six neighbours.
+    ends = np.array(
+        [
+            [
+                min(frac[a].min(), fa[2 * a : 2 * a + 2].min()),
+                max(frac[a].max(), fa[2 * a : 2 * a + 2].max()),
+            ]
+            for a in range(3)
+        ]
+    )
+    free, corners = lerp_plan(ends, cfg)
     v = np.take(flat, cells + corner_offsets(shape)[corners, None, None])  # (2**k, 6, n)
     if not promoted:
         v = v.astype(np.int64, copy=False) << cfg.sample_frac_bits
-    s = lerp_corners(v, fracs, cfg, free).astype(np.int64)  # (6, n)
+    weights: list[np.ndarray | None] = [None, None, None]
+    for a in free:
+        w = np.empty((6, n), dtype=v.dtype)
+        w[:] = frac[a]
+        w[2 * a : 2 * a + 2] = fa[2 * a : 2 * a + 2]
+        weights[a] = w
+    s = lerp_corners(v, weights, cfg, free).astype(np.int64)  # (6, n)
     return (s[0::2] - s[1::2])[::-1].T.copy()
 
 

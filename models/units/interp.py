@@ -216,12 +216,13 @@ def lerp_corners(
     v: np.ndarray, frac: np.ndarray, cfg: InterpConfig, free: list[int] | None = None
 ) -> np.ndarray:
     """The lerps of promoted corners ``v (2**k, ...)`` over the ``free`` axes (default all
-    three: ``v`` is ``(8, ...)``, ``c = 4 dz + 2 dy + dx``) with raw fractions ``frac (3,
-    ...)`` along ``(z, y, x)``: x first (four lerps at once), then y (two), then z.
-    Computed in ``v``'s integer type (see :func:`promote`)."""
-    f = frac.astype(v.dtype, copy=False)
+    three: ``v`` is ``(8, ...)``, ``c = 4 dz + 2 dy + dx``) with raw fractions ``frac``
+    along ``(z, y, x)`` (a ``(3, ...)`` array, or three arrays of which only the free
+    axes' are read): x first (four lerps at once), then y (two), then z.  Computed in
+    ``v``'s integer type (see :func:`promote`)."""
     for axis in reversed(free if free is not None else [0, 1, 2]):
-        v = lerp(v[0::2], v[1::2], f[axis], cfg)  # corners differing in this axis's bit
+        f = frac[axis].astype(v.dtype, copy=False)
+        v = lerp(v[0::2], v[1::2], f, cfg)  # corners differing in this axis's bit
     return v[0]
 
 

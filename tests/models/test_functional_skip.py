@@ -347,3 +347,11 @@ def test_normals_equal_the_oracle_with_mixed_shifted_and_unshifted_rows(scale):
     for f in (2, 10, 20):
         got = gradient_unit.normals(g, gradient_unit.GradientConfig(normal_frac_bits=f))
         np.testing.assert_array_equal(got, [_oracle_normal([int(c) for c in row], f) for row in g])
+
+
+def test_empty_batches_give_empty_results():
+    cfg = InterpConfig()
+    flat, none = np.arange(27), np.empty((0, 3))
+    taps = interp_unit.interp_taps(none, (3, 3, 3), cfg)
+    assert interp_unit.interpolate(flat, taps, cfg).shape == (0,)
+    assert gradient_unit.sample_differences(flat, none, (3, 3, 3), cfg).shape == (0, 3)
