@@ -6,12 +6,17 @@ Usage::
                                                     [--out FILE.json]
 
 For each size the CT-like head phantom is rendered (composite + Phong, ``ct`` preset,
-256x256) by the float64 golden renderer at the architecture's sample positions and by
-the fixed-point functional rung at the same positions; both are timed (median of
-``--repeats``, after one warm-up render that fills the golden renderer's per-volume
-cache) and their samples per wall second and ratio are printed and written as JSON.
-The issue's goal is a ratio (functional / golden speed) of at least 2.  Nothing here is
-asserted: benchmarks are not tests.
+256x256) by the float64 golden renderer at the architecture's sample positions, by the
+fixed-point functional rung at the same positions, and by the functional rung with its
+exact work skipping off (``leap_blocks=False``: every planned sample through the back
+end).  After one warm-up render each (which fills the per-volume caches), the three are
+timed in interleaved rounds (golden, functional, reference; ``--repeats`` rounds, median
+reported) so that load from other processes on the shared machine falls on all three
+alike; the load average is recorded before and after.  The functional image is checked
+bit-identical to the reference one.  The issue's goal is a ratio (golden seconds /
+functional seconds) of at least 2; ``cpu_ratio`` is the same from CPU (user + system)
+seconds, steadier than wall time when other processes share the cores.  Nothing here
+is asserted: benchmarks are not tests.
 """
 
 from __future__ import annotations
@@ -28,7 +33,13 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.report_io import median_seconds, write_report
+import os
+import resource
+import statistics
+import time
+from functools import partial
+
+from benchmarks.report_io import write_report
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import psnr
@@ -39,6 +50,28 @@ from hwsim.volumes import make_phantom
 __all__ = ["GOAL_RATIO", "run", "main"]
 
 GOAL_RATIO = 2.0
+
+
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _interleaved(
+    repeats: int, calls: dict[str, Any]
+) -> tuple[dict[str, list[float]], dict[str, list[float]], dict]:
+    """Wall and CPU (user + system) seconds of each named call over ``repeats`` rounds
+    (one warm-up round first); returns both lists of times and the last results."""
+    results = {name: fn() for name, fn in calls.items()}
+    wall: dict[str, list[float]] = {name: [] for name in calls}
+    cpu: dict[str, list[float]] = {name: [] for name in calls}
+    for _ in range(repeats):
+        for name, fn in calls.items():
+            start, start_cpu = time.perf_counter(), _cpu_seconds()
+            results[name] = fn()
+            wall[name].append(time.perf_counter() - start)
+            cpu[name].append(_cpu_seconds() - start_cpu)
+    return wall, cpu, results
 
 
 def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[str, Any]:
@@ -55,32 +88,62 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
         )
         tf = resolve_transfer(scene.transfer, volume)
         plan = make_plan(scene, volume, arch.order)
-        g_s, golden = median_seconds(repeats, render_golden, scene, volume, tf, sampling=arch.order)
-        f_s, fixed = median_seconds(repeats, render_functional, scene, volume, tf, arch, plan)
+        load_before = os.getloadavg()
+        times, cpu, out = _interleaved(
+            repeats,
+            {
+                "golden": partial(render_golden, scene, volume, tf, sampling=arch.order),
+                "functional": partial(render_functional, scene, volume, tf, arch, plan),
+                "reference": partial(
+                    render_functional, scene, volume, tf, arch, plan, leap_blocks=False
+                ),
+            },
+        )
+        load_after = os.getloadavg()
+        g_s, f_s, r_s = (statistics.median(times[k]) for k in ("golden", "functional", "reference"))
+        g_cpu, f_cpu = (statistics.median(cpu[k]) for k in ("golden", "functional"))
+        golden, fixed, ref = out["golden"], out["functional"], out["reference"]
         cases.append(
             {
                 "size": n,
                 "image": image,
                 "arch": arch.name,
                 "samples": fixed.samples,
+                "simulated_samples": fixed.simulated,
+                "golden_samples": golden.samples,
                 "golden_seconds": g_s,
                 "golden_samples_per_second": golden.samples / g_s,
                 "functional_seconds": f_s,
                 "functional_samples_per_second": fixed.samples / f_s,
+                "reference_seconds": r_s,
+                "speedup_over_reference": r_s / f_s,
+                "identical_to_reference": bool(
+                    np.array_equal(fixed.image, ref.image)
+                    and (fixed.samples, fixed.rays, fixed.cycles)
+                    == (ref.samples, ref.rays, ref.cycles)
+                ),
                 "ratio": g_s / f_s,
                 "goal_ratio": GOAL_RATIO,
                 "goal_met": g_s / f_s >= GOAL_RATIO,
                 "psnr_db": psnr(golden.image, fixed.image),
                 "simulated_fps": arch.clock_hz / fixed.cycles,
+                "golden_cpu_seconds": g_cpu,
+                "functional_cpu_seconds": f_cpu,
+                "cpu_ratio": g_cpu / f_cpu,
+                "seconds_all": {k: v for k, v in times.items()},
+                "cpu_seconds_all": {k: v for k, v in cpu.items()},
+                "load_average_before": list(load_before),
+                "load_average_after": list(load_after),
             }
         )
     return {
-        "schema": 1,
+        "schema": 2,
         "benchmark": "functional-vs-golden",
         "machine": {
             "python": platform.python_version(),
             "numpy": np.__version__,
             "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(),
         },
         "cases": cases,
     }
@@ -96,17 +159,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     report = run(args.sizes, args.arch, args.repeats, args.image)
     print(
-        f"{'case':<22}{'golden s':>10}{'Msamp/s':>9}{'funct s':>10}{'Msamp/s':>9}"
-        f"{'ratio':>8}{'goal':>6}{'PSNR':>7}"
+        f"{'case':<22}{'golden s':>10}{'funct s':>10}{'Msamp/s':>9}{'ref s':>9}"
+        f"{'ratio':>8}{'cpu':>6}{'goal':>6}{'PSNR':>7}{'same':>6}"
     )
     for c in report["cases"]:
         print(
             f"{c['size']}^3 {c['arch']:<15}{c['golden_seconds']:>10.3f}"
-            f"{c['golden_samples_per_second'] / 1e6:>9.2f}{c['functional_seconds']:>10.3f}"
-            f"{c['functional_samples_per_second'] / 1e6:>9.2f}{c['ratio']:>8.2f}"
+            f"{c['functional_seconds']:>10.3f}"
+            f"{c['functional_samples_per_second'] / 1e6:>9.2f}{c['reference_seconds']:>9.3f}"
+            f"{c['ratio']:>8.2f}{c['cpu_ratio']:>6.2f}"
             f"{'yes' if c['goal_met'] else 'no':>6}{c['psnr_db']:>7.1f}"
+            f"{'yes' if c['identical_to_reference'] else 'NO':>6}"
         )
-    print("ratio = golden seconds / functional seconds (goal >= 2)")
+    print("ratio = golden seconds / functional seconds (goal >= 2); ref = no work skipping")
     write_report(report, args.out)
     return 0
 

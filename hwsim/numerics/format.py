@@ -135,6 +135,7 @@ class FixedFormat:
         """
         x = np.asarray(x, dtype=np.float64)
         scaled = x * (2.0**self.frac_bits)
+        inside = True
         if x.size:
             # NaN and Inf show in the extremes, so two reductions check everything.
             lo, hi = x.min(), x.max()
@@ -143,29 +144,42 @@ class FixedFormat:
             limit = 2.0**62
             if not -limit <= lo * 2.0**self.frac_bits <= hi * 2.0**self.frac_bits <= limit:
                 scaled = np.clip(scaled, -limit, limit)
+            # Every rounding mode is monotone: when the extremes land inside the format,
+            # every value does, and the overflow rule has nothing to check.
+            ends = self._round(np.array([lo, hi]) * 2.0**self.frac_bits)
+            inside = self.raw_min <= ends[0] and ends[1] <= self.raw_max
+        raw = self._round(scaled).astype(np.int64)
+        return raw if inside else self.saturate(raw)
+
+    def _round(self, scaled: np.ndarray) -> np.ndarray:
+        """Scaled reals to integral float64 with this format's rounding."""
         if self.rounding == "nearest-up":
-            raw = np.floor(scaled + 0.5)
-        elif self.rounding == "nearest-even":
-            raw = np.round(scaled)
-        elif self.rounding == "truncate":
-            raw = np.trunc(scaled)
-        else:
-            raw = np.floor(scaled)
-        return self.saturate(raw.astype(np.int64))
+            return np.floor(scaled + 0.5)
+        if self.rounding == "nearest-even":
+            return np.round(scaled)
+        if self.rounding == "truncate":
+            return np.trunc(scaled)
+        return np.floor(scaled)
 
     def to_float(self, raw: np.ndarray) -> np.ndarray:
         """Raw integers to their real values (float64, exact for widths <= 53)."""
         return np.asarray(raw, dtype=np.float64) * self.lsb
 
 
-def round_shift(raw: np.ndarray, shift: int, rounding: str) -> np.ndarray:
-    """Divide raw integers by ``2**shift`` with ``rounding`` (``shift <= 0`` multiplies)."""
-    raw = np.asarray(raw, dtype=np.int64)
+def round_shift(
+    raw: np.ndarray, shift: int, rounding: str, *, keep_dtype: bool = False
+) -> np.ndarray:
+    """Divide raw integers by ``2**shift`` with ``rounding`` (``shift <= 0`` multiplies).
+
+    The result is int64, or, with ``keep_dtype``, the input's integer type (the caller
+    guarantees that the values and the rounding addend fit it, e.g. int32 lerps).
+    """
+    raw = np.asarray(raw) if keep_dtype else np.asarray(raw, dtype=np.int64)
     if shift <= 0:
         return raw << (-shift)
     if rounding == "floor":
         return raw >> shift
-    half = np.int64(1) << (shift - 1)
+    half = 1 << (shift - 1)  # a Python int: keeps raw's dtype
     if rounding == "nearest-up":
         return (raw + half) >> shift
     floor = raw >> shift
@@ -174,7 +188,7 @@ def round_shift(raw: np.ndarray, shift: int, rounding: str) -> np.ndarray:
         return np.where((raw < 0) & (rem != 0), floor + 1, floor)
     # nearest-even
     up = (rem > half) | ((rem == half) & ((floor & 1) == 1))
-    return floor + up.astype(np.int64)
+    return floor + up.astype(floor.dtype)
 
 
 def rescale(raw: np.ndarray, src: FixedFormat, dst: FixedFormat) -> np.ndarray:

@@ -162,6 +162,8 @@ def _saturate_unit(raw: np.ndarray, fmt: FixedFormat) -> np.ndarray:
     values inside it but above 1.0 here, each counted once under ``fmt.name``."""
     raw = np.asarray(raw, dtype=np.int64)
     one = 1 << fmt.frac_bits
+    if raw.size == 0 or (fmt.raw_min <= raw.min() and raw.max() <= one):
+        return raw  # the common case: nothing to clip or count, two reductions, no copy
     over = (raw > one) & (raw <= fmt.raw_max)
     count = int(np.count_nonzero(over))
     raw = fmt.saturate(raw)

@@ -27,7 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.numerics import round_shift
-from models.units.interp import InterpConfig, interp_taps, interpolate
+from models.units.interp import (
+    InterpConfig,
+    axis_cells,
+    corner_offsets,
+    lerp_corners,
+    lerp_plan,
+)
 
 __all__ = [
     "GradientConfig",
@@ -43,6 +49,7 @@ __all__ = [
 LATENCY = 3  # cycles, [I] architectures.md 9.3 (gradient 2-3)
 II = 1
 _RATIO_BITS = 12
+_PART = 8192  # samples per part in sample_differences (speed only)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,17 +82,80 @@ def voxel_differences(raw: np.ndarray) -> list[np.ndarray]:
 
 
 def sample_differences(
-    flat: np.ndarray, zyx: np.ndarray, shape: tuple[int, int, int], cfg: InterpConfig
+    flat: np.ndarray,
+    zyx: np.ndarray,
+    shape: tuple[int, int, int],
+    cfg: InterpConfig,
+    *,
+    promoted: bool = False,
+    center: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """``s(p + e) - s(p - e)`` per axis, ``(n, 3)`` in ``(x, y, z)``, S fraction bits."""
-    g = np.empty((zyx.shape[0], 3), dtype=np.int64)
-    for axis in range(3):
-        step = np.zeros(3)
-        step[axis] = 1.0
-        ahead = interpolate(flat, interp_taps(zyx + step, shape, cfg), cfg)
-        behind = interpolate(flat, interp_taps(zyx - step, shape, cfg), cfg)
-        g[:, 2 - axis] = ahead - behind
-    return g
+    """``s(p + e) - s(p - e)`` per axis, ``(n, 3)`` in ``(x, y, z)``, S fraction bits.
+
+    Each neighbour ``p +- e`` (``e`` one voxel along one axis, added in float64) is
+    interpolated exactly as :func:`~models.units.interp.interpolate` would at that
+    position: only the moved axis's cell and weight differ from the sample's own, so one
+    cell computation covers the six moved coordinates, and the six neighbours share one
+    gather and one set of lerps.  ``promoted``: ``flat`` is already
+    :func:`~models.units.interp.promote`-d; ``center``: the samples' own cells and
+    weights ``(i0 (3, n), frac (3, n))`` when the caller has them (``InterpTaps.cells``
+    and ``frac``).
+    """
+    n = zyx.shape[0]
+    if n == 0:
+        return np.empty((0, 3), dtype=np.int64)
+    if n > _PART:  # 48 corner reads per sample: parts keep the temporaries in cache
+        return np.concatenate(
+            [
+                sample_differences(
+                    flat,
+                    zyx[s : s + _PART],
+                    shape,
+                    cfg,
+                    promoted=promoted,
+                    center=None if center is None else tuple(c[:, s : s + _PART] for c in center),
+                )
+                for s in range(0, n, _PART)
+            ]
+        )
+    axis_of = np.array([0, 0, 1, 1, 2, 2])  # neighbour k moves axis k // 2, ahead if even
+    hi = np.asarray(shape, dtype=np.float64) - 1.0
+    p = np.ascontiguousarray(zyx.T)  # (3, n), rows contiguous
+    moved = p[axis_of] + np.array([1.0, -1.0] * 3)[:, None]
+    if center is None:
+        i0, frac = axis_cells(
+            np.concatenate([p, moved]), np.concatenate([hi, hi[axis_of]])[:, None], cfg
+        )
+        i0, frac, ia, fa = i0[:3], frac[:3], i0[3:], frac[3:]
+    else:
+        i0, frac = center
+        ia, fa = axis_cells(moved, hi[axis_of][:, None], cfg)
+    strides = np.array([shape[1] * shape[2], shape[2], 1])
+    base = i0[0] * strides[0] + i0[1] * strides[1] + i0[2]
+    cells = base + (ia - i0[axis_of]) * strides[axis_of][:, None]  # (6, n)
+    # Neighbour k's weight along axis a is the sample's own, except fa[k] when k moves a.
+    # Which axes need lerps is decided from each axis's extremes over all six neighbours.
+    ends = np.array(
+        [
+            [
+                min(frac[a].min(), fa[2 * a : 2 * a + 2].min()),
+                max(frac[a].max(), fa[2 * a : 2 * a + 2].max()),
+            ]
+            for a in range(3)
+        ]
+    )
+    free, corners = lerp_plan(ends, cfg)
+    v = np.take(flat, cells + corner_offsets(shape)[corners, None, None])  # (2**k, 6, n)
+    if not promoted:
+        v = v.astype(np.int64, copy=False) << cfg.sample_frac_bits
+    weights: list[np.ndarray | None] = [None, None, None]
+    for a in free:
+        w = np.empty((6, n), dtype=v.dtype)
+        w[:] = frac[a]
+        w[2 * a : 2 * a + 2] = fa[2 * a : 2 * a + 2]
+        weights[a] = w
+    s = lerp_corners(v, weights, cfg, free).astype(np.int64)  # (6, n)
+    return (s[0::2] - s[1::2])[::-1].T.copy()
 
 
 def to_world(
@@ -120,7 +190,10 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
     bits = np.floor(np.log2(np.maximum(m0, 1).astype(np.float64))).astype(np.int64) + 1
     shift = np.clip(f + 2 - bits, 0, 40)
     g = g << shift[:, None]
-    m = magnitude(g)
+    m = m0.copy()  # rows not shifted keep their magnitude: recompute only the others
+    moved = np.flatnonzero(shift)
+    if moved.size:
+        m[moved] = magnitude(np.take(g, moved, axis=0))
     safe = np.maximum(m, 1)[:, None]
     num = -g << f
     n = (2 * num + safe) // (2 * safe)  # round half up, exact

@@ -23,7 +23,7 @@ import numpy as np
 
 from hwsim.volumes.volume import Volume
 
-__all__ = ["VoxelMap", "convert_volume", "LATENCY", "II"]
+__all__ = ["VoxelMap", "convert_volume", "convert_values", "LATENCY", "II"]
 
 LATENCY = 0  # host-side conversion, no pipeline stage
 II = 1
@@ -43,16 +43,23 @@ class VoxelMap:
 
 def convert_volume(volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
     """The volume as raw ``int64`` voxels ``(z, y, x)`` in ``[0, 2**bits - 1]`` and its map."""
+    return convert_values(volume.data, volume, bits)
+
+
+def convert_values(values: np.ndarray, volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
+    """Raw voxels of any array of ``volume``'s values (the volume's rule, chosen by its
+    dtype and value range, applied elementwise; e.g. block minima and maxima).  Every rule
+    is non-decreasing in the value."""
     data = volume.data
     top = (1 << bits) - 1
     lo, hi = volume.value_range
     if data.dtype.kind == "u" and volume.bits <= bits and hi <= (1 << volume.bits) - 1:
         shift = bits - volume.bits
-        return data.astype(np.int64) << shift, VoxelMap(bits=bits, offset=0.0, scale=2.0**-shift)
+        return values.astype(np.int64) << shift, VoxelMap(bits=bits, offset=0.0, scale=2.0**-shift)
     if data.dtype.kind in "iu" and hi - lo <= top:
-        return data.astype(np.int64) - int(lo), VoxelMap(bits=bits, offset=lo, scale=1.0)
+        return values.astype(np.int64) - int(lo), VoxelMap(bits=bits, offset=lo, scale=1.0)
     if hi <= lo:
-        return np.zeros(data.shape, np.int64), VoxelMap(bits=bits, offset=lo, scale=1.0)
+        return np.zeros(values.shape, np.int64), VoxelMap(bits=bits, offset=lo, scale=1.0)
     scale = (hi - lo) / top
-    raw = np.floor((data.astype(np.float64) - lo) / scale + 0.5).astype(np.int64)
+    raw = np.floor((values.astype(np.float64) - lo) / scale + 0.5).astype(np.int64)
     return np.clip(raw, 0, top), VoxelMap(bits=bits, offset=lo, scale=scale)
