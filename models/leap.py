@@ -85,20 +85,7 @@ def leapt_plan(plan: SamplePlan, occupancy: occ.Occupancy) -> SamplePlan:
     """A copy of ``plan`` whose rays skip the blocks ``occupancy`` marks empty (the
     positions of the samples kept are the same floats: each is computed per ray)."""
     leapt = copy.copy(plan)
-    if occupancy.empty:
-        leapt.leap(occupancy)  # drops every ray
-        return leapt
-    # Work-around: SamplePlan.leap captures the per-ray step vectors before its forward
-    # pass and keeps using them after that pass has dropped rays with no occupied block,
-    # so with per-ray steps (shear-image, perspective) later rays leap by another ray's
-    # step and can skip visible samples.  With the drop deferred (an instance attribute
-    # shadowing _keep), both passes see every ray; the drop happens once, at the end.
-    leapt._keep = lambda keep: None
-    try:
-        leapt.leap(occupancy)
-    finally:
-        del leapt._keep
-    leapt._keep(leapt.j_lo <= leapt.j_hi)
+    leapt.leap(occupancy)
     return leapt
 
 

@@ -256,7 +256,9 @@ class SamplePlan:
                 self.j_lo = j
             else:
                 self.j_hi = j
-            self._keep(self.j_lo <= self.j_hi)
+        # Drop rays left without samples only after both passes: the per-ray step
+        # vectors above were read for every ray.
+        self._keep(self.j_lo <= self.j_hi)
 
     def steps(self, alive: np.ndarray | None = None) -> Iterator[Step]:
         """Front-to-back steps, one per ``j`` in ``range(n_steps)`` (possibly empty).

@@ -57,6 +57,23 @@ SCENES = {
 }
 
 
+@pytest.mark.parametrize("sampling", ["ray", "shear-image"])
+def test_leaping_is_exact_in_perspective_where_every_ray_has_its_own_step(sampling):
+    # Regression: the backward pass once used the per-ray steps read before the forward
+    # pass had dropped rays with no occupied block, so later rays leapt by another ray's
+    # step and skipped visible samples (max difference ~0.008 on this scene).
+    from hwsim.scene import TransferSpec
+    from hwsim.transfer import resolve_transfer
+
+    volume = make_phantom("head", size=21)
+    tf = resolve_transfer(TransferSpec(preset="ct"), volume, None)
+    scene = make_scene("composite", 30, 20, size=28, zoom=1.2, projection="perspective")
+    full = render_golden(scene, volume, tf, sampling=sampling, leap=False)
+    fast = render_golden(scene, volume, tf, sampling=sampling)
+    np.testing.assert_array_equal(fast.image, full.image)
+    assert fast.samples < full.samples
+
+
 @pytest.mark.parametrize("sampling", ["ray", "shear-warp", "shear-image"])
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_leaping_never_changes_the_image(name, sampling):
