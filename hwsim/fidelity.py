@@ -134,6 +134,12 @@ def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
         "crop": scene.crop is not None or bool(scene.cut_planes),
     }
     used = [s for s in _UNITS if needs[s]]
+    # Units only some machines have (VolumePro 1000): listed when a scene uses them,
+    # never as elided (a machine without them cannot elide them).
+    if scene.classification is not None:
+        used.insert(used.index("classify") + 1, "combine")
+    if scene.geometry is not None:
+        used.append("depth")
     return used, [s for s in _UNITS if not needs[s]]
 
 

@@ -38,7 +38,9 @@ from models import leap
 from models.backend import Backend, RayState
 from models.datapath import Datapath
 from models.units import classify as classify_unit
+from models.units import combine as combine_unit
 from models.units import composite as composite_unit
+from models.units import depth as depth_unit
 from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
 from models.units import shade as shade_unit
@@ -53,6 +55,10 @@ def pipeline_latency(scene: Scene) -> int:
         units.append(classify_unit)
     if scene.lit:
         units += [gradient_unit, shade_unit]
+    if scene.classification is not None:
+        units.append(combine_unit)  # the LUT combiners (VolumePro 1000)
+    if scene.geometry is not None:
+        units.append(depth_unit)  # the depth test against embedded geometry
     return int(sum(u.LATENCY for u in units))
 
 

@@ -67,9 +67,14 @@ def _raw_block_ranges(volume: Volume, bits: int) -> tuple[np.ndarray, np.ndarray
 def invisible_blocks(backend: Backend) -> occ.Occupancy | None:
     """The :class:`~hwsim.golden.occupancy.Occupancy` of blocks that can hold a sample
     that changes the image, decided in the datapath's arithmetic; None when nothing may
-    be skipped (MIP, MinIP, X-ray, or a back end that exercises unused units)."""
+    be skipped (MIP, MinIP, X-ray, embedded geometry, or a back end that exercises unused
+    units)."""
     be = backend
     if be.mode not in ("composite", "iso") or be.exercise_unused:
+        return None
+    if be.scene.geometry is not None:
+        # The depth test ends and drops samples in Backend.process, which the recount
+        # of visited samples (:func:`visits`) does not replay: simulate every sample.
         return None
     lo, hi = _raw_block_ranges(be.volume, be.dp.voxel_bits)
     if be.mode == "iso":

@@ -213,3 +213,17 @@ def test_cycle_rung_shares_the_features_bit_for_bit(order):
     c = render(sc, fidelity="cycle", arch=arch, volume=volume)
     assert f.samples == c.samples > 0
     assert np.array_equal(f.image, c.image)
+
+
+def test_the_combiners_and_depth_test_are_listed_and_timed_when_used():
+    from hwsim.fidelity import elaboration
+    from models.functional import pipeline_latency
+    from models.units import combine, depth
+
+    sc = load_scene("head-vp1000")
+    used, elided = elaboration(sc)
+    assert used.index("classify") < used.index("combine") < used.index("shade")
+    assert "depth" in used and "combine" not in elided and "depth" not in elided
+    plain = sc.replace(classification=None, geometry=None)
+    assert "combine" not in elaboration(plain)[0] + elaboration(plain)[1]
+    assert pipeline_latency(sc) == pipeline_latency(plain) + combine.LATENCY + depth.LATENCY
