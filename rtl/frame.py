@@ -247,6 +247,17 @@ def prepare(
     )
 
 
+def _canonical(cell, weight, frac, full: int):
+    """A weight that quantised to exactly 1.0 in cell ``c`` is weight 0 in cell ``c + 1``:
+    ``lerp(a, b, 2**W) = b = lerp(b, c, 0)`` exactly, in every rounding mode (no
+    remainder).  Float positions a hair below an integer (``frac`` ~ 1.0) thus get the
+    same constants as their neighbours on the integer."""
+    up = weight == full
+    if not up.any():
+        return cell, weight, frac
+    return cell + up, np.where(up, 0, weight), np.where(up, 0.0, frac)
+
+
 def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> list[dict[str, int]]:
     """Per step: slice, cell shift, base-plane offset and weights, checked sample by
     sample against the plan (the hardware's slot rule must give exactly its samples)."""
@@ -263,8 +274,9 @@ def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> lis
         rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
         rays = step.rays
         if rays.size:
-            ca, wa, fa = machine.cell(step.zyx[:, machine.a_ax])
-            cb, wb, fb = machine.cell(step.zyx[:, machine.b_ax])
+            full = 1 << machine.dp.interp.weight_bits
+            ca, wa, fa = _canonical(*machine.cell(step.zyx[:, machine.a_ax]), full)
+            cb, wb, fb = _canonical(*machine.cell(step.zyx[:, machine.b_ax]), full)
             u, v = rays // W, rays % W
             uniform = all(
                 np.unique(x).size == 1 for x in (wa, wb, fa >= 0.5, fb >= 0.5, ca - u, cb - v)

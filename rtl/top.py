@@ -686,16 +686,20 @@ class Cube4Top(wiring.Component):
         # Frame end: slices done, every commit made, FIFO empty.  `cycles` counts the
         # sequencer's clocks plus the bus's after it (first prime clock = 0).
         frame = Signal(name="frame")
+        counted = Signal(name="counted")
         tail = Signal(32, name="tail_cycles")
         finished = ~pending & ~snap_at & ~snap_busy & (head == commit_ptr)
         with m.If(self.start):
-            m.d.sync += [self.done.eq(0), samples.eq(0)]
+            m.d.sync += [self.done.eq(0), samples.eq(0), counted.eq(0)]
         with m.If(seq["go"]):
             m.d.sync += [frame.eq(1), tail.eq(0)]
         with m.Elif(frame & ~seq["run"]):
             with m.If(finished):
-                m.d.sync += [frame.eq(0), self.done.eq(1)]
+                # The count stops at the last pop; `done` waits for the bus to deliver.
+                m.d.sync += [frame.eq(0), counted.eq(1)]
             with m.Else():
                 m.d.sync += tail.eq(tail + 1)
+        with m.If(counted & ~v1 & ~v2):
+            m.d.sync += [counted.eq(0), self.done.eq(1)]
         m.d.comb += self.cycles.eq(seq["cycle"] + tail)
         return m
