@@ -13,6 +13,8 @@ writes the waveform.
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import json
 import os
@@ -119,6 +121,27 @@ def verilog_of(program: FrameProgram) -> Path:
     return source
 
 
+@contextlib.contextmanager
+def _locked(folder: Path):
+    with open(folder / ".lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _build(runner, source: Path, folder: Path, simulator: str) -> None:
+    runner.build(
+        sources=[source],
+        hdl_toplevel="cube4_top",
+        build_dir=folder,
+        timescale=("1ns", "1ps"),
+        build_args=_VERILATOR_ARGS if simulator == "verilator" else [],
+        log_file=folder / "build.log",
+    )
+
+
 def run_simulator(
     program: FrameProgram, simulator: str = "verilator", *, stall_every: int = 0
 ) -> tuple[CycleResult, dict]:
@@ -131,14 +154,8 @@ def run_simulator(
     t0 = time.perf_counter()
     source = verilog_of(program)
     runner = get_runner(simulator)
-    runner.build(
-        sources=[source],
-        hdl_toplevel="cube4_top",
-        build_dir=folder,
-        timescale=("1ns", "1ps"),
-        build_args=_VERILATOR_ARGS if simulator == "verilator" else [],
-        log_file=folder / "build.log",
-    )
+    with _locked(folder):  # parallel runs (pytest -n 2) share one build
+        _build(runner, source, folder, simulator)
     t1 = time.perf_counter()
     job = folder / f"job_{os.getpid()}.json"
     out = folder / f"result_{os.getpid()}.json"
@@ -165,7 +182,7 @@ def run_simulator(
         build_dir=folder,
         test_dir=folder,
         extra_env={"HWSIM_RTL_JOB": str(job), "HWSIM_RTL_RESULT": str(out)},
-        results_xml=f"results_{os.getpid()}.xml",
+        results_xml=str(folder / f"results_{os.getpid()}.xml"),
         log_file=folder / f"test_{os.getpid()}.log",
     )
     t2 = time.perf_counter()

@@ -21,7 +21,7 @@ async def frame(dut):
     """Load, start, collect every pixel until ``done``."""
     with open(os.environ["HWSIM_RTL_JOB"]) as f:
         job = json.load(f)
-    Clock(dut.clk, 10, unit="ns").start()
+    Clock(dut.clk, 10, unit="ns", impl="gpi").start()
     dut.rst.value = 1
     dut.start.value = 0
     dut.load__valid.value = 0
