@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.arch import ArchConfig
-from hwsim.errors import InputError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
@@ -91,10 +91,10 @@ def _pack(layout, fields: dict[str, int]) -> int:
 
 def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch: ArchConfig):
     if arch.order != "slice-parallel":
-        raise _refuse(
-            f"the rtl rung builds the Cube-4 top; {arch.name} ({arch.order}) has no RTL",
-            "--arch",
-            "cube4, cube4-teramac or a slice-parallel FILE.toml",
+        raise NotAvailableError(
+            f"the rtl rung builds the Cube-4 top; {arch.name} ({arch.order} order) has no RTL top",
+            key="--arch",
+            allowed="cube4, cube4-teramac or a slice-parallel FILE.toml",
         )
     if scene.view.projection != "parallel":
         raise _refuse(

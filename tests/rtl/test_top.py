@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from top_cases import case, scene_of
 
-from hwsim.errors import InputError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.scene import CropSpec
@@ -79,7 +79,7 @@ def test_top_refuses_what_it_does_not_model_naming_the_key(scene, size, key):
     assert "\n" not in str(info.value)
 
 
-def test_top_refuses_the_rtl_of_other_machines():
-    with pytest.raises(InputError) as info:
+def test_top_is_not_available_for_other_machines():
+    with pytest.raises(NotAvailableError) as info:
         _prepare(scene_of(0, 0, "mip"), 8, arch="volumepro500")
     assert info.value.key == "--arch"
