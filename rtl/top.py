@@ -59,6 +59,7 @@ from rtl.interp import Interp
 
 __all__ = [
     "Cube4Top",
+    "TopConfig",
     "TopGeometry",
     "LOAD_VOLUME",
     "LOAD_LUT",
@@ -81,6 +82,30 @@ ISSUE_TO_WRITEBACK = EVAL_DELAY + 2 + 4 + 2 + 3
 #: Clocks between a ray's compositing-buffer read and its write becoming visible.
 RMW_WINDOW = 5
 WHEEL = 64  # commit delay line: latency - 16 < 64 clocks
+#: A sample slot's issue to its compositor answer (the top's own datapath depth).
+LATENCY = ISSUE_TO_WRITEBACK
+II = 1
+
+
+@dataclass(frozen=True, kw_only=True)
+class TopConfig:
+    """``hwsim rtl build top`` parameters: pipelines, largest volume, voxel width (the
+    unit formats are the defaults; a frame's own datapath comes from its machine)."""
+
+    pipelines: int = 4
+    max_axis: int = 16
+    voxel_bits: int = 12
+
+    def __post_init__(self):
+        for name, lo, hi in (("pipelines", 1, 16), ("max_axis", 4, 64), ("voxel_bits", 1, 16)):
+            value = getattr(self, name)
+            if not lo <= value <= hi:
+                raise ValueError(f"{name} {lo}..{hi}")
+
+    def build(self) -> Cube4Top:
+        return Cube4Top(
+            Datapath(voxel_bits=self.voxel_bits), TopGeometry(self.pipelines, self.max_axis)
+        )
 
 
 @dataclass(frozen=True)

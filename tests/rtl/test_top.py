@@ -83,3 +83,14 @@ def test_top_is_not_available_for_other_machines():
     with pytest.raises(NotAvailableError) as info:
         _prepare(scene_of(0, 0, "mip"), 8, arch="volumepro500")
     assert info.value.key == "--arch"
+
+
+def test_rtl_build_top_writes_the_tops_verilog(tmp_path):
+    from hwsim.cli import main
+
+    argv = ["rtl", "build", "top", "--set", "top.pipelines=2", "--set", "top.max_axis=8"]
+    assert main([*argv, "--out", str(tmp_path), "--no-synth", "--quiet"]) == 0
+    text = (tmp_path / "top.v").read_text()
+    assert "module top(" in text.replace(" (", "(")
+    for port in ("load__payload", "pixel__payload", "pixel__ready", "cycles", "done"):
+        assert port in text
