@@ -225,7 +225,7 @@ def _cmd_archs(args: argparse.Namespace) -> int:
 
     print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
     for name, arch in builtin_archs().items():
-        rungs = "golden functional" + (" cycle" if arch.order in CYCLE_ORDERS else "")
+        rungs = "golden functional" + (" cycle rtl" if arch.order in CYCLE_ORDERS else "")
         print(
             f"{name:<15} {arch.order:<15} {arch.pipelines:>3} {arch.clock_hz / 1e6:>6.2f} MHz "
             f"{arch.peak_samples_per_second / 1e6:>7.0f} MS/s  {rungs}"
