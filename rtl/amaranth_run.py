@@ -8,7 +8,7 @@ from __future__ import annotations
 from amaranth.sim import Simulator
 
 from rtl.frame import FrameProgram, decode
-from rtl.top import Cube4Top, pixel_layout
+from rtl.top import Cube4Top
 
 __all__ = ["run_amaranth"]
 
@@ -23,7 +23,6 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
     sim = Simulator(top)
     sim.add_clock(1e-8)
     out: dict = {"pixels": []}
-    lay = pixel_layout(program.geo, program.dp)
 
     async def bench(ctx):
         for name, value in program.registers.items():
@@ -45,12 +44,11 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
                 top.pixel.valid, top.pixel.payload, top.done
             )
             if valid and ready:
-                raw = ctx.get(top.pixel.payload) if False else payload
                 out["pixels"].append(
                     {
-                        "ray": int(raw.ray),
-                        "acc": [int(raw.acc[k]) for k in range(4)],
-                        "mip": int(raw.mip),
+                        "ray": int(payload.ray),
+                        "acc": [int(payload.acc[k]) for k in range(4)],
+                        "mip": int(payload.mip),
                     }
                 )
             if done:
@@ -67,5 +65,4 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
             sim.run()
     else:
         sim.run()
-    del lay
     return decode(program, out["pixels"], out["cycles"], out["samples"])

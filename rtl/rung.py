@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import hashlib
+import io
 import json
 import os
 import shutil
@@ -157,7 +158,9 @@ def run_simulator(
     t0 = time.perf_counter()
     source = verilog_of(program)
     runner = get_runner(simulator)
-    with _locked(folder):  # parallel runs (pytest -n 2) share one build
+    with _locked(folder), contextlib.redirect_stdout(io.StringIO()):
+        # One build per folder even with parallel runs (pytest -n 2); the runner's
+        # "Skipping compilation" chatter stays off the user's terminal.
         _build(runner, source, folder, simulator)
     t1 = time.perf_counter()
     job = folder / f"job_{os.getpid()}.json"

@@ -317,8 +317,7 @@ class Cube4Top(wiring.Component):
             m.d.sync += [setup.eq(1), s["period"].eq(0)]
         with m.If(setup == 1):
             m.d.sync += setup.eq(2)  # prefetch address 1 settles; entry 0 read below
-        # Entry 0 is read through the prefetch port while period = -1 would be needed; use
-        # a second port for the very first slice instead.
+        # The first slice's entry comes through its own port (the prefetch port reads p + 1).
         first = slices.read_port()
         m.d.comb += [first.addr.eq(0), first.en.eq(1)]
         with m.If(setup == 2):
@@ -457,7 +456,6 @@ class Cube4Top(wiring.Component):
         read_bank = Mux(ev_bank == 0, 2, ev_bank - 1)
         ev_j = period_d - 1
 
-        interps, classifies, composites = [], [], []
         buffer_lay = _buffer_layout(dp)
         m.submodules.ray_buffer = ray_buffer = Memory(shape=buffer_lay, depth=geo.max_rays, init=[])
         clear = ray_buffer.write_port()
@@ -552,9 +550,6 @@ class Cube4Top(wiring.Component):
             m.submodules[f"interp_{k}"] = interp
             m.submodules[f"classify_{k}"] = classify
             m.submodules[f"composite_{k}"] = composite
-            interps.append(interp)
-            classifies.append(classify)
-            composites.append(composite)
             w = dp.interp.weight.width
             ip = interp.i.payload
             m.d.comb += [

@@ -74,3 +74,14 @@ def test_top_image_comes_from_the_loaded_volume():
     result, _ = run_simulator(broken, "verilator")
     assert not np.array_equal(result.image, reference.image)
     assert result.cycles == reference.cycles  # the data changed, not the timing
+
+
+@pytest.mark.parametrize("sim", SIMULATORS)
+def test_top_early_ray_termination_equals_cycle_rung(sim):
+    _require(sim)
+    program, reference = case("cube4", 30, 20, "composite", 12, early_termination=0.5)
+    _, full = case("cube4", 30, 20, "composite", 12)
+    assert reference.samples < full.samples  # rays do terminate in this scene
+    result, _ = run_simulator(program, sim)
+    assert np.array_equal(result.image, reference.image)
+    assert result.samples == reference.samples and result.cycles == reference.cycles

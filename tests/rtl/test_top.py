@@ -94,3 +94,17 @@ def test_rtl_build_top_writes_the_tops_verilog(tmp_path):
     assert "module top(" in text.replace(" (", "(")
     for port in ("load__payload", "pixel__payload", "pixel__ready", "cycles", "done"):
         assert port in text
+
+
+def test_rtl_rung_trace_writes_the_tops_waveform(tmp_path):
+    from hwsim.fidelity import render
+
+    scene = scene_of(30, 20, "mip", image=8)
+    volume = make_phantom("head", size=8)
+    vcd = tmp_path / "top.vcd"
+    run = render(scene, fidelity="rtl", arch="cube4", volume=volume, trace=vcd)
+    ref = render(scene, fidelity="cycle", arch="cube4", volume=volume)
+    assert np.array_equal(run.image, ref.image) and run.cycles == ref.cycles
+    assert run.counters["rtl.simulator"] == "amaranth"
+    text = vcd.read_text()
+    assert "pixel__valid" in text and "$enddefinitions" in text
