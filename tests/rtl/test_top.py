@@ -108,3 +108,22 @@ def test_rtl_rung_trace_writes_the_tops_waveform(tmp_path):
     assert run.counters["rtl.simulator"] == "amaranth"
     text = vcd.read_text()
     assert "pixel__valid" in text and "$enddefinitions" in text
+
+
+@pytest.mark.parametrize(
+    ("pipelines", "size", "az", "el"),
+    [(1, 8, 30, 20), (2, 9, 37, -61), (3, 10, 30, 20), (5, 8, 90, 0)],
+)
+def test_top_with_any_pipeline_count_equals_cycle_rung(pipelines, size, az, el):
+    """P = 1 (no links), 2, and counts that are not powers of two (mod and div by P)."""
+    scene = scene_of(az, el, "mip")
+    volume = make_phantom("head", size=size)
+    arch = dataclasses.replace(resolve_arch("cube4"), pipelines=pipelines)
+    tf = resolve_transfer(scene.transfer, volume)
+    plan = make_plan(scene, volume, arch.order)
+    from models.cycle import render_cycle
+
+    reference = render_cycle(scene, volume, tf, arch, plan)
+    result = run_amaranth(prepare(scene, volume, tf, arch, plan))
+    assert np.array_equal(result.image, reference.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
