@@ -18,6 +18,7 @@ import fcntl
 import hashlib
 import io
 import json
+import logging
 import os
 import shutil
 import time
@@ -91,7 +92,15 @@ def require_simulator(simulator: str) -> None:
 
 
 #: The sources the top's Verilog depends on (the build key).
-_TOP_SOURCES = ("top.py", "interp.py", "classify.py", "composite.py", "common.py", "export.py")
+_TOP_SOURCES = (
+    "top.py",
+    "top_layouts.py",
+    "interp.py",
+    "classify.py",
+    "composite.py",
+    "common.py",
+    "export.py",
+)
 
 
 def _config_key(program: FrameProgram) -> str:
@@ -158,10 +167,14 @@ def run_simulator(
     t0 = time.perf_counter()
     source = verilog_of(program)
     runner = get_runner(simulator)
-    with _locked(folder), contextlib.redirect_stdout(io.StringIO()):
-        # One build per folder even with parallel runs (pytest -n 2); the runner's
-        # "Skipping compilation" chatter stays off the user's terminal.
-        _build(runner, source, folder, simulator)
+    level = runner.log.level
+    runner.log.setLevel(logging.ERROR)  # its "Skipping compilation" warning is not news
+    try:
+        with _locked(folder), contextlib.redirect_stdout(io.StringIO()):
+            # One build per folder even with parallel runs (pytest -n 2).
+            _build(runner, source, folder, simulator)
+    finally:
+        runner.log.setLevel(level)
     t1 = time.perf_counter()
     job = folder / f"job_{os.getpid()}.json"
     out = folder / f"result_{os.getpid()}.json"

@@ -52,10 +52,22 @@ from amaranth.lib.wiring import In, Out
 
 from models.datapath import Datapath
 from rtl.classify import Classify
-from rtl.classify import entry_bits as classify_entry_bits
 from rtl.common import bit_length, divide_by_constant
-from rtl.composite import TABLE_ENTRIES, Composite
+from rtl.composite import Composite
 from rtl.interp import Interp
+from rtl.top_layouts import (
+    LOAD_CORRECTION,
+    LOAD_LUT,
+    LOAD_RAYS,
+    LOAD_SLICES,
+    LOAD_VOLUME,
+    TopGeometry,
+    buffer_layout,
+    load_layout,
+    pixel_layout,
+    ray_layout,
+    slice_layout,
+)
 
 __all__ = [
     "Cube4Top",
@@ -74,7 +86,6 @@ __all__ = [
     "RMW_WINDOW",
 ]
 
-LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES = range(5)
 EVAL_DELAY = 3  # clocks between a slot's memory read and its sample's address stage
 # Slot issue -> compositor answer: eval delay 3, address 1, buffer read 1, interp 4,
 # classify 2, composite 3.
@@ -106,113 +117,6 @@ class TopConfig:
         return Cube4Top(
             Datapath(voxel_bits=self.voxel_bits), TopGeometry(self.pipelines, self.max_axis)
         )
-
-
-@dataclass(frozen=True)
-class TopGeometry:
-    """Elaboration sizes: pipelines ``P``, voxels per axis at most ``N``."""
-
-    pipelines: int
-    max_axis: int = 16
-
-    @property
-    def c_max(self) -> int:
-        return -(-self.max_axis // self.pipelines)
-
-    @property
-    def t_max(self) -> int:
-        """Slots of the largest slice per pipeline."""
-        return self.max_axis * self.c_max
-
-    @property
-    def module_words(self) -> int:
-        return self.max_axis * self.max_axis * self.c_max
-
-    @property
-    def max_rays(self) -> int:
-        """Base-plane rays: shear <= 1 per slice, so at most ``2N`` per axis."""
-        return 4 * self.max_axis * self.max_axis
-
-    @property
-    def axis_bits(self) -> int:
-        return bit_length(self.max_axis)
-
-    @property
-    def ray_bits(self) -> int:
-        return bit_length(self.max_rays - 1)
-
-    @property
-    def offset_bits(self) -> int:
-        """Signed base-plane offsets ``ia``, ``ib`` in ``[-2N, 2N]``."""
-        return bit_length(2 * self.max_axis) + 1
-
-
-def slice_layout(geo: TopGeometry, dp: Datapath):
-    """One step's constants: slice ``q`` (and ``q mod P``), cell shift ``da``/``db``,
-    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``."""
-    ab = geo.axis_bits
-    w = dp.interp.weight.width
-    return data.StructLayout(
-        {
-            "q": unsigned(ab),
-            "qm": unsigned(bit_length(geo.pipelines)),
-            "da": unsigned(1),
-            "db": unsigned(1),
-            "ia": signed(geo.offset_bits),
-            "ib": signed(geo.offset_bits),
-            "wa": unsigned(w),
-            "wb": unsigned(w),
-        }
-    )
-
-
-def ray_layout(geo: TopGeometry):
-    """A base-plane ray's first and last step (``j_lo <= j <= j_hi``)."""
-    return data.StructLayout({"j_lo": unsigned(geo.axis_bits), "j_hi": unsigned(geo.axis_bits)})
-
-
-def pixel_layout(geo: TopGeometry, dp: Datapath):
-    """What the pixel bus delivers: the ray and its accumulators (UQ1.F RGBA, raw MIP)."""
-    sample_bits = dp.voxel_bits + dp.interp.sample_frac_bits
-    return data.StructLayout(
-        {
-            "ray": unsigned(geo.ray_bits),
-            "acc": data.ArrayLayout(unsigned(dp.composite.acc_frac_bits + 1), 4),
-            "mip": unsigned(sample_bits),
-        }
-    )
-
-
-def _buffer_layout(dp: Datapath):
-    sample_bits = dp.voxel_bits + dp.interp.sample_frac_bits
-    return data.StructLayout(
-        {
-            "acc": data.ArrayLayout(unsigned(dp.composite.acc_frac_bits + 1), 4),
-            "mip": unsigned(sample_bits),
-            "alive": unsigned(1),
-        }
-    )
-
-
-def load_layout(geo: TopGeometry, dp: Datapath):
-    """``target`` (LOAD_*), ``addr`` and ``data``: a volume word is P voxels (module 0 at
-    bit 0); LUT entries, correction-table entries, ray and slice records as their
-    layouts pack them."""
-    widths = [
-        geo.pipelines * dp.voxel_bits,
-        classify_entry_bits(dp.classify),
-        13,
-        ray_layout(geo).size,
-        slice_layout(geo, dp).size,
-    ]
-    depth = max(geo.module_words, dp.classify.entries, TABLE_ENTRIES, geo.max_rays, geo.max_axis)
-    return data.StructLayout(
-        {
-            "target": unsigned(3),
-            "addr": unsigned(bit_length(depth - 1)),
-            "data": unsigned(max(widths)),
-        }
-    )
 
 
 def _mod(value, modulus: int, bound: int):
@@ -456,7 +360,7 @@ class Cube4Top(wiring.Component):
         read_bank = Mux(ev_bank == 0, 2, ev_bank - 1)
         ev_j = period_d - 1
 
-        buffer_lay = _buffer_layout(dp)
+        buffer_lay = buffer_layout(dp)
         m.submodules.ray_buffer = ray_buffer = Memory(shape=buffer_lay, depth=geo.max_rays, init=[])
         clear = ray_buffer.write_port()
         m.d.comb += [
