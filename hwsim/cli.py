@@ -62,7 +62,6 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument(
         "--simulator",
         choices=("verilator", "icarus"),
-        default="verilator",
         help="rtl rung: HDL simulator (default verilator)",
     )
     r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")

@@ -145,7 +145,7 @@ def render(
     progress: Progress | None = None,
     trace: str | Path | None = None,
     elaborate_all: bool = False,
-    simulator: str = "verilator",
+    simulator: str | None = None,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -171,8 +171,8 @@ def render(
     elaborate_all : bool
         ``cycle`` rung only: simulate every unit, even those the scene does not use (the
         reference that elision is measured against; same image and cycles).
-    simulator : str
-        ``rtl`` rung only: ``verilator`` (default) or ``icarus``.
+    simulator : str, optional
+        ``rtl`` rung only: ``verilator`` (the default) or ``icarus``.
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -189,6 +189,10 @@ def render(
     if trace is not None and fidelity not in ("cycle", "rtl"):
         raise InputError(
             "a waveform needs --fidelity cycle or rtl", key="--trace", allowed="cycle, rtl"
+        )
+    if simulator is not None and fidelity != "rtl":
+        raise InputError(
+            "an HDL simulator runs the rtl rung only", key="--simulator", allowed="rtl"
         )
     if arch is None and fidelity != "golden":
         arch = DEFAULT_ARCH
@@ -242,7 +246,7 @@ def render(
 
         plan = make_plan(scene, volume, sampling)
         result = render_rtl(
-            scene, volume, transfer, machine, plan, simulator=simulator, trace=trace
+            scene, volume, transfer, machine, plan, simulator=simulator or "verilator", trace=trace
         )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         used, elided = result.elaborated_units, result.elided_units

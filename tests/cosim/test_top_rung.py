@@ -64,6 +64,7 @@ def test_a_missing_simulator_is_one_line_and_exit_2(tmp_path, monkeypatch, capsy
         (["--phantom", "head:size=20"], "at most 16 voxels per axis"),
         (["--arch", "volumepro500"], "has no RTL top"),
         (["--projection", "perspective"], "view.projection"),
+        (["--fidelity", "cycle", "--simulator", "icarus"], "--simulator: an HDL simulator"),
     ],
 )
 def test_what_the_rtl_rung_refuses_is_one_line_and_exit_2(tmp_path, capsys, extra, message):
