@@ -34,6 +34,7 @@ from models.arch.cube4 import CycleResult
 from models.datapath import Datapath
 from rtl.frame import FrameProgram, decode, prepare
 from rtl.top import pixel_layout
+from rtl.top_bench import ROM_WORDS
 
 __all__ = [
     "SIMULATORS",
@@ -95,6 +96,7 @@ def require_simulator(simulator: str) -> None:
 _TOP_SOURCES = (
     "top.py",
     "top_layouts.py",
+    "top_bench.py",
     "interp.py",
     "classify.py",
     "composite.py",
@@ -122,15 +124,20 @@ def verilog_of(program: FrameProgram) -> Path:
     """The top's Verilog for ``program``'s configuration, exported once (cached)."""
     from rtl.export import to_verilog
     from rtl.top import Cube4Top
+    from rtl.top_bench import bench_verilog
 
     folder = build_dir(program, "verilog")
     source = folder / "cube4_top.v"
     if not source.is_file():
         folder.mkdir(parents=True, exist_ok=True)
-        text = to_verilog(Cube4Top(program.dp, program.geo), "cube4_top")
-        tmp = folder / f"cube4_top.{os.getpid()}.tmp"
-        tmp.write_text(text)
-        tmp.replace(source)  # atomic: parallel runs never see half a file
+        top = Cube4Top(program.dp, program.geo)
+        for path, text in (
+            (folder / "cube4_bench.v", bench_verilog(top)),
+            (source, to_verilog(top, "cube4_top")),  # last: its presence means both exist
+        ):
+            tmp = folder / f"{path.name}.{os.getpid()}.tmp"
+            tmp.write_text(text)
+            tmp.replace(path)  # atomic: parallel runs never see half a file
     return source
 
 
@@ -146,8 +153,8 @@ def _locked(folder: Path):
 
 def _build(runner, source: Path, folder: Path, simulator: str) -> None:
     runner.build(
-        sources=[source],
-        hdl_toplevel="cube4_top",
+        sources=[source, source.with_name("cube4_bench.v")],
+        hdl_toplevel="cube4_bench",
         build_dir=folder,
         timescale=("1ns", "1ps"),
         build_args=_VERILATOR_ARGS if simulator == "verilator" else [],
@@ -178,6 +185,11 @@ def run_simulator(
     t1 = time.perf_counter()
     job = folder / f"job_{os.getpid()}.json"
     out = folder / f"result_{os.getpid()}.json"
+    hexfile = folder / f"loads_{os.getpid()}.hex"
+    words = program.load_words()
+    if len(words) > ROM_WORDS:
+        raise RuntimeError(f"{len(words)} load words exceed the bench ROM ({ROM_WORDS})")
+    hexfile.write_text("".join(f"{w:x}\n" for w in words))
     frame_bound = (
         4
         * (program.registers["t"] + program.registers["overhead"] + 64)
@@ -188,7 +200,7 @@ def run_simulator(
         json.dumps(
             {
                 "registers": program.registers,
-                "loads": [format(w, "x") for w in program.load_words()],
+                "load_count": len(words),
                 "stall_every": stall_every,
                 "limit": frame_bound * (2 if stall_every else 1) + 1000,
             }
@@ -196,7 +208,8 @@ def run_simulator(
     )
     out.unlink(missing_ok=True)
     results = runner.test(
-        hdl_toplevel="cube4_top",
+        hdl_toplevel="cube4_bench",
+        plusargs=[f"+loads={hexfile}", f"+nloads={len(words)}"],
         test_module="rtl.top_cocotb",
         build_dir=folder,
         test_dir=folder,
@@ -206,6 +219,7 @@ def run_simulator(
     )
     t2 = time.perf_counter()
     job.unlink(missing_ok=True)
+    hexfile.unlink(missing_ok=True)
     if not out.is_file():
         raise RuntimeError(f"{simulator} run of the RTL top failed; see {results} and the log")
     raw = json.loads(out.read_text())

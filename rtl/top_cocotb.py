@@ -1,9 +1,11 @@
 """cocotb test module: one frame of the RTL top on Icarus or Verilator (run by
 :func:`rtl.rung.run_simulator` through cocotb's Python runner, not collected by pytest).
 
-The job file (``HWSIM_RTL_JOB``) holds the frame registers, the load words and the pixel
-back-pressure pattern; the result file (``HWSIM_RTL_RESULT``) gets the raw pixel words,
-the frame's cycles and samples, and the simulated clocks.
+The toplevel is :mod:`rtl.top_bench`'s wrapper: its ROM (the ``+loads`` hex file) feeds
+the host's load words at simulator speed.  The job file (``HWSIM_RTL_JOB``) holds the
+frame registers, the load count and the pixel back-pressure pattern; the result file
+(``HWSIM_RTL_RESULT``) gets the raw pixel words, the frame's cycles and samples, and the
+simulated clocks.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ async def frame(dut):
     Clock(dut.clk, 10, unit="ns", impl="gpi").start()
     dut.rst.value = 1
     dut.start.value = 0
-    dut.load__valid.value = 0
+    dut.preload.value = 0
     dut.pixel__ready.value = 1
     for name, value in job["registers"].items():
         getattr(dut, name).value = value
@@ -32,12 +34,13 @@ async def frame(dut):
         await RisingEdge(dut.clk)
     dut.rst.value = 0
     clk = dut.clk
-    load_valid, load_payload = dut.load__valid, dut.load__payload
-    load_valid.value = 1
-    for word in job["loads"]:  # one host write per clock
-        load_payload.value = int(word, 16)
-        await RisingEdge(clk)
-    load_valid.value = 0
+    # The bench's ROM writes the host's words into the load port, one per clock.
+    dut.preload.value = 1
+    await RisingEdge(clk)
+    dut.preload.value = 0
+    while not int(dut.preloaded.value):
+        await RisingEdge(dut.preloaded)
+    await RisingEdge(clk)
     dut.start.value = 1
     await RisingEdge(clk)
     dut.start.value = 0
@@ -66,7 +69,7 @@ async def frame(dut):
         "pixels": pixels,
         "cycles": int(dut.cycles.value),
         "samples": int(dut.samples.value),
-        "clocks": clock + len(job["loads"]) + 3,
+        "clocks": clock + int(job["load_count"]) + 4,
     }
     with open(os.environ["HWSIM_RTL_RESULT"], "w") as f:
         json.dump(result, f)
