@@ -57,7 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="golden sample positions: ideal rays or an architecture's order",
     )
     r.add_argument(
-        "--trace", metavar="FILE.vcd", help="cycle rung: VCD waveform of the modelled hardware"
+        "--trace", metavar="FILE.vcd", help="cycle/rtl rung: VCD waveform of the hardware"
+    )
+    r.add_argument(
+        "--simulator",
+        choices=("verilator", "icarus"),
+        help="rtl rung: HDL simulator (default verilator)",
     )
     r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -185,6 +190,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
             sampling=args.sampling,
             progress=progress,
             trace=args.trace,
+            simulator=args.simulator,
         )
     paths = write_render(run, args.out)
     if not args.quiet:
@@ -230,12 +236,14 @@ def _cmd_archs(args: argparse.Namespace) -> int:
     from hwsim.fidelity import builtin_archs
     from models.cycle import CYCLE_ORDERS
     from models.transaction import has_transaction_model
+    from rtl.frame import RTL_ORDERS
 
     print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
     for name, arch in builtin_archs().items():
         rungs = "golden functional"
         rungs += " transaction" if has_transaction_model(arch) else ""
         rungs += " cycle" if arch.order in CYCLE_ORDERS else ""
+        rungs += " rtl" if arch.order in RTL_ORDERS else ""
         print(
             f"{name:<15} {arch.order:<15} {arch.pipelines:>3} {arch.clock_hz / 1e6:>6.2f} MHz "
             f"{arch.peak_samples_per_second / 1e6:>7.0f} MS/s  {rungs}"

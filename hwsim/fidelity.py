@@ -36,7 +36,7 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-AVAILABLE_FIDELITIES = ("golden", "functional", "transaction", "cycle")
+AVAILABLE_FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
 #: The machine a timed rung models when no --arch is given.
 DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
@@ -154,6 +154,7 @@ def render(
     trace: str | Path | None = None,
     elaborate_all: bool = False,
     steady_state: bool = False,
+    simulator: str | None = None,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -175,13 +176,15 @@ def render(
     progress : callable, optional
         ``progress(done, total)`` called as the render advances.
     trace : path, optional
-        ``cycle`` rung only: write a VCD waveform of the modelled hardware there.
+        ``cycle`` and ``rtl`` rungs: write a VCD waveform of the modelled hardware there.
     elaborate_all : bool
         ``cycle`` rung only: simulate every unit, even those the scene does not use (the
         reference that elision is measured against; same image and cycles).
     steady_state : bool
         ``cycle`` rung, VolumePro family: also time the next frame back to back
         (``frame.period_cycles`` in the counters: the continuous frame rate).
+    simulator : str, optional
+        ``rtl`` rung only: ``verilator`` (the default) or ``icarus``.
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -197,8 +200,14 @@ def render(
         raise InputError("only the cycle rung times back-to-back frames", key="steady_state")
     if elaborate_all and fidelity != "cycle":
         raise InputError("only the cycle rung elaborates units", key="elaborate_all")
-    if trace is not None and fidelity != "cycle":
-        raise InputError("a waveform needs --fidelity cycle", key="--trace", allowed="cycle")
+    if trace is not None and fidelity not in ("cycle", "rtl"):
+        raise InputError(
+            "a waveform needs --fidelity cycle or rtl", key="--trace", allowed="cycle, rtl"
+        )
+    if simulator is not None and fidelity != "rtl":
+        raise InputError(
+            "an HDL simulator runs the rtl rung only", key="--simulator", allowed="rtl"
+        )
     if arch is None and fidelity != "golden":
         arch = DEFAULT_ARCH
     if isinstance(arch, ArchConfig):
@@ -254,6 +263,15 @@ def render(
         result = render_transaction(scene, volume, transfer, machine, plan, progress=progress)
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         derived = result.derived
+    elif fidelity == "rtl":
+        from rtl.rung import render_rtl
+
+        plan = make_plan(scene, volume, sampling)
+        result = render_rtl(
+            scene, volume, transfer, machine, plan, simulator=simulator or "verilator", trace=trace
+        )
+        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
+        used, elided = result.elaborated_units, result.elided_units
     else:
         from models.functional import render_functional
 

@@ -26,9 +26,11 @@ from pathlib import Path
 
 from hwsim.errors import HwsimError, InputError
 
-__all__ = ["UNITS", "parse_settings", "build_unit", "synthesize", "build"]
+__all__ = ["UNITS", "TARGETS", "parse_settings", "build_unit", "synthesize", "build"]
 
 UNITS = ("skew", "interp", "gradient", "classify", "shade", "composite")
+#: What ``hwsim rtl build`` accepts: the units (``all``) and the Cube-4 pipeline top.
+TARGETS = (*UNITS, "top")
 
 
 def _registry() -> dict[str, tuple[type, dict, Callable]]:
@@ -39,9 +41,10 @@ def _registry() -> dict[str, tuple[type, dict, Callable]]:
     from models.units.interp import InterpConfig
     from models.units.shade import ShadeConfig
     from models.units.skew import SkewConfig
-    from rtl import classify, composite, gradient, interp, shade, skew
+    from rtl import classify, composite, gradient, interp, shade, skew, top
 
     return {
+        "top": (top.TopConfig, {}, lambda cfg: cfg.build()),
         "skew": (SkewConfig, {}, lambda cfg: skew.Skew(cfg)),
         "interp": (
             InterpConfig,
@@ -88,7 +91,7 @@ def parse_settings(items: list[str]) -> dict[str, dict[str, int | str]]:
         if not sep or not dot:
             raise InputError(f"expected UNIT.KEY=VALUE, got {item!r}", source="--set")
         if unit not in registry:
-            raise InputError("unknown unit", source="--set", key=key, allowed=", ".join(UNITS))
+            raise InputError("unknown unit", source="--set", key=key, allowed=", ".join(TARGETS))
         cls, extra, _ = registry[unit]
         fields = {f.name: f for f in dataclasses.fields(cls)}
         allowed = sorted([*fields, *extra])
@@ -191,10 +194,11 @@ def build(
     """Write ``out/<unit>.v`` for each unit and, with ``synth``, ``out/synth.json``
     (schema 1: per unit its resolved parameters, LATENCY, II, ``cells``,
     ``flip_flops``, ``cells_by_type``, ``memories``, ``memory_bits``)."""
-    from rtl import classify, composite, gradient, interp, shade, skew
+    from rtl import classify, composite, gradient, interp, shade, skew, top
     from rtl.export import to_verilog
 
     modules = {
+        "top": top,
         "skew": skew,
         "interp": interp,
         "gradient": gradient,

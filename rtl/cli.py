@@ -11,7 +11,7 @@ __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub) -> None:
-    """Add ``rtl build [UNIT|all] --out DIR [--set UNIT.KEY=VALUE ...]``."""
+    """Add ``rtl build [UNIT|all|top] --out DIR [--set UNIT.KEY=VALUE ...]``."""
     from rtl.build import UNITS
 
     r = sub.add_parser("rtl", help="Verilog and synthesis statistics of the RTL units")
@@ -22,7 +22,8 @@ def add_parser(sub) -> None:
         nargs="?",
         default="all",
         metavar="UNIT|all",
-        help=f"one of {', '.join(UNITS)}, or all (default)",
+        help=f"one of {', '.join(UNITS)}, all (default: every unit), or top (the Cube-4 "
+        "pipeline top: --set top.pipelines=4 top.max_axis=16 top.voxel_bits=12)",
     )
     b.add_argument("--out", metavar="DIR", required=True)
     b.add_argument(
@@ -41,11 +42,11 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace, progress=None) -> int:
     """Build the requested units; print one line per unit."""
-    from rtl.build import UNITS, build, parse_settings
+    from rtl.build import TARGETS, UNITS, build, parse_settings
 
-    if args.unit != "all" and args.unit not in UNITS:
+    if args.unit != "all" and args.unit not in TARGETS:
         raise InputError(
-            f"unknown unit {args.unit!r}", key="UNIT", allowed="all, " + ", ".join(UNITS)
+            f"unknown unit {args.unit!r}", key="UNIT", allowed="all, " + ", ".join(TARGETS)
         )
     units = list(UNITS) if args.unit == "all" else [args.unit]
     settings = parse_settings(args.set)

@@ -139,7 +139,7 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--image", "axb"], "not an integer"),
         (["render", "--phantom", "teapot"], "teapot"),
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
-        (["render", "--fidelity", "rtl"], "not yet available"),
+        (["render", "--fidelity", "rtl"], "volumepro500 (shear-warp order) has no RTL top"),
         (
             ["render", "--fidelity", "transaction", "--arch", "volumepro1000"],
             "volumepro1000 skips beams (early ray termination, space leaping)",

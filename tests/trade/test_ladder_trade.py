@@ -27,10 +27,17 @@ def runs_on(rung: str, arch: str) -> bool:
 
     if rung not in fidelity.AVAILABLE_FIDELITIES:
         return False
+    if rung == "rtl":  # the RTL top renders unlit Cube-4 scenes of <= 16^3: not these
+        return False
     machine = fidelity.resolve_arch(arch)
     if rung == "cycle":
         return machine.order in CYCLE_ORDERS
     return rung != "transaction" or has_transaction_model(machine)
+
+
+def refused(rung: str, arch: str) -> bool:
+    """The rtl rung on a Cube-4 machine: built, but these scenes are beyond the RTL top."""
+    return rung == "rtl" and fidelity.resolve_arch(arch).order == "slice-parallel"
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +65,9 @@ def test_every_rung_of_every_machine_has_a_row_and_missing_rungs_say_so(rows):
                     assert row["status"] == "ok" and row["wall_seconds"] > 0
                     assert row["samples"] > 0
                 else:
-                    assert row["status"] == "not available"
+                    assert row["status"] == (
+                        "unsupported" if refused(rung, arch) else "not available"
+                    )
                     assert row["wall_seconds"] is None and row["numerical_rmse"] is None
 
 

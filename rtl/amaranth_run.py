@@ -1,0 +1,68 @@
+"""Run one frame of the RTL top in Amaranth's own simulator (tests; slow but no toolchain).
+
+# Ref: rtl/top.py (ports), rtl/frame.py (what the host writes).
+"""
+
+from __future__ import annotations
+
+from amaranth.sim import Simulator
+
+from rtl.frame import FrameProgram, decode
+from rtl.top import Cube4Top
+
+__all__ = ["run_amaranth"]
+
+
+def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None = None):
+    """Render ``program`` on :class:`~rtl.top.Cube4Top` in the Amaranth simulator.
+
+    ``stall_every``: refuse the pixel bus every that many clocks (0: never).
+    Returns the frame's :class:`~models.arch.cube4.CycleResult`.
+    """
+    top = Cube4Top(program.dp, program.geo)
+    sim = Simulator(top)
+    sim.add_clock(1e-8)
+    out: dict = {"pixels": []}
+
+    async def bench(ctx):
+        for name, value in program.registers.items():
+            ctx.set(getattr(top, name), value)
+        ctx.set(top.pixel.ready, 1)
+        for word in program.load_words():
+            ctx.set(top.load.valid, 1)
+            ctx.set(top.load.payload.as_value(), word)
+            await ctx.tick()
+        ctx.set(top.load.valid, 0)
+        ctx.set(top.start, 1)
+        await ctx.tick()
+        ctx.set(top.start, 0)
+        clock = 0
+        while True:
+            ready = 0 if stall_every and clock % stall_every == 0 else 1
+            ctx.set(top.pixel.ready, ready)
+            _, _, valid, payload, done = await ctx.tick().sample(
+                top.pixel.valid, top.pixel.payload, top.done
+            )
+            if valid and ready:
+                out["pixels"].append(
+                    {
+                        "ray": int(payload.ray),
+                        "acc": [int(payload.acc[k]) for k in range(4)],
+                        "mip": int(payload.mip),
+                    }
+                )
+            if done:
+                break
+            clock += 1
+            if clock > 10_000_000:
+                raise RuntimeError("the RTL top did not finish")
+        out["cycles"] = ctx.get(top.cycles)
+        out["samples"] = ctx.get(top.samples)
+
+    sim.add_testbench(bench)
+    if vcd is not None:
+        with sim.write_vcd(vcd):
+            sim.run()
+    else:
+        sim.run()
+    return decode(program, out["pixels"], out["cycles"], out["samples"])

@@ -1,0 +1,367 @@
+"""Host side of the RTL top: what the host writes before a frame and how it reads the
+image back.
+
+# Ref: architectures.md section 1 (Cube-4: the host loads the volume and the per-slice
+#      constants of a parallel projection); docs/cycle.md (the machine reproduced).
+
+:func:`prepare` turns a scene, its sample plan and an architecture into a
+:class:`FrameProgram`: load words (volume in the skewed layout, classification LUT,
+opacity-correction table, ray table, per-slice constants) and frame registers.  It
+refuses, naming the key, what the top does not model.  :func:`decode` assembles the
+image from the pixels the bus delivered, exactly as the cycle rung's host does.
+
+The per-slice constants are found by reading the plan (the geometry unit's output) and
+are then *checked* against it: every sample the hardware will take (one per slot, the
+sample whose nearest voxel is the slot's voxel) must be exactly the plan's samples of
+that step, with the same cells and quantised weights.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.golden.positions import SamplePlan
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction
+from hwsim.volumes.volume import Volume
+from models.arch.cube4 import UNITS, Cube4Machine, CycleResult
+from models.backend import Backend
+from models.datapath import Datapath
+from models.units import composite as composite_unit
+from models.units import skew as skew_unit
+from rtl.top import (
+    LOAD_CORRECTION,
+    LOAD_LUT,
+    LOAD_RAYS,
+    LOAD_SLICES,
+    LOAD_VOLUME,
+    RMW_WINDOW,
+    TopGeometry,
+    load_layout,
+    ray_layout,
+    slice_layout,
+)
+
+#: Processing orders the RTL top implements (the Cube-4 family).
+RTL_ORDERS = ("slice-parallel",)
+
+__all__ = ["FrameProgram", "prepare", "decode", "MAX_AXIS", "RTL_ORDERS"]
+
+#: Largest volume (voxels per axis) the RTL top's memories hold.
+MAX_AXIS = 16
+
+
+@dataclass
+class FrameProgram:
+    """Everything the host writes for one frame, and what it needs to read it back."""
+
+    geo: TopGeometry
+    dp: Datapath
+    backend: Backend
+    plan: SamplePlan
+    loads: list[tuple[int, int, int]]
+    registers: dict[str, int]
+    n_rays: int
+    elaborated: list[str] = field(default_factory=list)
+    elided: list[str] = field(default_factory=list)
+
+    def load_words(self) -> np.ndarray:
+        """The loads packed as :func:`rtl.top.load_layout` words (Python ints)."""
+        lay = load_layout(self.geo, self.dp)
+        t_off = lay["target"].offset
+        a_off = lay["addr"].offset
+        d_off = lay["data"].offset
+        return [(t << t_off) | (a << a_off) | (d << d_off) for t, a, d in self.loads]
+
+
+def _refuse(message: str, key: str, allowed: str, source=None) -> InputError:
+    return InputError(message, source=source, key=key, allowed=allowed)
+
+
+def _pack(layout, fields: dict[str, int]) -> int:
+    word = 0
+    for name, value in fields.items():
+        f = layout[name]
+        width = f.shape.width
+        word |= (int(value) & ((1 << width) - 1)) << f.offset
+    return word
+
+
+def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch: ArchConfig):
+    if arch.order not in RTL_ORDERS:
+        raise NotAvailableError(
+            f"the rtl rung builds the Cube-4 top; {arch.name} ({arch.order} order) has no RTL top",
+            key="--arch",
+            allowed="cube4, cube4-teramac or a slice-parallel FILE.toml",
+        )
+    if scene.view.projection != "parallel":
+        raise _refuse(
+            "the RTL top renders parallel views (per-slice constants); perspective is "
+            "modelled at the cycle rung only",
+            "view.projection",
+            "parallel",
+            scene.source if hasattr(scene, "source") else None,
+        )
+    if max(volume.shape) > MAX_AXIS:
+        raise _refuse(
+            f"volume {volume.shape[::-1]} is too big for the RTL top (simulation of small "
+            "scenes only)",
+            "volume",
+            f"at most {MAX_AXIS} voxels per axis",
+        )
+    if min(volume.shape) < 4:
+        raise _refuse(
+            f"volume {volume.shape[::-1]} is too small for the RTL top", "volume", ">= 4 per axis"
+        )
+    mode = scene.render.mode
+    if mode not in ("composite", "mip"):
+        raise _refuse(f"mode {mode!r} is not in the RTL top", "render.mode", "composite, mip")
+    if scene.lit:
+        raise _refuse(
+            "the RTL top has no gradient or shader path (unlit scenes only)",
+            "lights",
+            "an unlit scene (lighting off)",
+        )
+    if mode == "composite" and transfer.modulates:
+        raise _refuse(
+            "gradient-opacity modulation needs the gradient path, not in the RTL top",
+            "transfer.gradient_opacity",
+            "none",
+        )
+    if mode == "composite" and transfer.order == "pre":
+        raise _refuse("the RTL top post-classifies", "transfer.order", "post")
+    if scene.crop is not None or scene.cut_planes:
+        raise _refuse("the RTL top has no crop unit", "crop", "no crop box or cut planes")
+
+
+def prepare(
+    scene: Scene,
+    volume: Volume,
+    transfer: TransferFunction,
+    arch: ArchConfig,
+    plan: SamplePlan,
+    *,
+    datapath: Datapath | None = None,
+    max_axis: int = MAX_AXIS,
+) -> FrameProgram:
+    """The loads and registers of one frame of ``scene`` on the RTL top of ``arch``.
+
+    Raises
+    ------
+    InputError
+        What the top does not model (key named): non-Cube-4 machines, perspective,
+        volumes above ``max_axis`` voxels per axis, lit or gradient-modulated scenes, modes
+        other than composite and MIP, crop, per-ray weights within a slice.
+    """
+    _check_scene(scene, volume, transfer, arch)
+    dp = datapath if datapath is not None else Datapath.for_volume(arch, volume)
+    backend = Backend(scene, volume, transfer, arch, plan, dp)
+    machine = Cube4Machine(backend, plan)  # the cycle rung's refusals and geometry
+    P = machine.P
+    geo = TopGeometry(P, max_axis)
+    n_rays = plan.shape[0] * plan.shape[1]
+    if n_rays > geo.max_rays:
+        raise _refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
+    fifo = machine.capacity["pixel_fifo_entries"]
+    if fifo < plan.ray_ids.size:
+        raise _refuse(
+            f"the RTL top does not model pixel-FIFO stalls; {plan.ray_ids.size} rays need "
+            f"{plan.ray_ids.size} entries",
+            "buffers.pixel_fifo_entries",
+            f">= {plan.ray_ids.size}",
+            arch.source,
+        )
+    nz, ny, nx = volume.shape
+    cx = -(-nx // P)
+    loads: list[tuple[int, int, int]] = []
+
+    # Volume, skewed: module (x + y + z) mod P, word (z ny + y) cx + x div P.
+    raw = np.asarray(backend.raw, dtype=np.int64)
+    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    module = (x + y + z) % P
+    word = (z * ny + y) * cx + x // P
+    words = np.zeros(nz * ny * cx, dtype=object)
+    B = dp.voxel_bits
+    for k in range(P):
+        sel = module == k
+        np.add.at(words, word[sel], [int(v) << (k * B) for v in raw[sel]])
+    loads += [(LOAD_VOLUME, i, int(w)) for i, w in enumerate(words)]
+
+    mode = scene.render.mode
+    if mode == "composite":
+        lut, c = backend.lut, dp.classify.color_bits
+        entry = lut.rgb[:, 0] | lut.rgb[:, 1] << c | lut.rgb[:, 2] << 2 * c | lut.alpha << 3 * c
+        loads += [(LOAD_LUT, i, int(e)) for i, e in enumerate(entry)]
+        k = float(plan._dt) / backend.ref
+        table = composite_unit.correction_table(int(dp.composite.ratio.quantize(k)), dp.composite)
+        loads += [(LOAD_CORRECTION, i, int(e)) for i, e in enumerate(table)]
+
+    # Ray table: first and last step of every base-plane ray (never for unused ones).
+    rlay = ray_layout(geo)
+    never = (1 << geo.axis_bits) - 1
+    j_lo = np.full(n_rays, never, dtype=np.int64)
+    j_hi = np.zeros(n_rays, dtype=np.int64)
+    j_lo[plan.ray_ids], j_hi[plan.ray_ids] = plan.j_lo, plan.j_hi
+    loads += [
+        (LOAD_RAYS, r, _pack(rlay, {"j_lo": j_lo[r], "j_hi": j_hi[r]})) for r in range(n_rays)
+    ]
+
+    slices = _slice_constants(machine, plan, j_lo, j_hi)
+    slay = slice_layout(geo, dp)
+    loads += [(LOAD_SLICES, j, _pack(slay, rec)) for j, rec in enumerate(slices)]
+
+    latency = skew_unit.LATENCY + machine.C + 1 + sum(u.LATENCY for u in UNITS.values())
+    ert = backend.ert
+    registers = {
+        "n_kp": machine.n_kp,
+        "n_a": machine.n_a,
+        "n_b": machine.n_b,
+        "nx": nx,
+        "ny": ny,
+        "cx": cx,
+        "kp": machine.kp,
+        "c": machine.C,
+        "t": machine.T,
+        "overhead": arch.slice_overhead_cycles,
+        "latency": latency,
+        "width": plan.shape[1],
+        "height": plan.shape[0],
+        "mip": int(mode == "mip"),
+        "ert_enable": int(mode == "composite" and ert < 1.0),
+        "ert_threshold": int(dp.composite.acc.quantize(min(max(ert, 0.0), 1.0))),
+    }
+    units = ["memory", "ring", "interp"] + (["classify"] if mode == "composite" else [])
+    units += ["composite", "pixel_bus"]
+    return FrameProgram(
+        geo=geo,
+        dp=dp,
+        backend=backend,
+        plan=plan,
+        loads=loads,
+        registers=registers,
+        n_rays=n_rays,
+        elaborated=units,
+        elided=[u for u in UNITS if u not in units],
+    )
+
+
+def _canonical(cell, weight, frac, full: int):
+    """A weight that quantised to exactly 1.0 in cell ``c`` is weight 0 in cell ``c + 1``:
+    ``lerp(a, b, 2**W) = b = lerp(b, c, 0)`` exactly, in every rounding mode (no
+    remainder).  Float positions a hair below an integer (``frac`` ~ 1.0) thus get the
+    same constants as their neighbours on the integer."""
+    up = weight == full
+    if not up.any():
+        return cell, weight, frac
+    return cell + up, np.where(up, 0, weight), np.where(up, 0.0, frac)
+
+
+def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> list[dict[str, int]]:
+    """Per step: slice, cell shift, base-plane offset and weights, checked sample by
+    sample against the plan (the hardware's slot rule must give exactly its samples)."""
+    P, C, T = machine.P, machine.C, machine.T
+    n_a, n_b = machine.n_a, machine.n_b
+    W = plan.shape[1]
+    a = np.repeat(np.arange(n_a), n_b)
+    b = np.tile(np.arange(n_b), n_a)
+    period = T + machine.arch.slice_overhead_cycles
+    last_issue = np.full(plan.shape[0] * W, -(10**9), dtype=np.int64)
+    out = []
+    for j, step in enumerate(plan.steps()):
+        q = machine.slice_of(j)
+        rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
+        rays = step.rays
+        if rays.size:
+            full = 1 << machine.dp.interp.weight_bits
+            ca, wa, fa = _canonical(*machine.cell(step.zyx[:, machine.a_ax]), full)
+            cb, wb, fb = _canonical(*machine.cell(step.zyx[:, machine.b_ax]), full)
+            u, v = rays // W, rays % W
+            uniform = all(
+                np.unique(x).size == 1 for x in (wa, wb, fa >= 0.5, fb >= 0.5, ca - u, cb - v)
+            )
+            if not uniform:
+                raise _refuse(
+                    f"step {j}: the plan's weights or cell offsets differ between rays (float "
+                    "rounding); the RTL top takes one set of constants per slice",
+                    "view",
+                    "another view",
+                )
+            rec.update(
+                da=int(fa[0] >= 0.5),
+                db=int(fb[0] >= 0.5),
+                ia=int(ca[0] - u[0]),
+                ib=int(cb[0] - v[0]),
+                wa=int(wa[0]),
+                wb=int(wb[0]),
+            )
+        # The hardware's samples: one per slot voxel, the cell whose nearest voxel it is.
+        hu = a - rec["da"] - rec["ia"]
+        hv = b - rec["db"] - rec["ib"]
+        inside = (hu >= 0) & (hu < plan.shape[0]) & (hv >= 0) & (hv < W)
+        ray = np.where(inside, hu * W + hv, 0)
+        takes = inside & (j_lo[ray] <= j) & (j <= j_hi[ray])
+        hw = np.sort(ray[takes])
+        if not np.array_equal(hw, np.sort(rays)):
+            raise _refuse(
+                f"step {j}: {rays.size} samples in the plan, {hw.size} slots would take one "
+                "(a sample exactly half a voxel beyond the volume shares its slot)",
+                "view",
+                "another view",
+            )
+        # Read-modify-write distance on the compositing buffer between a ray's samples.
+        issue = (j + 1) * period + a * C + b // P
+        issue = issue[takes]
+        gap = issue - last_issue[ray[takes]]
+        if gap.size and gap.min() < RMW_WINDOW:
+            raise _refuse(
+                f"step {j}: a ray's samples {gap.min()} clocks apart, the compositing "
+                f"buffer needs {RMW_WINDOW}",
+                "volume",
+                "a larger volume",
+            )
+        last_issue[ray[takes]] = issue
+        out.append(rec)
+    return out
+
+
+def decode(program: FrameProgram, pixels: list[dict[str, Any]], cycles: int, samples: int):
+    """The frame's :class:`~models.arch.cube4.CycleResult` from the delivered pixels.
+
+    ``pixels``: ``{"ray", "acc" (4 ints), "mip"}`` in bus order.  Every ray of the plan
+    must arrive exactly once; the host builds the image only from them.
+    """
+    be, plan = program.backend, program.plan
+    state = be.new_state(plan.n_rays)
+    acc, touched = state.acc, np.zeros(plan.n_rays, dtype=bool)
+    for p in pixels:
+        r = int(p["ray"])
+        if r >= plan.n_rays or touched[r]:
+            raise RuntimeError(f"pixel bus delivered ray {r} unexpectedly")
+        touched[r] = True
+        acc[r] = p["mip"] if be.mode == "mip" else p["acc"]
+    delivered = np.flatnonzero(touched)
+    if not np.array_equal(delivered, np.sort(plan.ray_ids)):
+        raise RuntimeError(
+            f"pixel bus delivered {delivered.size} rays, the plan has {plan.ray_ids.size}"
+        )
+    image = be.finish(acc, touched, None)
+    counters = {
+        "frame.cycles": int(cycles),
+        "frame.samples": int(samples),
+        "pixel_bus.pixels": len(pixels),
+        "pipeline.latency_cycles": program.registers["latency"],
+    }
+    return CycleResult(
+        image=image,
+        samples=int(samples),
+        rays=int(touched.sum()),
+        cycles=int(cycles),
+        counters=counters,
+        elaborated_units=list(program.elaborated),
+        elided_units=list(program.elided),
+    )

@@ -1,0 +1,144 @@
+"""Sizes and payload layouts of the Cube-4 pipeline top (:mod:`rtl.top`), shared by the
+RTL, the host program (:mod:`rtl.frame`) and the simulator drivers.
+
+# Ref: architectures.md section 9.2 (buffer sizes per pipeline); docs/rtl.md.
+
+Every layout is an ``amaranth.lib.data.StructLayout``: first field at bit 0 of the packed
+vector the Verilog port carries.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from amaranth import signed, unsigned
+from amaranth.lib import data
+
+from models.datapath import Datapath
+from rtl.classify import entry_bits as classify_entry_bits
+from rtl.common import bit_length
+from rtl.composite import TABLE_ENTRIES
+
+__all__ = [
+    "TopGeometry",
+    "LOAD_VOLUME",
+    "LOAD_LUT",
+    "LOAD_CORRECTION",
+    "LOAD_RAYS",
+    "LOAD_SLICES",
+    "slice_layout",
+    "ray_layout",
+    "pixel_layout",
+    "buffer_layout",
+    "load_layout",
+]
+
+LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES = range(5)
+
+
+@dataclass(frozen=True)
+class TopGeometry:
+    """Elaboration sizes: pipelines ``P``, voxels per axis at most ``N``."""
+
+    pipelines: int
+    max_axis: int = 16
+
+    @property
+    def c_max(self) -> int:
+        return -(-self.max_axis // self.pipelines)
+
+    @property
+    def t_max(self) -> int:
+        """Slots of the largest slice per pipeline."""
+        return self.max_axis * self.c_max
+
+    @property
+    def module_words(self) -> int:
+        return self.max_axis * self.max_axis * self.c_max
+
+    @property
+    def max_rays(self) -> int:
+        """Base-plane rays: shear <= 1 per slice, so at most ``2N`` per axis."""
+        return 4 * self.max_axis * self.max_axis
+
+    @property
+    def axis_bits(self) -> int:
+        return bit_length(self.max_axis)
+
+    @property
+    def ray_bits(self) -> int:
+        return bit_length(self.max_rays - 1)
+
+    @property
+    def offset_bits(self) -> int:
+        """Signed base-plane offsets ``ia``, ``ib`` in ``[-2N, 2N]``."""
+        return bit_length(2 * self.max_axis) + 1
+
+
+def slice_layout(geo: TopGeometry, dp: Datapath):
+    """One step's constants: slice ``q`` (and ``q mod P``), cell shift ``da``/``db``,
+    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``."""
+    ab = geo.axis_bits
+    w = dp.interp.weight.width
+    return data.StructLayout(
+        {
+            "q": unsigned(ab),
+            "qm": unsigned(bit_length(geo.pipelines)),
+            "da": unsigned(1),
+            "db": unsigned(1),
+            "ia": signed(geo.offset_bits),
+            "ib": signed(geo.offset_bits),
+            "wa": unsigned(w),
+            "wb": unsigned(w),
+        }
+    )
+
+
+def ray_layout(geo: TopGeometry):
+    """A base-plane ray's first and last step (``j_lo <= j <= j_hi``)."""
+    return data.StructLayout({"j_lo": unsigned(geo.axis_bits), "j_hi": unsigned(geo.axis_bits)})
+
+
+def pixel_layout(geo: TopGeometry, dp: Datapath):
+    """What the pixel bus delivers: the ray and its accumulators (UQ1.F RGBA, raw MIP)."""
+    sample_bits = dp.voxel_bits + dp.interp.sample_frac_bits
+    return data.StructLayout(
+        {
+            "ray": unsigned(geo.ray_bits),
+            "acc": data.ArrayLayout(unsigned(dp.composite.acc_frac_bits + 1), 4),
+            "mip": unsigned(sample_bits),
+        }
+    )
+
+
+def buffer_layout(dp: Datapath):
+    """A compositing-buffer entry: ``acc[4]`` (UQ1.F), ``mip`` (raw) and ``alive``."""
+    sample_bits = dp.voxel_bits + dp.interp.sample_frac_bits
+    return data.StructLayout(
+        {
+            "acc": data.ArrayLayout(unsigned(dp.composite.acc_frac_bits + 1), 4),
+            "mip": unsigned(sample_bits),
+            "alive": unsigned(1),
+        }
+    )
+
+
+def load_layout(geo: TopGeometry, dp: Datapath):
+    """``target`` (LOAD_*), ``addr`` and ``data``: a volume word is P voxels (module 0 at
+    bit 0); LUT entries, correction-table entries, ray and slice records as their
+    layouts pack them."""
+    widths = [
+        geo.pipelines * dp.voxel_bits,
+        classify_entry_bits(dp.classify),
+        13,
+        ray_layout(geo).size,
+        slice_layout(geo, dp).size,
+    ]
+    depth = max(geo.module_words, dp.classify.entries, TABLE_ENTRIES, geo.max_rays, geo.max_axis)
+    return data.StructLayout(
+        {
+            "target": unsigned(3),
+            "addr": unsigned(bit_length(depth - 1)),
+            "data": unsigned(max(widths)),
+        }
+    )

@@ -1,0 +1,49 @@
+"""Scenes, views and the cycle-rung reference shared by the RTL-top tests (Amaranth and
+cocotb tiers)."""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import cache
+
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+from models.cycle import render_cycle
+from rtl.frame import prepare
+
+#: (arch, azimuth, elevation, mode, volume size): both architectures, parallel views along
+#: each principal axis (z: 0,0; x: 90,0; y: 0,90) and oblique ones, either slice order.
+TOP_CASES = [
+    ("cube4", 0, 0, "composite", 12),
+    ("cube4", 30, 20, "mip", 12),
+    ("cube4", 90, 0, "mip", 9),
+    ("cube4", 180, 0, "composite", 9),
+    ("cube4-teramac", 0, 90, "composite", 8),
+    ("cube4-teramac", 45, 0, "mip", 8),
+    ("cube4-teramac", 37, -61, "composite", 10),
+]
+
+
+def scene_of(az: float, el: float, mode: str, image: int = 12, **render) -> Scene:
+    """The head phantom, CT preset, unlit (the top has no gradient/shader path)."""
+    return Scene(
+        volume=VolumeSpec(phantom="head"),
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(azimuth=az, elevation=el, width=image, height=image, zoom=1.2),
+        render=dataclasses.replace(RenderSpec(mode=mode, **render), lighting=False),
+    )
+
+
+@cache
+def case(arch: str, az: float, el: float, mode: str, size: int, **render):
+    """``(program, cycle-rung result)`` of one case."""
+    volume = make_phantom("head", size=size)
+    scene = scene_of(az, el, mode, **render)
+    machine = resolve_arch(arch)
+    transfer = resolve_transfer(scene.transfer, volume)
+    plan = make_plan(scene, volume, machine.order)
+    reference = render_cycle(scene, volume, transfer, machine, plan)
+    return prepare(scene, volume, transfer, machine, plan), reference
