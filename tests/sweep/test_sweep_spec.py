@@ -101,10 +101,6 @@ def test_an_override_to_the_default_value_is_the_same_machine(tmp_path):
             {"pipelines": [1, 0]},
             "s.toml: sweep.pipelines[1]: 0 is out of range (allowed: 1 .. 4096)",
         ),
-        (
-            {"fidelity": ["rtl"]},
-            "s.toml: sweep.fidelity[0]: fidelity 'rtl' is not yet available",
-        ),
         ({"fidelity": ["fast"]}, "s.toml: sweep.fidelity[0]: unknown fidelity 'fast'"),
         ({"arch": ["vp9"]}, "s.toml: sweep.arch[0]: unknown architecture 'vp9'"),
         ({"colour": [1]}, "s.toml: sweep.colour: unknown sweep parameter"),
