@@ -65,7 +65,7 @@ class FigureRow:
     published: float
     size: int
     rung: str
-    status: str  # "ok", "not modelled", "skipped" or "failed"
+    status: str  # "ok", "not modelled", "skipped", "refused" (by the rung) or "failed"
     simulated: float | None = None
     difference: float | None = None  # simulated / published - 1
     tolerance: float | None = None
@@ -191,14 +191,15 @@ def measure_figures(
                         )
                     except NotAvailableError:
                         runs[size] = None
-                    except HwsimError as exc:
+                    except HwsimError as exc:  # InputError: the rung refuses the scenario
                         runs[size] = exc
                 run = runs[size]
                 if run is None:
                     row.status = "not modelled"
                     continue
                 if isinstance(run, HwsimError):
-                    row.status, row.note = "failed", str(run)
+                    row.status = "refused" if isinstance(run, InputError) else "failed"
+                    row.note = "; ".join(filter(None, [row.note, str(run)]))
                     continue
                 row.simulated = _simulated(key, run)
                 period = run.counters.get("frame.period_cycles")

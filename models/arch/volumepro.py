@@ -113,6 +113,7 @@ class SlabMachine(Cube4Machine):
             self.next_visible = backend.transparent_ranges()
         self._planes: dict[int, dict[str, np.ndarray]] = {}
         self._voxels: dict[int, np.ndarray] = {}
+        self._diffed: set[int] = set()  # slices whose gradient planes are in _planes
         # Rule 6: the sequencer reads a slab up to two slabs (four voxel slices) before
         # the slice that consumes it, so it knows the termination mask of that many sample
         # slices earlier.
@@ -207,6 +208,11 @@ class SlabMachine(Cube4Machine):
         planes = self._planes.get(q)
         if planes is None:
             planes = self._planes[q] = self._load(q)
+        if self._gradient_planes and q not in self._diffed:
+            # After the load, not inside it: the differences read slice q + 1, whose own
+            # differences are computed when it is used (no chain of loads ahead).
+            planes.update(self._differences(q))
+            self._diffed.add(q)
         return planes
 
     def _load(self, q: int) -> dict[str, np.ndarray]:
@@ -232,13 +238,16 @@ class SlabMachine(Cube4Machine):
                     for x in (value.min(axis=0), value.max(axis=0))
                 )
         planes.update((k, (v << S).reshape(4, -1).T.copy()) for k, v in corners.items())
-        if self.voxel_gradients and (be.need_grad or "gradient" in self.elaborated):
-            planes.update(self._differences(q))
         return planes
+
+    @property
+    def _gradient_planes(self) -> bool:
+        """Whether slices carry interpolated voxel-gradient planes (``source = "voxel"``)."""
+        return self.voxel_gradients and (self.be.need_grad or "gradient" in self.elaborated)
 
     def _voxel_plane(self, q: int) -> np.ndarray:
         if q not in self._voxels:
-            self.planes(q)
+            self._planes[q] = self._load(q)
         return self._voxels[q]
 
     def _differences(self, q: int) -> dict[str, np.ndarray]:
@@ -281,6 +290,7 @@ class SlabMachine(Cube4Machine):
         for q in [q for q in self._planes if (q < lo - 1 if self.forward else q > lo + 1)]:
             del self._planes[q]
             self._voxels.pop(q, None)
+            self._diffed.discard(q)
 
     def _lanes(self, source) -> np.ndarray:
         (ca, _, fa), (cb, _, fb) = source._cells
@@ -328,6 +338,7 @@ class SlabMachine(Cube4Machine):
             done = np.zeros(plan.n_rays, dtype=bool)
             self._planes.clear()
             self._voxels.clear()
+            self._diffed.clear()
             for j, step in enumerate(plan.steps()):
                 lo, hi = self.window(j)
                 self._evict(lo if self.forward else hi)

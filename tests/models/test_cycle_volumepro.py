@@ -398,3 +398,21 @@ def test_real_volumes_are_bit_identical(shared_data, name):
     ):
         scene = scene_of(*view, size=40, mode=mode, transfer=tf, projection=projection)
         assert_identical(*both(scene, vol, arch)[:2])
+
+
+def test_voxel_gradients_load_slices_one_ahead_not_in_a_chain():
+    # Regression: each slice's gradient planes used to load the next slice's planes,
+    # gradients included, recursing through every slice (RecursionError at 256^3).
+    import sys
+
+    from hwsim.figures import figure_scene
+
+    scene = figure_scene(40)
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(120)  # far below 40 slices x the old chain's frames
+    try:
+        run = render(scene, fidelity="cycle", arch="volumepro1000")
+    finally:
+        sys.setrecursionlimit(limit)
+    ref = render(scene, fidelity="functional", arch="volumepro1000")
+    assert np.array_equal(run.image, ref.image)
