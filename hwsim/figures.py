@@ -278,7 +278,9 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
             mark = {True: " ok", False: " OUT", None: ""}[d["within"]]
             line += [_num(d["simulated"]), f"{100 * d['difference']:+.1f}%{mark}"]
         tol = first["tolerance"]
-        line += ["-" if tol is None else f"±{100 * tol:g}%", first["note"]]
+        parts = (part for d in by_rung.values() for part in d["note"].split("; ") if part)
+        notes = list(dict.fromkeys(parts))
+        line += ["-" if tol is None else f"±{100 * tol:g}%", "; ".join(notes)]
         body.append(line)
     return header, body
 
