@@ -12,7 +12,10 @@ rest of the pipeline is :class:`models.backend.Backend`, shared with the cycle r
 
 Timing is a closed-form estimate: each slice (or ray step) costs
 ``ceil(samples / pipelines) + slice_overhead_cycles`` cycles, plus
-``section_overhead_cycles`` per section and the pipeline fill latency once.
+``section_overhead_cycles`` per section and the pipeline fill latency once.  On a
+slice-order machine (every order but ``ray``) ``samples`` is at least the slice's voxel
+count: the machine streams the whole slice however few rays the image casts (a machine
+that skips beams no ray reaches, VolumePro 1000, comes in below the estimate).
 
 The estimate, ``samples`` and ``rays`` count every planned sample; the simulation skips
 blocks whose samples provably cannot change the image (:mod:`models.leap`) and processes
@@ -130,8 +133,13 @@ class _Functional:
         state = be.new_state(plan.n_rays)
         before = SATURATIONS.copy()
         P = self.arch.pipelines
-        # Closed form over every planned sample: the machine visits them all.
+        # Closed form over every planned sample: the machine visits them all.  A
+        # slice-order machine also streams every voxel of the slice whatever the image
+        # (a small image does not shorten a slice), so a step costs at least that.
         per_step = leap.step_sample_counts(plan)
+        if plan.kind != "ray" and plan.principal_axis is not None:
+            shape = be.volume.shape
+            per_step = np.maximum(per_step, int(np.prod(shape)) // shape[plan.principal_axis])
         cycles = int(np.sum(-(-per_step // P))) + plan.n_steps * self.arch.slice_overhead_cycles
         blocks = leap.invisible_blocks(be) if self.leap else None
         if blocks is None:
