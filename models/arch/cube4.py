@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.arch import ArchConfig
 from hwsim.engine import Channel, Clock, Counters, DelayLine, DrainFifo, Stage, VcdTrace
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
@@ -49,7 +50,7 @@ from models.units import interp as interp_unit
 from models.units import shade as shade_unit
 from models.units import skew as skew_unit
 
-__all__ = ["Faults", "CycleResult", "Cube4Machine", "UNITS"]
+__all__ = ["Faults", "CycleResult", "Cube4Machine", "UNITS", "cube4_buffers", "buffer_table"]
 
 #: The units of every Cube-4 pipeline, in dataflow order, with their models.
 UNITS = {
@@ -249,52 +250,10 @@ class Cube4Machine:
         return bool(signs[0] > 0)
 
     def _buffers(self) -> dict[str, int]:
-        """On-chip buffer capacities per pipeline (``[buffers]``, entries), checked
-        against what this volume needs.  Defaults: sized for ``limits.max_volume``."""
-        arch, P = self.arch, self.P
-        n_max = max(arch.max_volume)
-        c_max = -(-n_max // P)
-        defaults = {
-            "beam_fifo_entries": c_max + 1,  # architectures.md 9.2: n / P
-            "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
-            "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
-        }
-        needs = {"beam_fifo_entries": self.C + 1, "slice_fifo_entries": self.T}
-        return self._buffer_table(defaults, needs)
+        return cube4_buffers(self.arch, self.C, self.T)
 
     def _buffer_table(self, defaults: dict[str, int], needs: dict[str, int]) -> dict[str, int]:
-        """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
-        refused naming the file and key) and checked against what this volume ``needs``."""
-        arch = self.arch
-        table = dict(arch.buffers)
-        out = {}
-        for key, default in defaults.items():
-            value = table.pop(key, default)
-            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-                raise InputError(
-                    f"invalid {value!r}",
-                    source=arch.source,
-                    key=f"buffers.{key}",
-                    allowed="an integer >= 0",
-                )
-            out[key] = value
-        if table:
-            raise InputError(
-                "unknown key",
-                source=arch.source,
-                key=f"buffers.{sorted(table)[0]}",
-                allowed=", ".join(defaults),
-            )
-        for key, need in needs.items():
-            if out[key] < need:
-                raise InputError(
-                    f"{arch.name} cannot hold this volume's {key.split('_entries')[0]} "
-                    f"({need} entries per pipeline)",
-                    source=arch.source,
-                    key=f"buffers.{key}",
-                    allowed=f">= {need}",
-                )
-        return out
+        return buffer_table(self.arch, defaults, needs)
 
     def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
         be, mode = self.be, self.be.mode
@@ -573,3 +532,53 @@ def _finishing_rays(plan: SamplePlan) -> Callable[[int], np.ndarray]:
         return ids[bounds[j] : bounds[j + 1]]
 
     return finishing
+
+
+def cube4_buffers(arch: ArchConfig, C: int, T: int) -> dict[str, int]:
+    """A Cube-4 machine's on-chip buffer capacities per pipeline (``[buffers]``, entries),
+    checked against a volume of ``C`` clocks per beam and ``T`` per slice.  Defaults:
+    sized for ``limits.max_volume``.  One copy for the cycle and transaction models."""
+    n_max = max(arch.max_volume)
+    c_max = -(-n_max // arch.pipelines)
+    defaults = {
+        "beam_fifo_entries": c_max + 1,  # architectures.md 9.2: n / P
+        "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
+        "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
+    }
+    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1, "slice_fifo_entries": T})
+
+
+def buffer_table(
+    arch: ArchConfig, defaults: dict[str, int], needs: dict[str, int]
+) -> dict[str, int]:
+    """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
+    refused naming the file and key) and checked against what this volume ``needs``."""
+    table = dict(arch.buffers)
+    out = {}
+    for key, default in defaults.items():
+        value = table.pop(key, default)
+        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+            raise InputError(
+                f"invalid {value!r}",
+                source=arch.source,
+                key=f"buffers.{key}",
+                allowed="an integer >= 0",
+            )
+        out[key] = value
+    if table:
+        raise InputError(
+            "unknown key",
+            source=arch.source,
+            key=f"buffers.{sorted(table)[0]}",
+            allowed=", ".join(defaults),
+        )
+    for key, need in needs.items():
+        if out[key] < need:
+            raise InputError(
+                f"{arch.name} cannot hold this volume's {key.split('_entries')[0]} "
+                f"({need} entries per pipeline)",
+                source=arch.source,
+                key=f"buffers.{key}",
+                allowed=f">= {need}",
+            )
+    return out

@@ -39,6 +39,7 @@ from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
+from models.arch.cube4 import cube4_buffers
 from models.arch.pixel_bus_txn import PixelBus
 from models.units import classify, composite, crop, gradient, interp, shade, skew
 
@@ -95,20 +96,6 @@ def slice_loads(plan: SamplePlan) -> tuple[np.ndarray, np.ndarray]:
     return samples.astype(np.int64), finishing.astype(np.int64)
 
 
-def _pixel_fifo_depth(arch: ArchConfig, pipelines: int) -> int:
-    """``[buffers] pixel_fifo_entries`` (default: one base plane of the largest volume)."""
-    n_max = max(arch.max_volume)
-    value = arch.buffers.get("pixel_fifo_entries", n_max * n_max)
-    if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-        raise InputError(
-            f"invalid {value!r}",
-            source=arch.source,
-            key="buffers.pixel_fifo_entries",
-            allowed="an integer >= 0",
-        )
-    return value
-
-
 class Cube4Transaction:
     """SimPy model of one Cube-4 frame at slice / beam-batch granularity.
 
@@ -142,7 +129,8 @@ class Cube4Transaction:
         kp = plan.principal_axis
         a_ax, b_ax = (ax for ax in range(3) if ax != kp)
         shape = plan.volume.shape
-        depth = _pixel_fifo_depth(arch, arch.pipelines)
+        C = -(-shape[b_ax] // arch.pipelines)
+        depth = cube4_buffers(arch, C, shape[a_ax] * C)["pixel_fifo_entries"]
         self.geo = Cube4Geometry(
             pipelines=arch.pipelines,
             slices=shape[kp],

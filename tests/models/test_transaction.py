@@ -242,3 +242,15 @@ def test_cube4_refusals_hold_at_the_transaction_rung(phantoms):
     tf = resolve_transfer(scene.transfer, volume)
     with pytest.raises(InputError, match="render.supersampling"):
         render_transaction(scene, volume, tf, arch, plan)
+
+
+def test_a_volume_the_machine_cannot_buffer_is_refused_as_at_the_cycle_rung():
+    """One buffer check for both rungs: Teramac's beam FIFO holds 128-voxel beams."""
+    from hwsim.errors import InputError
+    from hwsim.fidelity import render
+    from hwsim.scene import VolumeSpec, load_scene
+
+    scene = load_scene("head").replace(volume=VolumeSpec(phantom="ball", params=(("size", 136),)))
+    for rung in ("cycle", "transaction"):
+        with pytest.raises(InputError, match="buffers.beam_fifo_entries"):
+            render(scene, fidelity=rung, arch="cube4-teramac")
