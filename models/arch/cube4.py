@@ -50,7 +50,17 @@ from models.units import interp as interp_unit
 from models.units import shade as shade_unit
 from models.units import skew as skew_unit
 
-__all__ = ["Faults", "CycleResult", "Cube4Machine", "UNITS", "cube4_buffers", "buffer_table"]
+__all__ = [
+    "Faults",
+    "CycleResult",
+    "Cube4Machine",
+    "UNITS",
+    "cube4_buffers",
+    "buffer_table",
+    "frame_result",
+    "elaborate_units",
+    "publish_pixel_bus",
+]
 
 #: The units of every Cube-4 pipeline, in dataflow order, with their models.
 UNITS = {
@@ -256,19 +266,7 @@ class Cube4Machine:
         return buffer_table(self.arch, defaults, needs)
 
     def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
-        be, mode = self.be, self.be.mode
-        needs = {
-            "interp": True,
-            "gradient": be.need_grad,
-            "classify": mode in ("composite", "iso"),
-            "shade": be.scene.lit,
-            "composite": True,
-            "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
-        }
-        if everything:
-            needs = dict.fromkeys(needs, True)
-        units = ["memory", "ring"] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
-        return units, [u for u in UNITS if not needs[u]]
+        return elaborate_units(self.be, everything, ("memory", "ring"))
 
     def cell(self, p: np.ndarray, like=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell index, quantised weight and float fraction of in-slice positions (the
@@ -447,29 +445,13 @@ class Cube4Machine:
             stage.publish()
         self.memory.publish()
         self.memory_out.publish()
-        c.set("pixel_bus.pixels", pixel_fifo.pushed)
-        c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
-        c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)
-        c.set("pixel_bus.drain_cycles", drain)
+        publish_pixel_bus(c, pixel_fifo, drain)
         c.set("pipeline.latency_cycles", latency)
         c.set("frame.cycles", cycles)
         c.set("frame.samples", state.samples)
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
-        raw = c.as_dict()
-        derived = derive(
-            raw, cycles=cycles, samples=state.samples, pipelines=P, clock_hz=self.arch.clock_hz
-        )
-        return CycleResult(
-            image=image,
-            samples=state.samples,
-            rays=int(state.touched.sum()),
-            cycles=int(cycles),
-            counters=raw,
-            elaborated_units=list(self.elaborated),
-            elided_units=list(self.elided),
-            derived=derived,
-        )
+        return frame_result(self, image, state, cycles)
 
     def _lanes(self, source: HardwareSource) -> np.ndarray:
         """Pipeline evaluating each sample: the module of its nearest voxel
@@ -582,3 +564,57 @@ def buffer_table(
                 allowed=f">= {need}",
             )
     return out
+
+
+def publish_pixel_bus(counters: Counters, fifo: DrainFifo, drain: int) -> None:
+    """The pixel bus's counters: pixels, busy cycles, peak occupancy, final drain."""
+    counters.set("pixel_bus.pixels", fifo.pushed)
+    counters.set("pixel_bus.busy_cycles", fifo.busy_cycles)
+    counters.set("pixel_bus.max_occupancy", fifo.max_occupancy)
+    counters.set("pixel_bus.drain_cycles", drain)
+
+
+def frame_result(
+    machine, image: np.ndarray, state, cycles: int, derive_samples: int | None = None
+) -> CycleResult:
+    """A frame's :class:`CycleResult` from a machine (``counters``, ``P``, ``arch``,
+    ``elaborated``, ``elided``) and its back end's final state; derived metrics per
+    ``derive_samples`` samples (default: the composited samples)."""
+    raw = machine.counters.as_dict()
+    derived = derive(
+        raw,
+        cycles=cycles,
+        samples=state.samples if derive_samples is None else derive_samples,
+        pipelines=machine.P,
+        clock_hz=machine.arch.clock_hz,
+    )
+    return CycleResult(
+        image=image,
+        samples=state.samples,
+        rays=int(state.touched.sum()),
+        cycles=int(cycles),
+        counters=raw,
+        elaborated_units=list(machine.elaborated),
+        elided_units=list(machine.elided),
+        derived=derived,
+    )
+
+
+def elaborate_units(
+    backend: Backend, everything: bool, structures: tuple[str, ...]
+) -> tuple[list[str], list[str]]:
+    """The units a scene needs (all of :data:`UNITS` when ``everything``), between the
+    machine's front ``structures`` and its pixel bus; and the units elided."""
+    be, mode = backend, backend.mode
+    needs = {
+        "interp": True,
+        "gradient": be.need_grad,
+        "classify": mode in ("composite", "iso"),
+        "shade": be.scene.lit,
+        "composite": True,
+        "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
+    }
+    if everything:
+        needs = dict.fromkeys(needs, True)
+    units = [*structures] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
+    return units, [u for u in UNITS if not needs[u]]

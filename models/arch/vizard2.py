@@ -47,12 +47,11 @@ from collections.abc import Callable
 import numpy as np
 
 from hwsim.engine import Clock, Counters, DeadlockError, DrainFifo, Stage, VcdTrace
-from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.memory import SdramController
-from models.arch.cube4 import CycleResult
+from models.arch.cube4 import CycleResult, elaborate_units, frame_result
 from models.arch.vizard2_config import VizardFaults, memory_of, parse_buffers
 from models.arch.vizard2_memory import BLOCK, BlockCache, CacheFetch, VolumeImage
 from models.backend import Backend
@@ -167,19 +166,7 @@ class VizardMachine:
     # ------------------------------------------------------------------ set-up
 
     def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
-        be, mode = self.be, self.be.mode
-        needs = {
-            "interp": True,
-            "gradient": be.need_grad,
-            "classify": mode in ("composite", "iso"),
-            "shade": be.scene.lit,
-            "composite": True,
-            "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
-        }
-        if everything:
-            needs = dict.fromkeys(needs, True)
-        units = ["memory", "cache"] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
-        return units, [u for u in UNITS if not needs[u]]
+        return elaborate_units(self.be, everything, ("memory", "cache"))
 
     def _occupied_blocks(self) -> np.ndarray | None:
         """Host-side space-leaping geometry: 4^3 blocks whose voxels (and their +1
@@ -407,20 +394,7 @@ class VizardMachine:
         c.set("frame.planned_samples", self.full_plan.samples)
         c.set("frame.leaped_samples", self.full_plan.samples - self.plan.samples)
         image = self.be.finish(bus.acc, bus.touched, bus.dt_sum)
-        raw = c.as_dict()
-        derived = derive(
-            raw, cycles=cycles, samples=self.issued, pipelines=P, clock_hz=self.arch.clock_hz
-        )
-        return CycleResult(
-            image=image,
-            samples=state.samples,
-            rays=int(state.touched.sum()),
-            cycles=int(cycles),
-            counters=raw,
-            elaborated_units=list(self.elaborated),
-            elided_units=list(self.elided),
-            derived=derived,
-        )
+        return frame_result(self, image, state, cycles, derive_samples=self.issued)
 
 
 def render_vizard2(

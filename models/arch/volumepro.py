@@ -31,12 +31,18 @@ from collections.abc import Callable
 import numpy as np
 
 from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
-from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, make_plan
 from hwsim.memory import SdramStats, parse_memory
-from models.arch.cube4 import UNITS, Cube4Machine, CycleResult, Faults
+from models.arch.cube4 import (
+    UNITS,
+    Cube4Machine,
+    CycleResult,
+    Faults,
+    frame_result,
+    publish_pixel_bus,
+)
 from models.arch.cube4_slice import SliceDatapath, SlicePath
 from models.arch.sdram_volume import SdramVolume
 from models.arch.slab_timing import run_timing
@@ -491,27 +497,11 @@ class SlabMachine(Cube4Machine):
         c.set("section.parked_rays", sum(parked_counts))
         c.set("section.reload_cycles", sum(parked_counts[:-1]))
         c.set("section.overhead_cycles", (len(sections) - 1) * self.arch.section_overhead_cycles)
-        c.set("pixel_bus.pixels", pixel_fifo.pushed)
-        c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
-        c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)
-        c.set("pixel_bus.drain_cycles", drain)
+        publish_pixel_bus(c, pixel_fifo, drain)
         c.set("pixel_bus.stall_cycles", timing.pixel_stall)
         c.set("pipeline.latency_cycles", latency)
         c.set("frame.cycles", cycles)
         c.set("frame.samples", state.samples)
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
-        raw = c.as_dict()
-        derived = derive(
-            raw, cycles=cycles, samples=state.samples, pipelines=P, clock_hz=self.arch.clock_hz
-        )
-        return CycleResult(
-            image=image,
-            samples=state.samples,
-            rays=int(state.touched.sum()),
-            cycles=int(cycles),
-            counters=raw,
-            elaborated_units=list(self.elaborated),
-            elided_units=list(self.elided),
-            derived=derived,
-        )
+        return frame_result(self, image, state, cycles)

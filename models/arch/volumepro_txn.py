@@ -49,6 +49,7 @@ from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_m
 from hwsim.scene import Scene
 from models.arch.cube4_txn import TxnTiming, slice_loads
 from models.arch.pixel_bus_txn import PixelBus
+from models.arch.sdram_volume import layout
 from models.arch.sections_txn import band_loads, bands_of
 from models.units import classify, composite, crop, gradient, interp, shade, skew
 
@@ -59,27 +60,15 @@ _PIPELINE_UNITS = (interp, gradient, classify, shade, composite, crop)
 
 def miniblock_layout(memory: MemoryConfig, n: int, x, y, z):
     """Module, bank and word address of voxels ``(x, y, z)`` of an ``n``-cube (``n``
-    even) in ``memory``'s mini-block layout (``miniblock``: both skew levels; ``block``:
-    the module skew only, banks from the top address bits)."""
-    M, K = memory.modules, memory.sdram.banks
-    if memory.skew == "miniblock":
-        return skew.vp500_miniblock(x, y, z, n, M, K)
-    if memory.skew == "block":
-        x, y, z = (np.asarray(v, dtype=np.int64) for v in (x, y, z))
-        nb = n // 2
-        bx, by, bz = x >> 1, y >> 1, z >> 1
-        pitch = -(-nb // M) * M
-        o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
-        linear = 8 * (((bz * nb + by) * pitch + bx) // M) + o
-        per_bank = -(-int(8 * nb * nb * pitch // M) // K)
-        per_bank = -(-per_bank // memory.sdram.columns) * memory.sdram.columns
-        bank, address = np.divmod(linear, per_bank)
-        return (bx + by + bz) % M, bank, address
-    raise NotAvailableError(
-        f"the transaction model reads mini-blocks; skew {memory.skew!r} is not modelled",
-        key="memory.skew",
-        allowed="miniblock, block",
-    )
+    even) in ``memory``'s mini-block layout: the cycle model's own
+    (:func:`models.arch.sdram_volume.layout`), refused for other skews."""
+    if memory.skew not in ("miniblock", "block"):
+        raise NotAvailableError(
+            f"the transaction model reads mini-blocks; skew {memory.skew!r} is not modelled",
+            key="memory.skew",
+            allowed="miniblock, block",
+        )
+    return layout(memory, n, x, y, z)
 
 
 class SlabTransaction:
