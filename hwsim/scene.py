@@ -171,13 +171,25 @@ class RenderSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class CropSpec:
-    """Keep samples inside the box (voxel index coordinates, inclusive), or outside it
-    with ``invert``.  ``None`` for an axis means no limit on it."""
+    """Three axis slabs (voxel index coordinates, inclusive; ``None``: no limit, the axis
+    is always inside) combined as VolumePro's cropping does: ``subvolume`` keeps samples
+    inside all three slabs, ``cross`` inside at least two, ``fence`` inside at least one;
+    ``invert`` keeps the complement."""
 
     x: tuple[float, float] | None = None
     y: tuple[float, float] | None = None
     z: tuple[float, float] | None = None
     invert: bool = False
+    mode: str = "subvolume"
+
+    @property
+    def slabs_needed(self) -> int:
+        """How many of the three slabs a kept sample lies in (before ``invert``)."""
+        return CROP_MODES[self.mode]
+
+
+#: Crop mode -> slabs a sample must lie in (VTK's region flags: SUBVOLUME, CROSS, FENCE).
+CROP_MODES = {"subvolume": 3, "cross": 2, "fence": 1}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -441,7 +453,11 @@ def _crop(t: Table) -> CropSpec:
             if hi < lo:
                 raise t.error(axis, f"[{lo:g}, {hi:g}] is empty", "[lo, hi] with lo <= hi")
             limits[axis] = (lo, hi)
-    crop = CropSpec(**limits, invert=t.boolean("invert", False))
+    crop = CropSpec(
+        **limits,
+        invert=t.boolean("invert", False),
+        mode=t.choice("mode", CROP_MODES, "subvolume"),
+    )
     t.finish()
     return crop
 

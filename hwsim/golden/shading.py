@@ -69,12 +69,16 @@ def phong(
 
 
 def crop_keep(zyx: np.ndarray, crop: CropSpec) -> np.ndarray:
-    """Boolean mask of samples the crop box keeps (index coordinates, inclusive)."""
-    inside = np.ones(zyx.shape[0], dtype=bool)
+    """Boolean mask of samples the crop keeps (index coordinates, inclusive slabs;
+    ``crop.mode`` says in how many of the three a kept sample lies)."""
+    slabs = np.zeros(zyx.shape[0], dtype=np.int64)
     for axis, limits in (("z", crop.z), ("y", crop.y), ("x", crop.x)):
-        if limits is not None:
+        if limits is None:
+            slabs += 1
+        else:
             col = "zyx".index(axis)
-            inside &= (zyx[:, col] >= limits[0]) & (zyx[:, col] <= limits[1])
+            slabs += (zyx[:, col] >= limits[0]) & (zyx[:, col] <= limits[1])
+    inside = slabs >= crop.slabs_needed
     return ~inside if crop.invert else inside
 
 

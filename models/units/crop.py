@@ -121,7 +121,8 @@ def crop_keep(zyx: np.ndarray, crop: CropSpec, frac_bits: int | None = None) -> 
         ``(n, 3)`` positions in voxel index coordinates: float, or raw integers with
         ``frac_bits`` fraction bits.
     crop : CropSpec
-        Inclusive limits per axis (``None``: unlimited) and ``invert``.
+        Inclusive slab limits per axis (``None``: unlimited), ``mode`` (sub-volume,
+        cross or fence: inside 3, 2 or 1 of the slabs) and ``invert``.
     frac_bits : int, optional
         Set when ``zyx`` is fixed point.
 
@@ -131,18 +132,22 @@ def crop_keep(zyx: np.ndarray, crop: CropSpec, frac_bits: int | None = None) -> 
         ``(n,)`` bool, identical to the golden ``crop_keep`` on the same positions.
     """
     zyx = np.asarray(zyx)
-    inside = np.ones(zyx.shape[0], dtype=bool)
+    slabs = np.zeros(zyx.shape[0], dtype=np.int64)
     for col, limits in enumerate((crop.z, crop.y, crop.x)):
         if limits is None:
+            slabs += 1
             continue
         lo, hi = limits
         if frac_bits is None:
-            inside &= (zyx[:, col] >= lo) & (zyx[:, col] <= hi)
+            slabs += (zyx[:, col] >= lo) & (zyx[:, col] <= hi)
         else:
             scale = float(1 << frac_bits)
             lo_raw, hi_raw = int(np.ceil(lo * scale)), int(np.floor(hi * scale))
             c = zyx[:, col].astype(np.int64)
-            inside &= (c >= lo_raw) & (c <= hi_raw)
+            slabs += (c >= lo_raw) & (c <= hi_raw)
+    # Three comparators per axis feed a 2-bit count of slabs hit; the mode picks the
+    # threshold (sub-volume 3, cross 2, fence 1) and invert the complement.
+    inside = slabs >= crop.slabs_needed
     return ~inside if crop.invert else inside
 
 

@@ -86,6 +86,7 @@ def test_full_scene_round_trips_every_section():
         [crop]
         x = [10, 20]
         invert = true
+        mode = "cross"
         [[cut_planes]]
         normal = [0, 1, 0]
         thickness = 4
@@ -97,6 +98,7 @@ def test_full_scene_round_trips_every_section():
     assert [light.space for light in scene.lights] == ["view", "world"]
     assert scene.render.step == 0.25
     assert scene.crop is not None and scene.crop.x == (10, 20) and scene.crop.y is None
+    assert scene.crop.mode == "cross" and scene.crop.slabs_needed == 2
     assert scene.cut_planes[0].thickness == 4
     assert scene.to_dict()["schema"] == 1
 
@@ -123,6 +125,7 @@ def test_full_scene_round_trips_every_section():
         ("[transfer]\npreset = 'bone'", "transfer.preset", "auto, ct, mr, ramp"),
         ("[[lights]]\ndirection = [0, 0, 0]", "lights[0].direction", "non-zero"),
         ("[crop]\nx = [5, 1]", "crop.x", "lo <= hi"),
+        ("[crop]\nmode = 'slab'", "crop.mode", "subvolume, cross, fence"),
         ("schema = 2", "schema", "1"),
         ("[material]\nshininess = 0.5", "material.shininess", "1 .. 1024"),
     ],

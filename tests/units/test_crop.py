@@ -20,7 +20,33 @@ CROPS = [
     CropSpec(y=(3.0, 60.0), invert=True),
     CropSpec(x=(0.0, 63.0), y=(0.0, 63.0), z=(0.0, 63.0), invert=True),
     CropSpec(),
+    CropSpec(x=(10.0, 40.0), y=(5.0, 30.5), z=(20.0, 50.0), mode="cross"),
+    CropSpec(x=(10.0, 40.0), y=(5.0, 30.5), z=(20.0, 50.0), mode="fence", invert=True),
+    CropSpec(x=(10.0, 40.0), y=(5.0, 30.5), mode="cross", invert=True),
 ]
+
+
+#: VTK's cropping-region flags (vtkVolumeMapper.h): bit ``x + 3 y + 9 z`` set when the
+#: region (each axis 0 below, 1 inside, 2 above its slab) is kept.
+VTK_FLAGS = [
+    ("subvolume", False, 0x0002000),
+    ("fence", False, 0x2EBFEBA),
+    ("fence", True, 0x5140145),
+    ("cross", False, 0x0417410),
+    ("cross", True, 0x7BE8BEF),
+]
+
+
+@pytest.mark.parametrize(("mode", "invert", "flags"), VTK_FLAGS)
+def test_crop_modes_keep_the_regions_vtk_names(mode: str, invert: bool, flags: int) -> None:
+    crop = CropSpec(x=(10.0, 20.0), y=(10.0, 20.0), z=(10.0, 20.0), mode=mode, invert=invert)
+    centre = {0: 5.0, 1: 15.0, 2: 25.0}  # below, inside, above each slab
+    regions = [(x, y, z) for z in range(3) for y in range(3) for x in range(3)]
+    zyx = np.array([[centre[z], centre[y], centre[x]] for x, y, z in regions])
+    want = np.array([bool(flags >> (x + 3 * y + 9 * z) & 1) for x, y, z in regions])
+    assert (shading.crop_keep(zyx, crop) == want).all()
+    raw = (zyx * 16).astype(np.int64)
+    assert (cr.crop_keep(raw, crop, 4) == want).all()
 
 
 @pytest.mark.parametrize("crop", CROPS)
@@ -36,7 +62,8 @@ def test_crop_fixed_matches_golden_exactly(frac_bits: int, seed: int) -> None:
     rng = np.random.default_rng(seed)
     raw = rng.integers(-4 << frac_bits, 70 << frac_bits, (2000, 3))
     lo, hi = np.sort(rng.uniform(0, 64, 2))
-    crop = CropSpec(x=(lo, hi), z=(float(np.floor(lo)), 50.0), invert=bool(seed & 1))
+    mode = ("subvolume", "cross", "fence")[seed % 3]
+    crop = CropSpec(x=(lo, hi), z=(float(np.floor(lo)), 50.0), invert=bool(seed & 4), mode=mode)
     zyx = raw / 2.0**frac_bits  # exact in float64
     assert (cr.crop_keep(raw, crop, frac_bits) == shading.crop_keep(zyx, crop)).all()
 
