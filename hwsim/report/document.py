@@ -40,6 +40,7 @@ _CSS = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}
 body{color:#222}table{border-collapse:collapse;margin:0.8em 0;font-size:0.85em}
 th,td{border:1px solid #ccc;padding:3px 8px;text-align:left}th{background:#f0f0f0}
+.wide{overflow-x:auto;max-width:100%}td{max-width:28em}
 img{max-width:100%;border:1px solid #eee;margin:0.4em 0}
 h2{border-bottom:2px solid #ddd;margin-top:2em}"""
 
@@ -62,7 +63,10 @@ def html_page(blocks: list[Block], title: str) -> str:
                 "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>"
                 for row in b[2]
             )
-            parts.append(f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+            parts.append(
+                f'<div class="wide"><table><thead><tr>{head}</tr></thead>'
+                f"<tbody>{body}</tbody></table></div>"
+            )
         elif kind == "img":
             data = base64.b64encode(Path(b[1]).read_bytes()).decode()
             parts.append(f'<img alt="{html.escape(b[2])}" src="data:image/png;base64,{data}">')
