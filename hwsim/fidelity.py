@@ -121,6 +121,13 @@ def check_scene_fits(scene: Scene, arch: ArchConfig) -> None:
         )
 
 
+def times_back_to_back(arch: ArchConfig) -> bool:
+    """Whether ``arch``'s cycle model times back-to-back frames (``steady_state``)."""
+    from models.cycle import STEADY_STATE_ORDERS
+
+    return arch.order in STEADY_STATE_ORDERS
+
+
 def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
     """Which stages a scene needs (design section 3, "model only what a scene requires")."""
     mode = scene.render.mode

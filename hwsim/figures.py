@@ -136,9 +136,8 @@ def measure_figures(
     ``skipped`` with the reason; a rung the machine lacks as ``not modelled``.  One
     render per (machine, size, rung) serves all that machine's figures at that size.
     """
-    from hwsim.fidelity import render
+    from hwsim.fidelity import render, times_back_to_back
     from hwsim.volumes import load_volume
-    from models.cycle import STEADY_STATE_ORDERS
 
     unknown = [r for r in rungs if r not in TIMING_RUNGS]
     if unknown:
@@ -187,7 +186,7 @@ def measure_figures(
                             fidelity=rung,
                             arch=machine,
                             volume=volumes[size],
-                            steady_state=rung == "cycle" and arch.order in STEADY_STATE_ORDERS,
+                            steady_state=rung == "cycle" and times_back_to_back(arch),
                         )
                     except NotAvailableError:
                         runs[size] = None
