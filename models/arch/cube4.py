@@ -29,48 +29,30 @@ results a scene does not use, so it never changes a cycle count.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
 from hwsim.engine import Channel, Clock, Counters, DelayLine, DrainFifo, Stage, VcdTrace
-from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan, Step
 from models.arch.cube4_memory import Cube4Memory
 from models.arch.cube4_slice import SliceDatapath, SlicePath
+from models.arch.machine import (
+    UNITS,
+    CycleResult,
+    buffer_table,
+    cube4_buffers,
+    elaborate_units,
+    frame_result,
+    publish_pixel_bus,
+)
 from models.backend import Backend
 from models.units import classify as classify_unit
-from models.units import composite as composite_unit
-from models.units import crop as crop_unit
-from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
-from models.units import shade as shade_unit
 from models.units import skew as skew_unit
 
-__all__ = [
-    "Faults",
-    "CycleResult",
-    "Cube4Machine",
-    "UNITS",
-    "cube4_buffers",
-    "buffer_table",
-    "frame_result",
-    "elaborate_units",
-    "publish_pixel_bus",
-]
-
-#: The units of every Cube-4 pipeline, in dataflow order, with their models.
-UNITS = {
-    "interp": interp_unit,
-    "gradient": gradient_unit,
-    "classify": classify_unit,
-    "shade": shade_unit,
-    "composite": composite_unit,
-    "crop": crop_unit,
-}
+__all__ = ["Faults", "CycleResult", "Cube4Machine", "UNITS"]  # the last two: models.arch.machine
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -99,20 +81,6 @@ class Faults:
     stuck_bank: tuple[int, int, int] | None = None
     lost_spill: int | None = None
     slab_buffer_adjust: int = 0
-
-
-@dataclass
-class CycleResult:
-    """What the cycle rung returns: image, exact cycles, raw counters, elaboration."""
-
-    image: np.ndarray
-    samples: int
-    rays: int
-    cycles: int
-    counters: dict[str, Any] = field(default_factory=dict)
-    elaborated_units: list[str] = field(default_factory=list)
-    elided_units: list[str] = field(default_factory=list)
-    derived: dict[str, Any] = field(default_factory=dict)
 
 
 class HardwareSource:
@@ -514,107 +482,3 @@ def _finishing_rays(plan: SamplePlan) -> Callable[[int], np.ndarray]:
         return ids[bounds[j] : bounds[j + 1]]
 
     return finishing
-
-
-def cube4_buffers(arch: ArchConfig, C: int, T: int) -> dict[str, int]:
-    """A Cube-4 machine's on-chip buffer capacities per pipeline (``[buffers]``, entries),
-    checked against a volume of ``C`` clocks per beam and ``T`` per slice.  Defaults:
-    sized for ``limits.max_volume``.  One copy for the cycle and transaction models."""
-    n_max = max(arch.max_volume)
-    c_max = -(-n_max // arch.pipelines)
-    defaults = {
-        "beam_fifo_entries": c_max + 1,  # architectures.md 9.2: n / P
-        "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
-        "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
-    }
-    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1, "slice_fifo_entries": T})
-
-
-def buffer_table(
-    arch: ArchConfig, defaults: dict[str, int], needs: dict[str, int]
-) -> dict[str, int]:
-    """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
-    refused naming the file and key) and checked against what this volume ``needs``."""
-    table = dict(arch.buffers)
-    out = {}
-    for key, default in defaults.items():
-        value = table.pop(key, default)
-        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-            raise InputError(
-                f"invalid {value!r}",
-                source=arch.source,
-                key=f"buffers.{key}",
-                allowed="an integer >= 0",
-            )
-        out[key] = value
-    if table:
-        raise InputError(
-            "unknown key",
-            source=arch.source,
-            key=f"buffers.{sorted(table)[0]}",
-            allowed=", ".join(defaults),
-        )
-    for key, need in needs.items():
-        if out[key] < need:
-            raise InputError(
-                f"{arch.name} cannot hold this volume's {key.split('_entries')[0]} "
-                f"({need} entries per pipeline)",
-                source=arch.source,
-                key=f"buffers.{key}",
-                allowed=f">= {need}",
-            )
-    return out
-
-
-def publish_pixel_bus(counters: Counters, fifo: DrainFifo, drain: int) -> None:
-    """The pixel bus's counters: pixels, busy cycles, peak occupancy, final drain."""
-    counters.set("pixel_bus.pixels", fifo.pushed)
-    counters.set("pixel_bus.busy_cycles", fifo.busy_cycles)
-    counters.set("pixel_bus.max_occupancy", fifo.max_occupancy)
-    counters.set("pixel_bus.drain_cycles", drain)
-
-
-def frame_result(
-    machine, image: np.ndarray, state, cycles: int, derive_samples: int | None = None
-) -> CycleResult:
-    """A frame's :class:`CycleResult` from a machine (``counters``, ``P``, ``arch``,
-    ``elaborated``, ``elided``) and its back end's final state; derived metrics per
-    ``derive_samples`` samples (default: the composited samples)."""
-    raw = machine.counters.as_dict()
-    derived = derive(
-        raw,
-        cycles=cycles,
-        samples=state.samples if derive_samples is None else derive_samples,
-        pipelines=machine.P,
-        clock_hz=machine.arch.clock_hz,
-    )
-    return CycleResult(
-        image=image,
-        samples=state.samples,
-        rays=int(state.touched.sum()),
-        cycles=int(cycles),
-        counters=raw,
-        elaborated_units=list(machine.elaborated),
-        elided_units=list(machine.elided),
-        derived=derived,
-    )
-
-
-def elaborate_units(
-    backend: Backend, everything: bool, structures: tuple[str, ...]
-) -> tuple[list[str], list[str]]:
-    """The units a scene needs (all of :data:`UNITS` when ``everything``), between the
-    machine's front ``structures`` and its pixel bus; and the units elided."""
-    be, mode = backend, backend.mode
-    needs = {
-        "interp": True,
-        "gradient": be.need_grad,
-        "classify": mode in ("composite", "iso"),
-        "shade": be.scene.lit,
-        "composite": True,
-        "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
-    }
-    if everything:
-        needs = dict.fromkeys(needs, True)
-    units = [*structures] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
-    return units, [u for u in UNITS if not needs[u]]

@@ -39,7 +39,7 @@ from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
-from models.arch.cube4 import cube4_buffers
+from models.arch.machine import cube4_buffers
 from models.arch.pixel_bus_txn import PixelBus
 from models.units import classify, composite, crop, gradient, interp, shade, skew
 

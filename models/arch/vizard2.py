@@ -51,7 +51,7 @@ from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.memory import SdramController
-from models.arch.cube4 import CycleResult, elaborate_units, frame_result
+from models.arch.machine import CycleResult, elaborate_units, frame_result
 from models.arch.vizard2_config import VizardFaults, memory_of, parse_buffers
 from models.arch.vizard2_memory import BLOCK, BlockCache, CacheFetch, VolumeImage
 from models.backend import Backend

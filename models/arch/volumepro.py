@@ -35,15 +35,9 @@ from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, make_plan
 from hwsim.memory import SdramStats, parse_memory
-from models.arch.cube4 import (
-    UNITS,
-    Cube4Machine,
-    CycleResult,
-    Faults,
-    frame_result,
-    publish_pixel_bus,
-)
+from models.arch.cube4 import Cube4Machine, Faults
 from models.arch.cube4_slice import SliceDatapath, SlicePath
+from models.arch.machine import UNITS, CycleResult, frame_result, publish_pixel_bus
 from models.arch.sdram_volume import SdramVolume
 from models.arch.slab_timing import run_timing
 from models.arch.trilinear import TrilinearSource
