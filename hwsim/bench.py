@@ -119,19 +119,7 @@ def rung_speeds(size: int, image: int, arch: str, repeats: int) -> dict[str, Any
 
     def timed(rung: str, rung_arch: str) -> dict[str, Any]:
         runs = [render(scene, fidelity=rung, arch=rung_arch, volume=volume) for _ in range(repeats)]
-        seconds = statistics.median(r.wall_seconds for r in runs)
-        last = runs[-1]
-        entry = {
-            "status": "ok",
-            "arch": last.arch,
-            "sampling": last.sampling,
-            "samples": last.samples,
-            "seconds": seconds,
-            "seconds_all": [r.wall_seconds for r in runs],
-            "samples_per_second": last.samples / seconds,
-            "cycles": last.cycles,
-            "simulated_cycles_per_second": last.cycles / seconds if last.cycles else None,
-        }
+        entry = _timed(runs)
         if rung == "transaction":  # the event model's share, measured inside the render
             for part in ("timing", "image"):
                 key = f"transaction.{part}_seconds"
