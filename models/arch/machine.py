@@ -29,6 +29,7 @@ __all__ = [
     "UNITS",
     "CycleResult",
     "cube4_buffers",
+    "slab_buffers",
     "buffer_table",
     "publish_pixel_bus",
     "frame_result",
@@ -72,6 +73,25 @@ def cube4_buffers(arch: ArchConfig, C: int, T: int) -> dict[str, int]:
         "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
     }
     return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1, "slice_fifo_entries": T})
+
+
+def slab_buffers(arch: ArchConfig, C: int) -> dict[str, int]:
+    """A VolumePro-family machine's capacities per pipeline (``[buffers]``, entries),
+    checked against a volume of ``C`` clocks per beam.  One copy for the cycle and
+    transaction models.
+
+    ``slab_buffer_entries`` defaults to ``8 n ceil(n / P)`` for ``n = max(max_volume)``:
+    four mini-block slabs -- the sample window (voxel slices ``i0 - 1 .. i0 + 2``, up to
+    three slabs) and one slab read ahead.
+    """
+    n_max = max(arch.max_volume)
+    c_max = -(-n_max // arch.pipelines)
+    defaults = {
+        "slab_buffer_entries": 8 * n_max * c_max,
+        "beam_fifo_entries": c_max + 1,
+        "pixel_fifo_entries": n_max * n_max,
+    }
+    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1})
 
 
 def buffer_table(

@@ -51,28 +51,16 @@ from hwsim.errors import InputError
 from hwsim.golden.occupancy import block_ranges, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.memory import SdramController
-from models.arch.machine import CycleResult, elaborate_units, frame_result
+from models.arch.machine import UNITS, CycleResult, elaborate_units, frame_result
 from models.arch.vizard2_config import VizardFaults, memory_of, parse_buffers
 from models.arch.vizard2_memory import BLOCK, BlockCache, CacheFetch, VolumeImage
 from models.backend import Backend
 from models.datapath import Datapath
 from models.units import classify as classify_unit
-from models.units import composite as composite_unit
-from models.units import crop as crop_unit
-from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
-from models.units import shade as shade_unit
 
 __all__ = ["VizardMachine", "VizardFaults", "UNITS", "LOOKUP_LATENCY", "FEEDBACK"]
 
-UNITS = {
-    "interp": interp_unit,
-    "gradient": gradient_unit,
-    "classify": classify_unit,
-    "shade": shade_unit,
-    "composite": composite_unit,
-    "crop": crop_unit,
-}
 LOOKUP_LATENCY = 1  # cache tag check [I]
 FILL_WRITE = 1  # last beat to line written [I]
 #: Issue of a sample to its opacity at the compositor: lookup + every unit [I].

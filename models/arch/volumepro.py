@@ -37,7 +37,13 @@ from hwsim.golden.positions import SamplePlan, make_plan
 from hwsim.memory import SdramStats, parse_memory
 from models.arch.cube4 import Cube4Machine, Faults
 from models.arch.cube4_slice import SliceDatapath, SlicePath
-from models.arch.machine import UNITS, CycleResult, frame_result, publish_pixel_bus
+from models.arch.machine import (
+    UNITS,
+    CycleResult,
+    frame_result,
+    publish_pixel_bus,
+    slab_buffers,
+)
 from models.arch.sdram_volume import SdramVolume
 from models.arch.slab_timing import run_timing
 from models.arch.trilinear import TrilinearSource
@@ -135,21 +141,7 @@ class SlabMachine(Cube4Machine):
         return occupancy_from_ranges(lut[idx_lo] <= idx_hi)
 
     def _slab_buffers(self) -> dict[str, int]:
-        """Input-buffer and pixel-FIFO capacities per pipeline (``[buffers]``, entries).
-
-        ``slab_buffer_entries`` defaults to ``8 n ceil(n / P)`` for ``n = max(max_volume)``:
-        four mini-block slabs -- the sample window (voxel slices ``i0 - 1 .. i0 + 2``, up to
-        three slabs) and one slab read ahead.
-        """
-        arch, P = self.arch, self.P
-        n_max = max(arch.max_volume)
-        c_max = -(-n_max // P)
-        defaults = {
-            "slab_buffer_entries": 8 * n_max * c_max,
-            "beam_fifo_entries": c_max + 1,
-            "pixel_fifo_entries": n_max * n_max,
-        }
-        return self._buffer_table(defaults, {"beam_fifo_entries": self.C + 1})
+        return slab_buffers(self.arch, self.C)
 
     # ------------------------------------------------------------------ geometry
 

@@ -48,6 +48,7 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_memory
 from hwsim.scene import Scene
 from models.arch.cube4_txn import TxnTiming, slice_loads
+from models.arch.machine import slab_buffers
 from models.arch.pixel_bus_txn import PixelBus
 from models.arch.sdram_volume import layout
 from models.arch.sections_txn import band_loads, bands_of
@@ -124,7 +125,7 @@ class SlabTransaction:
         self.n_slabs = -(-self.n_k // 2)
         self.U = max(1, -(-self.n_u // max(1, int(groups))))  # mbbs per chunk
         self.bands = bands_of(plan, arch.section_width, self.n_a, a_ax, arch.source)
-        buffers = _buffers(arch, self.P)
+        buffers = slab_buffers(arch, self.C)
         self.capacity_mbbs = buffers["slab_buffer_entries"] // (4 * self.C)
         depth = buffers["pixel_fifo_entries"]
         self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
@@ -336,23 +337,3 @@ def _forward(plan: SamplePlan) -> bool:
             allowed="a view from outside the volume's slab",
         )
     return bool(signs[0] > 0)
-
-
-def _buffers(arch: ArchConfig, P: int) -> dict[str, int]:
-    """``slab_buffer_entries`` (default ``8 n ceil(n / P)``: four mini-block slabs of the
-    largest volume) and ``pixel_fifo_entries`` (default ``n^2``) per pipeline."""
-    n_max = max(arch.max_volume)
-    c_max = -(-n_max // P)
-    defaults = {"slab_buffer_entries": 8 * n_max * c_max, "pixel_fifo_entries": n_max * n_max}
-    out = {}
-    for key, default in defaults.items():
-        value = arch.buffers.get(key, default)
-        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-            raise InputError(
-                f"invalid {value!r}",
-                source=arch.source,
-                key=f"buffers.{key}",
-                allowed="an integer >= 0",
-            )
-        out[key] = value
-    return out
