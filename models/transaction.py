@@ -15,7 +15,9 @@ Machines with a transaction model, by processing order:
 ``shear-warp``, ``shear-image``
     the VolumePro family's SDRAM-fed slab machines
     (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube,
-    sections included; machines that skip beams (VolumePro 1000) are refused.
+    sections included; machines that skip beams (VolumePro 1000: early ray termination,
+    space leaping) with :class:`models.arch.vp1000_txn.Vp1000Transaction`, which reads
+    each ray's termination step from the functional rung's result.
 
 Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
 """
@@ -38,6 +40,7 @@ from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4_txn import Cube4Transaction
 from models.arch.volumepro_txn import SlabTransaction
+from models.arch.vp1000_txn import Vp1000Transaction
 from models.datapath import Datapath
 from models.functional import render_functional
 
@@ -46,6 +49,7 @@ __all__ = [
     "TransactionResult",
     "has_transaction_model",
     "render_transaction",
+    "transaction_model",
     "transaction_timing",
 ]
 
@@ -55,6 +59,10 @@ TRANSACTION_ORDERS = {
     "shear-warp": SlabTransaction,
     "shear-image": SlabTransaction,
 }
+
+
+#: Options only a model of beam skipping takes (the others ignore them).
+_SKIPPING_OPTIONS = ("volume", "transfer", "stopped", "datapath")
 
 
 @dataclass
@@ -70,31 +78,45 @@ class TransactionResult:
 
 
 def has_transaction_model(arch: ArchConfig) -> bool:
-    """Whether the transaction rung models ``arch`` (its order, and for the slab machines
-    no beam skipping)."""
-    model = TRANSACTION_ORDERS.get(arch.order)
-    if model is SlabTransaction:
-        return not (arch.early_termination or arch.space_leaping)
-    return model is not None
+    """Whether the transaction rung models ``arch`` (its processing order)."""
+    return arch.order in TRANSACTION_ORDERS
 
 
-def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
-    """Run only the event model of ``arch`` over ``plan`` (no image).
+def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
+    """The event model of ``arch`` for one frame (not yet run).
 
-    Returns
-    -------
-    models.arch.cube4_txn.TxnTiming
-        Cycles and counters.  ``options`` go to the machine's model (e.g.
-        ``pixel_fifo_depth`` for the Cube-4 family).
+    ``options`` go to the machine's model: ``pixel_fifo_depth`` (Cube-4 family),
+    ``groups`` (VolumePro family), ``volume``, ``transfer``, ``stopped``, ``datapath``
+    (machines that skip beams: :class:`~models.arch.vp1000_txn.Vp1000Transaction`;
+    ignored by the others).
     """
     model = TRANSACTION_ORDERS.get(arch.order)
     if model is None:
         raise NotAvailableError(
             f"{arch.name} ({arch.order} order) has no transaction model yet",
             key="--arch",
-            allowed="cube4, cube4-teramac, volumepro500, em-cube",
+            allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000",
         )
-    return model(scene, arch, plan, **options).run()
+    if model is SlabTransaction and (arch.early_termination or arch.space_leaping):
+        model = Vp1000Transaction
+    else:
+        options = {k: v for k, v in options.items() if k not in _SKIPPING_OPTIONS}
+    return model(scene, arch, plan, **options)
+
+
+def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
+    """Run only the event model of ``arch`` over ``plan`` (no image).
+
+    A machine that skips beams needs ``volume=`` and ``transfer=`` (empty space) and,
+    when its rays may stop early, renders the functional rung for their termination
+    steps unless ``stopped=`` gives them.
+
+    Returns
+    -------
+    models.arch.cube4_txn.TxnTiming
+        Cycles and counters (:func:`transaction_model` for ``options``).
+    """
+    return transaction_model(scene, arch, plan, **options).run()
 
 
 def render_transaction(
@@ -109,17 +131,25 @@ def render_transaction(
 ) -> TransactionResult:
     """Render one frame: functional image, cycles from ``arch``'s event model.
 
-    The event model runs first, so a machine without one (or a scene it refuses) fails
-    before the image is computed.  ``counters["transaction.timing_seconds"]`` and
-    ``["transaction.image_seconds"]`` split the wall time between the two parts.
+    The event model is built first, so a machine without one (or a scene it refuses)
+    fails before the image is computed; it runs after the image, whose per-ray
+    termination steps a machine with early-ray-termination hardware needs.
+    ``counters["transaction.timing_seconds"]`` and ``["transaction.image_seconds"]``
+    split the wall time between the two parts.
     """
-    timing = transaction_timing(scene, arch, plan)
+    model = transaction_model(
+        scene, arch, plan, volume=volume, transfer=transfer, datapath=datapath
+    )
     start = time.perf_counter()
     image = render_functional(
         scene, volume, transfer, arch, plan, datapath=datapath, progress=progress
     )
+    image_seconds = time.perf_counter() - start
+    if isinstance(model, Vp1000Transaction):
+        model.stopped = image.stopped  # the rays' termination steps (ERT hardware)
+    timing = model.run()
     counters = dict(timing.counters)
-    counters["transaction.image_seconds"] = time.perf_counter() - start
+    counters["transaction.image_seconds"] = image_seconds
     counters["functional.saturated"] = image.counters.get("functional.saturated", {})
     derived = derive(
         counters,
