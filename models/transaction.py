@@ -17,7 +17,10 @@ Machines with a transaction model, by processing order:
     (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube,
     sections included; machines that skip beams (VolumePro 1000: early ray termination,
     space leaping) with :class:`models.arch.vp1000_txn.Vp1000Transaction`, which reads
-    each ray's termination step from the functional rung's result.
+    each ray's termination step from the functional rung's result;
+``ray``
+    VIZARD II (:class:`models.arch.vizard2_txn.VizardTransaction`): ray packets, the
+    block cache's misses as SDRAM bursts, the pixel FIFO.
 
 Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
 """
@@ -40,6 +43,7 @@ from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4_txn import Cube4Transaction
 from models.arch.volumepro_txn import SlabTransaction
+from models.arch.vizard2_txn import VizardTransaction
 from models.arch.vp1000_txn import Vp1000Transaction
 from models.datapath import Datapath
 from models.functional import render_functional
@@ -58,11 +62,13 @@ TRANSACTION_ORDERS = {
     "slice-parallel": Cube4Transaction,
     "shear-warp": SlabTransaction,
     "shear-image": SlabTransaction,
+    "ray": VizardTransaction,
 }
 
 
-#: Options only a model of beam skipping takes (the others ignore them).
+#: Options only the models that read the frame's volume and termination steps take.
 _SKIPPING_OPTIONS = ("volume", "transfer", "stopped", "datapath")
+_READS_THE_FRAME = (Vp1000Transaction, VizardTransaction)
 
 
 @dataclass
@@ -95,11 +101,11 @@ def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **option
         raise NotAvailableError(
             f"{arch.name} ({arch.order} order) has no transaction model yet",
             key="--arch",
-            allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000",
+            allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000, vizard2",
         )
     if model is SlabTransaction and (arch.early_termination or arch.space_leaping):
         model = Vp1000Transaction
-    else:
+    if model not in _READS_THE_FRAME:
         options = {k: v for k, v in options.items() if k not in _SKIPPING_OPTIONS}
     return model(scene, arch, plan, **options)
 
@@ -107,7 +113,8 @@ def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **option
 def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
     """Run only the event model of ``arch`` over ``plan`` (no image).
 
-    A machine that skips beams needs ``volume=`` and ``transfer=`` (empty space) and,
+    A machine that skips beams (VolumePro 1000) or caches blocks (VIZARD II) needs
+    ``volume=`` and ``transfer=`` (empty space, blocks) and,
     when its rays may stop early, renders the functional rung for their termination
     steps unless ``stopped=`` gives them.
 
@@ -145,7 +152,7 @@ def render_transaction(
         scene, volume, transfer, arch, plan, datapath=datapath, progress=progress
     )
     image_seconds = time.perf_counter() - start
-    if isinstance(model, Vp1000Transaction):
+    if isinstance(model, _READS_THE_FRAME):
         model.stopped = image.stopped  # the rays' termination steps (ERT hardware)
     timing = model.run()
     counters = dict(timing.counters)
