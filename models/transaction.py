@@ -42,8 +42,8 @@ from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4_txn import Cube4Transaction
-from models.arch.volumepro_txn import SlabTransaction
 from models.arch.vizard2_txn import VizardTransaction
+from models.arch.volumepro_txn import SlabTransaction
 from models.arch.vp1000_txn import Vp1000Transaction
 from models.datapath import Datapath
 from models.functional import render_functional
