@@ -235,11 +235,19 @@ class VizardTransaction:
 
     # ------------------------------------------------------------------ one packet
 
-    def _last_rounds(self, packet: np.ndarray, stopped: np.ndarray | None) -> np.ndarray:
-        """Last round each ray of ``packet`` issues: its last planned sample, or with
-        ERT hardware its terminating round plus the speculative rounds that start less
-        than ``FEEDBACK`` clocks after the terminating sample issued (rule 3), timed with
-        stall-free rounds of ``ceil(live / P)`` clocks."""
+    def _last_rounds(
+        self, packet: np.ndarray, stopped: np.ndarray | None, tags: np.ndarray
+    ) -> np.ndarray:
+        """Last round each ray of ``packet`` issues: its last planned sample, or with ERT
+        hardware its terminating round plus the speculative rounds that start less than
+        ``FEEDBACK`` clocks after its terminating sample issued (rule 3).
+
+        The rounds are timed *before* the packet is simulated: ``ceil(live / P)`` issue
+        clocks (speculative rays included, by fixed-point iteration) plus, for each lookup
+        group that misses when only the non-speculative samples are looked up, the fill's
+        unloaded time (CAS latency, its bursts' data clocks, the line write: a row hit,
+        the common case).  The cycle rung measures the real, contended stalls instead.
+        """
         plan, P = self.plan, self.P
         j_lo, j_hi = plan.j_lo[packet], plan.j_hi[packet]
         if stopped is None:
@@ -250,17 +258,41 @@ class VizardTransaction:
             return j_hi
         j0 = int(j_lo.min())
         rounds = np.arange(j0, int(j_hi.max()) + 1)
-        live = (j_lo[:, None] <= rounds) & (rounds <= stop[:, None])  # (rays, rounds)
-        clocks = -(-live.sum(axis=0) // P)
-        starts = np.concatenate([[0], np.cumsum(clocks)])  # start of each round
+        sd = self.memory.sdram
+        per_fill = self.layout.value_bursts + self.layout.gradient_bursts
+        wide = plan.ray_ids.size + 1
+        last = stop.copy()
         t = stop[ending] - j0
-        rank = live[:, :][:, t].cumsum(axis=0)[ending, np.arange(ending.size)] - 1
-        issued = starts[t] + rank // P
-        # Rounds after t that start before issued + FEEDBACK still issue the ray.
-        first_stop = np.searchsorted(starts, issued + FEEDBACK, side="left")
-        last = j_hi.copy()
-        last[ending] = np.minimum(j0 + first_stop - 1, j_hi[ending])
-        last[ending] = np.maximum(last[ending], stop[ending])
+        for _ in range(4):  # speculative samples lengthen rounds and may miss: iterate
+            # Fill stalls of each lookup group that misses (on a copy of the tags).
+            t_idx, index, _, sample, block, line = self._lookups(packet, last)
+            miss = self._resolve(tags.copy(), block, line)
+            m_sample = sample[miss]
+            groups, fills = np.unique(
+                t_idx[m_sample] * wide + index[m_sample] // P, return_counts=True
+            )
+            stall = sd.cas_latency + fills * per_fill * sd.burst_cycles + FILL_WRITE
+            g_round, g_clock = groups // wide, groups % wide
+            live = (j_lo[:, None] <= rounds) & (rounds <= last[:, None])
+            clocks = -(-live.sum(axis=0) // P)
+            clocks = clocks + np.bincount(g_round, weights=stall, minlength=rounds.size)
+            starts = np.concatenate([[0], np.cumsum(clocks)])
+            rank = live[:, t].cumsum(axis=0)[ending, np.arange(ending.size)] - 1
+            issue_clock = rank // P
+            # Stalls of the round's missing groups at or before the ray's issue clock.
+            before = np.array(
+                [
+                    stall[(g_round == r_k) & (g_clock <= c_k)].sum()
+                    for r_k, c_k in zip(t.tolist(), issue_clock.tolist(), strict=True)
+                ]
+            )
+            issued = starts[t] + issue_clock + before
+            # Rounds that start before issued + FEEDBACK still issue the ray.
+            first_stop = np.searchsorted(starts, issued + FEEDBACK, side="left")
+            new = np.minimum(np.maximum(j0 + first_stop - 1, stop[ending]), j_hi[ending])
+            if np.array_equal(new, last[ending]):
+                break
+            last[ending] = new
         return last
 
     def _lookups(self, packet: np.ndarray, last: np.ndarray):
@@ -343,7 +375,7 @@ class VizardTransaction:
 
         def issue():
             for packet in packets:
-                last = self._last_rounds(packet, stopped)
+                last = self._last_rounds(packet, stopped, tags)
                 if stopped is not None:
                     stop = np.minimum(stopped[self.plan.ray_ids[packet]], last)
                     stats["speculative"] += int((last - stop).sum())
@@ -359,9 +391,8 @@ class VizardTransaction:
                 # Lookup group of each miss: its sample's clock in the packet.
                 m_clock = round_start[t_idx[m_sample]] + index[m_sample] // P
                 cuts = np.flatnonzero(np.diff(m_clock)) + 1
-                for clock, blocks in zip(
-                    np.split(m_clock, cuts), np.split(block[miss], cuts), strict=True
-                ):
+                batches = zip(np.split(m_clock, cuts), np.split(block[miss], cuts), strict=True)
+                for clock, blocks in batches if m_clock.size else ():
                     arrive = begin + int(clock[0]) + waited
                     if arrive > env.now:
                         yield env.timeout(arrive - env.now)
@@ -385,9 +416,7 @@ class VizardTransaction:
         end = max(stats["pipe_end"], bus.end)
         cycles = end + FEEDBACK
         sched = port.schedule()
-        counters: dict[str, Any] = {
-            k: int(v) for k, v in sched.stats.to_counters("memory").items()
-        }
+        counters: dict[str, Any] = {k: int(v) for k, v in sched.stats.to_counters("memory").items()}
         counters.update(
             {
                 "cache.lines": self.buffers.cache_lines,
