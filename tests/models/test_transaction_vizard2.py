@@ -204,3 +204,21 @@ def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, proje
         exact.cycles,
         approx.cycles,
     )
+
+
+@pytest.mark.parametrize("arch", ["vizard2", "volumepro1000"])
+def test_hwsim_render_at_the_transaction_rung(tmp_path, arch):
+    """The command line reaches both new models; cycles within the contract of the
+    cycle rung's, the same image."""
+    import json
+
+    from hwsim.cli import main
+
+    args = ["render", "--phantom", "head:size=20", "--arch", arch, "--image", "20", "--quiet"]
+    assert main([*args, "--fidelity", "transaction", "--out", str(tmp_path / "t")]) == 0
+    assert main([*args, "--fidelity", "cycle", "--out", str(tmp_path / "c")]) == 0
+    txn, cyc = (json.loads((tmp_path / d / "stats.json").read_text()) for d in ("t", "c"))
+    assert txn["cycles"] == txn["counters"]["frame.cycles"]
+    assert abs(txn["cycles"] - cyc["cycles"]) <= CONTRACT * cyc["cycles"]
+    images = [np.load(tmp_path / d / "image.npy") for d in ("t", "c")]
+    assert np.array_equal(*images)
