@@ -203,3 +203,25 @@ def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, proje
     )
     for key in EXACT:
         assert approx.counters[key] == exact.counters[key], key
+
+
+def test_embedded_geometry_stops_rays_as_termination_does():
+    """The depth test of embedded geometry ends rays (a stopping test): the functional
+    rung reports those stops too, so the beams behind the geometry are skipped as on the
+    machine, with no opacity threshold at all."""
+    from hwsim.scene import load_scene
+
+    scene = load_scene("head-vp1000")
+    scene = scene.replace(
+        volume=VolumeSpec(phantom="head", params=(("size", 32),)),
+        view=dataclasses.replace(scene.view, width=32, height=32),
+        render=dataclasses.replace(scene.render, early_termination=1.0),
+    )
+    arch = machine(False)
+    exact = render(scene, fidelity="cycle", arch=arch)
+    approx = render(scene, fidelity="transaction", arch=arch)
+    assert approx.counters["ert.stopped_rays"] > 0
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+    for key in EXACT:
+        assert approx.counters[key] == exact.counters[key], key
+    assert np.array_equal(approx.image, exact.image)
