@@ -36,7 +36,7 @@ import numpy as np
 
 from hwsim.arch import ArchConfig
 from hwsim.engine.metrics import derive
-from hwsim.errors import NotAvailableError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
@@ -92,9 +92,9 @@ def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **option
     """The event model of ``arch`` for one frame (not yet run).
 
     ``options`` go to the machine's model: ``pixel_fifo_depth`` (Cube-4 family),
-    ``groups`` (VolumePro family), ``volume``, ``transfer``, ``stopped``, ``datapath``
-    (machines that skip beams: :class:`~models.arch.vp1000_txn.Vp1000Transaction`;
-    ignored by the others).
+    ``groups`` and ``steady_state`` (VolumePro family; refused elsewhere), ``volume``,
+    ``transfer``, ``stopped``, ``datapath`` (VolumePro 1000 and VIZARD II; ignored by
+    the others).
     """
     model = TRANSACTION_ORDERS.get(arch.order)
     if model is None:
@@ -105,6 +105,14 @@ def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **option
         )
     if model is SlabTransaction and (arch.early_termination or arch.space_leaping):
         model = Vp1000Transaction
+    if options.get("steady_state") and not issubclass(model, SlabTransaction):
+        raise InputError(
+            f"{arch.name} ({arch.order} order) times single frames only",
+            key="steady_state",
+            allowed="a machine of order shear-warp, shear-image",
+        )
+    if not issubclass(model, SlabTransaction):
+        options.pop("steady_state", None)
     if model not in _READS_THE_FRAME:
         options = {k: v for k, v in options.items() if k not in _SKIPPING_OPTIONS}
     return model(scene, arch, plan, **options)
@@ -135,6 +143,7 @@ def render_transaction(
     *,
     datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
+    steady_state: bool = False,
 ) -> TransactionResult:
     """Render one frame: functional image, cycles from ``arch``'s event model.
 
@@ -142,10 +151,18 @@ def render_transaction(
     fails before the image is computed; it runs after the image, whose per-ray
     termination steps a machine with early-ray-termination hardware needs.
     ``counters["transaction.timing_seconds"]`` and ``["transaction.image_seconds"]``
-    split the wall time between the two parts.
+    split the wall time between the two parts.  ``steady_state`` (VolumePro family) also
+    plays a second frame back to back: ``counters["frame.period_cycles"]``, as the cycle
+    rung's rule 9.
     """
     model = transaction_model(
-        scene, arch, plan, volume=volume, transfer=transfer, datapath=datapath
+        scene,
+        arch,
+        plan,
+        volume=volume,
+        transfer=transfer,
+        datapath=datapath,
+        steady_state=steady_state,
     )
     start = time.perf_counter()
     image = render_functional(

@@ -91,6 +91,9 @@ class SlabTransaction:
         Beam groups per slice (and mbb chunks per slab): the model's granularity.
     pixel_fifo_depth : int, optional
         Override of ``[buffers] pixel_fifo_entries``.
+    steady_state : bool
+        Also play a second identical frame back to back and report the cycles between
+        the two frames' ends (``frame.period_cycles``, the cycle rung's rule 9).
     """
 
     #: Whether the class models beam skipping (its subclass for VolumePro 1000 does).
@@ -106,8 +109,10 @@ class SlabTransaction:
         *,
         groups: int = 8,
         pixel_fifo_depth: int | None = None,
+        steady_state: bool = False,
     ) -> None:
         self.scene, self.arch, self.plan = scene, arch, plan
+        self.steady_state = steady_state
         skipping = arch.early_termination or arch.space_leaping
         if skipping and not self.models_skipping:
             raise NotAvailableError(
@@ -257,82 +262,10 @@ class SlabTransaction:
             raise DeadlockError(
                 f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
             )
-        env = simpy.Environment()
-        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        ready = [env.event() for _ in chunks]
-        freed = [env.event() for _ in chunks]
-        frees_at: dict[int, list[int]] = {}
-        for c, g in enumerate(free_after.tolist()):
-            frees_at.setdefault(g, []).append(c)
-        for c in frees_at.pop(-1, []):  # no group needs it
-            freed[c].succeed()
-        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
-        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
-        stats["section"] = 0
+        stats, bus, ports = self._simulate(
+            chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=1
+        )
         M = self.memory.modules
-
-        def memory():
-            layout = (-1, -1, None)
-            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks):
-                if layout[:2] != (bi, slab):
-                    layout = (bi, slab, self._slab_layout(slab))
-                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
-                if sk is not None:  # only the mini-blocks a live cell needs
-                    keep = sk.needed[slab, u_lo : u_hi + 1].ravel()
-                    module, bank, row = module[keep], bank[keep], row[keep]
-                if g >= cap and not freed[g - cap].triggered:
-                    waited = env.now
-                    yield freed[g - cap]
-                    stats["buffer_full"] += int(env.now - waited)
-                done = []
-                for k in range(M):
-                    on = module == k
-                    if on.any():
-                        done.append(ports[k].read(bank[on], row[on]))
-                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
-                stats["events"] += len(done) + 1
-
-        def pipelines():
-            single = len(self.bands) == 1
-            for k, (bi, j, clocks, need) in enumerate(groups):
-                if bi and j == 0 and (k == 0 or groups[k - 1][0] != bi):
-                    # Section change: overhead, then reload the rays parked by the last band.
-                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
-                    stats["section"] += pre
-                    yield env.timeout(pre)
-                if need >= 0 and not ready[need].triggered:
-                    if need - cap >= 0 and free_after[need - cap] >= k:
-                        raise DeadlockError(
-                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
-                            f"hold the sample window of slice {j}"
-                        )
-                    waited = env.now
-                    yield ready[need]
-                    stats["stall"] += int(env.now - waited)
-                if clocks:
-                    yield env.timeout(clocks)
-                stats["events"] += 2
-                for c in frees_at.get(k, ()):
-                    freed[c].succeed()
-                if k + 1 < len(groups) and groups[k + 1][:2] == (bi, j):
-                    continue  # more beam groups of this slice
-                # Sections are parallel-only, where a slice never has more samples than
-                # voxels: the perspective stretch applies to the unsectioned frame.
-                stretch = max(0, -(-int(samples[j]) // self.P) - int(beam_clocks[j]))
-                stretch = stretch if single else 0
-                stats["stretch"] += stretch
-                extra = self.arch.slice_overhead_cycles + stretch
-                if extra:
-                    yield env.timeout(extra)
-                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
-                yield from bus.push(leaving)
-            stats["pipe_end"] = int(env.now)
-
-        env.process(memory())
-        env.process(pipelines())
-        env.run()
-        if stats["pipe_end"] == 0 and groups:
-            raise DeadlockError("the pipelines never finished: the input buffer is too small")
         end = max(stats["pipe_end"], bus.end)
         latency = skew.LATENCY + self.C + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
         cycles = end + latency
@@ -364,7 +297,110 @@ class SlabTransaction:
                 "transaction.timing_seconds": time.perf_counter() - start,
             }
         )
+        if self.steady_state:  # rule 9: the cycles between two back-to-back frames' ends
+            twice, _, _ = self._simulate(
+                chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=2
+            )
+            counters["frame.period_cycles"] = twice["pipe_ends"][1] - twice["pipe_ends"][0]
+            counters["transaction.timing_seconds"] = time.perf_counter() - start
         return TxnTiming(int(cycles), counters)
+
+    def _simulate(
+        self, chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, *, frames
+    ):
+        """Run the memory and the pipelines over ``frames`` identical frames back to back
+        (the same controllers, buffer and pixel FIFO carry on); returns the statistics
+        (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
+        SDRAM ports."""
+        sk, n_steps = self.skips, len(samples)
+        nc, ng = len(chunks), len(groups)
+        # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
+        free_after = np.concatenate(
+            [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
+        )
+        env = simpy.Environment()
+        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
+        ready = [env.event() for _ in range(nc * frames)]
+        freed = [env.event() for _ in range(nc * frames)]
+        frees_at: dict[int, list[int]] = {}
+        for c, g in enumerate(free_after.tolist()):
+            frees_at.setdefault(g, []).append(c)
+        for c in frees_at.pop(-1, []):  # no group needs it
+            freed[c].succeed()
+        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
+        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
+        stats["section"] = 0
+        stats["pipe_ends"] = []
+        M = self.memory.modules
+
+        def memory():
+            layout = (-1, -1, None)
+            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks * frames):
+                if layout[:2] != (bi, slab):
+                    layout = (bi, slab, self._slab_layout(slab))
+                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
+                if sk is not None:  # only the mini-blocks a live cell needs
+                    keep = sk.needed[slab, u_lo : u_hi + 1].ravel()
+                    module, bank, row = module[keep], bank[keep], row[keep]
+                if g >= cap and not freed[g - cap].triggered:
+                    waited = env.now
+                    yield freed[g - cap]
+                    stats["buffer_full"] += int(env.now - waited)
+                done = []
+                for k in range(M):
+                    on = module == k
+                    if on.any():
+                        done.append(ports[k].read(bank[on], row[on]))
+                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
+                stats["events"] += len(done) + 1
+
+        def pipelines():
+            single = len(self.bands) == 1
+            for k, (f, (bi, j, clocks, need)) in enumerate(
+                (f, group) for f in range(frames) for group in groups
+            ):
+                need = need + f * nc if need >= 0 else need
+                if bi and j == 0 and (k % ng == 0 or groups[k % ng - 1][0] != bi):
+                    # Section change: overhead, then reload the rays parked by the last band.
+                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
+                    stats["section"] += pre
+                    yield env.timeout(pre)
+                if need >= 0 and not ready[need].triggered:
+                    if need - cap >= 0 and free_after[need - cap] >= k:
+                        raise DeadlockError(
+                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
+                            f"hold the sample window of slice {j}"
+                        )
+                    waited = env.now
+                    yield ready[need]
+                    stats["stall"] += int(env.now - waited)
+                if clocks:
+                    yield env.timeout(clocks)
+                stats["events"] += 2
+                for c in frees_at.get(k, ()):
+                    freed[c].succeed()
+                if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
+                    continue  # more beam groups of this slice
+                # Sections are parallel-only, where a slice never has more samples than
+                # voxels: the perspective stretch applies to the unsectioned frame.
+                stretch = max(0, -(-int(samples[j]) // self.P) - int(beam_clocks[j]))
+                stretch = stretch if single else 0
+                stats["stretch"] += stretch
+                extra = self.arch.slice_overhead_cycles + stretch
+                if extra:
+                    yield env.timeout(extra)
+                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
+                yield from bus.push(leaving)
+                if k % ng == ng - 1:
+                    stats["pipe_ends"].append(int(env.now))
+            stats["pipe_end"] = int(env.now)
+
+        env.process(memory())
+        env.process(pipelines())
+        env.run()
+        if stats["pipe_end"] == 0 and groups:
+            raise DeadlockError("the pipelines never finished: the input buffer is too small")
+        return stats, bus, ports
 
     def _mbb_reads(self, chunks) -> int:
         """Mini-block beams read: every mbb of a chunk, or with skipping those holding a

@@ -225,3 +225,36 @@ def test_embedded_geometry_stops_rays_as_termination_does():
     for key in EXACT:
         assert approx.counters[key] == exact.counters[key], key
     assert np.array_equal(approx.image, exact.image)
+
+
+@pytest.mark.parametrize("name", ["volumepro500", "em-cube", "volumepro1000"])
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20)])
+def test_back_to_back_frames_give_the_cycle_rungs_period(name, az, el):
+    """Rule 9 (continuous rendering, the published rates' basis): the second frame's fill
+    overlaps the first's last slices, the first's pixels drain during the second."""
+    volume = make_phantom("head", size=32)
+    scene = scene_of(az=az, el=el, image=32, ert=0.95)
+    arch = resolve_arch(name)
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan, steady_state=True)
+    approx = render_transaction(scene, volume, tf, arch, plan, steady_state=True)
+    period, reference = (
+        approx.counters["frame.period_cycles"],
+        exact.counters["frame.period_cycles"],
+    )
+    assert period < approx.cycles  # the fill and the drain overlap the neighbours
+    assert abs(period - reference) <= CONTRACT * reference, (reference, period)
+    single = render_transaction(scene, volume, tf, arch, plan)
+    assert single.cycles == approx.cycles and "frame.period_cycles" not in single.counters
+
+
+@pytest.mark.parametrize("name", ["cube4", "vizard2"])
+def test_back_to_back_frames_are_refused_where_the_model_times_single_frames(name):
+    volume = make_phantom("head", size=16)
+    scene = scene_of(image=16)
+    arch = resolve_arch(name)
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    with pytest.raises(InputError, match="steady_state"):
+        render_transaction(scene, volume, tf, arch, plan, steady_state=True)
