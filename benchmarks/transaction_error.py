@@ -6,7 +6,9 @@ Usage::
 
 For every case (phantoms head, ball, Marschner-Lobb at several parallel and perspective
 views; the real CT and MR of ../shared/data when present; pipeline counts 4 and 8; the
-Teramac machine; a shallow pixel FIFO) the cycle rung renders the frame and the
+Teramac machine; a shallow pixel FIFO; VolumePro 500 and EM-Cube; VolumePro 1000 and
+VIZARD II with early ray termination and space leaping off and on) the cycle rung
+renders the frame and the
 transaction rung's event model times it; the relative error
 ``(transaction - cycle) / cycle`` is written per case, with the worst per architecture
 family and per kind of view.  The images are not compared here (tests/models prove them
@@ -36,6 +38,7 @@ from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models.cycle import render_cycle
+from models.functional import render_functional
 from models.transaction import transaction_timing
 
 __all__ = ["CONTRACT", "cases", "measure", "run", "main"]
@@ -140,6 +143,68 @@ def cases(quick: bool = False) -> list[dict[str, Any]]:
                         }
                     )
     out += _volumepro_cases(quick)
+    out += _skipping_cases(quick)
+    return out
+
+
+def _with(scene: Scene, ert: float) -> Scene:
+    return scene.replace(render=dataclasses.replace(scene.render, early_termination=ert))
+
+
+#: Early ray termination threshold and space leaping: off/on, the four combinations.
+SKIPPING = [(1.0, False), (0.95, False), (1.0, True), (0.95, True)]
+
+
+def _skipping_cases(quick: bool) -> list[dict[str, Any]]:
+    """VolumePro 1000 and VIZARD II: early ray termination and space leaping off and on,
+    parallel and perspective, on the phantoms and the real CT and MR."""
+    out = []
+    plans = [
+        ("volumepro1000", [("head", 40), ("ball", 40), ("marschner-lobb", 41)], 128),
+        ("vizard2", [("head", 32), ("ball", 32), ("marschner-lobb", 33)], 48),
+    ]
+    for name, phantoms, real_image in plans:
+        base = resolve_arch(name)
+        views = [("parallel", 0, 0), ("parallel", 30, 20), ("parallel", 150, -30)]
+        views += [("perspective", -35, 10), ("perspective", 20, 15)]
+        for phantom, n in phantoms:
+            volume = make_phantom(phantom, size=n)
+            for ert, leaping in SKIPPING:
+                arch = dataclasses.replace(base, space_leaping=leaping)
+                for projection, az, el in views:
+                    scene = _scene(phantom, az, el, projection, n, preset="auto", zoom=1.0)
+                    out.append(
+                        {
+                            "name": f"{phantom}{n} {projection} {az},{el} "
+                            f"ert{ert:g} leap{int(leaping)} {name}",
+                            "volume": volume,
+                            "scene": _with(scene, ert),
+                            "arch": arch,
+                            "projection": projection,
+                        }
+                    )
+        if quick:
+            continue
+        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
+            path = SHARED / fname
+            if not path.is_file():
+                continue
+            volume = read_volume(path)
+            preset = "ct" if fname.startswith("ct") else "mr"
+            for ert, leaping in SKIPPING:
+                arch = dataclasses.replace(base, space_leaping=leaping)
+                for projection, az, el in [("parallel", 30, 20), ("perspective", -35, 10)]:
+                    scene = _scene(path, az, el, projection, real_image, preset=preset)
+                    out.append(
+                        {
+                            "name": f"{fname} {projection} {az},{el} img{real_image} "
+                            f"ert{ert:g} leap{int(leaping)} {name}",
+                            "volume": volume,
+                            "scene": _with(scene, ert),
+                            "arch": arch,
+                            "projection": projection,
+                        }
+                    )
     return out
 
 
@@ -215,7 +280,12 @@ def measure(case: dict[str, Any]) -> dict[str, Any]:
     scene, volume, arch = case["scene"], case["volume"], case["arch"]
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    txn = transaction_timing(scene, arch, plan)
+    # Machines that read the frame (beam skipping, block cache) take the functional
+    # rung's termination steps, as the transaction rung hands them over.
+    frame: dict[str, Any] = {"volume": volume, "transfer": tf}
+    if arch.order == "ray" or arch.early_termination or arch.space_leaping:
+        frame["stopped"] = render_functional(scene, volume, tf, arch, plan).stopped
+    txn = transaction_timing(scene, arch, plan, **frame)
     c = txn.counters
     start = time.perf_counter()
     try:
@@ -246,15 +316,24 @@ def measure(case: dict[str, Any]) -> dict[str, Any]:
         "cycle_seconds": cycle_seconds,
         "timing_model_seconds": c["transaction.timing_seconds"],
         "events": c["transaction.events"],
-        "stretch_cycles": c["pipelines.stretch_cycles"],
-        "pipeline_stall_cycles": c["pipelines.stall_cycles"],
+        "stretch_cycles": c.get("pipelines.stretch_cycles"),
+        "pipeline_stall_cycles": c.get("pipelines.stall_cycles"),
+        "memory_stall_cycles": (
+            c.get("memory.stall_cycles"),
+            cycle.counters.get("memory.stall_cycles"),
+        ),
     }
 
 
-def run(quick: bool = False, log=print, note: str | None = None) -> dict[str, Any]:
-    """Measure every case; summarise the worst error per pipeline count and projection."""
+def run(
+    quick: bool = False, log=print, note: str | None = None, only: str | None = None
+) -> dict[str, Any]:
+    """Measure every case (or those whose name contains ``only``); summarise the worst
+    error per architecture and projection."""
     rows = []
     for case in cases(quick):
+        if only is not None and only not in case["name"]:
+            continue
         row = measure(case)
         rows.append(row)
         err = "not yet compared" if row["error"] is None else f"{100 * row['error']:+7.3f}%"
@@ -286,8 +365,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="small phantoms only")
     parser.add_argument("--out", type=Path, default=None, help="JSON report path")
     parser.add_argument("--note", default=None, help="recorded in the report (e.g. the tree)")
+    parser.add_argument(
+        "--only", default=None, help="measure only the cases whose name contains this text"
+    )
     args = parser.parse_args(argv)
-    report = run(args.quick, note=args.note)
+    report = run(args.quick, note=args.note, only=args.only)
     print(f"max |error| {100 * report['max_abs_error']:.3f}% (contract {100 * CONTRACT:g}%)")
     write_report(report, args.out)
     return 0

@@ -48,7 +48,7 @@ from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
 from models.units import shade as shade_unit
 
-__all__ = ["FunctionalResult", "TapSource", "render_functional", "pipeline_latency"]
+__all__ = ["FunctionalResult", "NEVER", "TapSource", "render_functional", "pipeline_latency"]
 
 
 def pipeline_latency(scene: Scene) -> int:
@@ -77,6 +77,14 @@ class FunctionalResult:
     #: Samples the simulation actually computed (``samples`` minus those skipped as
     #: provably invisible by :mod:`models.leap`); wall-time bookkeeping only.
     simulated: int = 0
+    #: Composite and iso: per accumulation ray, the step of its last live sample (early
+    #: ray termination, iso hit, a stopping depth test), :data:`NEVER` for rays that never
+    #: stopped; None in other modes.  Timing models of machines with ERT hardware read it.
+    stopped: np.ndarray | None = None
+
+
+#: ``FunctionalResult.stopped`` of a ray that never stopped (beyond every step).
+NEVER = np.iinfo(np.int64).max // 2
 
 
 class TapSource:
@@ -142,15 +150,20 @@ class _Functional:
             per_step = np.maximum(per_step, int(np.prod(shape)) // shape[plan.principal_axis])
         cycles = int(np.sum(-(-per_step // P))) + plan.n_steps * self.arch.slice_overhead_cycles
         blocks = leap.invisible_blocks(be) if self.leap else None
+        stops = be.mode in ("composite", "iso")
+        stopped = np.full(state.alive.shape, NEVER, dtype=np.int64)
         if blocks is None:
             for j, step in enumerate(plan.steps()):
                 for part in _chunks(step) if self.leap else [step]:
                     be.process(part, self._source, state)
+                if stops and step.rays.size:  # rays that stopped at this step
+                    rays = step.rays
+                    stopped[rays[~state.alive[rays] & (stopped[rays] == NEVER)]] = j
                 if progress is not None:
                     progress(j + 1, plan.n_steps)
             simulated = state.samples
         else:
-            simulated = self._run_leapt(leap.leapt_plan(plan, blocks), state, progress)
+            simulated = self._run_leapt(leap.leapt_plan(plan, blocks), state, progress, stopped)
         sections = 0
         if self.arch.section_width and plan.shape[1] > 0:
             sections = -(-plan.shape[1] // self.arch.section_width)
@@ -163,17 +176,27 @@ class _Functional:
             "functional.saturated": clipped,
         }
         return FunctionalResult(
-            image, state.samples, int(state.touched.sum()), int(cycles), counters, simulated
+            image,
+            state.samples,
+            int(state.touched.sum()),
+            int(cycles),
+            counters,
+            simulated,
+            stopped if stops else None,
         )
 
     def _run_leapt(
-        self, sim: SamplePlan, state: RayState, progress: Callable[[int, int], None] | None
+        self,
+        sim: SamplePlan,
+        state: RayState,
+        progress: Callable[[int, int], None] | None,
+        stopped: np.ndarray,
     ) -> int:
         """Simulate only the samples of ``sim`` (the plan minus invisible blocks), then
-        recount what the machine visits in the full plan; returns the samples simulated."""
+        recount what the machine visits in the full plan; returns the samples simulated
+        and fills ``stopped`` (:attr:`FunctionalResult.stopped`)."""
         be = self.backend
         stops = be.ert < 1.0 or be.mode == "iso"
-        stopped = np.full(state.alive.shape, np.iinfo(np.int64).max // 2, dtype=np.int64)
         for j, step in enumerate(sim.steps(state.alive)):
             for part in _chunks(step):
                 be.process(part, self._source, state)

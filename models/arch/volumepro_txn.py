@@ -29,14 +29,16 @@ rays leave over the pixel bus at the end of their band.
 What is coarser than the cycle rung (the error's sources): readiness and freeing per
 chunk of mbbs instead of per mbb and per beam, so pipelines wait for a whole chunk at the
 first fill and wherever the memory is the bottleneck; and the buffer's capacity counted
-in whole chunks.  Not modelled yet: beam skipping (early ray termination, space leaping:
-VolumePro 1000); such machines are refused as not available.
+in whole chunks.  Beam skipping (early ray termination, space leaping: VolumePro 1000)
+is the subclass :class:`models.arch.vp1000_txn.Vp1000Transaction`, which supplies each
+slice's per-beam clocks and the mini-blocks read (``skips``); this class refuses a
+skipping machine.
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import simpy
@@ -53,6 +55,9 @@ from models.arch.pixel_bus_txn import PixelBus
 from models.arch.sdram_volume import layout
 from models.arch.sections_txn import band_loads, bands_of
 from models.units import classify, composite, crop, gradient, interp, shade, skew
+
+if TYPE_CHECKING:
+    from models.arch.vp1000_txn import BeamSkips
 
 __all__ = ["SlabTransaction", "miniblock_layout"]
 
@@ -86,7 +91,15 @@ class SlabTransaction:
         Beam groups per slice (and mbb chunks per slab): the model's granularity.
     pixel_fifo_depth : int, optional
         Override of ``[buffers] pixel_fifo_entries``.
+    steady_state : bool
+        Also play a second identical frame back to back and report the cycles between
+        the two frames' ends (``frame.period_cycles``, the cycle rung's rule 9).
     """
+
+    #: Whether the class models beam skipping (its subclass for VolumePro 1000 does).
+    models_skipping = False
+    #: Rule 6's per-beam clocks and mini-blocks read (set by a skipping subclass).
+    skips: BeamSkips | None = None
 
     def __init__(
         self,
@@ -96,14 +109,17 @@ class SlabTransaction:
         *,
         groups: int = 8,
         pixel_fifo_depth: int | None = None,
+        steady_state: bool = False,
     ) -> None:
         self.scene, self.arch, self.plan = scene, arch, plan
-        if arch.early_termination or arch.space_leaping:
+        self.steady_state = steady_state
+        skipping = arch.early_termination or arch.space_leaping
+        if skipping and not self.models_skipping:
             raise NotAvailableError(
-                f"{arch.name} skips beams (early ray termination, space leaping); the "
-                "transaction rung does not model beam skipping yet",
+                f"{arch.name} skips beams (early ray termination, space leaping): its "
+                "model needs each ray's termination step (models.arch.vp1000_txn)",
                 key="--arch",
-                allowed="cube4, cube4-teramac, volumepro500, em-cube",
+                allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000",
             )
         self.memory = parse_memory(arch.memory, source=arch.source)
         if self.memory.sdram.clock_ratio != 1.0:
@@ -125,6 +141,13 @@ class SlabTransaction:
         self.n_slabs = -(-self.n_k // 2)
         self.U = max(1, -(-self.n_u // max(1, int(groups))))  # mbbs per chunk
         self.bands = bands_of(plan, arch.section_width, self.n_a, a_ax, arch.source)
+        if skipping and len(self.bands) > 1:
+            raise NotAvailableError(
+                "the transaction model does not section a machine that skips beams",
+                source=arch.source,
+                key="overheads.section_width",
+                allowed="0 (no sectioning) with early termination or space leaping",
+            )
         buffers = slab_buffers(arch, self.C)
         self.capacity_mbbs = buffers["slab_buffer_entries"] // (4 * self.C)
         depth = buffers["pixel_fifo_entries"]
@@ -164,9 +187,15 @@ class SlabTransaction:
 
     def _schedule(self, n_steps: int):
         """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
-        order ``(band, j, rows, last chunk needed)``; and for each chunk the last group
-        that needs it (its buffer slot is freed when that group ends)."""
-        U, n_a = self.U, self.n_a
+        order ``(band, j, clocks, last chunk needed)``; and for each chunk the last group
+        that needs it (its buffer slot is freed when that group ends).
+
+        With beam skipping (``self.skips``) a chunk holding no mini-block a live cell
+        needs is not read, a group costs its rows' clocks (rule 6: clock groups of live
+        rays), rows costing nothing need no chunk, and a slice whose every row is
+        skipped keeps one empty group (its overhead and pixels still happen).
+        """
+        U, n_a, sk = self.U, self.n_a, self.skips
         slab_order = list(range(self.n_slabs))
         if not self.forward:
             slab_order.reverse()
@@ -175,26 +204,40 @@ class SlabTransaction:
             u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
             for slab in slab_order:
                 for k, u in enumerate(range(u0, u1 + 1, U)):
+                    hi = min(u + U - 1, u1)
+                    if sk is not None and not sk.needed[slab, u : hi + 1].any():
+                        continue  # no mini-block of these mbbs is read
                     index[bi, slab, k] = len(chunks)
-                    chunks.append((bi, slab, u, min(u + U - 1, u1)))
+                    chunks.append((bi, slab, u, hi))
         groups, needs = [], []
         for bi, (a0, a1) in enumerate(self.bands):
             u0 = max(a0 - 1, 0) // 2
-            spans = []
-            for r0 in range(a0, a1, 2 * U):
-                r1 = min(r0 + 2 * U, a1)
-                u_lo, u_hi = max(r0 - 1, 0) // 2, min(r1 + 1, n_a - 1) // 2
-                spans.append((r1 - r0, (u_lo - u0) // U, (u_hi - u0) // U))
+            spans = [(r0, min(r0 + 2 * U, a1)) for r0 in range(a0, a1, 2 * U)]
             for j in range(n_steps):
                 s_lo, s_hi = self._window_slabs(j)
-                for rows, k_lo, k_hi in spans:
+                cost = None if sk is None else sk.cost[j]
+                first = len(groups)
+                for r0, r1 in spans:
+                    if cost is None:
+                        clocks, lo, hi = (r1 - r0) * self.C, r0, r1 - 1
+                    else:
+                        live = np.flatnonzero(cost[r0:r1])
+                        if not live.size:
+                            continue
+                        clocks, lo, hi = int(cost[r0:r1].sum()), r0 + live[0], r0 + live[-1]
+                    k_lo = (max(lo - 1, 0) // 2 - u0) // U
+                    k_hi = (min(hi + 2, n_a - 1) // 2 - u0) // U
                     ids = [
                         index[bi, s, k]
                         for s in range(s_lo, s_hi + 1)
                         for k in range(k_lo, k_hi + 1)
+                        if (bi, s, k) in index
                     ]
-                    groups.append((bi, j, rows, max(ids)))
+                    groups.append((bi, j, clocks, max(ids, default=-1)))
                     needs.append(ids)
+                if len(groups) == first:  # every beam of the slice skipped
+                    groups.append((bi, j, 0, -1))
+                    needs.append([])
         free_after = np.full(len(chunks), -1, dtype=np.int64)
         for g, ids in enumerate(needs):
             free_after[ids] = g  # groups are numbered in processing order
@@ -207,6 +250,11 @@ class SlabTransaction:
         start = time.perf_counter()
         samples, finishing = slice_loads(self.plan)
         n_steps = len(samples)
+        sk = self.skips
+        if sk is not None:
+            samples = sk.live  # samples of live rays: what the lanes work on (rule 6)
+        # Clocks of each slice's beams (the stretch's reference): n_a C, less when skipping.
+        beam_clocks = np.full(n_steps, self.n_a * self.C) if sk is None else sk.cost.sum(axis=1)
         by_band, parked = band_loads(self.plan, self.bands, self.n_a, finishing)
         chunks, groups, free_after = self._schedule(n_steps)
         cap = self.capacity_mbbs // self.U
@@ -214,78 +262,10 @@ class SlabTransaction:
             raise DeadlockError(
                 f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
             )
-        env = simpy.Environment()
-        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        ready = [env.event() for _ in chunks]
-        freed = [env.event() for _ in chunks]
-        frees_at: dict[int, list[int]] = {}
-        for c, g in enumerate(free_after.tolist()):
-            frees_at.setdefault(g, []).append(c)
-        for c in frees_at.pop(-1, []):  # no group needs it
-            freed[c].succeed()
-        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
-        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
-        stats["section"] = 0
+        stats, bus, ports = self._simulate(
+            chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=1
+        )
         M = self.memory.modules
-
-        def memory():
-            layout = (-1, -1, None)
-            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks):
-                if layout[:2] != (bi, slab):
-                    layout = (bi, slab, self._slab_layout(slab))
-                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
-                if g >= cap and not freed[g - cap].triggered:
-                    waited = env.now
-                    yield freed[g - cap]
-                    stats["buffer_full"] += int(env.now - waited)
-                done = []
-                for k in range(M):
-                    on = module == k
-                    if on.any():
-                        done.append(ports[k].read(bank[on], row[on]))
-                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
-                stats["events"] += len(done) + 1
-
-        def pipelines():
-            T = self.n_a * self.C
-            single = len(self.bands) == 1
-            for k, (bi, j, rows, need) in enumerate(groups):
-                if bi and j == 0 and (k == 0 or groups[k - 1][0] != bi):
-                    # Section change: overhead, then reload the rays parked by the last band.
-                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
-                    stats["section"] += pre
-                    yield env.timeout(pre)
-                if not ready[need].triggered:
-                    if need - cap >= 0 and free_after[need - cap] >= k:
-                        raise DeadlockError(
-                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
-                            f"hold the sample window of slice {j}"
-                        )
-                    waited = env.now
-                    yield ready[need]
-                    stats["stall"] += int(env.now - waited)
-                yield env.timeout(rows * self.C)
-                stats["events"] += 2
-                for c in frees_at.get(k, ()):
-                    freed[c].succeed()
-                if k + 1 < len(groups) and groups[k + 1][:2] == (bi, j):
-                    continue  # more beam groups of this slice
-                # Sections are parallel-only, where a slice never has more samples than
-                # voxels: the perspective stretch applies to the unsectioned frame.
-                stretch = max(0, -(-int(samples[j]) // self.P) - T) if single else 0
-                stats["stretch"] += stretch
-                extra = self.arch.slice_overhead_cycles + stretch
-                if extra:
-                    yield env.timeout(extra)
-                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
-                yield from bus.push(leaving)
-            stats["pipe_end"] = int(env.now)
-
-        env.process(memory())
-        env.process(pipelines())
-        env.run()
-        if stats["pipe_end"] == 0 and groups:
-            raise DeadlockError("the pipelines never finished: the input buffer is too small")
         end = max(stats["pipe_end"], bus.end)
         latency = skew.LATENCY + self.C + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
         cycles = end + latency
@@ -297,7 +277,7 @@ class SlabTransaction:
                 # data-bus cycles of one module (the modules share the load evenly)
                 "memory.busy_cycles": int(sdram.data_busy_cycles) // M,
                 "memory.read_bytes": int(sdram.bursts) * 8 * 2,  # 8 16-bit words a burst
-                "memory.mbb_reads": sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks),
+                "memory.mbb_reads": self._mbb_reads(chunks),
                 "memory.stall_cycles": stats["stall"],
                 "memory.buffer_full_cycles": stats["buffer_full"],
                 "memory.slab_buffer_chunks": cap,
@@ -313,10 +293,137 @@ class SlabTransaction:
                 "frame.samples": int(samples.sum()),
                 "transaction.events": stats["events"] + bus.events,
                 "transaction.granularity": f"{self.U} mbbs / {2 * self.U} beams",
+                **self._skip_counters(),
                 "transaction.timing_seconds": time.perf_counter() - start,
             }
         )
+        if self.steady_state:  # rule 9: the cycles between two back-to-back frames' ends
+            twice, _, _ = self._simulate(
+                chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=2
+            )
+            counters["frame.period_cycles"] = twice["pipe_ends"][1] - twice["pipe_ends"][0]
+            counters["transaction.timing_seconds"] = time.perf_counter() - start
         return TxnTiming(int(cycles), counters)
+
+    def _simulate(
+        self, chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, *, frames
+    ):
+        """Run the memory and the pipelines over ``frames`` identical frames back to back
+        (the same controllers, buffer and pixel FIFO carry on); returns the statistics
+        (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
+        SDRAM ports."""
+        sk, n_steps = self.skips, len(samples)
+        nc, ng = len(chunks), len(groups)
+        # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
+        free_after = np.concatenate(
+            [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
+        )
+        env = simpy.Environment()
+        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
+        ready = [env.event() for _ in range(nc * frames)]
+        freed = [env.event() for _ in range(nc * frames)]
+        frees_at: dict[int, list[int]] = {}
+        for c, g in enumerate(free_after.tolist()):
+            frees_at.setdefault(g, []).append(c)
+        for c in frees_at.pop(-1, []):  # no group needs it
+            freed[c].succeed()
+        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
+        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
+        stats["section"] = 0
+        stats["pipe_ends"] = []
+        M = self.memory.modules
+
+        def memory():
+            layout = (-1, -1, None)
+            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks * frames):
+                if layout[:2] != (bi, slab):
+                    layout = (bi, slab, self._slab_layout(slab))
+                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
+                if sk is not None:  # only the mini-blocks a live cell needs
+                    keep = sk.needed[slab, u_lo : u_hi + 1].ravel()
+                    module, bank, row = module[keep], bank[keep], row[keep]
+                if g >= cap and not freed[g - cap].triggered:
+                    waited = env.now
+                    yield freed[g - cap]
+                    stats["buffer_full"] += int(env.now - waited)
+                done = []
+                for k in range(M):
+                    on = module == k
+                    if on.any():
+                        done.append(ports[k].read(bank[on], row[on]))
+                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
+                stats["events"] += len(done) + 1
+
+        def pipelines():
+            single = len(self.bands) == 1
+            for k, (f, (bi, j, clocks, need)) in enumerate(
+                (f, group) for f in range(frames) for group in groups
+            ):
+                need = need + f * nc if need >= 0 else need
+                if bi and j == 0 and (k % ng == 0 or groups[k % ng - 1][0] != bi):
+                    # Section change: overhead, then reload the rays parked by the last band.
+                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
+                    stats["section"] += pre
+                    yield env.timeout(pre)
+                if need >= 0 and not ready[need].triggered:
+                    if need - cap >= 0 and free_after[need - cap] >= k:
+                        raise DeadlockError(
+                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
+                            f"hold the sample window of slice {j}"
+                        )
+                    waited = env.now
+                    yield ready[need]
+                    stats["stall"] += int(env.now - waited)
+                if clocks:
+                    yield env.timeout(clocks)
+                stats["events"] += 2
+                for c in frees_at.get(k, ()):
+                    freed[c].succeed()
+                if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
+                    continue  # more beam groups of this slice
+                # Sections are parallel-only, where a slice never has more samples than
+                # voxels: the perspective stretch applies to the unsectioned frame.
+                stretch = max(0, -(-int(samples[j]) // self.P) - int(beam_clocks[j]))
+                stretch = stretch if single else 0
+                stats["stretch"] += stretch
+                extra = self.arch.slice_overhead_cycles + stretch
+                if extra:
+                    yield env.timeout(extra)
+                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
+                yield from bus.push(leaving)
+                if k % ng == ng - 1:
+                    stats["pipe_ends"].append(int(env.now))
+            stats["pipe_end"] = int(env.now)
+
+        env.process(memory())
+        env.process(pipelines())
+        env.run()
+        if stats["pipe_end"] == 0 and groups:
+            raise DeadlockError("the pipelines never finished: the input buffer is too small")
+        return stats, bus, ports
+
+    def _mbb_reads(self, chunks) -> int:
+        """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
+        mini-block that is read."""
+        if self.skips is None:
+            return sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks)
+        needed = self.skips.needed
+        return sum(int(needed[s, lo : hi + 1].any(axis=1).sum()) for _, s, lo, hi in chunks)
+
+    def _skip_counters(self) -> dict[str, int]:
+        """Rule 6's counters (beams and bursts skipped) when the machine skips."""
+        sk = self.skips
+        if sk is None:
+            return {}
+        processed = int((sk.cost > 0).sum())
+        return {
+            "memory.bursts_skipped": int(sk.needed.size - sk.needed.sum()),
+            "pipeline.beams_processed": processed,
+            "pipeline.beams_skipped": int(sk.cost.size - processed),
+            "pipeline.beam_cycles": int(sk.cost.sum()),
+            "ert.stopped_rays": sk.stopped_rays,
+            "space_leaping.samples_leaped": sk.leaped,
+        }
 
 
 def _other_axes(plan: SamplePlan) -> tuple[int, int]:

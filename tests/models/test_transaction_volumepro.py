@@ -139,9 +139,15 @@ def test_a_small_input_buffer_waits_and_one_too_small_deadlocks(head):
         timing(scene_of(), head, tiny)
 
 
-def test_beam_skipping_is_refused_not_ignored(head):
+def test_the_slab_model_refuses_beam_skipping_rather_than_ignoring_it(head):
+    """VolumePro 1000 goes to its own model (tests/models/test_transaction_vp1000.py);
+    the plain slab model, asked directly, refuses a machine that skips beams."""
+    from models.arch.volumepro_txn import SlabTransaction
+
+    arch = resolve_arch("volumepro1000")
+    plan = make_plan(scene_of(), head, arch.order)
     with pytest.raises(NotAvailableError, match="skips beams"):
-        render(scene_of(), fidelity="transaction", arch="volumepro1000", volume=head)
+        SlabTransaction(scene_of(), arch, plan)
 
 
 def sectioned(width, overhead=0):

@@ -110,7 +110,8 @@ def test_transaction_rows_carry_their_cycle_error_against_the_cycle_rung(cases, 
         assert txn["numerical_rmse"] == fun["numerical_rmse"]
     run = fidelity.render(head.scene, fidelity="transaction", arch="cube4", volume=head.volume)
     assert pick(rows, "head", "cube4", "transaction")["cycles"] == run.cycles
-    assert pick(rows, "head", "vizard2", "transaction")["status"] == "not available"
+    vizard = pick(rows, "head", "vizard2", "transaction")  # packets, cache misses as bursts
+    assert vizard["status"] == "ok" and abs(vizard["cycle_error"]) <= 0.02
     vp500 = pick(rows, "head", "volumepro500", "transaction")
     assert (
         vp500["status"] == "ok"

@@ -1,0 +1,224 @@
+"""The ``transaction`` rung on VIZARD II: ray packets, block-cache misses as SDRAM bursts.
+
+The model (``models/arch/vizard2_txn.py``) resolves each packet's block lookups at once
+against a tag-only direct-mapped cache and sends each miss group's fill to the shared
+SDRAM transaction port; early ray termination comes from the functional rung's
+termination steps, its speculative rounds estimated with stall-free rounds.  Without a
+termination threshold it follows the machine's rules exactly (the same lookups, fills,
+bursts and cycles as the cycle rung); with one, it stays within the 2 % contract.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hwsim.engine import DeadlockError
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.fidelity import render, resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom, read_volume
+from models import cycle as cycle_module
+from models.arch import vizard2 as vizard2_module
+from models.arch.vizard2_memory import VolumeImage
+from models.arch.vizard2_txn import BlockLayout
+from models.functional import render_functional
+from models.transaction import render_transaction, transaction_timing
+
+pytestmark = pytest.mark.model
+
+CONTRACT = 0.02
+#: What the model resolves exactly as the machine does when no ray stops early.
+EXACT = ("cache.lookups", "cache.fills", "memory.bursts", "frame.issued_samples")
+
+
+def scene_of(phantom="head", *, image=24, ert=1.0, projection="parallel", mode="composite"):
+    return Scene(
+        volume=VolumeSpec(phantom=phantom),
+        transfer=TransferSpec(preset="auto"),
+        view=ViewSpec(
+            azimuth=30, elevation=15, width=image, height=image, zoom=1.0, projection=projection
+        ),
+        render=RenderSpec(mode=mode, early_termination=ert),
+    )
+
+
+def machine(leaping=True, **buffers):
+    arch = resolve_arch("vizard2")
+    return dataclasses.replace(arch, space_leaping=leaping, buffers={**arch.buffers, **buffers})
+
+
+def both_rungs(scene, volume, arch):
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan)
+    approx = render_transaction(scene, volume, tf, arch, plan)
+    return exact, approx
+
+
+def timing(scene, volume, arch, **options):
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    return transaction_timing(scene, arch, plan, volume=volume, transfer=tf, **options)
+
+
+@pytest.fixture(scope="module")
+def phantoms():
+    return {
+        "head": make_phantom("head", size=24),
+        "ball": make_phantom("ball", size=24),
+        "marschner-lobb": make_phantom("marschner-lobb", size=25),
+    }
+
+
+@pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+@pytest.mark.parametrize("ert", [1.0, 0.95])
+@pytest.mark.parametrize("leaping", [False, True])
+def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
+    volume = phantoms[phantom]
+    exact, approx = both_rungs(
+        scene_of(phantom, ert=ert, projection=projection), volume, machine(leaping)
+    )
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
+        exact.cycles,
+        approx.cycles,
+    )
+    assert np.array_equal(approx.image, exact.image)  # functional = cycle image
+    if ert == 1.0:  # nothing estimated: the machine's rules, exactly
+        assert approx.cycles == exact.cycles
+        for key in EXACT:
+            assert approx.counters[key] == exact.counters[key], key
+
+
+@pytest.mark.parametrize("mode", ["mip", "iso"])
+def test_other_modes_within_the_contract(phantoms, mode):
+    exact, approx = both_rungs(scene_of(mode=mode), phantoms["head"], machine())
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+
+
+def test_a_smaller_cache_misses_more_and_each_fill_is_its_bursts(phantoms):
+    volume, scene = phantoms["head"], scene_of(image=32)
+    roomy = timing(scene, volume, machine())
+    small = timing(scene, volume, machine(cache_sets=[2, 2, 2]))
+    exact, _ = both_rungs(scene, volume, machine(cache_sets=[2, 2, 2]))
+    assert small.counters["cache.fills"] > roomy.counters["cache.fills"] > 0
+    assert small.cycles > roomy.cycles
+    assert small.cycles == exact.cycles
+    for t in (roomy, small):
+        c = t.counters
+        assert c["cache.hits"] + c["cache.misses"] == c["cache.lookups"]
+        assert c["memory.bursts"] % c["cache.fills"] == 0  # whole lines, same burst count
+        assert (
+            c["memory.row_hits"] + c["memory.row_misses"] + c["memory.row_conflicts"]
+            == (c["memory.bursts"])
+        )
+
+
+def test_termination_and_leaping_issue_fewer_samples(phantoms):
+    volume = phantoms["head"]
+    brute = timing(scene_of(), volume, machine(False))
+    ert = timing(scene_of(ert=0.9), volume, machine(False))
+    both = timing(scene_of(ert=0.9), volume, machine(True))
+    issued = [t.counters["frame.issued_samples"] for t in (brute, ert, both)]
+    assert issued[0] > issued[1] > issued[2]
+    assert brute.cycles > ert.cycles > both.cycles
+    assert ert.counters["ert.speculative_samples"] > 0 == brute.counters["ert.speculative_samples"]
+    assert both.counters["frame.leaped_samples"] > 0 == ert.counters["frame.leaped_samples"]
+
+
+def test_block_layout_is_the_memory_image_s(phantoms):
+    """The model's burst addresses are the cycle rung's memory image's (layout drift
+    would move row hits and misses silently)."""
+    arch = machine()
+    memory = vizard2_module.memory_of(arch)
+    volume = phantoms["marschner-lobb"]
+    raw = np.zeros(volume.shape, dtype=np.int64)
+    for gradients in (False, True):
+        image = VolumeImage(raw, memory, voxel_bits=12, gradients=gradients)
+        layout = BlockLayout.of(volume.shape, memory.sdram, 12, gradients)
+        blocks = np.arange(image.blocks)
+        for mine, theirs in zip(layout.bursts(blocks), image.bursts(blocks), strict=True):
+            assert np.array_equal(mine, theirs)
+
+
+def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("the transaction rung ran the cycle machine")
+
+    monkeypatch.setattr(vizard2_module.VizardMachine, "run", refuse)
+    monkeypatch.setattr(cycle_module, "render_cycle", refuse)
+    scene = scene_of(ert=0.95)
+    run = render(scene, fidelity="transaction", arch="vizard2", volume=phantoms["head"])
+    fixed = render(scene, fidelity="functional", arch="vizard2", volume=phantoms["head"])
+    assert np.array_equal(run.image, fixed.image)
+    assert run.cycles > 0 and run.counters["transaction.events"] > 0
+
+
+def test_queue_and_fifo_depths(phantoms):
+    volume, scene = phantoms["head"], scene_of(mode="mip")
+    with pytest.raises(DeadlockError, match="ray_queue: depth 0"):
+        timing(scene, volume, machine(ray_queue_entries=0))
+    with pytest.raises(DeadlockError, match="pixel_bus.fifo: depth 0"):
+        timing(scene, volume, machine(), pixel_fifo_depth=0)
+    wide = machine(ray_queue_entries=256)
+    roomy = timing(scene, volume, wide)
+    tight = timing(scene, volume, wide, pixel_fifo_depth=1)
+    assert tight.cycles > roomy.cycles and tight.counters["pixel_bus.max_occupancy"] == 1
+
+
+def test_what_the_model_refuses(phantoms):
+    volume, scene = phantoms["head"], scene_of()
+    plan = make_plan(scene, volume, "ray")
+    with pytest.raises(InputError, match="volume and transfer"):
+        transaction_timing(scene, machine(), plan)
+    fast_memory = dataclasses.replace(machine(), memory={**machine().memory, "clock_ratio": 2.0})
+    with pytest.raises(NotAvailableError, match="memory.clock_ratio"):
+        timing(scene, volume, fast_memory)
+
+
+def test_termination_steps_are_read_not_recomputed(phantoms):
+    """Given the functional rung's termination steps, the model times the same frame
+    as when it renders them itself."""
+    volume, arch, scene = phantoms["head"], machine(), scene_of(ert=0.9)
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    stopped = render_functional(scene, volume, tf, arch, plan).stopped
+    given = transaction_timing(scene, arch, plan, volume=volume, transfer=tf, stopped=stopped)
+    assert given.cycles == timing(scene, volume, arch).cycles
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
+@pytest.mark.parametrize(("ert", "leaping"), [(1.0, False), (0.95, True)])
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
+    volume = read_volume(shared_data / name)
+    scene = scene_of(image=32, ert=ert, projection=projection)
+    exact, approx = both_rungs(scene, volume, machine(leaping))
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
+        exact.cycles,
+        approx.cycles,
+    )
+
+
+@pytest.mark.parametrize("arch", ["vizard2", "volumepro1000"])
+def test_hwsim_render_at_the_transaction_rung(tmp_path, arch):
+    """The command line reaches both new models; cycles within the contract of the
+    cycle rung's, the same image."""
+    import json
+
+    from hwsim.cli import main
+
+    args = ["render", "--phantom", "head:size=20", "--arch", arch, "--image", "20", "--quiet"]
+    assert main([*args, "--fidelity", "transaction", "--out", str(tmp_path / "t")]) == 0
+    assert main([*args, "--fidelity", "cycle", "--out", str(tmp_path / "c")]) == 0
+    txn, cyc = (json.loads((tmp_path / d / "stats.json").read_text()) for d in ("t", "c"))
+    assert txn["cycles"] == txn["counters"]["frame.cycles"]
+    assert abs(txn["cycles"] - cyc["cycles"]) <= CONTRACT * cyc["cycles"]
+    images = [np.load(tmp_path / d / "image.npy") for d in ("t", "c")]
+    assert np.array_equal(*images)

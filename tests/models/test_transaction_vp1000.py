@@ -1,0 +1,260 @@
+"""The ``transaction`` rung on VolumePro 1000: beam skipping (early ray termination, space
+leaping) in the slab machine's event model.
+
+The model (``models/arch/vp1000_txn.py``) takes each ray's termination step from the
+functional rung and each slice's live cells from the plan, and times the frame at
+beam-group / mini-block-beam-chunk granularity over the shared SDRAM transaction port.
+These tests hold it to the cycle rung (docs/cycle.md rule 6) within the 2 % contract, and
+check that its inputs (beams, bursts, clocks) are the machine's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hwsim.errors import InputError, NotAvailableError
+from hwsim.fidelity import render, resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom, read_volume
+from models import cycle as cycle_module
+from models.arch import volumepro as volumepro_module
+from models.functional import NEVER, render_functional
+from models.transaction import render_transaction, transaction_timing
+
+pytestmark = pytest.mark.model
+
+CONTRACT = 0.02
+#: Counters the event model's inputs must share with the cycle rung exactly: rule 6 is
+#: decided per beam and per mini-block, not estimated.
+EXACT = ("memory.bursts", "memory.mbb_reads", "pipeline.beams_processed", "pipeline.beam_cycles")
+
+
+def scene_of(phantom="head", az=30, el=20, *, image=40, ert=1.0, projection="parallel"):
+    base = Scene()
+    return Scene(
+        volume=VolumeSpec(phantom=phantom),
+        transfer=TransferSpec(preset="auto"),
+        view=ViewSpec(
+            azimuth=az, elevation=el, width=image, height=image, zoom=1.2, projection=projection
+        ),
+        render=dataclasses.replace(base.render, mode="composite", early_termination=ert),
+    )
+
+
+def machine(leaping: bool):
+    return dataclasses.replace(resolve_arch("volumepro1000"), space_leaping=leaping)
+
+
+def both_rungs(scene, volume, arch):
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan)
+    approx = render_transaction(scene, volume, tf, arch, plan)
+    return exact, approx
+
+
+@pytest.fixture(scope="module")
+def phantoms():
+    return {
+        "head": make_phantom("head", size=40),
+        "ball": make_phantom("ball", size=40),
+        "marschner-lobb": make_phantom("marschner-lobb", size=41),
+    }
+
+
+@pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+@pytest.mark.parametrize("ert", [1.0, 0.95])
+@pytest.mark.parametrize("leaping", [False, True])
+def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
+    volume = phantoms[phantom]
+    scene = scene_of(phantom, image=volume.shape[0], ert=ert, projection=projection)
+    exact, approx = both_rungs(scene, volume, machine(leaping))
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
+        exact.cycles,
+        approx.cycles,
+    )
+    for key in EXACT:
+        assert approx.counters[key] == exact.counters[key], key
+    assert np.array_equal(approx.image, exact.image)  # functional = cycle image
+
+
+@pytest.mark.parametrize("view", [(0, 0), (150, -30), (90, 45)])
+def test_other_views_within_the_contract(phantoms, view):
+    scene = scene_of("head", *view, image=48, ert=0.95)
+    exact, approx = both_rungs(scene, phantoms["head"], machine(True))
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+
+
+def test_termination_and_leaping_save_cycles_beams_and_bursts(phantoms):
+    volume = phantoms["head"]
+    tf = resolve_transfer(scene_of().transfer, volume)
+    runs = {}
+    for ert in (1.0, 0.95):
+        for leaping in (False, True):
+            arch = machine(leaping)
+            scene = scene_of(ert=ert)
+            plan = make_plan(scene, volume, arch.order)
+            runs[ert, leaping] = render_transaction(scene, volume, tf, arch, plan)
+    brute, ert, leap, both = runs[1.0, False], runs[0.95, False], runs[1.0, True], runs[0.95, True]
+    assert brute.cycles > ert.cycles > both.cycles and brute.cycles > leap.cycles > both.cycles
+    for fast in (ert, leap):
+        c, b = fast.counters, brute.counters
+        assert c["pipeline.beam_cycles"] < b["pipeline.beam_cycles"]
+        assert c["memory.bursts"] < b["memory.bursts"]
+    assert ert.counters["ert.stopped_rays"] > 0 == brute.counters["ert.stopped_rays"]
+    assert leap.counters["space_leaping.samples_leaped"] > 0
+    assert brute.counters["space_leaping.samples_leaped"] == 0
+    assert np.array_equal(leap.image, brute.image)  # leaping never changes a bit
+    changed = np.abs(ert.image - brute.image).max()
+    # The documented threshold effect: at most 1 - threshold, plus one 8-bit output step.
+    assert 0 < changed <= 1 - 0.95 + 1 / 255 + 1e-9
+
+
+def test_brute_force_skips_only_beams_no_ray_reaches(phantoms):
+    """Without ERT threshold or leaping, a zoomed-out view still skips the clock groups
+    and mini-blocks beside its rays (rule 6); a view covering the slice reads every
+    mini-block."""
+    volume = phantoms["head"]
+    n = volume.shape[0]
+    scene = scene_of(az=0, el=0, image=n).replace(
+        view=ViewSpec(azimuth=0, elevation=0, width=n, height=n, zoom=1.0)
+    )
+    plan = make_plan(scene, volume, "shear-image")
+    t = transaction_timing(
+        scene,
+        machine(False),
+        plan,
+        volume=volume,
+        transfer=resolve_transfer(scene.transfer, volume),
+    )
+    assert t.counters["memory.bursts"] == (n // 2) ** 3
+    small = scene.replace(view=ViewSpec(azimuth=0, elevation=0, width=16, height=16, zoom=0.5))
+    plan = make_plan(small, volume, "shear-image")
+    tf = resolve_transfer(small.transfer, volume)
+    s = transaction_timing(small, machine(False), plan, volume=volume, transfer=tf)
+    assert s.counters["pipeline.beams_skipped"] > t.counters["pipeline.beams_skipped"]
+    assert s.counters["memory.bursts_skipped"] > t.counters["memory.bursts_skipped"] == 0
+
+
+def test_termination_steps_come_from_the_functional_rung(phantoms):
+    """The one hook in the functional rung: each ray's last live step, the same whether
+    the simulation leaps invisible blocks or walks every sample, and equal to what
+    the model computes for itself when not given them."""
+    volume, arch = phantoms["head"], machine(False)
+    scene = scene_of(ert=0.9)
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    fast = render_functional(scene, volume, tf, arch, plan).stopped
+    slow = render_functional(scene, volume, tf, arch, plan, leap_blocks=False).stopped
+    assert np.array_equal(fast, slow)
+    stopped = fast[plan.ray_ids]
+    assert (stopped < NEVER).any() and (
+        stopped[stopped < NEVER] >= plan.j_lo[stopped < NEVER]
+    ).all()
+    given = transaction_timing(scene, arch, plan, volume=volume, transfer=tf, stopped=fast)
+    own = transaction_timing(scene, arch, plan, volume=volume, transfer=tf)
+    assert given.cycles == own.cycles
+    mip = scene.replace(render=dataclasses.replace(scene.render, mode="mip"))
+    assert render_functional(mip, volume, tf, arch, plan).stopped is None
+
+
+def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("the transaction rung ran the cycle machine")
+
+    monkeypatch.setattr(volumepro_module.SlabMachine, "run", refuse)
+    monkeypatch.setattr(cycle_module, "render_cycle", refuse)
+    run = render(
+        scene_of(ert=0.95), fidelity="transaction", arch="volumepro1000", volume=phantoms["head"]
+    )
+    assert run.cycles > 0 and run.counters["transaction.events"] > 0
+
+
+def test_what_the_model_refuses(phantoms):
+    volume = phantoms["head"]
+    scene = scene_of()
+    plan = make_plan(scene, volume, "shear-image")
+    with pytest.raises(InputError, match="volume and transfer"):
+        transaction_timing(scene, machine(False), plan)
+    sectioned = dataclasses.replace(machine(False), section_width=8)
+    with pytest.raises(NotAvailableError, match="overheads.section_width"):
+        transaction_timing(
+            scene, sectioned, plan, volume=volume, transfer=resolve_transfer(scene.transfer, volume)
+        )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
+@pytest.mark.parametrize(("ert", "leaping"), [(1.0, False), (0.95, True)])
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
+    volume = read_volume(shared_data / name)
+    scene = scene_of(image=64, ert=ert, projection=projection)
+    exact, approx = both_rungs(scene, volume, machine(leaping))
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
+        exact.cycles,
+        approx.cycles,
+    )
+    for key in EXACT:
+        assert approx.counters[key] == exact.counters[key], key
+
+
+def test_embedded_geometry_stops_rays_as_termination_does():
+    """The depth test of embedded geometry ends rays (a stopping test): the functional
+    rung reports those stops too, so the beams behind the geometry are skipped as on the
+    machine, with no opacity threshold at all."""
+    from hwsim.scene import load_scene
+
+    scene = load_scene("head-vp1000")
+    scene = scene.replace(
+        volume=VolumeSpec(phantom="head", params=(("size", 32),)),
+        view=dataclasses.replace(scene.view, width=32, height=32),
+        render=dataclasses.replace(scene.render, early_termination=1.0),
+    )
+    arch = machine(False)
+    exact = render(scene, fidelity="cycle", arch=arch)
+    approx = render(scene, fidelity="transaction", arch=arch)
+    assert approx.counters["ert.stopped_rays"] > 0
+    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+    for key in EXACT:
+        assert approx.counters[key] == exact.counters[key], key
+    assert np.array_equal(approx.image, exact.image)
+
+
+@pytest.mark.parametrize("name", ["volumepro500", "em-cube", "volumepro1000"])
+@pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20)])
+def test_back_to_back_frames_give_the_cycle_rungs_period(name, az, el):
+    """Rule 9 (continuous rendering, the published rates' basis): the second frame's fill
+    overlaps the first's last slices, the first's pixels drain during the second."""
+    volume = make_phantom("head", size=32)
+    scene = scene_of(az=az, el=el, image=32, ert=0.95)
+    arch = resolve_arch(name)
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan, steady_state=True)
+    approx = render_transaction(scene, volume, tf, arch, plan, steady_state=True)
+    period, reference = (
+        approx.counters["frame.period_cycles"],
+        exact.counters["frame.period_cycles"],
+    )
+    assert period < approx.cycles  # the fill and the drain overlap the neighbours
+    assert abs(period - reference) <= CONTRACT * reference, (reference, period)
+    single = render_transaction(scene, volume, tf, arch, plan)
+    assert single.cycles == approx.cycles and "frame.period_cycles" not in single.counters
+
+
+@pytest.mark.parametrize("name", ["cube4", "vizard2"])
+def test_back_to_back_frames_are_refused_where_the_model_times_single_frames(name):
+    volume = make_phantom("head", size=16)
+    scene = scene_of(image=16)
+    arch = resolve_arch(name)
+    plan = make_plan(scene, volume, arch.order)
+    tf = resolve_transfer(scene.transfer, volume)
+    with pytest.raises(InputError, match="steady_state"):
+        render_transaction(scene, volume, tf, arch, plan, steady_state=True)
