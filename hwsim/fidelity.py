@@ -188,8 +188,8 @@ def render(
         ``cycle`` rung only: simulate every unit, even those the scene does not use (the
         reference that elision is measured against; same image and cycles).
     steady_state : bool
-        ``cycle`` rung, VolumePro family: also time the next frame back to back
-        (``frame.period_cycles`` in the counters: the continuous frame rate).
+        ``cycle`` and ``transaction`` rungs, VolumePro family: also time the next frame
+        back to back (``frame.period_cycles`` in the counters: the continuous frame rate).
     simulator : str, optional
         ``rtl`` rung only: ``verilator`` (the default) or ``icarus``.
     """
@@ -203,8 +203,12 @@ def render(
             key="--fidelity",
             allowed=", ".join(AVAILABLE_FIDELITIES),
         )
-    if steady_state and fidelity != "cycle":
-        raise InputError("only the cycle rung times back-to-back frames", key="steady_state")
+    if steady_state and fidelity not in ("cycle", "transaction"):
+        raise InputError(
+            "only the cycle and transaction rungs time back-to-back frames",
+            key="steady_state",
+            allowed="cycle, transaction",
+        )
     if elaborate_all and fidelity != "cycle":
         raise InputError("only the cycle rung elaborates units", key="elaborate_all")
     if trace is not None and fidelity not in ("cycle", "rtl"):
@@ -267,7 +271,9 @@ def render(
         from models.transaction import render_transaction
 
         plan = make_plan(scene, volume, sampling)
-        result = render_transaction(scene, volume, transfer, machine, plan, progress=progress)
+        result = render_transaction(
+            scene, volume, transfer, machine, plan, progress=progress, steady_state=steady_state
+        )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
         derived = result.derived
     elif fidelity == "rtl":

@@ -74,8 +74,8 @@ class FigureRow:
     samples: int | None = None
     wall_seconds: float | None = None
     note: str = ""
-    #: "single frame", or "frame period" (the cycle rung's back-to-back frames, where the
-    #: machine model times them: the continuous rate the papers quote).
+    #: "single frame", or "frame period" (the cycle or transaction rung's back-to-back
+    #: frames, where the machine model times them: the continuous rate the papers quote).
     basis: str = "single frame"
     single_frame: float | None = None  # the one-frame value when basis is the period
 
@@ -186,7 +186,7 @@ def measure_figures(
                             fidelity=rung,
                             arch=machine,
                             volume=volumes[size],
-                            steady_state=rung == "cycle" and times_back_to_back(arch),
+                            steady_state=rung in ("cycle", "transaction") and times_back_to_back(arch),
                         )
                     except NotAvailableError:
                         runs[size] = None

@@ -113,7 +113,8 @@ def test_bad_rung_and_size_are_refused(tiny, tmp_path, capsys):
     assert "--max-size" in capsys.readouterr().err
 
 
-def test_the_cycle_rung_reports_the_back_to_back_period_where_it_times_one(tmp_path):
+@pytest.mark.parametrize("rung", ["cycle", "transaction"])
+def test_timing_rungs_report_the_back_to_back_period_where_they_time_one(tmp_path, rung):
     import re
     from pathlib import Path
 
@@ -130,8 +131,8 @@ def test_the_cycle_rung_reports_the_back_to_back_period_where_it_times_one(tmp_p
     path = tmp_path / "vp500-16.toml"
     path.write_text(body)
     arch = resolve_arch(str(path))
-    (row,) = measure_figures([arch], ("cycle",), max_size=16)
-    run = render(figure_scene(16), fidelity="cycle", arch=arch, steady_state=True)
+    (row,) = measure_figures([arch], (rung,), max_size=16)
+    run = render(figure_scene(16), fidelity=rung, arch=arch, steady_state=True)
     period = run.counters["frame.period_cycles"]
     assert row.basis == "frame period" and row.cycles == run.cycles
     assert row.simulated == pytest.approx(arch.clock_hz / period)
