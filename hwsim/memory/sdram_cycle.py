@@ -9,7 +9,8 @@ module).  It is exact at the clock: every PRECHARGE, ACTIVATE, READ and REFRESH 
 gets an integer memory-clock cycle, one command per cycle on the command bus, and every
 timing rule of :class:`~hwsim.memory.sdram.SdramConfig` holds between them (the property
 tests replay the command log against an independent checker).  It loops over *requests*,
-not cycles: a few dozen Python operations per burst, whatever the gaps between them.
+not cycles, whatever the gaps between them; the loop is compiled
+(:mod:`hwsim.memory.sdram_kernel`).
 
 Rules, for request ``i`` to bank ``b``, row ``r``, not before cycle ``earliest[i]``:
 
@@ -44,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.memory.sdram import SdramConfig
+from hwsim.memory.sdram_kernel import BANK_ROWS, REGS, empty_out, schedule_requests
 
 __all__ = [
     "HIT",
@@ -59,6 +61,7 @@ __all__ = [
 #: Row outcome codes of :attr:`BurstSchedule.outcome`.
 HIT, MISS, CONFLICT = 0, 1, 2
 _NEVER = -(1 << 40)
+REFRESHES = REGS.index("refreshes")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -147,17 +150,13 @@ class BurstSchedule:
         return self.stats.elapsed_cycles
 
 
-def _ignore(_cycle: int) -> None:
-    """Booking that books nothing (``command_bus=False``)."""
-
-
-def _as_list(name: str, values, n: int, lo: int, hi: int | None) -> list[int]:
+def _checked(name: str, values, n: int, lo: int, hi: int | None) -> np.ndarray:
     arr = np.asarray(values, dtype=np.int64).reshape(-1)
     if arr.size != n:
         raise ValueError(f"{name} has {arr.size} entries, expected {n}")
     if arr.size and (arr.min() < lo or (hi is not None and arr.max() > hi)):
         raise ValueError(f"{name} out of range {lo} .. {hi if hi is not None else 'inf'}")
-    return arr.tolist()
+    return arr
 
 
 def schedule_bursts(
@@ -207,29 +206,43 @@ class SdramController:
     def __init__(self, cfg: SdramConfig, *, command_bus: bool = True) -> None:
         self.cfg = cfg
         self.command_bus = command_bus
-        nb = cfg.banks
-        self._state = {
-            "open_row": [-1] * nb,
-            "act_at": [_NEVER] * nb,  # last ACTIVATE per bank
-            "act_ready": [0] * nb,  # earliest ACTIVATE after a precharge or refresh
-            "read_at": [_NEVER] * nb,  # last READ per bank
-            "last_act": _NEVER,
-            "prev_read": _NEVER,
-            "last_ref": -1,
-            "refresh_end": 0,
-            "due": cfg.t_refi if cfg.t_refi > 0 else 1 << 62,
-            "floor": 0,  # admission cycle of the last request
-        }
-        self._booked: set[int] = set()  # command-bus cycles taken (recent ones only)
-        self.reads: list[int] = []
-        self.activates: list[int] = []
-        self.precharges: list[int] = []
-        self.arrivals: list[int] = []
-        self.refreshed_before: list[bool] = []
-        self.refresh_log: list[tuple[int, int]] = []
+        self._params = np.array(
+            [
+                cfg.t_rcd,
+                cfg.t_rp,
+                cfg.t_ras,
+                cfg.t_rc,
+                cfg.t_rrd,
+                cfg.burst_cycles,
+                cfg.read_to_precharge,
+                cfg.t_rfc,
+                cfg.t_refi,
+                cfg.page_policy == "closed",
+                cfg.queue_depth,
+                command_bus,
+            ],
+            dtype=np.int64,
+        )
+        due = cfg.t_refi if cfg.t_refi > 0 else 1 << 62
+        # last_act, prev_read, last_ref, refresh_end, due, floor, booked, refreshes
+        self._regs = np.array([_NEVER, _NEVER, -1, 0, due, 0, 0, 0], dtype=np.int64)
+        self._banks = np.empty((len(BANK_ROWS), cfg.banks), dtype=np.int64)
+        # open_row (-1: closed), last ACTIVATE, earliest ACTIVATE, last READ per bank
+        self._banks[:] = np.array([-1, _NEVER, 0, _NEVER], dtype=np.int64)[:, None]
+        self._out = empty_out(64)  # per request: READ, ACTIVATE, PRECHARGE, refreshed
+        self._arrivals = np.zeros(64, dtype=np.int64)
+        self._booked = np.zeros(16, dtype=np.int64)  # command-bus cycles (recent ones)
+        self._log = np.zeros((16, 2), dtype=np.int64)  # per refresh: PRECHARGE-ALL, REFRESH
+        self._n = 0
+        self._kernel = schedule_requests  # its ``py_func`` runs the same loop uncompiled
 
     def __len__(self) -> int:
-        return len(self.reads)
+        return self._n
+
+    @property
+    def reads(self) -> np.ndarray:
+        """READ cycle of every request issued so far (a view)."""
+        return self._out[0, : self._n]
 
     def issue(self, bank: int, row: int, earliest: int = 0) -> int:
         """Schedule one request; returns the cycle of its READ."""
@@ -240,155 +253,66 @@ class SdramController:
                 f"(bank 0 .. {cfg.banks - 1}, row 0 .. {cfg.rows - 1}, earliest >= 0)"
             )
         self._run([int(bank)], [int(row)], [int(earliest)])
-        return self.reads[-1]
+        return int(self._out[0, self._n - 1])
 
     def data_end(self, index: int) -> int:
         """Cycle after the last data beat of request ``index``."""
-        return self.reads[index] + self.cfg.cas_latency + self.cfg.burst_cycles
+        return int(self._out[0, index]) + self.cfg.cas_latency + self.cfg.burst_cycles
 
     def issue_many(self, bank, row, earliest=None) -> None:
         """Schedule a batch of requests (arrays as in :func:`schedule_bursts`)."""
         n = int(np.asarray(bank).size)
-        banks = _as_list("bank", bank, n, 0, self.cfg.banks - 1)
-        rows = _as_list("row", row, n, 0, self.cfg.rows - 1)
-        arrive = [0] * n if earliest is None else _as_list("earliest", earliest, n, 0, None)
+        banks = _checked("bank", bank, n, 0, self.cfg.banks - 1)
+        rows = _checked("row", row, n, 0, self.cfg.rows - 1)
+        arrive = (
+            np.zeros(n, dtype=np.int64)
+            if earliest is None
+            else _checked("earliest", earliest, n, 0, None)
+        )
         self._run(banks, rows, arrive)
 
     def schedule(self) -> BurstSchedule:
         """Commands and counters of every request issued so far."""
-        act_arr = np.asarray(self.activates, dtype=np.int64)
-        pre_arr = np.asarray(self.precharges, dtype=np.int64)
+        n = self._n
+        read, act_arr, pre_arr = (self._out[k, :n].copy() for k in range(3))
         outcome = np.where(act_arr < 0, HIT, np.where(pre_arr >= 0, CONFLICT, MISS))
         return summarize(
             self.cfg,
-            read=self.reads,
+            read=read,
             activate=act_arr,
             precharge=pre_arr,
             outcome=outcome,
-            earliest=self.arrivals,
-            refreshed_before=self.refreshed_before,
-            refresh_log=self.refresh_log,
+            earliest=self._arrivals[:n].copy(),
+            refreshed_before=self._out[3, :n] != 0,
+            refresh_log=self._log[: self._regs[REFRESHES]].copy(),
         )
 
-    def _run(self, banks: list[int], rows: list[int], arrive: list[int]) -> None:
-        """The loop over requests; state lives in locals while it runs."""
-        cfg = self.cfg
-        t_rcd, t_rp, t_ras, t_rc, t_rrd = cfg.t_rcd, cfg.t_rp, cfg.t_ras, cfg.t_rc, cfg.t_rrd
-        bc, rtp, t_rfc, t_refi = cfg.burst_cycles, cfg.read_to_precharge, cfg.t_rfc, cfg.t_refi
-        closed = cfg.page_policy == "closed"
-        depth = cfg.queue_depth
-        nb = cfg.banks
-        st = self._state
-        open_row, act_at, act_ready, read_at = (
-            st["open_row"],
-            st["act_at"],
-            st["act_ready"],
-            st["read_at"],
+    def _run(self, banks, rows, arrive) -> None:
+        """Schedule requests already checked (sequences of int): the compiled loop."""
+        banks = np.asarray(banks, dtype=np.int64)
+        rows = np.asarray(rows, dtype=np.int64)
+        arrive = np.asarray(arrive, dtype=np.int64)
+        start, n = self._n, banks.shape[0]
+        if start + n > self._arrivals.shape[0]:
+            capacity = max(2 * self._arrivals.shape[0], start + n)
+            out = empty_out(capacity)
+            out[:, :start] = self._out[:, :start]
+            self._out = out
+            self._arrivals = np.resize(self._arrivals, capacity)
+        self._arrivals[start : start + n] = arrive
+        self._booked, self._log = self._kernel(
+            self._params,
+            self._regs,
+            self._banks,
+            banks,
+            rows,
+            arrive,
+            self._out,
+            start,
+            self._booked,
+            self._log,
         )
-        last_act, prev_read, last_ref = st["last_act"], st["prev_read"], st["last_ref"]
-        refresh_end, due, floor = st["refresh_end"], st["due"], st["floor"]
-        booked = self._booked
-        book = booked.add if self.command_bus else _ignore
-        refresh_log = self.refresh_log
-        start_index = len(self.reads)
-        n = len(banks)
-        self.reads.extend([0] * n)
-        self.activates.extend([-1] * n)
-        self.precharges.extend([-1] * n)
-        self.refreshed_before.extend([False] * n)
-        self.arrivals.extend(arrive)
-        reads, acts, pres = self.reads, self.activates, self.precharges
-        refreshed_before = self.refreshed_before
-
-        i = start_index - 1
-        for b, r, e in zip(banks, rows, arrive, strict=True):
-            i += 1
-            if e > floor:
-                floor = e
-            if i >= depth and reads[i - depth] + 1 > floor:
-                floor = reads[i - depth] + 1
-            if floor >= due:
-                refreshed_before[i] = True
-            while floor >= due:
-                # Refresh before admitting: after every command issued so far (possibly while
-                # the controller sat idle), all banks precharged, then REFRESH and tRFC.
-                start = max(due, prev_read + 1, last_ref + 1)
-                prea = -1
-                if any(o >= 0 for o in open_row):
-                    for k in range(nb):
-                        if open_row[k] >= 0:
-                            start = max(start, act_at[k] + t_ras, read_at[k] + rtp)
-                    while start in booked:
-                        start += 1
-                    prea = start
-                    book(prea)
-                    ref = prea + t_rp
-                else:
-                    ref = start
-                ref = max(ref, *act_ready)
-                while ref in booked:
-                    ref += 1
-                book(ref)
-                refresh_log.append((prea, ref))
-                refresh_end = ref + t_rfc
-                last_ref = ref
-                for k in range(nb):
-                    open_row[k] = -1
-                    act_ready[k] = refresh_end
-                due += t_refi
-                if refresh_end > floor:
-                    floor = refresh_end
-
-            orow = open_row[b]
-            if orow == r:  # row hit: READ only
-                t = act_at[b] + t_rcd
-                if floor > t:
-                    t = floor
-                if prev_read + bc > t:
-                    t = prev_read + bc
-            else:
-                if orow < 0:  # row miss
-                    t = act_ready[b]
-                    if floor > t:
-                        t = floor
-                else:  # row conflict: PRECHARGE first
-                    t = act_at[b] + t_ras
-                    if floor > t:
-                        t = floor
-                    if read_at[b] + rtp > t:
-                        t = read_at[b] + rtp
-                    while t in booked:
-                        t += 1
-                    book(t)
-                    pres[i] = t
-                    t += t_rp
-                if act_at[b] + t_rc > t:
-                    t = act_at[b] + t_rc
-                if last_act + t_rrd > t:
-                    t = last_act + t_rrd
-                while t in booked:
-                    t += 1
-                book(t)
-                acts[i] = act_at[b] = last_act = t
-                t += t_rcd
-                if prev_read + bc > t:
-                    t = prev_read + bc
-            while t in booked:
-                t += 1
-            book(t)
-            reads[i] = read_at[b] = prev_read = t
-            if closed:
-                done = t + rtp
-                if act_at[b] + t_ras > done:
-                    done = act_at[b] + t_ras
-                act_ready[b] = done + t_rp
-            else:
-                open_row[b] = r
-            if not i & 127:  # later requests issue nothing before this admission
-                booked.difference_update([c for c in booked if c < floor])
-
-        st["last_act"], st["prev_read"], st["last_ref"] = last_act, prev_read, last_ref
-        st["refresh_end"], st["due"], st["floor"] = refresh_end, due, floor
+        self._n = start + n
 
 
 def summarize(

@@ -34,9 +34,9 @@ __all__ = ["SliceWork", "Delivery", "FrameTiming", "run_timing"]
 
 @dataclass
 class Delivery:
-    """One mini-block beam: per module, the ``(banks, rows)`` of its bursts in order."""
+    """One mini-block beam: per module, the ``(banks, rows)`` int64 arrays of its bursts."""
 
-    bursts: list[tuple[list[int], list[int]]]
+    bursts: list[tuple[np.ndarray, np.ndarray]]
     free_after: int = -1  # global beam index whose end frees it (set by the caller)
 
 
@@ -123,12 +123,14 @@ def run_timing(
         e_mem = int(np.ceil(earliest * dev.clock_ratio))
         last = 0
         for ctl, (banks, rows) in zip(controllers, deliveries[g].bursts, strict=True):
-            if not banks:
+            if not len(banks):
                 continue
-            # The controller's own loop (``issue_many`` without re-validating lists the
+            # The controller's own loop (``issue_many`` without re-validating arrays the
             # layout built): any split of a stream gives the batch schedule.
-            ctl._run(banks, rows, [e_mem] + [0] * (len(banks) - 1))
-            last = max(last, ctl.reads[-1] + tail)
+            arrive = np.zeros(len(banks), dtype=np.int64)
+            arrive[0] = e_mem
+            ctl._run(banks, rows, arrive)
+            last = max(last, int(ctl.reads[-1]) + tail)
         ready[g] = int(np.ceil(last / dev.clock_ratio))
         state["g"] = g + 1
 

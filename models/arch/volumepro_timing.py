@@ -57,7 +57,7 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
                 bursts = []
                 for k in range(M):
                     sel = (module[u] == k) & keep
-                    bursts.append((bank[u][sel].tolist(), row[u][sel].tolist()))
+                    bursts.append((bank[u][sel].astype(np.int64), row[u][sel].astype(np.int64)))
                 deliveries.append(Delivery(bursts))
     free_after = np.full(len(deliveries), -1, dtype=np.int64)
     slices: list[SliceWork] = []
