@@ -186,7 +186,8 @@ def measure_figures(
                             fidelity=rung,
                             arch=machine,
                             volume=volumes[size],
-                            steady_state=rung in ("cycle", "transaction") and times_back_to_back(arch),
+                            steady_state=rung in ("cycle", "transaction")
+                            and times_back_to_back(arch),
                         )
                     except NotAvailableError:
                         runs[size] = None
