@@ -30,10 +30,10 @@ from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4 import UNITS, Cube4Machine, CycleResult
+from models.arch.machine import cube4_latency
 from models.backend import Backend
 from models.datapath import Datapath
 from models.units import composite as composite_unit
-from models.units import skew as skew_unit
 from rtl.top import (
     LOAD_CORRECTION,
     LOAD_LUT,
@@ -215,7 +215,7 @@ def prepare(
     slay = slice_layout(geo, dp)
     loads += [(LOAD_SLICES, j, _pack(slay, rec)) for j, rec in enumerate(slices)]
 
-    latency = skew_unit.LATENCY + machine.C + 1 + sum(u.LATENCY for u in UNITS.values())
+    latency = cube4_latency(machine.C)  # rule 5, the cycle rung's own function
     ert = backend.ert
     registers = {
         "n_kp": machine.n_kp,
