@@ -26,6 +26,8 @@ __all__ = [
     "LOAD_CORRECTION",
     "LOAD_RAYS",
     "LOAD_SLICES",
+    "LOAD_GM",
+    "LOAD_SPEC",
     "slice_layout",
     "ray_layout",
     "pixel_layout",
@@ -33,7 +35,7 @@ __all__ = [
     "load_layout",
 ]
 
-LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES = range(5)
+LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES, LOAD_GM, LOAD_SPEC = range(7)
 
 
 @dataclass(frozen=True)
@@ -126,15 +128,26 @@ def buffer_layout(dp: Datapath):
 def load_layout(geo: TopGeometry, dp: Datapath):
     """``target`` (LOAD_*), ``addr`` and ``data``: a volume word is P voxels (module 0 at
     bit 0); LUT entries, correction-table entries, ray and slice records as their
-    layouts pack them."""
+    layouts pack them; gradient-magnitude table entries and the shader's specular table
+    (UQ1.12)."""
     widths = [
         geo.pipelines * dp.voxel_bits,
         classify_entry_bits(dp.classify),
         13,
         ray_layout(geo).size,
         slice_layout(geo, dp).size,
+        13,
+        13,
     ]
-    depth = max(geo.module_words, dp.classify.entries, TABLE_ENTRIES, geo.max_rays, geo.max_axis)
+    depth = max(
+        geo.module_words,
+        dp.classify.entries,
+        TABLE_ENTRIES,
+        geo.max_rays,
+        geo.max_axis,
+        dp.classify.gm_entries,
+        dp.shade.spec_table_entries + 1,
+    )
     return data.StructLayout(
         {
             "target": unsigned(3),
