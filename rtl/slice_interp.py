@@ -40,12 +40,12 @@ II = model.II
 
 
 def input_layout(cfg: InterpConfig, voxel_bits: int):
-    """``corners[3][4]`` (slice before, current, after; corner ``2 i + j`` = ``c<i><j>``,
-    unsigned ``B`` bits), ``wa``, ``wb`` (raw UQ1.W)."""
+    """``corners[12]``: corner ``4 s + 2 i + j`` is ``c<i><j>`` of slice ``s`` (0 before,
+    1 current, 2 after), unsigned ``B`` bits; ``wa``, ``wb`` (raw UQ1.W)."""
     w = unsigned(cfg.weight.width)
     return data.StructLayout(
         {
-            "corners": data.ArrayLayout(data.ArrayLayout(unsigned(voxel_bits), 4), 3),
+            "corners": data.ArrayLayout(unsigned(voxel_bits), 12),
             "wa": w,
             "wb": w,
         }
@@ -98,7 +98,7 @@ class SliceInterp(wiring.Component):
 
         v = [
             [
-                pipe.register(payload.corners[k][c] << s, name=f"v{k}_{c}", shape=wide)
+                pipe.register(payload.corners[4 * k + c] << s, name=f"v{k}_{c}", shape=wide)
                 for c in range(4)
             ]
             for k in range(3)

@@ -88,6 +88,7 @@ __all__ = [
     "pixel_layout",
     "load_layout",
     "issue_to_stage",
+    "issue_to_writeback",
     "RMW_WINDOW",
 ]
 
@@ -101,6 +102,16 @@ def issue_to_stage(beam_cycles: int) -> int:
     """Clocks from a sample slot's issue to its sample entering the compositor (where a
     finishing ray is staged for the pixel bus): ``2 C + 16``."""
     return 2 * beam_cycles + STAGE_BASE
+
+
+def issue_to_writeback(beam_cycles: int) -> int:
+    """Clocks from a sample slot's issue to the compositor's answer: ``2 C + 19``."""
+    return issue_to_stage(beam_cycles) + 3
+
+
+#: A sample slot's issue to its compositor answer for one clock per beam (``C = 1``);
+#: each clock of ``C`` adds two (the evaluation wait and the gradient look-ahead).
+LATENCY = issue_to_writeback(1)
 
 
 @dataclass(frozen=True, kw_only=True)

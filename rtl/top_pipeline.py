@@ -219,7 +219,7 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
     ]
     for s in range(3):
         for idx in range(4):
-            m.d.comb += ip.corners[s][idx].eq(values[s][idx])
+            m.d.comb += ip.corners[4 * s + idx].eq(values[s][idx])
     # Beside the interpolator (4 clocks): ray, takes, last, the slot's flags.
     side6 = delayed(m, Cat(ray2, takes, last, flags2), 4, f"side{k}")
     out = interp.o.payload
@@ -270,10 +270,19 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     up_hist = Array(fronts[(k + 1) % P].history)
     dn_hist = Array(fronts[(k - 1) % P].history)
     c = top.c
+    depth = range(len(fronts[k].history))
+    back_beam, next_in_beam, prev_in_beam = (
+        Signal(depth, name=f"{n}{k}") for n in ("tap_a", "tap_b_up", "tap_b_dn")
+    )
+    m.d.comb += [
+        back_beam.eq(c << 1),
+        next_in_beam.eq(Mux(wrap_up, c - 1, c)),
+        prev_in_beam.eq(Mux(wrap_dn, c + 1, c)),
+    ]
     up_a = Mux(last_a, row1, up_hist[0])
-    dn_a = Mux(first_a, row0, dn_hist[c << 1])
-    up_b = Mux(last_b, col1, up_hist[Mux(wrap_up, c - 1, c)])
-    dn_b = Mux(first_b, col0, dn_hist[Mux(wrap_dn, c + 1, c)])
+    dn_a = Mux(first_a, row0, dn_hist[back_beam])
+    up_b = Mux(last_b, col1, up_hist[next_in_beam])
+    dn_b = Mux(first_b, col0, dn_hist[prev_in_beam])
     ahead_p = Mux(top.forward, s_next, s_prev)
     behind_p = Mux(top.forward, s_prev, s_next)
     kp = top.kp
