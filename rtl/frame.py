@@ -173,12 +173,11 @@ def prepare(
     if n_rays > geo.max_rays:
         raise _refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
     fifo = machine.capacity["pixel_fifo_entries"]
-    if fifo < plan.ray_ids.size:
+    if fifo < 1:
         raise _refuse(
-            f"the RTL top does not model pixel-FIFO stalls; {plan.ray_ids.size} rays need "
-            f"{plan.ray_ids.size} entries",
+            "a pixel FIFO of depth 0 never accepts a pixel (the frame deadlocks)",
             "buffers.pixel_fifo_entries",
-            f">= {plan.ray_ids.size}",
+            ">= 1",
             arch.source,
         )
     nz, ny, nx = volume.shape
@@ -241,6 +240,7 @@ def prepare(
         "c": machine.C,
         "t": machine.T,
         "overhead": arch.slice_overhead_cycles,
+        "fifo_depth": fifo,
         "latency": latency,
         "width": plan.shape[1],
         "height": plan.shape[0],
@@ -348,6 +348,7 @@ def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> lis
     for j, step in enumerate(plan.steps()):
         q = machine.slice_of(j)
         rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
+        rec["finish"] = int(np.count_nonzero(plan.j_hi == j))
         rays = step.rays
         if rays.size:
             full = 1 << machine.dp.interp.weight_bits

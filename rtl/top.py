@@ -1,10 +1,12 @@
 """The Cube-4 pipeline top: skewed volume memory, slice buffers, neighbour links, the
-interpolator / classifier / compositor chain of every pipeline, the compositing buffer
-and the pixel bus, rendering a small volume end to end with the cycle rung's timing.
+interpolator / gradient / classifier / shader / compositor chain of every pipeline, the
+compositing buffer and the pixel bus, rendering a small volume end to end with the cycle
+rung's timing.
 
 # Ref: architectures.md sections 1.1-1.4 (Pfister & Kaufman, VolVis 1996: slice-parallel
-#      ray casting on a skewed memory, local neighbour links, pixel bus) and 9.1-9.3
-#      (units, buffer sizes, latencies); docs/cycle.md (the timing rules reproduced).
+#      ray casting on a skewed memory, local neighbour links, gradients from samples,
+#      pixel bus) and 9.1-9.3 (units, buffer sizes, latencies); docs/cycle.md (the
+#      timing rules reproduced).
 
 Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
 
@@ -14,31 +16,31 @@ Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
 * **slice read**: in period ``p`` every pipeline reads one voxel of slice ``p`` per clock,
   in beam order: slot ``t = a C + g`` (``C = ceil(n_b / P)``) is voxel
   ``(a, b = P g + ((m - q - a) mod P))`` of slice ``q``, written to its slice buffer at
-  ``t``.  Slice buffers hold three slices (one filling, one read, one guard), so the
-  first slice is read one period ahead of its samples (the cycle rung's priming slice).
-* **sample slots**: in period ``p`` pipeline ``m`` evaluates, in the same slot order, the
-  sample of slice ``p - 1`` whose nearest voxel is its slot's voxel (the cycle rung's
-  lane rule): the cell ``(a - da, b - db)`` (``d = 1`` where the slice's fraction is
-  ``>= 1/2``), corners clamped to the volume (the boundary multiplexers).  The corners
-  live in modules ``m - 2 .. m + 2``: each pipeline reads them from its own and its two
-  neighbours' slice buffers on either side (local links; no global bus).
+  ``t``.  Slice buffers hold four slices in four banks (the one filling and the three
+  the evaluated step reads), so the first slice is read one period ahead of its samples
+  (the cycle rung's priming slice).
+* **sample slots** (:mod:`rtl.top_pipeline`): in period ``p`` pipeline ``m`` evaluates,
+  in the same slot order ``C + 1`` clocks later, the cell of slice ``p - 1`` whose
+  nearest voxel is its slot's voxel (the cycle rung's lane rule) on that slice and its
+  two neighbours, then the gradient from the neighbouring samples one beam later,
+  classification, Phong shading and compositing.
 * **per-slice constants** (the host's geometry unit, parallel projection): slice index,
-  cell shift ``(da, db)``, base-plane offset ``(ia, ib)`` and the quantised weights
-  ``(wa, wb)`` of every step, in a table the host writes before the frame.  The ray
-  table holds each base-plane ray's first and last step.
-* **units**: ``Interp`` (bilinear on the slice plane: principal weight 0) ->
-  ``Classify`` -> ``Composite``, II = 1, no backpressure inside a frame.  The
-  compositing buffer (one entry per base-plane ray: RGBA, MIP, alive) is read one clock
-  before the compositor and written when it answers.
-* **pixel bus**: a ray whose last sample left the compositor joins the pixel FIFO; the
-  rays of slice period ``p`` are committed ``latency`` clocks after the period ends (the
-  machine's pipeline latency, rule 5 of docs/cycle.md) and drained one per clock
-  through the ``pixel`` stream (ray number, accumulators), which may be back-pressured.
+  cell shift ``(da, db)``, base-plane offset ``(ia, ib)``, the quantised weights
+  ``(wa, wb)`` and the count of rays finishing, of every step, in a table the host
+  writes before the frame.  The ray table holds each base-plane ray's first and last
+  step.
+* **pixel bus**: a ray whose last sample enters the compositor joins the pixel FIFO; the
+  rays of slice period ``p`` are committed ``latency`` clocks after the period's block
+  ends (the machine's pipeline latency, rule 5 of docs/cycle.md) and drained one per
+  clock through the ``pixel`` stream (ray number, accumulators), which may be
+  back-pressured.
 
 Timing: the prime period takes ``T = n_a C`` clocks, every other ``T +
-slice_overhead``; ``cycles`` counts from the first clock of the prime period to the
-last pixel popped from the pixel FIFO, which is rule 1-6 of the cycle rung for parallel
-views (no stretch; pixel-FIFO stalls are not modelled: the FIFO holds every ray).
+slice_overhead`` plus the rule-4 stall when the pixel FIFO (as the rule sees it: a
+credit counter) has no room for the period's finishing rays; ``cycles`` counts from the
+first clock of the prime period to the last pixel popped from the pixel FIFO, which is
+rules 1, 2, 4, 5 and 6 of the cycle rung for parallel views (no stretch: that needs
+perspective).
 """
 
 from __future__ import annotations
@@ -155,8 +157,8 @@ class Cube4Top(wiring.Component):
     ert_enable, ert_threshold : In
         Frame registers: slice and in-slice sizes, the volume's ``nx``, ``ny`` and
         ``ceil(nx / P)``, the principal axis (0 z, 1 y, 2 x), slice order (1: increasing
-        index), ``C``, ``T``, slice overhead and pipeline latency (clocks), base-plane
-        width and height, MIP mode, early termination.
+        index), ``C``, ``T``, slice overhead and pipeline latency (clocks), the pixel
+        FIFO's depth (rule 4), base-plane width and height, MIP mode, early termination.
     lit, modulate, gm_scale, ratio, ka, kd, ks, light, half, intensity : In
         Shading on, gradient-magnitude opacity modulation on and its UQ0.24 index scale,
         the gradient's ``to_world`` ratios (3 x UQ1.12, x first), the Phong coefficients
@@ -191,6 +193,7 @@ class Cube4Top(wiring.Component):
                 "c": In(ab),
                 "t": In(bit_length(geo.t_max)),
                 "overhead": In(16),
+                "fifo_depth": In(32),
                 "latency": In(8),
                 "width": In(bit_length(2 * geo.max_axis)),
                 "height": In(bit_length(2 * geo.max_axis)),
@@ -241,8 +244,35 @@ class Cube4Top(wiring.Component):
         m.d.comb += period_len.eq(Mux(s["period"] == 0, self.t, self.t + self.overhead))
         slot_live = Signal(name="slot_live")
         m.d.comb += slot_live.eq(s["run"] & (s["tick"] < self.t))
+        # Rule 4: the pixel FIFO as the cycle rung's timing sees it (the rays of a step
+        # join at its block's end, one leaves per clock) is a credit counter; a step whose
+        # finishing rays do not fit stalls the sequencer until the bus has made room.
+        # The FIFO itself fills `latency` clocks later, with the same pops.
+        block_end = Signal(name="block_end")
+        m.d.comb += block_end.eq(s["run"] & (s["tick"] == period_len - 1))
+        credit = Signal(32, name="pixel_credit")
+        drained = Signal(32, name="pixel_credit_drained")
+        arrivals = Signal(32, name="pixel_arrivals")
+        stall_now = Signal(32, name="pixel_stall")
+        m.d.comb += [
+            drained.eq(Mux(credit > 0, credit - 1, 0)),
+            arrivals.eq(Mux(s["period"] >= 1, eval_c.finish, 0)),
+            stall_now.eq(
+                Mux(arrivals + drained > self.fifo_depth, arrivals + drained - self.fifo_depth, 0)
+            ),
+        ]
+        stalling = Signal(name="pixel_stalling")
+        stall_left = Signal(32, name="pixel_stall_left")
         end = Signal(name="period_end")
-        m.d.comb += end.eq(s["run"] & (s["tick"] == period_len - 1))
+        m.d.comb += end.eq((block_end & (stall_now == 0)) | (stalling & (stall_left == 1)))
+        with m.If(s["run"]):
+            m.d.sync += credit.eq(Mux(block_end, drained + arrivals, drained))
+            with m.If(block_end & (stall_now != 0)):
+                m.d.sync += [stalling.eq(1), stall_left.eq(stall_now)]
+            with m.Elif(stalling):
+                m.d.sync += stall_left.eq(stall_left - 1)
+                with m.If(stall_left == 1):
+                    m.d.sync += stalling.eq(0)
         with m.If(self.start):
             m.d.sync += [setup.eq(1), s["period"].eq(0)]
         with m.If(setup == 1):
@@ -260,6 +290,8 @@ class Cube4Top(wiring.Component):
                 s["amod"].eq(0),
                 s["cycle"].eq(0),
                 mem_c.eq(first.data),
+                credit.eq(0),
+                stalling.eq(0),
             ]
         with m.If(s["run"]):
             m.d.sync += s["cycle"].eq(s["cycle"] + 1)
@@ -291,7 +323,7 @@ class Cube4Top(wiring.Component):
             s["mem_valid"].eq(slot_live & (s["period"] < self.n_kp)),
             s["eval_valid"].eq(slot_live & (s["period"] >= 1)),
         ]
-        s["end"] = end
+        s["end"], s["block_end"] = end, block_end
         s["go"] = setup == 2
         s["mem_c"], s["eval_c"] = mem_c, eval_c
         return s
@@ -439,7 +471,7 @@ class Cube4Top(wiring.Component):
         # issued at the period's last clock E - 1 is staged at E - 1 + S (S =
         # issue_to_stage(C)), so the end pulse delayed S + 1 sees all of them.
         wheel = [Signal(pb + 1, name=f"commit_wheel{k}") for k in range(WHEEL)]
-        end_d = seq["end"] & (seq["period"] >= 1)
+        end_d = seq["block_end"] & (seq["period"] >= 1)
         chain = []
         for d in range(2 * geo.c_max + STAGE_BASE + 1):
             nxt = Signal(name=f"end_d{d}")

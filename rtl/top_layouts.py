@@ -79,7 +79,8 @@ class TopGeometry:
 
 def slice_layout(geo: TopGeometry, dp: Datapath):
     """One step's constants: slice ``q`` (and ``q mod P``), cell shift ``da``/``db``,
-    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``."""
+    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``,
+    and ``finish``: the rays whose last sample is this step's (rule 4's FIFO arrivals)."""
     ab = geo.axis_bits
     w = dp.interp.weight.width
     return data.StructLayout(
@@ -92,6 +93,7 @@ def slice_layout(geo: TopGeometry, dp: Datapath):
             "ib": signed(geo.offset_bits),
             "wa": unsigned(w),
             "wb": unsigned(w),
+            "finish": unsigned(geo.ray_bits + 1),
         }
     )
 

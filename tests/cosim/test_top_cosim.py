@@ -94,6 +94,20 @@ def test_top_pixel_backpressure_keeps_the_image(sim):
     assert result.cycles > reference.cycles
 
 
+@pytest.mark.parametrize("depth", [1, 5])
+def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
+    """Timing rule 4 in the top: a pixel FIFO smaller than the frame's rays stalls the
+    sequencer exactly as the cycle rung's compositors stall; cycles, not pixels."""
+    _require("verilator")
+    program, reference = case("cube4", 30, 20, "lit", 8, pixel_fifo=depth)
+    _, roomy = case("cube4", 30, 20, "lit", 8)
+    assert reference.cycles > roomy.cycles  # the cycle rung does stall here
+    assert program.registers["fifo_depth"] == depth
+    result, _ = run_simulator(program, "verilator")
+    assert np.array_equal(result.image, roomy.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
+
+
 def test_top_image_comes_from_the_loaded_volume():
     _require("verilator")
     program, reference = case("cube4", 30, 20, "mip", 12)

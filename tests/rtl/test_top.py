@@ -141,3 +141,13 @@ def test_top_with_any_pipeline_count_equals_cycle_rung(pipelines, size, az, el, 
     result = run_amaranth(program)
     assert np.array_equal(result.image, reference.image)
     assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
+
+
+def test_top_refuses_a_pixel_fifo_that_never_accepts_a_pixel():
+    scene = scene_of(30, 20, "lit")
+    volume = make_phantom("head", size=8)
+    arch = dataclasses.replace(resolve_arch("cube4"), buffers={"pixel_fifo_entries": 0})
+    tf = resolve_transfer(scene.transfer, volume)
+    with pytest.raises(InputError) as info:
+        prepare(scene, volume, tf, arch, make_plan(scene, volume, arch.order))
+    assert info.value.key == "buffers.pixel_fifo_entries"

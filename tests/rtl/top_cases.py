@@ -58,11 +58,23 @@ def scene_of(
 
 
 @cache
-def case(arch: str, az: float, el: float, mode: str, size: int, modulate=False, **render):
-    """``(program, cycle-rung result)`` of one case."""
+def case(
+    arch: str,
+    az: float,
+    el: float,
+    mode: str,
+    size: int,
+    modulate=False,
+    pixel_fifo: int | None = None,
+    **render,
+):
+    """``(program, cycle-rung result)`` of one case; ``pixel_fifo``: the machine's
+    ``buffers.pixel_fifo_entries``."""
     volume = make_phantom("head", size=size)
     scene = scene_of(az, el, mode, modulate=modulate, **render)
     machine = resolve_arch(arch)
+    if pixel_fifo is not None:
+        machine = dataclasses.replace(machine, buffers={"pixel_fifo_entries": pixel_fifo})
     transfer = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
     reference = render_cycle(scene, volume, transfer, machine, plan)
