@@ -174,9 +174,6 @@ class Cube4Top(wiring.Component):
 
     def __init__(self, dp: Datapath, geo: TopGeometry):
         self.dp, self.geo = dp, geo
-        #: Per pipeline, after elaboration: its gradient, classify and shade units and the
-        #: ray of the sample entering the gradient unit (tests, waveforms).
-        self.probes: dict[int, dict] = {}
         ab = geo.axis_bits
         super().__init__(
             {

@@ -395,8 +395,6 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
         wb.data.eq(Cat(out.acc, out.mip, ~out.terminated)),
         wb.en.eq(counted),
     ]
-    # Probes for tests and waveforms: the units and the ray their inputs belong to.
-    top.probes[k] = {"gradient": gradient, "shade": shade, "classify": classify, "ray": ray}
     return {
         "stage": composite.i.valid & side9[geo.ray_bits],
         "ray": side9[: geo.ray_bits],
