@@ -83,6 +83,17 @@ def test_top_gradient_opacity_modulation_equals_cycle_rung():
     assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
 
 
+def test_top_anisotropic_volume_equals_cycle_rung():
+    """The gradient's to_world ratios (min spacing / spacing per axis, UQ1.12) in RTL."""
+    _require("verilator")
+    program, reference = case("cube4", 30, 20, "lit", 8, spacing=(1.5, 1.0, 0.75))
+    _, iso = case("cube4", 30, 20, "lit", 8)
+    assert not np.array_equal(reference.image, iso.image)
+    result, _ = run_simulator(program, "verilator")
+    assert np.array_equal(result.image, reference.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
+
+
 @pytest.mark.parametrize("sim", SIMULATORS)
 def test_top_pixel_backpressure_keeps_the_image(sim):
     _require(sim)

@@ -64,11 +64,14 @@ def case(
     size: int,
     modulate=False,
     pixel_fifo: int | None = None,
+    spacing: tuple[float, float, float] | None = None,
     **render,
 ):
     """``(program, cycle-rung result)`` of one case; ``pixel_fifo``: the machine's
-    ``buffers.pixel_fifo_entries``."""
+    ``buffers.pixel_fifo_entries``; ``spacing``: the volume's voxel spacing ``(z, y, x)``."""
     volume = make_phantom("head", size=size)
+    if spacing is not None:
+        volume = dataclasses.replace(volume, spacing=spacing)
     scene = scene_of(az, el, mode, modulate=modulate, **render)
     machine = resolve_arch(arch)
     if pixel_fifo is not None:
