@@ -49,11 +49,12 @@ def test_lit_top_in_amaranth_equals_cycle_rung():
     assert result.samples == reference.samples
 
 
-def test_top_in_amaranth_shades_under_pixel_backpressure():
-    program, reference = _amaranth_case("cube4-teramac", 180, 0, "lit", 8)
+def test_top_in_amaranth_keeps_the_image_under_pixel_backpressure():
+    """MIP in decreasing slice order (few table loads: fast here; the lit frame under
+    backpressure runs on both simulators in the cocotb tier)."""
+    program, reference = _amaranth_case("cube4-teramac", 180, 0, "mip", 8)
     result = run_amaranth(program, stall_every=2)
     assert np.array_equal(result.image, reference.image)
-    assert reference.image[..., 3].max() > 0.5  # not an empty picture
     # A refused bus delays the last pixel; the frame itself is the same.
     assert result.cycles > reference.cycles
     assert result.samples == reference.samples
