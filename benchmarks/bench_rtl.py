@@ -5,8 +5,8 @@ Usage::
     .venv/bin/python benchmarks/bench_rtl.py [--sizes 8 12 16] [--simulators verilator icarus]
                                              [--repeats 3] [--out FILE.json]
 
-For each size the CT-like head phantom is rendered (unlit composite, ``ct`` preset, view
-30,15, image N x N: what the RTL top renders) on ``cube4`` by the cycle rung and by the
+For each size the CT-like head phantom is rendered (lit composite: the default light and
+Phong material, ``ct`` preset, view 30,15, image N x N) on ``cube4`` by the cycle rung and by the
 rtl rung on each simulator, median of ``--repeats`` after a warm-up (which also makes
 the cached simulator build), images and cycle counts checked equal.  Reported per case:
 wall seconds and samples per wall second of both rungs and their ratio (goal: the cycle
@@ -18,7 +18,6 @@ is asserted: benchmarks are not tests.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import time
 from collections.abc import Sequence
@@ -52,7 +51,7 @@ def _case(n: int):
     scene = Scene(
         transfer=TransferSpec(preset="ct"),
         view=ViewSpec(azimuth=30, elevation=15, width=n, height=n, zoom=1.3),
-        render=dataclasses.replace(RenderSpec(mode="composite"), lighting=False),
+        render=RenderSpec(mode="composite"),  # lit: gradients and Phong in every pipeline
     )
     tf = resolve_transfer(scene.transfer, volume)
     return arch, volume, scene, tf, make_plan(scene, volume, arch.order)
@@ -105,7 +104,7 @@ def run(sizes: Sequence[int], simulators: Sequence[str], repeats: int) -> dict[s
         "benchmark": "cycle-vs-rtl",
         "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "machine": machine_info(),
-        "scene": "head phantom, ct preset, unlit composite, view 30,15, image N x N, cube4",
+        "scene": "head phantom, ct preset, lit composite, view 30,15, image N x N, cube4",
         "repeats": repeats,
         "cases": cases,
     }

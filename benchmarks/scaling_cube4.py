@@ -61,7 +61,7 @@ def frame(n: int, arch, mode: str = "mip", view=(30, 20)):
 def rule_cycles(n: int, P: int, latency_units: int) -> int:
     """The model's timing rules for an axis-aligned n^3 frame (docs/cycle.md)."""
     C = -(-n // P)
-    return (n + 1) * n * C + 1 + C + 1 + latency_units + n * n
+    return (n + 1) * n * C + 1 + (C + 1) + C + latency_units + n * n
 
 
 def run(sizes: Sequence[int], pipelines: Sequence[int]) -> dict[str, Any]:

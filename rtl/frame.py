@@ -30,16 +30,19 @@ from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4 import UNITS, Cube4Machine, CycleResult
+from models.arch.machine import cube4_latency, elaborate_units
 from models.backend import Backend
 from models.datapath import Datapath
 from models.units import composite as composite_unit
-from models.units import skew as skew_unit
 from rtl.top import (
     LOAD_CORRECTION,
+    LOAD_GM,
     LOAD_LUT,
     LOAD_RAYS,
     LOAD_SLICES,
+    LOAD_SPEC,
     LOAD_VOLUME,
+    MAX_LIGHTS,
     RMW_WINDOW,
     TopGeometry,
     load_layout,
@@ -121,17 +124,11 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
     mode = scene.render.mode
     if mode not in ("composite", "mip"):
         raise _refuse(f"mode {mode!r} is not in the RTL top", "render.mode", "composite, mip")
-    if scene.lit:
+    if scene.lit and len(scene.lights) > MAX_LIGHTS:
         raise _refuse(
-            "the RTL top has no gradient or shader path (unlit scenes only)",
+            f"{len(scene.lights)} lights; the RTL top's shader sums {MAX_LIGHTS}",
             "lights",
-            "an unlit scene (lighting off)",
-        )
-    if mode == "composite" and transfer.modulates:
-        raise _refuse(
-            "gradient-opacity modulation needs the gradient path, not in the RTL top",
-            "transfer.gradient_opacity",
-            "none",
+            f"at most {MAX_LIGHTS} lights",
         )
     if mode == "composite" and transfer.order == "pre":
         raise _refuse("the RTL top post-classifies", "transfer.order", "post")
@@ -155,11 +152,19 @@ def prepare(
     ------
     InputError
         What the top does not model (key named): non-Cube-4 machines, perspective,
-        volumes above ``max_axis`` voxels per axis, lit or gradient-modulated scenes, modes
-        other than composite and MIP, crop, per-ray weights within a slice.
+        volumes above ``max_axis`` voxels per axis, modes other than composite and MIP,
+        pre-classification, crop, more than ``MAX_LIGHTS`` lights, a shader other than
+        per-sample Phong, per-ray weights within a slice.
     """
     _check_scene(scene, volume, transfer, arch)
     dp = datapath if datapath is not None else Datapath.for_volume(arch, volume)
+    if dp.shade.method != "phong":
+        raise _refuse(
+            f"the RTL top's shader is per-sample Phong, not {dp.shade.method!r}",
+            "formats.shade.method",
+            "phong",
+            arch.source,
+        )
     backend = Backend(scene, volume, transfer, arch, plan, dp)
     machine = Cube4Machine(backend, plan)  # the cycle rung's refusals and geometry
     P = machine.P
@@ -168,12 +173,11 @@ def prepare(
     if n_rays > geo.max_rays:
         raise _refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
     fifo = machine.capacity["pixel_fifo_entries"]
-    if fifo < plan.ray_ids.size:
+    if fifo < 1:
         raise _refuse(
-            f"the RTL top does not model pixel-FIFO stalls; {plan.ray_ids.size} rays need "
-            f"{plan.ray_ids.size} entries",
+            "a pixel FIFO of depth 0 never accepts a pixel (the frame deadlocks)",
             "buffers.pixel_fifo_entries",
-            f">= {plan.ray_ids.size}",
+            ">= 1",
             arch.source,
         )
     nz, ny, nx = volume.shape
@@ -200,6 +204,12 @@ def prepare(
         k = float(plan._dt) / backend.ref
         table = composite_unit.correction_table(int(dp.composite.ratio.quantize(k)), dp.composite)
         loads += [(LOAD_CORRECTION, i, int(e)) for i, e in enumerate(table)]
+    modulate = mode == "composite" and backend.need_grad and transfer.modulates
+    if modulate:
+        loads += [(LOAD_GM, i, int(e)) for i, e in enumerate(backend.gm_table)]
+    lit = mode == "composite" and scene.lit
+    if lit:
+        loads += [(LOAD_SPEC, i, int(e)) for i, e in enumerate(backend.shader.spec)]
 
     # Ray table: first and last step of every base-plane ray (never for unused ones).
     rlay = ray_layout(geo)
@@ -215,9 +225,10 @@ def prepare(
     slay = slice_layout(geo, dp)
     loads += [(LOAD_SLICES, j, _pack(slay, rec)) for j, rec in enumerate(slices)]
 
-    latency = skew_unit.LATENCY + machine.C + 1 + sum(u.LATENCY for u in UNITS.values())
+    latency = cube4_latency(machine.C)  # rule 5, the cycle rung's own function
     ert = backend.ert
     registers = {
+        **_shading_registers(backend, dp, lit, modulate),
         "n_kp": machine.n_kp,
         "n_a": machine.n_a,
         "n_b": machine.n_b,
@@ -225,9 +236,11 @@ def prepare(
         "ny": ny,
         "cx": cx,
         "kp": machine.kp,
+        "forward": int(machine.forward),
         "c": machine.C,
         "t": machine.T,
         "overhead": arch.slice_overhead_cycles,
+        "fifo_depth": fifo,
         "latency": latency,
         "width": plan.shape[1],
         "height": plan.shape[0],
@@ -235,8 +248,7 @@ def prepare(
         "ert_enable": int(mode == "composite" and ert < 1.0),
         "ert_threshold": int(dp.composite.acc.quantize(min(max(ert, 0.0), 1.0))),
     }
-    units = ["memory", "ring", "interp"] + (["classify"] if mode == "composite" else [])
-    units += ["composite", "pixel_bus"]
+    units = ["memory", "ring", *elaborate_units(backend, False, ())[0][:-1], "pixel_bus"]
     return FrameProgram(
         geo=geo,
         dp=dp,
@@ -250,6 +262,47 @@ def prepare(
     )
 
 
+def _shading_registers(backend: Backend, dp: Datapath, lit: bool, modulate: bool) -> dict:
+    """Gradient, modulation and Phong registers (zeros where the scene does not use them;
+    unused lights have intensity 0, which adds exactly nothing)."""
+    f = dp.shade.normal_frac_bits
+    spacing_xyz = np.asarray(backend.volume.spacing, dtype=np.float64)[::-1]
+    ratio = np.floor(spacing_xyz.min() / spacing_xyz * 4096 + 0.5).astype(np.int64)
+    regs = {
+        "lit": int(lit),
+        "modulate": int(modulate),
+        "gm_scale": int(backend.gm_scale) if modulate else 0,
+        "ratio": _fields([int(r) for r in ratio], 13),
+        "ka": 0,
+        "kd": 0,
+        "ks": 0,
+        "light": 0,
+        "half": 0,
+        "intensity": 0,
+    }
+    if lit:
+        sh = backend.shader
+        k = sh.light.shape[0]
+        pad = [[0, 0, 0]] * (MAX_LIGHTS - k)
+        regs.update(
+            ka=sh.ka,
+            kd=sh.kd,
+            ks=sh.ks,
+            light=_fields([c for v in [*sh.light.tolist(), *pad] for c in v], f + 2),
+            half=_fields([c for v in [*sh.half.tolist(), *pad] for c in v], f + 2),
+            intensity=_fields([*sh.intensity.tolist(), *[0] * (MAX_LIGHTS - k)], 12),
+        )
+    return regs
+
+
+def _fields(values: list[int], width: int) -> int:
+    """Two's-complement ``width``-bit fields packed first at bit 0."""
+    word = 0
+    for i, value in enumerate(values):
+        word |= (int(value) & ((1 << width) - 1)) << (i * width)
+    return word
+
+
 def _canonical(cell, weight, frac, full: int):
     """A weight that quantised to exactly 1.0 in cell ``c`` is weight 0 in cell ``c + 1``:
     ``lerp(a, b, 2**W) = b = lerp(b, c, 0)`` exactly, in every rounding mode (no
@@ -259,6 +312,26 @@ def _canonical(cell, weight, frac, full: int):
     if not up.any():
         return cell, weight, frac
     return cell + up, np.where(up, 0, weight), np.where(up, 0.0, frac)
+
+
+def _check_neighbours(machine: Cube4Machine, step, j: int, full: int) -> None:
+    """The gradient's in-slice neighbours (positions ``p +- 1`` along each in-slice axis,
+    the cells and weights the cycle rung gives them) must be the cells next to the
+    sample's with the sample's own weight: the top reads them off the neighbouring slots."""
+    for axis in (machine.a_ax, machine.b_ax):
+        p = step.zyx[:, axis]
+        own = machine.cell(p)
+        cell, weight, _ = _canonical(*own, full)
+        for shift in (1.0, -1.0):
+            n_cell, n_weight, _ = _canonical(*machine.cell(p + shift, own), full)
+            if not (np.all(n_cell - cell == int(shift)) and np.array_equal(n_weight, weight)):
+                raise _refuse(
+                    f"step {j}: a gradient neighbour's weight differs from its sample's "
+                    "(float rounding of p +- 1); the RTL top takes neighbours from the "
+                    "adjacent slots",
+                    "view",
+                    "another view",
+                )
 
 
 def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> list[dict[str, int]]:
@@ -275,11 +348,13 @@ def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> lis
     for j, step in enumerate(plan.steps()):
         q = machine.slice_of(j)
         rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
+        rec["finish"] = int(np.count_nonzero(plan.j_hi == j))
         rays = step.rays
         if rays.size:
             full = 1 << machine.dp.interp.weight_bits
             ca, wa, fa = _canonical(*machine.cell(step.zyx[:, machine.a_ax]), full)
             cb, wb, fb = _canonical(*machine.cell(step.zyx[:, machine.b_ax]), full)
+            _check_neighbours(machine, step, j, full)
             u, v = rays // W, rays % W
             uniform = all(
                 np.unique(x).size == 1 for x in (wa, wb, fa >= 0.5, fb >= 0.5, ca - u, cb - v)

@@ -1,10 +1,12 @@
 """The Cube-4 pipeline top: skewed volume memory, slice buffers, neighbour links, the
-interpolator / classifier / compositor chain of every pipeline, the compositing buffer
-and the pixel bus, rendering a small volume end to end with the cycle rung's timing.
+interpolator / gradient / classifier / shader / compositor chain of every pipeline, the
+compositing buffer and the pixel bus, rendering a small volume end to end with the cycle
+rung's timing.
 
 # Ref: architectures.md sections 1.1-1.4 (Pfister & Kaufman, VolVis 1996: slice-parallel
-#      ray casting on a skewed memory, local neighbour links, pixel bus) and 9.1-9.3
-#      (units, buffer sizes, latencies); docs/cycle.md (the timing rules reproduced).
+#      ray casting on a skewed memory, local neighbour links, gradients from samples,
+#      pixel bus) and 9.1-9.3 (units, buffer sizes, latencies); docs/cycle.md (the
+#      timing rules reproduced).
 
 Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
 
@@ -14,52 +16,53 @@ Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
 * **slice read**: in period ``p`` every pipeline reads one voxel of slice ``p`` per clock,
   in beam order: slot ``t = a C + g`` (``C = ceil(n_b / P)``) is voxel
   ``(a, b = P g + ((m - q - a) mod P))`` of slice ``q``, written to its slice buffer at
-  ``t``.  Slice buffers hold three slices (one filling, one read, one guard), so the
-  first slice is read one period ahead of its samples (the cycle rung's priming slice).
-* **sample slots**: in period ``p`` pipeline ``m`` evaluates, in the same slot order, the
-  sample of slice ``p - 1`` whose nearest voxel is its slot's voxel (the cycle rung's
-  lane rule): the cell ``(a - da, b - db)`` (``d = 1`` where the slice's fraction is
-  ``>= 1/2``), corners clamped to the volume (the boundary multiplexers).  The corners
-  live in modules ``m - 2 .. m + 2``: each pipeline reads them from its own and its two
-  neighbours' slice buffers on either side (local links; no global bus).
+  ``t``.  Slice buffers hold four slices in four banks (the one filling and the three
+  the evaluated step reads), so the first slice is read one period ahead of its samples
+  (the cycle rung's priming slice).
+* **sample slots** (:mod:`rtl.top_pipeline`): in period ``p`` pipeline ``m`` evaluates,
+  in the same slot order ``C + 1`` clocks later, the cell of slice ``p - 1`` whose
+  nearest voxel is its slot's voxel (the cycle rung's lane rule) on that slice and its
+  two neighbours, then the gradient from the neighbouring samples one beam later,
+  classification, Phong shading and compositing.
 * **per-slice constants** (the host's geometry unit, parallel projection): slice index,
-  cell shift ``(da, db)``, base-plane offset ``(ia, ib)`` and the quantised weights
-  ``(wa, wb)`` of every step, in a table the host writes before the frame.  The ray
-  table holds each base-plane ray's first and last step.
-* **units**: ``Interp`` (bilinear on the slice plane: principal weight 0) ->
-  ``Classify`` -> ``Composite``, II = 1, no backpressure inside a frame.  The
-  compositing buffer (one entry per base-plane ray: RGBA, MIP, alive) is read one clock
-  before the compositor and written when it answers.
-* **pixel bus**: a ray whose last sample left the compositor joins the pixel FIFO; the
-  rays of slice period ``p`` are committed ``latency`` clocks after the period ends (the
-  machine's pipeline latency, rule 5 of docs/cycle.md) and drained one per clock
-  through the ``pixel`` stream (ray number, accumulators), which may be back-pressured.
+  cell shift ``(da, db)``, base-plane offset ``(ia, ib)``, the quantised weights
+  ``(wa, wb)`` and the count of rays finishing, of every step, in a table the host
+  writes before the frame.  The ray table holds each base-plane ray's first and last
+  step.
+* **pixel bus**: a ray whose last sample enters the compositor joins the pixel FIFO; the
+  rays of slice period ``p`` are committed ``latency`` clocks after the period's block
+  ends (the machine's pipeline latency, rule 5 of docs/cycle.md) and drained one per
+  clock through the ``pixel`` stream (ray number, accumulators), which may be
+  back-pressured.
 
 Timing: the prime period takes ``T = n_a C`` clocks, every other ``T +
-slice_overhead``; ``cycles`` counts from the first clock of the prime period to the
-last pixel popped from the pixel FIFO, which is rule 1-6 of the cycle rung for parallel
-views (no stretch; pixel-FIFO stalls are not modelled: the FIFO holds every ray).
+slice_overhead`` plus the rule-4 stall when the pixel FIFO (as the rule sees it: a
+credit counter) has no room for the period's finishing rays; ``cycles`` counts from the
+first clock of the prime period to the last pixel popped from the pixel FIFO, which is
+rules 1, 2, 4, 5 and 6 of the cycle rung for parallel views (no stretch: that needs
+perspective).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from amaranth import Cat, Const, Module, Mux, Signal, signed, unsigned
+from amaranth import Array, Cat, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from models.datapath import Datapath
-from rtl.classify import Classify
 from rtl.common import bit_length, divide_by_constant
-from rtl.composite import Composite
-from rtl.interp import Interp
+from rtl.gradient import RATIO_BITS
+from rtl.shade import COEF_BITS
 from rtl.top_layouts import (
     LOAD_CORRECTION,
+    LOAD_GM,
     LOAD_LUT,
     LOAD_RAYS,
     LOAD_SLICES,
+    LOAD_SPEC,
     LOAD_VOLUME,
     TopGeometry,
     buffer_layout,
@@ -68,6 +71,7 @@ from rtl.top_layouts import (
     ray_layout,
     slice_layout,
 )
+from rtl.top_pipeline import EVAL_BASE, MAX_LIGHTS, STAGE_BASE, back_end, front_end, modulo
 
 __all__ = [
     "Cube4Top",
@@ -78,24 +82,38 @@ __all__ = [
     "LOAD_CORRECTION",
     "LOAD_RAYS",
     "LOAD_SLICES",
+    "LOAD_GM",
+    "LOAD_SPEC",
+    "MAX_LIGHTS",
     "slice_layout",
     "ray_layout",
     "pixel_layout",
     "load_layout",
-    "ISSUE_TO_WRITEBACK",
+    "issue_to_stage",
+    "issue_to_writeback",
     "RMW_WINDOW",
 ]
 
-EVAL_DELAY = 3  # clocks between a slot's memory read and its sample's address stage
-# Slot issue -> compositor answer: eval delay 3, address 1, buffer read 1, interp 4,
-# classify 2, composite 3.
-ISSUE_TO_WRITEBACK = EVAL_DELAY + 2 + 4 + 2 + 3
 #: Clocks between a ray's compositing-buffer read and its write becoming visible.
 RMW_WINDOW = 5
-WHEEL = 64  # commit delay line: latency - 16 < 64 clocks
-#: A sample slot's issue to its compositor answer (the top's own datapath depth).
-LATENCY = ISSUE_TO_WRITEBACK
+WHEEL = 64  # commit delay line: latency - (2 C + 18) < 64 clocks
 II = 1
+
+
+def issue_to_stage(beam_cycles: int) -> int:
+    """Clocks from a sample slot's issue to its sample entering the compositor (where a
+    finishing ray is staged for the pixel bus): ``2 C + 16``."""
+    return 2 * beam_cycles + STAGE_BASE
+
+
+def issue_to_writeback(beam_cycles: int) -> int:
+    """Clocks from a sample slot's issue to the compositor's answer: ``2 C + 19``."""
+    return issue_to_stage(beam_cycles) + 3
+
+
+#: A sample slot's issue to its compositor answer for one clock per beam (``C = 1``);
+#: each clock of ``C`` adds two (the evaluation wait and the gradient look-ahead).
+LATENCY = issue_to_writeback(1)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -119,14 +137,6 @@ class TopConfig:
         )
 
 
-def _mod(value, modulus: int, bound: int):
-    """``value mod modulus`` of an unsigned ``value < bound`` by repeated subtraction."""
-    out = value
-    for k in reversed(range(1, -(-bound // modulus))):
-        out = Mux(out >= k * modulus, out - k * modulus, out)
-    return out
-
-
 class Cube4Top(wiring.Component):
     """``P`` Cube-4 pipelines with memory, slice buffers, compositing buffer and pixel bus.
 
@@ -143,12 +153,17 @@ class Cube4Top(wiring.Component):
         Host writes (:func:`load_layout`) before a frame.
     start : In(1)
         Pulse: render one frame with the registers below.
-    n_kp, n_a, n_b, nx, ny, cx, kp, steps, c, t, overhead, latency, width, height, mip,
+    n_kp, n_a, n_b, nx, ny, cx, kp, forward, c, t, overhead, latency, width, height, mip,
     ert_enable, ert_threshold : In
         Frame registers: slice and in-slice sizes, the volume's ``nx``, ``ny`` and
-        ``ceil(nx / P)``, the principal axis (0 z, 1 y, 2 x), steps, ``C``, ``T``, slice
-        overhead and pipeline latency (clocks), base-plane width and height, MIP mode,
-        early termination.
+        ``ceil(nx / P)``, the principal axis (0 z, 1 y, 2 x), slice order (1: increasing
+        index), ``C``, ``T``, slice overhead and pipeline latency (clocks), the pixel
+        FIFO's depth (rule 4), base-plane width and height, MIP mode, early termination.
+    lit, modulate, gm_scale, ratio, ka, kd, ks, light, half, intensity : In
+        Shading on, gradient-magnitude opacity modulation on and its UQ0.24 index scale,
+        the gradient's ``to_world`` ratios (3 x UQ1.12, x first), the Phong coefficients
+        (UQ4.8) and ``MAX_LIGHTS`` lights (``light``, ``half``: 3 SQ1.F components each,
+        light 0 and x first; ``intensity`` UQ4.8; an unused light has intensity 0).
     pixel : Out stream
         :func:`pixel_layout` (back-pressure allowed).
     busy, done : Out(1)
@@ -171,15 +186,27 @@ class Cube4Top(wiring.Component):
                 "ny": In(ab),
                 "cx": In(ab),
                 "kp": In(2),
+                "forward": In(1),
                 "c": In(ab),
                 "t": In(bit_length(geo.t_max)),
                 "overhead": In(16),
+                "fifo_depth": In(32),
                 "latency": In(8),
                 "width": In(bit_length(2 * geo.max_axis)),
                 "height": In(bit_length(2 * geo.max_axis)),
                 "mip": In(1),
                 "ert_enable": In(1),
                 "ert_threshold": In(dp.composite.acc_frac_bits + 1),
+                "lit": In(1),
+                "modulate": In(1),
+                "gm_scale": In(32),
+                "ratio": In(3 * (RATIO_BITS + 1)),
+                "ka": In(COEF_BITS),
+                "kd": In(COEF_BITS),
+                "ks": In(COEF_BITS),
+                "light": In(MAX_LIGHTS * 3 * (dp.shade.normal_frac_bits + 2)),
+                "half": In(MAX_LIGHTS * 3 * (dp.shade.normal_frac_bits + 2)),
+                "intensity": In(MAX_LIGHTS * COEF_BITS),
                 "pixel": Out(stream.Signature(pixel_layout(geo, dp))),
                 "busy": Out(1),
                 "done": Out(1),
@@ -202,7 +229,6 @@ class Cube4Top(wiring.Component):
             "a": Signal(ab, name="slot_a"),
             "g": Signal(ab, name="slot_g"),
             "amod": Signal(bit_length(P), name="slot_amod"),
-            "bank": Signal(2, name="bank"),
             "cycle": Signal(32, name="cycle"),
         }
         lay = slice_layout(geo, self.dp)
@@ -215,8 +241,35 @@ class Cube4Top(wiring.Component):
         m.d.comb += period_len.eq(Mux(s["period"] == 0, self.t, self.t + self.overhead))
         slot_live = Signal(name="slot_live")
         m.d.comb += slot_live.eq(s["run"] & (s["tick"] < self.t))
+        # Rule 4: the pixel FIFO as the cycle rung's timing sees it (the rays of a step
+        # join at its block's end, one leaves per clock) is a credit counter; a step whose
+        # finishing rays do not fit stalls the sequencer until the bus has made room.
+        # The FIFO itself fills `latency` clocks later, with the same pops.
+        block_end = Signal(name="block_end")
+        m.d.comb += block_end.eq(s["run"] & (s["tick"] == period_len - 1))
+        credit = Signal(32, name="pixel_credit")
+        drained = Signal(32, name="pixel_credit_drained")
+        arrivals = Signal(32, name="pixel_arrivals")
+        stall_now = Signal(32, name="pixel_stall")
+        m.d.comb += [
+            drained.eq(Mux(credit > 0, credit - 1, 0)),
+            arrivals.eq(Mux(s["period"] >= 1, eval_c.finish, 0)),
+            stall_now.eq(
+                Mux(arrivals + drained > self.fifo_depth, arrivals + drained - self.fifo_depth, 0)
+            ),
+        ]
+        stalling = Signal(name="pixel_stalling")
+        stall_left = Signal(32, name="pixel_stall_left")
         end = Signal(name="period_end")
-        m.d.comb += end.eq(s["run"] & (s["tick"] == period_len - 1))
+        m.d.comb += end.eq((block_end & (stall_now == 0)) | (stalling & (stall_left == 1)))
+        with m.If(s["run"]):
+            m.d.sync += credit.eq(Mux(block_end, drained + arrivals, drained))
+            with m.If(block_end & (stall_now != 0)):
+                m.d.sync += [stalling.eq(1), stall_left.eq(stall_now)]
+            with m.Elif(stalling):
+                m.d.sync += stall_left.eq(stall_left - 1)
+                with m.If(stall_left == 1):
+                    m.d.sync += stalling.eq(0)
         with m.If(self.start):
             m.d.sync += [setup.eq(1), s["period"].eq(0)]
         with m.If(setup == 1):
@@ -232,9 +285,10 @@ class Cube4Top(wiring.Component):
                 s["a"].eq(0),
                 s["g"].eq(0),
                 s["amod"].eq(0),
-                s["bank"].eq(0),
                 s["cycle"].eq(0),
                 mem_c.eq(first.data),
+                credit.eq(0),
+                stalling.eq(0),
             ]
         with m.If(s["run"]):
             m.d.sync += s["cycle"].eq(s["cycle"] + 1)
@@ -255,7 +309,6 @@ class Cube4Top(wiring.Component):
                     s["g"].eq(0),
                     s["amod"].eq(0),
                     s["period"].eq(s["period"] + 1),
-                    s["bank"].eq(Mux(s["bank"] == 2, 0, s["bank"] + 1)),
                     eval_c.eq(mem_c),
                     mem_c.eq(prefetch.data),
                 ]
@@ -267,7 +320,7 @@ class Cube4Top(wiring.Component):
             s["mem_valid"].eq(slot_live & (s["period"] < self.n_kp)),
             s["eval_valid"].eq(slot_live & (s["period"] >= 1)),
         ]
-        s["end"] = end
+        s["end"], s["block_end"] = end, block_end
         s["go"] = setup == 2
         s["mem_c"], s["eval_c"] = mem_c, eval_c
         return s
@@ -279,8 +332,6 @@ class Cube4Top(wiring.Component):
         dp, geo = self.dp, self.geo
         P, ab = geo.pipelines, geo.axis_bits
         B = dp.voxel_bits
-        S = dp.interp.sample_frac_bits
-        sample_bits = B + S
         load = self.load.payload
 
         def loading(target):
@@ -300,7 +351,9 @@ class Cube4Top(wiring.Component):
         m.d.comb += self.busy.eq(seq["run"])
 
         # ---------------------------------------------------------- memory -> slice buffers
-        slice_bufs = []
+        # Each pipeline's slice buffer: four banks of one slice each (period p fills bank
+        # p mod 4 while step p - 1 reads the banks of slices q - 1, q and q + 1).
+        bufs = []
         mem_c = seq["mem_c"]
         for k in range(P):
             module = Memory(shape=unsigned(B), depth=geo.module_words, init=[])
@@ -313,7 +366,7 @@ class Cube4Top(wiring.Component):
             ]
             # Slot voxel of this pipeline: b = P g + ((k - q - a) mod P).
             r = Signal(bit_length(P), name=f"read_r{k}")
-            m.d.comb += r.eq(_mod(k + 2 * P - mem_c.qm - seq["amod"], P, 3 * P))
+            m.d.comb += r.eq(modulo(k + 2 * P - mem_c.qm - seq["amod"], P, 3 * P))
             a, b = seq["a"], Signal(ab + 1, name=f"read_b{k}")
             m.d.comb += b.eq(seq["g"] * P + r)
             q = mem_c.q
@@ -326,39 +379,51 @@ class Cube4Top(wiring.Component):
             read_valid = Signal(name=f"read_valid{k}")
             m.d.comb += read_valid.eq(seq["mem_valid"] & (b < self.n_b))
             # One clock later the voxel arrives; it is written at its slot.
-            wslot = Signal(range(3 * geo.t_max), name=f"write_slot{k}")
+            wslot = Signal(range(geo.t_max), name=f"write_slot{k}")
+            wbank = Signal(2, name=f"write_bank{k}")
             wvalid = Signal(name=f"write_valid{k}")
             m.d.sync += [
-                wslot.eq(seq["bank"] * geo.t_max + seq["a"] * self.c + seq["g"]),
+                wslot.eq(seq["a"] * self.c + seq["g"]),
+                wbank.eq(seq["period"][:2]),
                 wvalid.eq(read_valid),
             ]
-            buf = Memory(shape=unsigned(B), depth=3 * geo.t_max, init=[])
-            m.submodules[f"slice_buffer_{k}"] = buf
-            wr = buf.write_port()
-            m.d.comb += [wr.addr.eq(wslot), wr.data.eq(rd.data), wr.en.eq(wvalid)]
-            slice_bufs.append(buf)
+            banks = []
+            for bank in range(4):
+                buf = Memory(shape=unsigned(B), depth=geo.t_max, init=[])
+                m.submodules[f"slice_buffer_{k}_{bank}"] = buf
+                bw = buf.write_port()
+                m.d.comb += [
+                    bw.addr.eq(wslot),
+                    bw.data.eq(rd.data),
+                    bw.en.eq(wvalid & (wbank == bank)),
+                ]
+                banks.append((buf, bw))
+            bufs.append(banks)
 
         # ---------------------------------------------------------- sample slots
-        # The sequencer's slot, EVAL_DELAY clocks later (the slice written above is then
-        # complete in its bank for the period after).
-        slot = Cat(seq["a"], seq["g"], seq["amod"], seq["eval_valid"], seq["bank"])
-        eval_c = seq["eval_c"]
-        slot_d, const_d, period_d = slot, eval_c.as_value(), seq["period"]
-        for k in range(EVAL_DELAY):
-            nxt = Signal(len(slot), name=f"slot_d{k}")
-            nc = Signal(len(eval_c.as_value()), name=f"consts_d{k}")
-            np_ = Signal(ab + 1, name=f"period_d{k}")
-            m.d.sync += [nxt.eq(slot_d), nc.eq(const_d), np_.eq(period_d)]
-            slot_d, const_d, period_d = nxt, nc, np_
-        ev_a = slot_d[:ab]
-        ev_g = slot_d[ab : 2 * ab]
-        ev_amod = slot_d[2 * ab : 2 * ab + bit_length(P)]
-        ev_valid = slot_d[2 * ab + bit_length(P)]
-        ev_bank = slot_d[2 * ab + bit_length(P) + 1 :]
-        consts = data.View(slice_layout(geo, dp), const_d)
-        # The evaluated slice's bank is the previous one.
-        read_bank = Mux(ev_bank == 0, 2, ev_bank - 1)
-        ev_j = period_d - 1
+        # The sequencer's slot, C + EVAL_BASE clocks later: the next slice's voxel at the
+        # cell's far corner (read at most C + 1 clocks after the slot) is then written.
+        slot = Cat(seq["a"], seq["g"], seq["amod"], seq["eval_valid"], seq["period"])
+        packed = Cat(slot, seq["eval_c"].as_value())
+        chain = [packed]
+        for d in range(geo.c_max + EVAL_BASE):
+            nxt = Signal(len(packed), name=f"slot_d{d}")
+            m.d.sync += nxt.eq(chain[-1])
+            chain.append(nxt)
+        ev_slot = Signal(len(packed), name="eval_slot")
+        m.d.comb += ev_slot.eq(Array(chain)[self.c + EVAL_BASE])
+        pos, fields = 0, {}
+        for name, width in (
+            ("a", ab),
+            ("g", ab),
+            ("amod", bit_length(P)),
+            ("valid", 1),
+            ("period", ab + 1),
+        ):
+            fields[name] = ev_slot[pos : pos + width]
+            pos += width
+        fields["valid"] = fields["valid"][0]
+        fields["consts"] = data.View(slice_layout(geo, dp), ev_slot[pos:])
 
         buffer_lay = buffer_layout(dp)
         m.submodules.ray_buffer = ray_buffer = Memory(shape=buffer_lay, depth=geo.max_rays, init=[])
@@ -368,172 +433,16 @@ class Cube4Top(wiring.Component):
             clear.data.eq(Cat(Const(0, buffer_lay.size - 1), Const(1, 1))),
             clear.en.eq(loading(LOAD_RAYS)),
         ]
-        ert_thr = self.ert_threshold
-        finishing_out = []  # per pipeline: (valid & finishing, ray) at writeback
-        sample_out = []
-        for k in range(P):
-            # Address stage (E0 -> E1 registers).
-            r = _mod(k + 2 * P - consts.qm - ev_amod, P, 3 * P)
-            b = Signal(ab + 1, name=f"ev_b{k}")
-            m.d.comb += b.eq(ev_g * P + r)
-            ca = Signal(signed(ab + 2), name=f"ca{k}")
-            cb = Signal(signed(ab + 2), name=f"cb{k}")
-            m.d.comb += [ca.eq(ev_a - consts.da), cb.eq(b - consts.db)]
-            r0 = Mux(ca < 0, 0, ca)
-            r1 = Mux(ca + 1 > self.n_a - 1, self.n_a - 1, ca + 1)
-            c0 = Mux(cb < 0, 0, cb)
-            c1 = Mux(cb + 1 > self.n_b - 1, self.n_b - 1, cb + 1)
-            u = Signal(signed(geo.offset_bits + 2), name=f"u{k}")
-            v = Signal(signed(geo.offset_bits + 2), name=f"v{k}")
-            m.d.comb += [u.eq(ca - consts.ia), v.eq(cb - consts.ib)]
-            inside = (
-                ev_valid
-                & (b < self.n_b)
-                & (u >= 0)
-                & (u < self.height)
-                & (v >= 0)
-                & (v < self.width)
-            )
-            corners = []
-            for idx, (rr, cc) in enumerate(((r0, c0), (r0, c1), (r1, c0), (r1, c1))):
-                addr = Signal(range(3 * geo.t_max), name=f"corner_addr{k}_{idx}")
-                off = Signal(signed(4), name=f"corner_off{k}_{idx}")
-                m.d.sync += [
-                    addr.eq(
-                        read_bank * geo.t_max
-                        + rr[:ab] * self.c
-                        + divide_by_constant(cc[:ab], P, ab)
-                    ),
-                    off.eq((rr - ev_a) + (cc - b)),
-                ]
-                corners.append((idx, addr, off))
-            ray = Signal(geo.ray_bits, name=f"ray{k}")
-            live = Signal(name=f"live{k}")
-            j1 = Signal(ab + 1, name=f"j1_{k}")
-            wts = Signal(2 * dp.interp.weight.width, name=f"weights1_{k}")
-            m.d.sync += [
-                ray.eq(u[: geo.ray_bits] * self.width + v[: geo.ray_bits]),
-                live.eq(inside),
-                j1.eq(ev_j),
-                wts.eq(Cat(consts.wa, consts.wb)),
-            ]
-            # Buffer stage (E1 -> E2): slice buffers and ray table read.
-            possible = {-2: (0,), -1: (0, 1, 2), 0: (0, 1, 2, 3), 1: (1, 2, 3), 2: (3,)}
-            values = []
-            offs2 = []
-            for idx, addr, off in corners:
-                ports = {}
-                for o, users in possible.items():
-                    if idx in users:
-                        port = slice_bufs[(k + o) % P].read_port()
-                        m.d.comb += [port.addr.eq(addr), port.en.eq(1)]
-                        ports[o] = port
-                off2 = Signal(signed(4), name=f"corner_off2_{k}_{idx}")
-                m.d.sync += off2.eq(off)
-                offs2.append(off2)
-                value = Signal(B, name=f"corner{k}_{idx}")
-                with m.Switch(off2):
-                    for o, port in ports.items():
-                        with m.Case(o):
-                            m.d.comb += value.eq(port.data)
-                values.append(value)
-            ray_rd = rays.read_port()
-            m.d.comb += [ray_rd.addr.eq(ray), ray_rd.en.eq(1)]
-            ray2 = Signal(geo.ray_bits, name=f"ray2_{k}")
-            live2 = Signal(name=f"live2_{k}")
-            j2 = Signal(ab + 1, name=f"j2_{k}")
-            wts2 = Signal(len(wts), name=f"weights2_{k}")
-            m.d.sync += [ray2.eq(ray), live2.eq(live), j2.eq(j1), wts2.eq(wts)]
-            span = data.View(ray_layout(geo), ray_rd.data)
-            takes = live2 & (span.j_lo <= j2) & (j2 <= span.j_hi)
-            last = j2 == span.j_hi
+        fronts = [front_end(m, self, k, fields, bufs, rays) for k in range(P)]
+        backs = [back_end(m, self, k, fronts, ray_buffer, buffer_lay, loading) for k in range(P)]
+        self._pixel_bus(m, seq, ray_buffer, buffer_lay, backs)
+        return m
 
-            interp = Interp(dp.interp, B)
-            classify = Classify(dp.classify, B, S)
-            composite = Composite(dp.composite, sample_bits)
-            m.submodules[f"interp_{k}"] = interp
-            m.submodules[f"classify_{k}"] = classify
-            m.submodules[f"composite_{k}"] = composite
-            w = dp.interp.weight.width
-            ip = interp.i.payload
-            m.d.comb += [
-                interp.i.valid.eq(takes),
-                ip.frac[0].eq(0),
-                ip.frac[1].eq(wts2[:w]),
-                ip.frac[2].eq(wts2[w:]),
-            ]
-            for c in range(8):
-                m.d.comb += ip.voxels[c].eq(values[c % 4])
-            # Classification LUT and opacity-correction table: broadcast loads.
-            m.d.comb += [
-                classify.load.valid.eq(loading(LOAD_LUT)),
-                classify.load.payload.table.eq(0),
-                classify.load.payload.addr.eq(load.addr),
-                classify.load.payload.data.eq(load.data),
-                classify.gm_scale.eq(0),
-                classify.modulate.eq(0),
-                composite.load.valid.eq(loading(LOAD_CORRECTION)),
-                composite.load.payload.addr.eq(load.addr),
-                composite.load.payload.data.eq(load.data),
-                composite.ert_threshold.eq(ert_thr),
-                composite.ert_enable.eq(self.ert_enable),
-                interp.o.ready.eq(1),
-                classify.o.ready.eq(1),
-                composite.o.ready.eq(1),
-            ]
-            # interp -> classify; the sample travels beside the classifier (2 clocks).
-            m.d.comb += [
-                classify.i.valid.eq(interp.o.valid),
-                classify.i.payload.sample.eq(interp.o.payload.sample),
-                classify.i.payload.magnitude.eq(0),
-            ]
-            side = Cat(ray2, last)
-            side_d = side
-            for d in range(4 + 2 - 1):  # to E7: one clock before the compositor's input
-                nxt = Signal(len(side), name=f"side{k}_{d}")
-                m.d.sync += nxt.eq(side_d)
-                side_d = nxt
-            sample_d = interp.o.payload.sample
-            for d in range(2):
-                nxt = Signal(sample_bits, name=f"sample{k}_{d}")
-                m.d.sync += nxt.eq(sample_d)
-                sample_d = nxt
-            ray7 = side_d[: geo.ray_bits]
-            buf_rd = ray_buffer.read_port()
-            m.d.comb += [buf_rd.addr.eq(ray7), buf_rd.en.eq(1)]
-            side8 = Signal(len(side), name=f"side8_{k}")
-            m.d.sync += side8.eq(side_d)
-            entry = data.View(buffer_lay, buf_rd.data)
-            cp = composite.i.payload
-            m.d.comb += [
-                composite.i.valid.eq(classify.o.valid),
-                cp.acc.eq(entry.acc),
-                cp.rgb.eq(classify.o.payload.rgb),
-                cp.alpha.eq(classify.o.payload.alpha),
-                cp.mip.eq(entry.mip),
-                cp.sample.eq(sample_d),
-            ]
-            # Writeback (E11): the compositor's answer, for rays still alive.
-            side_w = side8
-            alive_w = entry.alive
-            for d in range(3):
-                nxt = Signal(len(side) + 1, name=f"sidew{k}_{d}")
-                m.d.sync += nxt.eq(Cat(side_w[: len(side)], alive_w))
-                side_w, alive_w = nxt, nxt[len(side)]
-            ray_w = side_w[: geo.ray_bits]
-            last_w = side_w[geo.ray_bits]
-            wb = ray_buffer.write_port()
-            out = composite.o.payload
-            counted = composite.o.valid & (alive_w | self.mip)
-            m.d.comb += [
-                wb.addr.eq(ray_w),
-                wb.data.eq(Cat(out.acc, out.mip, ~out.terminated)),
-                wb.en.eq(counted),
-            ]
-            finishing_out.append((composite.o.valid & last_w, ray_w))
-            sample_out.append(counted)
+    # ------------------------------------------------------------------ pixel bus
 
-        # ---------------------------------------------------------- pixel bus
+    def _pixel_bus(self, m, seq, ray_buffer, buffer_lay, backs):
+        """Staging, the commit wheel (rule 5), the drain and the frame's end."""
+        geo = self.geo
         depth = geo.max_rays
         pb = bit_length(depth)  # pointers carry one wrap bit
         m.submodules.pixel_fifo = fifo = Memory(shape=unsigned(geo.ray_bits), depth=depth, init=[])
@@ -541,41 +450,44 @@ class Cube4Top(wiring.Component):
         commit_ptr = Signal(pb, name="commit_ptr")
         head = Signal(pb, name="head")
         offset = Const(0, pb)
-        for valid, ray in finishing_out:
+        for back in backs:
             port = fifo.write_port()
             m.d.comb += [
                 port.addr.eq((stage_ptr + offset)[: pb - 1]),
-                port.data.eq(ray),
-                port.en.eq(valid),
+                port.data.eq(back["ray"]),
+                port.en.eq(back["stage"]),
             ]
-            offset = offset + valid
+            offset = offset + back["stage"]
         m.d.sync += stage_ptr.eq(stage_ptr + offset)
         samples = Signal(32, name="sample_count")
-        m.d.sync += samples.eq(samples + sum(sample_out))
+        m.d.sync += samples.eq(samples + sum(back["counted"] for back in backs))
         m.d.comb += self.samples.eq(samples)
 
         # Commit: the rays of a period join the FIFO `latency` clocks after it ends.  The
-        # stage pointer is sampled when the period's last sample has been written back.
+        # stage pointer is sampled when the period's last sample has been staged: a slot
+        # issued at the period's last clock E - 1 is staged at E - 1 + S (S =
+        # issue_to_stage(C)), so the end pulse delayed S + 1 sees all of them.
         wheel = [Signal(pb + 1, name=f"commit_wheel{k}") for k in range(WHEEL)]
-        snap_at = Signal(name="snapshot")
-        end_d = seq["end"] & (seq["period"] >= 1)
+        end_d = seq["block_end"] & (seq["period"] >= 1)
         chain = []
-        for d in range(ISSUE_TO_WRITEBACK + 1):
+        for d in range(2 * geo.c_max + STAGE_BASE + 1):
             nxt = Signal(name=f"end_d{d}")
             m.d.sync += nxt.eq(end_d)
             end_d = nxt
             chain.append(nxt)
-        m.d.comb += snap_at.eq(end_d)
-        snap_busy = Cat(*chain).any()
-        # The last slot of a period issued at E - 1 is written back at E - 1 + 14: the
-        # snapshot at E + 14 (end pulse at E - 1 delayed 15) sees all of them.
-        # Inserted at position latency - (ISSUE_TO_WRITEBACK + 2) of a wheel that shifts
-        # toward 0 each clock, read at 0: visible `latency` clocks after the period's end.
-        insert_at = self.latency - (ISSUE_TO_WRITEBACK + 2)
+        tap = Signal(range(len(chain)), name="snapshot_tap")
+        m.d.comb += tap.eq((self.c << 1) + STAGE_BASE)
+        snap_at = Signal(name="snapshot")
+        m.d.comb += snap_at.eq(Array(chain)[tap])
+        snap_busy = Cat(*[x & (tap >= d) for d, x in enumerate(chain)]).any()
+        # Inserted at position latency - (S + 2) of a wheel that shifts toward 0 each
+        # clock, read at 0: visible `latency` clocks after the period's end.
+        insert_at = Signal(signed(10), name="insert_at")
+        m.d.comb += insert_at.eq(self.latency - tap - 2)
         for k in range(WHEEL):
             nxt = wheel[k + 1] if k + 1 < WHEEL else Const(0, pb + 1)
             with m.If(snap_at & (insert_at == k)):
-                # Writes of this cycle belong to the next period's slots.
+                # Stagings of this cycle belong to the next period's slots.
                 m.d.sync += wheel[k].eq(Cat(stage_ptr, Const(1, 1)))
             with m.Else():
                 m.d.sync += wheel[k].eq(nxt)
@@ -626,4 +538,3 @@ class Cube4Top(wiring.Component):
         with m.If(counted & ~v1 & ~v2):
             m.d.sync += [counted.eq(0), self.done.eq(1)]
         m.d.comb += self.cycles.eq(seq["cycle"] + tail)
-        return m

@@ -26,6 +26,8 @@ __all__ = [
     "LOAD_CORRECTION",
     "LOAD_RAYS",
     "LOAD_SLICES",
+    "LOAD_GM",
+    "LOAD_SPEC",
     "slice_layout",
     "ray_layout",
     "pixel_layout",
@@ -33,7 +35,7 @@ __all__ = [
     "load_layout",
 ]
 
-LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES = range(5)
+LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES, LOAD_GM, LOAD_SPEC = range(7)
 
 
 @dataclass(frozen=True)
@@ -77,7 +79,8 @@ class TopGeometry:
 
 def slice_layout(geo: TopGeometry, dp: Datapath):
     """One step's constants: slice ``q`` (and ``q mod P``), cell shift ``da``/``db``,
-    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``."""
+    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``,
+    and ``finish``: the rays whose last sample is this step's (rule 4's FIFO arrivals)."""
     ab = geo.axis_bits
     w = dp.interp.weight.width
     return data.StructLayout(
@@ -90,6 +93,7 @@ def slice_layout(geo: TopGeometry, dp: Datapath):
             "ib": signed(geo.offset_bits),
             "wa": unsigned(w),
             "wb": unsigned(w),
+            "finish": unsigned(geo.ray_bits + 1),
         }
     )
 
@@ -126,15 +130,26 @@ def buffer_layout(dp: Datapath):
 def load_layout(geo: TopGeometry, dp: Datapath):
     """``target`` (LOAD_*), ``addr`` and ``data``: a volume word is P voxels (module 0 at
     bit 0); LUT entries, correction-table entries, ray and slice records as their
-    layouts pack them."""
+    layouts pack them; gradient-magnitude table entries and the shader's specular table
+    (UQ1.12)."""
     widths = [
         geo.pipelines * dp.voxel_bits,
         classify_entry_bits(dp.classify),
         13,
         ray_layout(geo).size,
         slice_layout(geo, dp).size,
+        13,
+        13,
     ]
-    depth = max(geo.module_words, dp.classify.entries, TABLE_ENTRIES, geo.max_rays, geo.max_axis)
+    depth = max(
+        geo.module_words,
+        dp.classify.entries,
+        TABLE_ENTRIES,
+        geo.max_rays,
+        geo.max_axis,
+        dp.classify.gm_entries,
+        dp.shade.spec_table_entries + 1,
+    )
     return data.StructLayout(
         {
             "target": unsigned(3),

@@ -21,7 +21,8 @@ Timing (every cycle counted, nothing fitted): one slice takes ``n_a ceil(n_b / P
 clocks plus the arch's ``slice_cycles``; one more slice primes the slice FIFOs; lanes
 that owe more samples than a slice has clocks (perspective) stretch the slice; a full
 pixel FIFO stalls the compositors; the pipeline latency (sum of the unit ``LATENCY``
-constants plus the beam alignment ``C + 1``) and the final pixel-bus drain are added.
+constants, the beam alignment ``C + 1`` and the gradient's one-beam look-ahead ``C``:
+:func:`models.arch.machine.cube4_latency`) and the final pixel-bus drain are added.
 The hardware is the same whatever the scene: elision only skips *simulating* units whose
 results a scene does not use, so it never changes a cycle count.
 """
@@ -43,6 +44,7 @@ from models.arch.machine import (
     CycleResult,
     buffer_table,
     cube4_buffers,
+    cube4_latency,
     elaborate_units,
     frame_result,
     publish_pixel_bus,
@@ -405,7 +407,7 @@ class Cube4Machine:
             busy_k, cycles_k, stall_k = (np.array(x) for x in zip(*blocks, strict=True))
             for stage in stages.values():
                 stage.account(busy_k, cycles_k, stall_k)
-        latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
+        latency = cube4_latency(self.C)
         drain = pixel_fifo.flush()
         cycles = self.clock.advance(latency + drain)
         for stage in [self.memory_stage, *stages.values()]:

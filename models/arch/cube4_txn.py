@@ -22,8 +22,8 @@ voxels and clocks:
   base-plane row.
 
 The frame ends when the last pixel has left and the pipeline latency (unit ``LATENCY``
-constants plus the beam alignment) has elapsed.  Sample and finishing-ray counts per
-slice come from the plan's ray ranges (no sample positions are computed).
+constants, the beam alignment and the gradient's look-ahead) has elapsed.  Sample and
+finishing-ray counts per slice come from the plan's ray ranges (no sample positions are computed).
 """
 
 from __future__ import annotations
@@ -39,14 +39,10 @@ from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
-from models.arch.machine import cube4_buffers
+from models.arch.machine import cube4_buffers, cube4_latency
 from models.arch.pixel_bus_txn import PixelBus
-from models.units import classify, composite, crop, gradient, interp, shade, skew
 
 __all__ = ["Cube4Geometry", "Cube4Transaction", "slice_loads", "TxnTiming"]
-
-#: Units of every Cube-4 pipeline; the hardware is fixed, so all count for latency.
-_PIPELINE_UNITS = (interp, gradient, classify, shade, composite, crop)
 
 
 @dataclass(frozen=True)
@@ -72,8 +68,9 @@ class Cube4Geometry:
 
     @property
     def latency(self) -> int:
-        """Address/de-skew, beam alignment ``C + 1`` and every unit's latency."""
-        return skew.LATENCY + self.beam_cycles + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
+        """Address/de-skew, beam alignment ``C + 1``, the gradient's look-ahead ``C`` and
+        every unit's latency (the cycle rung's rule 5, one copy)."""
+        return cube4_latency(self.beam_cycles)
 
 
 @dataclass

@@ -24,6 +24,7 @@ from models.units import crop as crop_unit
 from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
 from models.units import shade as shade_unit
+from models.units import skew as skew_unit
 
 __all__ = [
     "UNITS",
@@ -34,6 +35,7 @@ __all__ = [
     "publish_pixel_bus",
     "frame_result",
     "elaborate_units",
+    "cube4_latency",
 ]
 
 #: The units of every Cube-4 pipeline, in dataflow order, with their models.
@@ -45,6 +47,24 @@ UNITS = {
     "composite": composite_unit,
     "crop": crop_unit,
 }
+
+
+def cube4_latency(beam_cycles: int) -> int:
+    """A Cube-4 pipeline's latency in clocks (timing rule 5 of docs/cycle.md), the same
+    for every scene (the hardware is fixed, so every unit counts).
+
+    ``skew.LATENCY`` (address and de-skew) + ``C + 1`` (beam alignment: a cell is complete
+    when its corner one beam and one voxel ahead has arrived) + ``C`` (gradient look-ahead:
+    of a sample's six central-difference neighbours the next slice's arrives with the
+    sample, through the slice FIFOs primed by rule 2; the next sample in the beam one clock
+    later over the ring; the next beam's sample last, ``C`` clocks later through the beam
+    FIFO) + every unit's ``LATENCY``.
+
+    # Ref: architectures.md section 1.3 items 4-5 (one-beam and one-slice delay FIFOs;
+    #      gradients as central differences of interpolated samples of beams j-1..j+1).
+    """
+    C = int(beam_cycles)
+    return skew_unit.LATENCY + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
 
 
 @dataclass

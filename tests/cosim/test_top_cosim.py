@@ -1,7 +1,10 @@
 """cocotb tier of the Cube-4 RTL top: whole frames on Icarus and on Verilator, image
 bit-identical to the cycle rung and the same cycle count, on both Cube-4 architectures
-and several views; with a back-pressured pixel bus the image stays and only the count
-grows; a corrupted voxel load changes the image (the image is the hardware's).
+and several views, unlit (composite, MIP) and lit (gradients from neighbouring samples,
+Phong, gradient-opacity modulation); with a back-pressured pixel bus the image stays and
+only the count grows; a corrupted voxel load changes the image (the image is the
+hardware's).  Every case runs on Verilator; Icarus (about four times slower per frame)
+runs one unlit and one lit case and the back-pressured bus.
 
 Builds go to ``build/rtl/<simulator>_top_P<P>_<key>/`` (one per simulator and
 configuration, reused while the RTL sources do not change).
@@ -15,7 +18,7 @@ import shutil
 
 import numpy as np
 import pytest
-from top_cases import TOP_CASES, case
+from top_cases import LIT_CASES, TOP_CASES, case
 
 from rtl.rung import run_simulator
 from rtl.top import LOAD_VOLUME
@@ -36,8 +39,16 @@ def _require(sim: str) -> None:
         pytest.skip(reason)
 
 
-@pytest.mark.parametrize("sim", SIMULATORS)
-@pytest.mark.parametrize("key", TOP_CASES, ids=lambda k: "-".join(map(str, k)))
+#: (case, simulator): every case on Verilator, one unlit and one lit on Icarus.
+FRAMES = [(key, "verilator") for key in TOP_CASES + LIT_CASES] + [
+    (TOP_CASES[2], "icarus"),
+    (LIT_CASES[0], "icarus"),
+]
+
+
+@pytest.mark.parametrize(
+    ("key", "sim"), FRAMES, ids=lambda k: "-".join(map(str, k)) if isinstance(k, tuple) else k
+)
 def test_top_frame_equals_cycle_rung(key, sim):
     _require(sim)
     program, reference = case(*key)
@@ -46,20 +57,66 @@ def test_top_frame_equals_cycle_rung(key, sim):
     assert result.cycles == reference.cycles
     assert result.samples == reference.samples
     assert result.rays == reference.rays
-    if key[3] == "composite":
+    if key[3] in ("composite", "lit"):
         assert reference.image[..., 3].max() > 0.5  # not an empty picture
     assert timing["clocks"] > result.cycles
+
+
+def test_lit_frame_differs_from_the_unlit_one():
+    """The gradient and shader path really shades: the same view unlit is another image
+    (and the same cycle count: the hardware is the same for every scene)."""
+    lit_program, lit = case("cube4", 30, 20, "lit", 8)
+    _, unlit = case("cube4", 30, 20, "composite", 8)
+    assert not np.array_equal(lit.image, unlit.image)
+    assert lit.cycles == unlit.cycles
+    assert lit_program.registers["lit"] == 1
+
+
+def test_top_gradient_opacity_modulation_equals_cycle_rung():
+    _require("verilator")
+    program, reference = case("cube4-teramac", 30, 20, "lit", 8, modulate=True)
+    _, plain = case("cube4-teramac", 30, 20, "lit", 8)
+    assert not np.array_equal(reference.image, plain.image)  # modulation changes opacity
+    result, _ = run_simulator(program, "verilator")
+    assert program.registers["modulate"] == 1
+    assert np.array_equal(result.image, reference.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
+
+
+def test_top_anisotropic_volume_equals_cycle_rung():
+    """The gradient's to_world ratios (min spacing / spacing per axis, UQ1.12) in RTL."""
+    _require("verilator")
+    program, reference = case("cube4", 30, 20, "lit", 8, spacing=(1.5, 1.0, 0.75))
+    _, iso = case("cube4", 30, 20, "lit", 8)
+    assert not np.array_equal(reference.image, iso.image)
+    result, _ = run_simulator(program, "verilator")
+    assert np.array_equal(result.image, reference.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
 
 
 @pytest.mark.parametrize("sim", SIMULATORS)
 def test_top_pixel_backpressure_keeps_the_image(sim):
     _require(sim)
-    program, reference = case("cube4", 30, 20, "mip", 12)
+    program, reference = case("cube4", 30, 20, "lit", 8)
     result, _ = run_simulator(program, sim, stall_every=3)
     assert np.array_equal(result.image, reference.image)
     assert result.samples == reference.samples
     # Every third clock refused: the bus needs more clocks than the free-running frame.
     assert result.cycles > reference.cycles
+
+
+@pytest.mark.parametrize("depth", [1, 5])
+def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
+    """Timing rule 4 in the top: a pixel FIFO smaller than the frame's rays stalls the
+    sequencer exactly as the cycle rung's compositors stall; cycles, not pixels."""
+    _require("verilator")
+    program, reference = case("cube4", 30, 20, "lit", 8, pixel_fifo=depth)
+    _, roomy = case("cube4", 30, 20, "lit", 8)
+    assert reference.cycles > roomy.cycles  # the cycle rung does stall here
+    assert program.registers["fifo_depth"] == depth
+    result, _ = run_simulator(program, "verilator")
+    assert np.array_equal(result.image, roomy.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
 
 
 def test_top_image_comes_from_the_loaded_volume():
@@ -76,12 +133,11 @@ def test_top_image_comes_from_the_loaded_volume():
     assert result.cycles == reference.cycles  # the data changed, not the timing
 
 
-@pytest.mark.parametrize("sim", SIMULATORS)
-def test_top_early_ray_termination_equals_cycle_rung(sim):
-    _require(sim)
-    program, reference = case("cube4", 30, 20, "composite", 12, early_termination=0.5)
-    _, full = case("cube4", 30, 20, "composite", 12)
+def test_top_early_ray_termination_equals_cycle_rung():
+    _require("verilator")
+    program, reference = case("cube4", 30, 20, "lit", 12, early_termination=0.5)
+    _, full = case("cube4", 30, 20, "lit", 12)
     assert reference.samples < full.samples  # rays do terminate in this scene
-    result, _ = run_simulator(program, sim)
+    result, _ = run_simulator(program, "verilator")
     assert np.array_equal(result.image, reference.image)
     assert result.samples == reference.samples and result.cycles == reference.cycles

@@ -1,4 +1,5 @@
-"""The ``rtl`` rung end to end: ``hwsim render --fidelity rtl`` on Verilator and Icarus
+"""The ``rtl`` rung end to end: ``hwsim render --fidelity rtl`` of a lit composite scene
+(the default lighting: gradients and Phong shading in the RTL) on Verilator and Icarus
 gives the cycle rung's image and cycle count; bad requests are one-line errors, exit 2."""
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from test_top_cosim import _require
 from hwsim.cli import main
 
 pytestmark = pytest.mark.cosim
-SCENE = ["--phantom", "head:size=12", "--mode", "mip", "--view", "30,20", "--image", "12"]
+SCENE = ["--phantom", "head:size=8", "--mode", "composite", "--view", "30,20", "--image", "12"]
 
 
 @pytest.fixture(scope="module")
@@ -48,6 +49,7 @@ def test_render_rtl_equals_render_cycle(sim, cycle_run, tmp_path):
     assert rtl["samples"] == cyc["samples"]
     assert rtl["counters"]["rtl.simulator"] == sim
     assert np.array_equal(np.load(tmp_path / "image.npy"), np.load(cycle_run / "image.npy"))
+    assert "shade" in rtl["elaborated_units"] and "gradient" in rtl["elaborated_units"]
 
 
 def test_a_missing_simulator_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):

@@ -147,12 +147,13 @@ def test_counters_add_up_and_throughput_never_exceeds_P(head):
 
 def test_axis_aligned_cycle_count_has_its_closed_form():
     """Timing rules of docs/cycle.md: (n + 1) slices of n ceil(n / P) clocks, the pipeline
-    latency (units + beam alignment C + 1 + address 1) and the pixel-bus drain."""
+    latency (units + beam alignment C + 1 + gradient look-ahead C + address 1) and the
+    pixel-bus drain."""
     n, P = 16, 4
     vol = make_phantom("head", size=n)
     fixed, cycle, plan = both(scene_of(0, 0, size=n), vol)
     C = -(-n // P)
-    latency = 1 + C + 1 + sum(u.LATENCY for u in UNITS.values())
+    latency = 1 + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
     rays = plan.ray_ids.size  # all finish on the last slice; the bus drains one per clock
     assert cycle.cycles == (n + 1) * n * C + latency + rays
     assert cycle.counters["pipeline.latency_cycles"] == latency

@@ -170,7 +170,7 @@ def test_axis_aligned_frame_has_the_cycle_rules_closed_form():
     plan = make_plan(scene, volume, "slice-parallel")
     timing = transaction_timing(scene, cube4(P), plan)
     C = -(-n // P)
-    latency = 1 + C + 1 + sum(u.LATENCY for u in UNITS.values())
+    latency = 1 + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
     assert timing.cycles == (n + 1) * n * C + latency + plan.ray_ids.size
     assert timing.counters["pixel_bus.drain_cycles"] == plan.ray_ids.size
 

@@ -22,7 +22,7 @@ from models.units import gradient as gradient_model
 from models.units import interp as interp_model
 from models.units import shade as shade_model
 from models.units import skew as skew_model
-from rtl import classify, composite, gradient, interp, shade, skew
+from rtl import classify, composite, gradient, interp, shade, skew, slice_interp
 
 __all__ = ["UNITS", "COSIM_CASES", "UnitCase", "make_case"]
 
@@ -151,6 +151,58 @@ def interp_case(cfg=None, voxel_bits: int = 12, signed_input: bool = False) -> U
         interp_model.II,
         interp.input_layout(cfg, voxel_bits, signed_input),
         interp.output_layout(cfg, voxel_bits, signed_input),
+        stimulus,
+        model,
+    )
+
+
+def slice_interp_case(cfg=None, voxel_bits: int = 12) -> UnitCase:
+    """The top's slice interpolator against ``models.units.interp``'s ``bilinear`` (the
+    three samples) and ``lerp`` (the current slice's row and column lerps)."""
+    cfg = cfg or interp_model.InterpConfig()
+    one = 1 << cfg.weight_bits
+    top = (1 << voxel_bits) - 1
+
+    def stimulus(rng, count):
+        rand = {
+            "corners": rng.integers(0, top + 1, (count, 12)),
+            "wa": rng.integers(0, one + 1, count),
+            "wb": rng.integers(0, one + 1, count),
+        }
+        patterns = [np.zeros(12), np.full(12, top), np.tile([0, top], 6), np.tile([top, 0], 6)]
+        fracs = sorted({0, 1, one // 2, one - 1, one})
+        combos = [(p, fa, fb) for p in patterns for fa in fracs for fb in fracs]
+        extremes = {
+            "corners": np.array([p for p, _, _ in combos], dtype=np.int64),
+            "wa": np.array([fa for _, fa, _ in combos], dtype=np.int64),
+            "wb": np.array([fb for _, _, fb in combos], dtype=np.int64),
+        }
+        return _concat(rand, extremes)
+
+    def model(v):
+        c = v["corners"] << cfg.sample_frac_bits
+        wa, wb = v["wa"], v["wb"]
+        samples = [
+            interp_model.bilinear(
+                c[:, 4 * s], c[:, 4 * s + 1], c[:, 4 * s + 2], c[:, 4 * s + 3], wa, wb, cfg
+            )
+            for s in range(3)
+        ]
+        rows = [interp_model.lerp(c[:, 4 + 2 * i], c[:, 5 + 2 * i], wb, cfg) for i in range(2)]
+        cols = [interp_model.lerp(c[:, 4 + j], c[:, 6 + j], wa, cfg) for j in range(2)]
+        return {
+            "sample": np.stack(samples, axis=1),
+            "row": np.stack(rows, axis=1),
+            "col": np.stack(cols, axis=1),
+        }
+
+    return UnitCase(
+        "slice_interp",
+        lambda: slice_interp.SliceInterp(cfg, voxel_bits),
+        slice_interp.LATENCY,
+        slice_interp.II,
+        slice_interp.input_layout(cfg, voxel_bits),
+        slice_interp.output_layout(cfg, voxel_bits),
         stimulus,
         model,
     )
@@ -462,6 +514,7 @@ def composite_case(
 _FACTORIES = {
     "skew": skew_case,
     "interp": interp_case,
+    "slice_interp": slice_interp_case,
     "gradient": gradient_case,
     "classify": classify_case,
     "shade": shade_case,

@@ -1,0 +1,134 @@
+"""Slice interpolator of the Cube-4 top: one cell's bilinear sample on three slices and
+the edge lerps the gradient's boundary neighbours need; bit-exact with
+``models.units.interp.bilinear`` / ``lerp``.
+
+# Ref: architectures.md section 1.3 items 4-5 (samples interpolated between the voxels of a
+#      slice; gradients from the samples of slices k-1, k, k+1); models/units/interp.py.
+
+The Cube-4 samples lie on voxel slices (principal weight 0), so a sample is
+``lerp(lerp(c00, c01, wb), lerp(c10, c11, wb), wa)`` of its cell's corners ``c<i><j>`` =
+voxel ``(a0 + i, b0 + j)`` promoted by ``S`` fraction bits (the model's ``bilinear``: the
+interpolator's x, y, z lerp order with a zero principal weight).  Per cell this unit gives
+
+* ``sample[3]``: that sample on the slices before, at and after the current one, at the
+  current slice's weights (the gradient's principal-axis neighbours are the samples at
+  the same in-slice position on slices ``q - 1`` and ``q + 1``);
+* ``row[2]``: the current slice's two ``b`` lerps (rows ``a0`` and ``a0 + 1``) and
+  ``col[2]``: the two ``a`` lerps ``lerp(c00, c10, wa)``, ``lerp(c01, c11, wa)`` (columns
+  ``b0`` and ``b0 + 1``).  A cell beyond the volume's edge has both corners of one axis
+  clamped to the edge voxel, so its sample is exactly one of these lerps: they are the
+  gradient neighbours no other slot evaluates (``lerp(x, x, w) = x`` exactly).
+
+Stages (``LATENCY = 4`` = the trilinear interpolator's, ``II = 1``): input register
+(promote), the ``b`` lerps and the column lerps, the ``a`` lerps, output register.
+"""
+
+from __future__ import annotations
+
+from amaranth import Module, signed, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from models.units import interp as model
+from models.units.interp import InterpConfig
+from rtl.common import StallingPipeline, round_shift
+
+__all__ = ["SliceInterp", "LATENCY", "II", "input_layout", "output_layout"]
+
+LATENCY = model.LATENCY
+II = model.II
+
+
+def input_layout(cfg: InterpConfig, voxel_bits: int):
+    """``corners[12]``: corner ``4 s + 2 i + j`` is ``c<i><j>`` of slice ``s`` (0 before,
+    1 current, 2 after), unsigned ``B`` bits; ``wa``, ``wb`` (raw UQ1.W)."""
+    w = unsigned(cfg.weight.width)
+    return data.StructLayout(
+        {
+            "corners": data.ArrayLayout(unsigned(voxel_bits), 12),
+            "wa": w,
+            "wb": w,
+        }
+    )
+
+
+def output_layout(cfg: InterpConfig, voxel_bits: int):
+    """``sample[3]``, ``row[2]``, ``col[2]``: ``B + S`` bits each."""
+    s = unsigned(voxel_bits + cfg.sample_frac_bits)
+    return data.StructLayout(
+        {
+            "sample": data.ArrayLayout(s, 3),
+            "row": data.ArrayLayout(s, 2),
+            "col": data.ArrayLayout(s, 2),
+        }
+    )
+
+
+class SliceInterp(wiring.Component):
+    """Bilinear samples of one cell on three slices, and the current slice's edge lerps.
+
+    Parameters
+    ----------
+    cfg : InterpConfig
+        Weight bits ``W``, sample fraction bits ``S``, rounding.
+    voxel_bits : int
+        ``B``.
+    """
+
+    def __init__(self, cfg: InterpConfig | None = None, voxel_bits: int = 12):
+        cfg = cfg if cfg is not None else InterpConfig()
+        self.cfg, self.voxel_bits = cfg, voxel_bits
+        super().__init__(
+            {
+                "i": In(stream.Signature(input_layout(cfg, voxel_bits))),
+                "o": Out(stream.Signature(output_layout(cfg, voxel_bits))),
+            }
+        )
+
+    def elaborate(self, platform):
+        m = Module()
+        cfg = self.cfg
+        pipe = StallingPipeline(m, self.i, self.o, LATENCY)
+        s, w = cfg.sample_frac_bits, cfg.weight_bits
+        wide = signed(self.voxel_bits + s + 1)
+        payload = self.i.payload
+
+        def lerp(a, b, f):
+            return a + round_shift((b - a) * f, w, cfg.rounding)
+
+        v = [
+            [
+                pipe.register(payload.corners[4 * k + c] << s, name=f"v{k}_{c}", shape=wide)
+                for c in range(4)
+            ]
+            for k in range(3)
+        ]
+        wa1 = pipe.register(payload.wa, name="wa1")
+        wb1 = pipe.register(payload.wb, name="wb1")
+        rows = [
+            [
+                pipe.register(lerp(v[k][2 * i], v[k][2 * i + 1], wb1), name=f"r{k}_{i}", shape=wide)
+                for i in range(2)
+            ]
+            for k in range(3)
+        ]
+        cols = [
+            pipe.register(lerp(v[1][j], v[1][2 + j], wa1), name=f"c{j}", shape=wide)
+            for j in range(2)
+        ]
+        wa2 = pipe.register(wa1, name="wa2")
+        samples = [
+            pipe.register(lerp(rows[k][0], rows[k][1], wa2), name=f"s{k}", shape=wide)
+            for k in range(3)
+        ]
+        rows3 = [pipe.register(rows[1][i], name=f"row3_{i}", shape=wide) for i in range(2)]
+        cols3 = [pipe.register(cols[j], name=f"col3_{j}", shape=wide) for j in range(2)]
+        out = self.o.payload
+        for k in range(3):
+            m.d.comb += out.sample[k].eq(pipe.register(samples[k], name=f"sample{k}"))
+        for i in range(2):
+            m.d.comb += [
+                out.row[i].eq(pipe.register(rows3[i], name=f"row{i}")),
+                out.col[i].eq(pipe.register(cols3[i], name=f"col{i}")),
+            ]
+        return m
