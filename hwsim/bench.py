@@ -8,7 +8,7 @@ Phong) on the same machine, median of ``repeats`` renders after a warm-up; a run
 is not built is reported as ``not available``; the cycle and transaction rungs run on
 ``cube4`` when the chosen machine is not modelled at that rung (said in a note).  The rtl
 rung simulates small scenes only, so it and ``cycle_vs_rtl`` are measured on their own
-scene (:data:`RTL_SCENE`: head 12^3, unlit composite, ``cube4``), the cycle rung rendering
+scene (:data:`RTL_SCENE`: head 12^3, lit composite, ``cube4``), the cycle rung rendering
 the same scene beside it; without a simulator, ``cycle_vs_rtl`` falls back to the cycle
 rung's simulated cycles per second over the toolchain's RTL figure (30 k cycles/s,
 toolchain.md), saying so.  The goal
@@ -65,7 +65,8 @@ _FALLBACK_ARCH = {"cycle": "cube4", "transaction": "cube4"}
 #: Verilator + cocotb simulating RTL with a per-cycle Python driver (toolchain.md), the
 #: reference for the cycle rung until the rtl rung measures its own.
 RTL_TOOLCHAIN_CYCLES_PER_SECOND = 30e3
-#: The rtl rung's benchmark scene (the RTL top holds 16^3 at most and has no shader).
+#: The rtl rung's benchmark scene (the RTL top holds 16^3 at most): lit composite, so
+#: every pipeline computes gradients, Phong shading and compositing.
 RTL_SCENE = {"size": 12, "image": 12, "arch": "cube4", "view": (30, 20), "mode": "composite"}
 
 
@@ -181,7 +182,6 @@ def rtl_speeds(repeats: int, simulator: str = "verilator") -> dict[str, Any]:
     user sees it: simulator start, host loads, frame, pixel read-back (the Verilator build
     is cached and made by the warm-up render).
     """
-    import dataclasses
 
     from hwsim.errors import NotAvailableError
     from hwsim.fidelity import render
@@ -196,10 +196,10 @@ def rtl_speeds(repeats: int, simulator: str = "verilator") -> dict[str, Any]:
         volume=VolumeSpec(phantom="head", params=(("size", cfg["size"]),)),
         transfer=TransferSpec(preset="ct"),
         view=ViewSpec(azimuth=az, elevation=el, width=cfg["image"], height=cfg["image"]),
-        render=dataclasses.replace(RenderSpec(mode=cfg["mode"]), lighting=False),
+        render=RenderSpec(mode=cfg["mode"]),
     )
     note = (
-        f"head {cfg['size']}^3 unlit {cfg['mode']} on {cfg['arch']} (the RTL top's scene "
+        f"head {cfg['size']}^3 lit {cfg['mode']} on {cfg['arch']} (the RTL top's scene "
         "size), cycle rung on the same scene"
     )
     out: dict[str, Any] = {}
