@@ -80,11 +80,20 @@ class FunctionalResult:
 
 
 class TapSource:
-    """Samples of one step interpolated from flat voxel arrays at each sample's taps."""
+    """Samples of one step interpolated from flat voxel arrays at each sample's taps
+    (computed when first asked for: the compiled composite stage does not need them)."""
 
     def __init__(self, rung: _Functional, step: Step) -> None:
         self.rung, self.step = rung, step
-        self.taps = interp_unit.interp_taps(step.zyx, rung.volume.shape, rung.dp.interp)
+        self._taps: interp_unit.InterpTaps | None = None
+
+    @property
+    def taps(self) -> interp_unit.InterpTaps:
+        if self._taps is None:
+            self._taps = interp_unit.interp_taps(
+                self.step.zyx, self.rung.volume.shape, self.rung.dp.interp
+            )
+        return self._taps
 
     def _interpolate(self, promoted: np.ndarray, taps: interp_unit.InterpTaps) -> np.ndarray:
         return interp_unit.interpolate(promoted, taps, self.rung.dp.interp, promoted=True)
@@ -94,6 +103,14 @@ class TapSource:
 
     def channels(self) -> list[np.ndarray]:
         return [self._interpolate(c, self.taps) for c in self.rung.pre]
+
+    def composite_fused(self, step: Step, factor: np.ndarray | None, state: RayState) -> bool:
+        """Run the back end's composite stage on ``step`` in one compiled pass
+        (:mod:`models.fused`) when the frame allows it; False: use the unit chain."""
+        if self.rung.kernel is None or not np.isscalar(step.dt):
+            return False
+        self.rung.kernel.run(step, factor, state)
+        return True
 
     def gradient(self, sel: np.ndarray) -> np.ndarray:
         rung, t = self.rung, self.taps
@@ -112,7 +129,9 @@ class TapSource:
 
 
 class _Functional:
-    def __init__(self, backend: Backend, *, leap_blocks: bool = True) -> None:
+    def __init__(
+        self, backend: Backend, *, leap_blocks: bool = True, compiled: bool = True
+    ) -> None:
         self.backend = be = backend
         self.leap = leap_blocks
         self.volume, self.dp, self.plan, self.arch = be.volume, be.dp, be.plan, be.arch
@@ -127,6 +146,12 @@ class _Functional:
             self.diffs = [
                 interp_unit.promote(d, cfg) for d in gradient_unit.voxel_differences(be.raw)
             ]
+        self.kernel = None
+        if compiled:
+            from models import fused  # imports numba: only when a frame may use it
+
+            if fused.eligible(be):
+                self.kernel = fused.CompositeKernel(be, self.flat, self.diffs)
 
     def run(self, progress: Callable[[int, int], None] | None) -> FunctionalResult:
         plan, be = self.plan, self.backend
@@ -224,14 +249,18 @@ def render_functional(
     datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
     leap_blocks: bool = True,
+    compiled: bool = True,
 ) -> FunctionalResult:
     """Render with the fixed-point units of ``arch`` at ``plan``'s sample positions.
 
     ``leap_blocks`` lets the simulation skip blocks whose samples provably cannot change
     the image (:mod:`models.leap`); image, samples, rays, cycles and saturation counts
-    are the same either way, only the wall time differs.
+    are the same either way, only the wall time differs.  ``compiled`` runs the composite
+    stage, where the frame allows it, as one compiled pass per step part
+    (:mod:`models.fused`) instead of the chain of vectorised unit calls; again the same
+    bits either way.
     """
     if datapath is None:
         datapath = Datapath.for_volume(arch, volume)
     backend = Backend(scene, volume, transfer, arch, plan, datapath)
-    return _Functional(backend, leap_blocks=leap_blocks).run(progress)
+    return _Functional(backend, leap_blocks=leap_blocks, compiled=compiled).run(progress)

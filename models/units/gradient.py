@@ -42,6 +42,8 @@ __all__ = [
     "to_world",
     "magnitude",
     "normals",
+    "isqrt_raw",
+    "normal_raw",
     "LATENCY",
     "II",
 ]
@@ -171,11 +173,7 @@ def to_world(
 
 def magnitude(g: np.ndarray) -> np.ndarray:
     """``floor(sqrt(gx^2 + gy^2 + gz^2))`` exactly (integer square root, vectorised)."""
-    s = np.einsum("ij,ij->i", g, g)
-    r = np.floor(np.sqrt(s.astype(np.float64))).astype(np.int64)
-    r += ((r + 1) * (r + 1) <= s).astype(np.int64)
-    r -= (r * r > s).astype(np.int64)
-    return r
+    return isqrt_raw(np.einsum("ij,ij->i", g, g))
 
 
 def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
@@ -185,18 +183,34 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
     magnitude has at least ``F + 2`` bits, so the magnitude's truncation costs under
     ``2**-(F+2)`` per component.
     """
-    f = cfg.normal_frac_bits
-    m0 = magnitude(g)
-    bits = np.floor(np.log2(np.maximum(m0, 1).astype(np.float64))).astype(np.int64) + 1
-    shift = np.clip(f + 2 - bits, 0, 40)
-    g = g << shift[:, None]
-    m = m0.copy()  # rows not shifted keep their magnitude: recompute only the others
-    moved = np.flatnonzero(shift)
-    if moved.size:
-        m[moved] = magnitude(np.take(g, moved, axis=0))
-    safe = np.maximum(m, 1)[:, None]
-    num = -g << f
-    n = (2 * num + safe) // (2 * safe)  # round half up, exact
-    n[m0 == 0] = 0
-    limit = 1 << cfg.normal_frac_bits
-    return np.clip(n, -limit, limit)
+    g = np.asarray(g, dtype=np.int64)
+    return np.stack(normal_raw(g[:, 0], g[:, 1], g[:, 2], cfg.normal_frac_bits), axis=1)
+
+
+# The two functions below are the unit's arithmetic, written once for int64 arrays (the
+# vectorised API above) and int64 scalars (the functional rung's compiled kernel).
+
+
+def isqrt_raw(s):
+    """``floor(sqrt(s))`` of non-negative int64 ``s`` (array or scalar), exactly: the float
+    root, then one correction step each way."""
+    r = np.int64(np.floor(np.sqrt(np.float64(s))))
+    r = r + ((r + 1) * (r + 1) <= s)
+    return r - (r * r > s)
+
+
+def normal_raw(gx, gy, gz, f: int):
+    """``(nx, ny, nz)``: :func:`normals` of the vector(s) ``(gx, gy, gz)`` (int64 arrays
+    or scalars), SQ1.``f``.  A zero vector gives 0: its numerators are 0 and the divisor
+    is 1, so the rounded quotient ``(0 + 1) // 2`` is 0."""
+    m0 = isqrt_raw(gx * gx + gy * gy + gz * gz)
+    bits = np.int64(np.floor(np.log2(np.float64(np.maximum(m0, 1))))) + 1
+    shift = np.minimum(np.maximum(f + 2 - bits, 0), 40)
+    gx, gy, gz = gx << shift, gy << shift, gz << shift
+    safe = np.maximum(isqrt_raw(gx * gx + gy * gy + gz * gz), 1)
+    limit = 1 << f
+    return (
+        np.minimum(np.maximum((2 * (-gx << f) + safe) // (2 * safe), -limit), limit),
+        np.minimum(np.maximum((2 * (-gy << f) + safe) // (2 * safe), -limit), limit),
+        np.minimum(np.maximum((2 * (-gz << f) + safe) // (2 * safe), -limit), limit),
+    )

@@ -1,0 +1,334 @@
+"""The functional rung's compiled composite stage: one pass per sample, position to accumulator.
+
+# Ref: design.md section 3 (functional rung); architectures.md section 9.1 (interpolator,
+#      classifier, gradient, shader and compositor units); docs/fidelity.md ("How the
+#      functional rung simulates fast, exactly").
+
+:meth:`models.backend.Backend._composite` runs the composite stage as a chain of
+vectorised unit calls, each producing a temporary array per step part.  Here the same
+chain is one numba-compiled loop over the samples: cell and weights
+(:func:`~models.units.interp.cell_weight`), the trilinear sample
+(:func:`~models.units.interp.trilinear_raw`), the LUT read
+(:func:`~models.units.classify.lut_index_raw`), the six neighbours of the sample gradient
+or the three interpolated voxel differences, gradient-opacity modulation, the normal
+(:func:`~models.units.gradient.normal_raw`), Phong
+(:func:`~models.units.shade.light_terms_raw`, :func:`~models.units.shade.shade_raw`), the
+opacity-correction table and the front-to-back blend
+(:func:`~models.units.composite.ftb_weight_raw`).
+
+**One source of truth.**  The kernel contains no arithmetic of its own: every rounding,
+lerp, root, division and clamp is a ``*_raw`` function of its unit, the same function the
+unit's vectorised API calls on NumPy arrays; numba compiles it for scalars
+(``register_jitable``).  What the kernel adds is the order of the calls (the dataflow of
+``Backend._composite`` and ``gradient.sample_differences``), and ``tests/models/
+test_functional_fused.py`` checks that it gives the vectorised chain's bits on every
+supported configuration.  Integer scalars are int64; the vectorised chain's int32 lerps
+are exact (:func:`~models.units.interp.promote`), so both compute the same integers.
+
+**Scope.**  Post-classified composite through one LUT, parallel projection (one ``dt``
+and one shader per frame), Phong (not reflectance maps), gradients from samples or
+voxels, any crop, cut planes, modulation and early termination.  Anything else
+(pre-classification, multi-LUT classification, embedded geometry, per-ray ``dt``,
+reflectance maps, the elision check) takes the vectorised chain: :func:`eligible` says
+which.
+
+The compiled code is cached on disk (``cache=True``).  numba keys a cached kernel by the
+kernel's own source file and bytecode, not by the unit functions it inlines, so the key
+here also holds a hash of those functions' source (:data:`UNITS_HASH`): editing a unit
+recompiles the kernel instead of loading stale arithmetic.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+
+import numba
+import numpy as np
+from numba.extending import register_jitable
+
+from hwsim.numerics import ROUNDING_CODES, SATURATIONS, round_scaled, round_shift_raw
+from models.units import classify as classify_unit
+from models.units import composite as composite_unit
+from models.units import gradient as gradient_unit
+from models.units import interp as interp_unit
+from models.units import shade as shade_unit
+
+__all__ = ["UNITS_HASH", "eligible", "composite_part"]
+
+#: The unit functions the kernel calls: registered with numba so compiled code may call
+#: them (all take and return scalars only: array arguments would cost a reference-count
+#: update per call), and hashed into the cache key.
+_UNIT_FUNCTIONS = (
+    round_shift_raw,
+    round_scaled,
+    interp_unit.cell_weight,
+    interp_unit.lerp_raw,
+    interp_unit.bilinear_raw,
+    classify_unit.lut_index_raw,
+    classify_unit.gm_index_raw,
+    classify_unit.scale_alpha_raw,
+    gradient_unit.isqrt_raw,
+    gradient_unit.normal_raw,
+    shade_unit.light_terms_raw,
+    shade_unit.specular_raw,
+    shade_unit.shade_raw,
+    composite_unit.ftb_weight_raw,
+    composite_unit.ftb_colour_raw,
+)
+for _fn in _UNIT_FUNCTIONS:
+    register_jitable(_fn)
+
+#: Hash of the called unit functions' source (part of the compiled kernel's cache key).
+UNITS_HASH = hashlib.sha256(
+    "".join(inspect.getsource(fn) for fn in _UNIT_FUNCTIONS).encode()
+).hexdigest()
+
+#: Kernel inputs ``grad_p`` (int64 flags and constants), by position.
+_NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
+_GM_SCALE, _GM_ENTRIES, _NORMAL_BITS, _KA, _KD, _KS, _SPEC_ENTRIES = range(5, 12)
+
+
+def _make_kernel(units_hash: str):
+    """The compiled kernel; ``units_hash`` is a closure variable, so numba's cache key
+    (bytecode and closure values) changes whenever a unit function does."""
+
+    def kernel(
+        flat, dxyz, shape, offsets, zyx, rays, factor, interp_p, lut_p, rgb12, alpha12,
+        grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, acc_p, alive, sat,
+    ):  # fmt: skip
+        if len(units_hash) == 0:  # never: keeps the hash in the cache key
+            return
+        ny, nx = shape[1], shape[2]
+        hi = (shape[0] - 1.0, ny - 1.0, nx - 1.0)
+        strides = (ny * nx, nx, np.int64(1))
+        o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
+        w_bits, w_code = interp_p[0], interp_p[1]
+        lut_shift, entries = lut_p[0], lut_p[1]
+        f_bits, spec_entries = grad_p[_NORMAL_BITS], grad_p[_SPEC_ENTRIES]
+        one, acc_code, ert_thr = acc_p[0], acc_p[1], acc_p[2]
+        cut = factor.shape[0] > 0
+        cell = np.empty(3, np.int64)  # the centre's cell along z, y, x
+        w = np.empty(3, np.int64)  # its raw weights
+        g = np.empty(3, np.int64)  # gradient x, y, z
+        for i in range(zyx.shape[0]):
+            for a in range(3):
+                c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
+                cell[a], w[a] = np.int64(c), np.int64(q)
+            base = (cell[0] * ny + cell[1]) * nx + cell[2]
+            value = _trilinear(flat, base, o1, o2, o3, o4, w[0], w[1], w[2], w_bits, w_code)
+            idx = classify_unit.lut_index_raw(value, lut_shift, entries)
+            alpha = alpha12[idx]
+            if cut:
+                alpha = classify_unit.scale_alpha_raw(alpha, factor[i])
+            if alpha <= 0:
+                continue  # transparent: changes nothing (Backend._composite's `vis`)
+            r, gr, b = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+            if grad_p[_NEED_GRAD]:
+                if grad_p[_FROM_VOXELS]:
+                    for c3 in range(3):  # dxyz rows: x, y, z differences
+                        g[c3] = _trilinear(
+                            dxyz[c3], base, o1, o2, o3, o4, w[0], w[1], w[2], w_bits, w_code
+                        )
+                else:
+                    # s(p + e) - s(p - e) per axis: the centre's cell and weights except
+                    # along the moved axis (gradient.sample_differences).
+                    for a in range(3):
+                        ahead = np.int64(0)
+                        for step in (1.0, -1.0):
+                            c, q = interp_unit.cell_weight(zyx[i, a] + step, hi[a], w_bits, w_code)
+                            nb = base + (np.int64(c) - cell[a]) * strides[a]
+                            wz = np.int64(q) if a == 0 else w[0]
+                            wy = np.int64(q) if a == 1 else w[1]
+                            wx = np.int64(q) if a == 2 else w[2]
+                            s = _trilinear(flat, nb, o1, o2, o3, o4, wz, wy, wx, w_bits, w_code)
+                            if step > 0:
+                                ahead = s
+                            else:
+                                g[2 - a] = ahead - s
+                if grad_p[_WORLD]:
+                    for c3 in range(3):
+                        g[c3] = round_shift_raw(g[c3] * ratio[c3], 12, 1)
+                if grad_p[_MODULATES]:
+                    m = gradient_unit.isqrt_raw(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+                    gi = classify_unit.gm_index_raw(m, grad_p[_GM_SCALE], grad_p[_GM_ENTRIES])
+                    alpha = classify_unit.scale_alpha_raw(alpha, gm_table[gi])
+                if grad_p[_LIT]:
+                    nxv, nyv, nzv = gradient_unit.normal_raw(g[0], g[1], g[2], f_bits)
+                    diffuse, specular = np.int64(0), np.int64(0)
+                    for k in range(light.shape[0]):
+                        d, si = shade_unit.light_terms_raw(
+                            nxv, nyv, nzv, light[k, 0], light[k, 1], light[k, 2],
+                            half[k, 0], half[k, 1], half[k, 2], intensity[k],
+                            grad_p[_KD], spec_entries, f_bits,
+                        )  # fmt: skip
+                        diffuse += d
+                        specular += shade_unit.specular_raw(intensity[k], grad_p[_KS], spec[si])
+                    ka = grad_p[_KA]
+                    r = shade_unit.shade_raw(ka, r, diffuse, specular)
+                    gr = shade_unit.shade_raw(ka, gr, diffuse, specular)
+                    b = shade_unit.shade_raw(ka, b, diffuse, specular)
+            # composite.alpha saturation (counted), then the opacity-correction ROM.
+            if alpha < 0 or alpha > 4096:
+                sat[0] += 1
+                alpha = min(max(alpha, 0), 4096)
+            alpha = table[alpha]
+            ray = rays[i]
+            aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
+            r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, r, acc_code)
+            gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, gr, acc_code)
+            b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, b, acc_code)
+            for c4, v in enumerate((r, gr, b, acc[ray, 3] + aw)):
+                if v < 0 or v > one:  # composite.acc saturation (counted)
+                    sat[1] += 1
+                    v = min(max(v, 0), one)
+                acc[ray, c4] = v
+            if ert_thr >= 0:
+                alive[ray] = acc[ray, 3] < ert_thr
+
+    return numba.njit(cache=True, nogil=True)(kernel)
+
+
+@numba.njit(inline="always")
+def _trilinear(flat, base, o1, o2, o3, o4, wz, wy, wx, w_bits, w_code):
+    """The trilinear sample of cell ``base``: :func:`~models.units.interp.bilinear_raw`
+    on its near slice, on its far slice unless the z weight is 0 (a lerp of weight 0
+    returns its first operand exactly: ``interp.lerp_plan``), then a z
+    :func:`~models.units.interp.lerp_raw` -- ``interp.lerp_corners``' order."""
+    near = interp_unit.bilinear_raw(
+        flat[base], flat[base + o1], flat[base + o2], flat[base + o3], wy, wx, w_bits, w_code
+    )
+    if wz == 0:
+        return np.int64(near)
+    far = base + o4
+    far_v = interp_unit.bilinear_raw(
+        flat[far], flat[far + o1], flat[far + o2], flat[far + o3], wy, wx, w_bits, w_code
+    )
+    return np.int64(interp_unit.lerp_raw(near, far_v, wz, w_bits, w_code))
+
+
+_KERNEL = _make_kernel(UNITS_HASH)
+
+
+def eligible(backend) -> bool:
+    """Whether :func:`composite_part` can run ``backend``'s composite stage (see Scope)."""
+    be = backend
+    if be.mode != "composite" or be.pre_classified or be.exercise_unused:
+        return False
+    if be.multilut is not None or be.depth is not None:
+        return False
+    if be.scene.lit and (be.shader is None or be.shader.maps is not None):
+        return False
+    return be.plan.kind == "shear-warp" or be.plan.camera.directions.ndim == 1
+
+
+class CompositeKernel:
+    """The per-frame constants of one back end, packed for the kernel."""
+
+    def __init__(self, backend, flat: np.ndarray, diffs: list[np.ndarray] | None) -> None:
+        be, dp = backend, backend.dp
+        self.backend, self.flat = be, flat
+        shape = be.volume.shape
+        self.shape = np.asarray(shape, dtype=np.int64)
+        self.offsets = interp_unit.corner_offsets(shape).astype(np.int64)
+        self.dxyz = (
+            [np.asarray(d) for d in diffs] if diffs is not None else [flat[:1], flat[:1], flat[:1]]
+        )
+        if len({d.dtype for d in self.dxyz}) > 1:
+            self.dxyz = [d.astype(np.int64) for d in self.dxyz]
+        self.dxyz = tuple(self.dxyz)
+        self.interp_p = np.array(
+            [dp.interp.weight_bits, ROUNDING_CODES[dp.interp.rounding]], dtype=np.int64
+        )
+        shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
+        self.lut_p = np.array([shift, dp.classify.entries], dtype=np.int64)
+        self.rgb12 = np.ascontiguousarray(be.lut.rgb12, dtype=np.int64)
+        self.alpha12 = np.ascontiguousarray(be.lut.alpha12, dtype=np.int64)
+        spacing = np.asarray(be.volume.spacing, dtype=np.float64)[::-1]
+        self.ratio = np.floor(spacing.min() / spacing * (1 << 12) + 0.5).astype(np.int64)
+        world = not np.all(self.ratio == 1 << 12)
+        modulates = be.need_grad and be.transfer.modulates
+        lit = bool(be.scene.lit)
+        sh = be.shader if lit else None
+        self.grad_p = np.array(
+            [
+                be.need_grad,
+                be.need_grad and dp.gradient.source == "voxel",
+                world,
+                modulates,
+                lit,
+                be.gm_scale if modulates else 0,
+                dp.classify.gm_entries,
+                dp.gradient.normal_frac_bits,
+                sh.ka if sh else 0,
+                sh.kd if sh else 0,
+                sh.ks if sh else 0,
+                dp.shade.spec_table_entries,
+            ],
+            dtype=np.int64,
+        )
+        self.gm_table = (
+            np.asarray(be.gm_table, dtype=np.int64) if modulates else np.zeros(1, np.int64)
+        )
+        if sh is not None:
+            self.light = np.ascontiguousarray(sh.light, dtype=np.int64)
+            self.half = np.ascontiguousarray(sh.half, dtype=np.int64).reshape(-1, 3)
+            self.intensity = np.asarray(sh.intensity, dtype=np.int64)
+            self.spec = np.asarray(sh.spec, dtype=np.int64)
+        else:
+            self.light = self.half = np.zeros((0, 3), np.int64)
+            self.intensity, self.spec = np.zeros(0, np.int64), np.zeros(2, np.int64)
+        cfg = dp.composite
+        thr = -1
+        if be.ert < 1.0:
+            thr = int(cfg.acc.quantize(max(be.ert, 0.0)))
+        self.acc_p = np.array(
+            [1 << cfg.acc_frac_bits, ROUNDING_CODES[cfg.acc.rounding], thr], dtype=np.int64
+        )
+        self._tables: dict[float, np.ndarray] = {}
+        self._no_factor = np.zeros(0, dtype=np.int64)
+
+    def run(self, step, factor, state) -> None:
+        """Composite the samples of ``step`` (after masks) into ``state``."""
+        be = self.backend
+        dt = float(step.dt)
+        table = self._tables.get(dt)
+        if table is None:
+            k = np.asarray(dt) / be.ref
+            table = self._tables[dt] = composite_unit.correction_for(k, be.dp.composite)
+        sat = np.zeros(2, dtype=np.int64)
+        _KERNEL(
+            self.flat,
+            self.dxyz,
+            self.shape,
+            self.offsets,
+            np.ascontiguousarray(step.zyx, dtype=np.float64),
+            np.asarray(step.rays, dtype=np.int64),
+            self._no_factor if factor is None else np.asarray(factor, dtype=np.int64),
+            self.interp_p,
+            self.lut_p,
+            self.rgb12,
+            self.alpha12,
+            self.grad_p,
+            self.ratio,
+            self.gm_table,
+            self.light,
+            self.half,
+            self.intensity,
+            self.spec,
+            table,
+            state.acc,
+            self.acc_p,
+            state.alive,
+            sat,
+        )
+        if sat[0]:
+            SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
+        if sat[1]:
+            SATURATIONS[be.dp.composite.acc.name] += int(sat[1])
+
+
+def composite_part(kernel: CompositeKernel, step, factor, state) -> None:
+    """Run :class:`CompositeKernel` ``kernel`` on one step part (the functional rung's
+    composite stage)."""
+    kernel.run(step, factor, state)
