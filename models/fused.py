@@ -70,6 +70,8 @@ _UNIT_FUNCTIONS = (
     classify_unit.scale_alpha_raw,
     gradient_unit.isqrt_raw,
     gradient_unit.normal_raw,
+    gradient_unit.floor_div_raw,
+    gradient_unit.bit_length_raw,
     shade_unit.light_terms_raw,
     shade_unit.specular_raw,
     shade_unit.shade_raw,
@@ -86,16 +88,32 @@ UNITS_HASH = hashlib.sha256(
 
 #: Kernel inputs ``grad_p`` (int64 flags and constants), by position.
 _NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
-_GM_SCALE, _GM_ENTRIES, _NORMAL_BITS, _KA, _KD, _KS, _SPEC_ENTRIES = range(5, 12)
+_GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS = range(5, 10)
 
 
-def _make_kernel(units_hash: str):
-    """The compiled kernel; ``units_hash`` is a closure variable, so numba's cache key
-    (bytecode and closure values) changes whenever a unit function does."""
+def _make_kernel(
+    units_hash: str,
+    w_bits: int,
+    w_code: int,
+    lut_shift: int,
+    entries: int,
+    f_bits: int,
+    spec_entries: int,
+    one: int,
+    acc_code: int,
+):
+    """The kernel compiled for one set of widths and rounding modes.
+
+    They are closure variables, which numba compiles as constants: shifts by a known
+    amount and rounding branches resolved at compile time run about twice as fast as
+    the same code reading them at run time.  numba's on-disk cache is keyed by bytecode
+    and closure values, so each configuration, and each ``units_hash``, has its own
+    entry.
+    """
 
     def kernel(
-        flat, dxyz, shape, offsets, zyx, rays, factor, interp_p, lut_p, rgb12, alpha12,
-        grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, acc_p, alive, sat,
+        flat, dxyz, shape, offsets, zyx, rays, factor, rgb12, alpha12,
+        grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, ert_thr, alive, sat,
     ):  # fmt: skip
         if len(units_hash) == 0:  # never: keeps the hash in the cache key
             return
@@ -103,10 +121,6 @@ def _make_kernel(units_hash: str):
         hi = (shape[0] - 1.0, ny - 1.0, nx - 1.0)
         strides = (ny * nx, nx, np.int64(1))
         o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
-        w_bits, w_code = interp_p[0], interp_p[1]
-        lut_shift, entries = lut_p[0], lut_p[1]
-        f_bits, spec_entries = grad_p[_NORMAL_BITS], grad_p[_SPEC_ENTRIES]
-        one, acc_code, ert_thr = acc_p[0], acc_p[1], acc_p[2]
         cut = factor.shape[0] > 0
         cell = np.empty(3, np.int64)  # the centre's cell along z, y, x
         w = np.empty(3, np.int64)  # its raw weights
@@ -207,7 +221,15 @@ def _trilinear(flat, base, o1, o2, o3, o4, wz, wy, wx, w_bits, w_code):
     return np.int64(interp_unit.lerp_raw(near, far_v, wz, w_bits, w_code))
 
 
-_KERNEL = _make_kernel(UNITS_HASH)
+#: Compiled kernels of this process, by configuration.
+_KERNELS: dict[tuple[int, ...], object] = {}
+
+
+def _kernel_for(config: tuple[int, ...]):
+    kernel = _KERNELS.get(config)
+    if kernel is None:
+        kernel = _KERNELS[config] = _make_kernel(UNITS_HASH, *config)
+    return kernel
 
 
 def eligible(backend) -> bool:
@@ -237,11 +259,20 @@ class CompositeKernel:
         if len({d.dtype for d in self.dxyz}) > 1:
             self.dxyz = [d.astype(np.int64) for d in self.dxyz]
         self.dxyz = tuple(self.dxyz)
-        self.interp_p = np.array(
-            [dp.interp.weight_bits, ROUNDING_CODES[dp.interp.rounding]], dtype=np.int64
-        )
         shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
-        self.lut_p = np.array([shift, dp.classify.entries], dtype=np.int64)
+        cfg = dp.composite
+        self.kernel = _kernel_for(
+            (
+                dp.interp.weight_bits,
+                ROUNDING_CODES[dp.interp.rounding],
+                shift,
+                dp.classify.entries,
+                dp.gradient.normal_frac_bits,
+                dp.shade.spec_table_entries,
+                1 << cfg.acc_frac_bits,
+                ROUNDING_CODES[cfg.acc.rounding],
+            )
+        )
         self.rgb12 = np.ascontiguousarray(be.lut.rgb12, dtype=np.int64)
         self.alpha12 = np.ascontiguousarray(be.lut.alpha12, dtype=np.int64)
         spacing = np.asarray(be.volume.spacing, dtype=np.float64)[::-1]
@@ -259,11 +290,9 @@ class CompositeKernel:
                 lit,
                 be.gm_scale if modulates else 0,
                 dp.classify.gm_entries,
-                dp.gradient.normal_frac_bits,
                 sh.ka if sh else 0,
                 sh.kd if sh else 0,
                 sh.ks if sh else 0,
-                dp.shade.spec_table_entries,
             ],
             dtype=np.int64,
         )
@@ -278,13 +307,9 @@ class CompositeKernel:
         else:
             self.light = self.half = np.zeros((0, 3), np.int64)
             self.intensity, self.spec = np.zeros(0, np.int64), np.zeros(2, np.int64)
-        cfg = dp.composite
-        thr = -1
+        self.ert_thr = -1  # early termination off
         if be.ert < 1.0:
-            thr = int(cfg.acc.quantize(max(be.ert, 0.0)))
-        self.acc_p = np.array(
-            [1 << cfg.acc_frac_bits, ROUNDING_CODES[cfg.acc.rounding], thr], dtype=np.int64
-        )
+            self.ert_thr = int(cfg.acc.quantize(max(be.ert, 0.0)))
         self._tables: dict[float, np.ndarray] = {}
         self._no_factor = np.zeros(0, dtype=np.int64)
 
@@ -297,7 +322,7 @@ class CompositeKernel:
             k = np.asarray(dt) / be.ref
             table = self._tables[dt] = composite_unit.correction_for(k, be.dp.composite)
         sat = np.zeros(2, dtype=np.int64)
-        _KERNEL(
+        self.kernel(
             self.flat,
             self.dxyz,
             self.shape,
@@ -305,8 +330,6 @@ class CompositeKernel:
             np.ascontiguousarray(step.zyx, dtype=np.float64),
             np.asarray(step.rays, dtype=np.int64),
             self._no_factor if factor is None else np.asarray(factor, dtype=np.int64),
-            self.interp_p,
-            self.lut_p,
             self.rgb12,
             self.alpha12,
             self.grad_p,
@@ -318,7 +341,7 @@ class CompositeKernel:
             self.spec,
             table,
             state.acc,
-            self.acc_p,
+            self.ert_thr,
             state.alive,
             sat,
         )

@@ -44,6 +44,8 @@ __all__ = [
     "normals",
     "isqrt_raw",
     "normal_raw",
+    "floor_div_raw",
+    "bit_length_raw",
     "LATENCY",
     "II",
 ]
@@ -204,13 +206,35 @@ def normal_raw(gx, gy, gz, f: int):
     or scalars), SQ1.``f``.  A zero vector gives 0: its numerators are 0 and the divisor
     is 1, so the rounded quotient ``(0 + 1) // 2`` is 0."""
     m0 = isqrt_raw(gx * gx + gy * gy + gz * gz)
-    bits = np.int64(np.floor(np.log2(np.float64(np.maximum(m0, 1))))) + 1
+    bits = bit_length_raw(np.maximum(m0, 1))
     shift = np.minimum(np.maximum(f + 2 - bits, 0), 40)
     gx, gy, gz = gx << shift, gy << shift, gz << shift
     safe = np.maximum(isqrt_raw(gx * gx + gy * gy + gz * gz), 1)
     limit = 1 << f
     return (
-        np.minimum(np.maximum((2 * (-gx << f) + safe) // (2 * safe), -limit), limit),
-        np.minimum(np.maximum((2 * (-gy << f) + safe) // (2 * safe), -limit), limit),
-        np.minimum(np.maximum((2 * (-gz << f) + safe) // (2 * safe), -limit), limit),
+        np.minimum(np.maximum(floor_div_raw(2 * (-gx << f) + safe, 2 * safe), -limit), limit),
+        np.minimum(np.maximum(floor_div_raw(2 * (-gy << f) + safe, 2 * safe), -limit), limit),
+        np.minimum(np.maximum(floor_div_raw(2 * (-gz << f) + safe, 2 * safe), -limit), limit),
     )
+
+
+def bit_length_raw(m):
+    """Bits of non-negative int64 ``m`` (arrays or scalars): ``floor(log2 m) + 1`` for
+    ``m >= 1``, 0 for 0, by a six-step binary search on shifts (exact for every int64;
+    the float ``log2`` it replaces agreed below ``2**45``, and ``|g|`` stays below
+    ``2**32``: ``|g|**2`` must fit int64)."""
+    b = m - m  # zero, of m's type and shape
+    for k in (32, 16, 8, 4, 2, 1):
+        b = b + k * ((m >> (b + k)) > 0)
+    return b + (m > 0)
+
+
+def floor_div_raw(n, d):
+    """``n // d`` of int64 ``n`` and ``d > 0`` (arrays or scalars), exactly, for quotients
+    below ``2**50`` in magnitude (here at most ``2**f + 1``): the float64 quotient is then
+    within one of the exact one (three roundings of relative ``2**-53``), and one
+    remainder test each way corrects it.  A float division and two compares cost far
+    less than an integer division."""
+    q = np.int64(np.floor(np.float64(n) / np.float64(d)))
+    r = n - q * d
+    return q - (r < 0) + (r >= d)
