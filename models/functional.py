@@ -107,9 +107,11 @@ class TapSource:
     def composite_fused(self, step: Step, factor: np.ndarray | None, state: RayState) -> bool:
         """Run the back end's composite stage on ``step`` in one compiled pass
         (:mod:`models.fused`) when the frame allows it; False: use the unit chain."""
-        if self.rung.kernel is None or not np.isscalar(step.dt):
+        kernel = self.rung.kernel
+        table = None if kernel is None else kernel.table(step.dt)
+        if table is None:
             return False
-        self.rung.kernel.run(step, factor, state)
+        kernel.run(step, factor, state, table)
         return True
 
     def gradient(self, sel: np.ndarray) -> np.ndarray:

@@ -25,12 +25,12 @@ test_functional_fused.py`` checks that it gives the vectorised chain's bits on e
 supported configuration.  Integer scalars are int64; the vectorised chain's int32 lerps
 are exact (:func:`~models.units.interp.promote`), so both compute the same integers.
 
-**Scope.**  Post-classified composite through one LUT, parallel projection (one ``dt``
-and one shader per frame), Phong (not reflectance maps), gradients from samples or
-voxels, any crop, cut planes, modulation and early termination.  Anything else
-(pre-classification, multi-LUT classification, embedded geometry, per-ray ``dt``,
-reflectance maps, the elision check) takes the vectorised chain: :func:`eligible` says
-which.
+**Scope.**  Post-classified composite through one LUT, steps whose samples share one
+``dt`` (parallel views) and frames with one shader (or none), Phong (not reflectance
+maps), gradients from samples or voxels, any crop, cut planes, modulation and early
+termination.  Anything else (pre-classification, multi-LUT classification, embedded
+geometry, perspective steps, reflectance maps, the elision check) takes the vectorised
+chain: :func:`eligible` and :meth:`CompositeKernel.table` say which.
 
 The compiled code is cached on disk (``cache=True``).  numba keys a cached kernel by the
 kernel's own source file and bytecode, not by the unit functions it inlines, so the key
@@ -54,7 +54,7 @@ from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
 from models.units import shade as shade_unit
 
-__all__ = ["UNITS_HASH", "eligible", "composite_part"]
+__all__ = ["UNITS_HASH", "CompositeKernel", "eligible"]
 
 #: The unit functions the kernel calls: registered with numba so compiled code may call
 #: them (all take and return scalars only: array arguments would cost a reference-count
@@ -233,15 +233,15 @@ def _kernel_for(config: tuple[int, ...]):
 
 
 def eligible(backend) -> bool:
-    """Whether :func:`composite_part` can run ``backend``'s composite stage (see Scope)."""
+    """Whether :class:`CompositeKernel` can run ``backend``'s composite stage (see Scope;
+    a step whose samples differ in length still takes the chain, :meth:`~CompositeKernel.table`)."""
     be = backend
     if be.mode != "composite" or be.pre_classified or be.exercise_unused:
         return False
     if be.multilut is not None or be.depth is not None:
         return False
-    if be.scene.lit and (be.shader is None or be.shader.maps is not None):
-        return False
-    return be.plan.kind == "shear-warp" or be.plan.camera.directions.ndim == 1
+    # One shader for the frame (parallel views), Phong rather than reflectance maps.
+    return not be.scene.lit or (be.shader is not None and be.shader.maps is None)
 
 
 class CompositeKernel:
@@ -313,14 +313,30 @@ class CompositeKernel:
         self._tables: dict[float, np.ndarray] = {}
         self._no_factor = np.zeros(0, dtype=np.int64)
 
-    def run(self, step, factor, state) -> None:
-        """Composite the samples of ``step`` (after masks) into ``state``."""
-        be = self.backend
-        dt = float(step.dt)
+    def table(self, dt) -> np.ndarray | None:
+        """The opacity-correction ROM of a step whose samples all have step length
+        ``dt`` (a float, or an array of one repeated value: parallel shear-image steps);
+        None when the step must take the unit chain (unequal lengths, or an exponent
+        outside ``composite.ratio``, which the chain counts or refuses per call)."""
+        if not np.isscalar(dt):
+            if dt.size == 0 or dt.min() != dt.max():
+                return None
+            dt = dt.flat[0]
+        dt = float(dt)
         table = self._tables.get(dt)
         if table is None:
-            k = np.asarray(dt) / be.ref
+            be, fmt = self.backend, self.backend.dp.composite.ratio
+            k = np.asarray(dt) / be.ref  # what Backend._composite hands correct_opacity
+            raw = round_scaled(k * 2.0**fmt.frac_bits, ROUNDING_CODES[fmt.rounding])
+            if not 1 <= raw <= fmt.raw_max:
+                return None
             table = self._tables[dt] = composite_unit.correction_for(k, be.dp.composite)
+        return table
+
+    def run(self, step, factor, state, table: np.ndarray) -> None:
+        """Composite the samples of ``step`` (after masks) into ``state``, with the
+        opacity-correction ROM ``table`` (:meth:`table`)."""
+        be = self.backend
         sat = np.zeros(2, dtype=np.int64)
         self.kernel(
             self.flat,
@@ -349,9 +365,3 @@ class CompositeKernel:
             SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
         if sat[1]:
             SATURATIONS[be.dp.composite.acc.name] += int(sat[1])
-
-
-def composite_part(kernel: CompositeKernel, step, factor, state) -> None:
-    """Run :class:`CompositeKernel` ``kernel`` on one step part (the functional rung's
-    composite stage)."""
-    kernel.run(step, factor, state)
