@@ -137,23 +137,38 @@ class _Functional:
         self.backend = be = backend
         self.leap = leap_blocks
         self.volume, self.dp, self.plan, self.arch = be.volume, be.dp, be.plan, be.arch
-        # Every array the interpolator reads, promoted once per frame (int32 when exact).
-        cfg = be.dp.interp
-        self.flat = interp_unit.promote(be.raw.ravel(), cfg)
         self.pre = None
         if be.pre_classified:
+            cfg = be.dp.interp
             self.pre = [interp_unit.promote(c.ravel(), cfg) for c in be.classified_voxels(be.raw)]
-        self.diffs = None
-        if be.need_grad and be.dp.gradient.source == "voxel":
-            self.diffs = [
-                interp_unit.promote(d, cfg) for d in gradient_unit.voxel_differences(be.raw)
-            ]
+        self._flat: np.ndarray | None = None
+        self._diffs: list[np.ndarray] | None = None
+        self._voxel_diffs = be.need_grad and be.dp.gradient.source == "voxel"
         self.kernel = None
         if compiled:
             from models import fused  # imports numba: only when a frame may use it
 
             if fused.eligible(be):
-                self.kernel = fused.CompositeKernel(be, self.flat, self.diffs)
+                raw_diffs = gradient_unit.voxel_differences(be.raw) if self._voxel_diffs else None
+                self.kernel = fused.CompositeKernel(be, raw_diffs)
+
+    # Every array the unit chain's interpolator reads, promoted once per frame (int32 when
+    # exact), when first needed: a frame that the compiled kernel runs reads none of them.
+
+    @property
+    def flat(self) -> np.ndarray:
+        if self._flat is None:
+            self._flat = interp_unit.promote(self.backend.raw.ravel(), self.dp.interp)
+        return self._flat
+
+    @property
+    def diffs(self) -> list[np.ndarray] | None:
+        if self._voxel_diffs and self._diffs is None:
+            self._diffs = [
+                interp_unit.promote(d, self.dp.interp)
+                for d in gradient_unit.voxel_differences(self.backend.raw)
+            ]
+        return self._diffs
 
     def run(self, progress: Callable[[int, int], None] | None) -> FunctionalResult:
         plan, be = self.plan, self.backend

@@ -63,6 +63,7 @@ _UNIT_FUNCTIONS = (
     round_shift_raw,
     round_scaled,
     interp_unit.cell_weight,
+    interp_unit.promote_raw,
     interp_unit.lerp_raw,
     interp_unit.bilinear_raw,
     classify_unit.lut_index_raw,
@@ -93,6 +94,7 @@ _GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS = range(5, 10)
 
 def _make_kernel(
     units_hash: str,
+    s_bits: int,
     w_bits: int,
     w_code: int,
     lut_shift: int,
@@ -112,7 +114,7 @@ def _make_kernel(
     """
 
     def kernel(
-        flat, dxyz, shape, offsets, zyx, rays, factor, rgb12, alpha12,
+        vox, dxyz, shape, offsets, zyx, rays, factor, rgb12, alpha12,
         grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, ert_thr, alive, sat,
     ):  # fmt: skip
         if len(units_hash) == 0:  # never: keeps the hash in the cache key
@@ -130,7 +132,7 @@ def _make_kernel(
                 c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
                 cell[a], w[a] = np.int64(c), np.int64(q)
             base = (cell[0] * ny + cell[1]) * nx + cell[2]
-            value = _trilinear(flat, base, o1, o2, o3, o4, w[0], w[1], w[2], w_bits, w_code)
+            value = _trilinear(vox, base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code)
             idx = classify_unit.lut_index_raw(value, lut_shift, entries)
             alpha = alpha12[idx]
             if cut:
@@ -142,7 +144,7 @@ def _make_kernel(
                 if grad_p[_FROM_VOXELS]:
                     for c3 in range(3):  # dxyz rows: x, y, z differences
                         g[c3] = _trilinear(
-                            dxyz[c3], base, o1, o2, o3, o4, w[0], w[1], w[2], w_bits, w_code
+                            dxyz[c3], base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code
                         )
                 else:
                     # s(p + e) - s(p - e) per axis: the centre's cell and weights except
@@ -155,7 +157,9 @@ def _make_kernel(
                             wz = np.int64(q) if a == 0 else w[0]
                             wy = np.int64(q) if a == 1 else w[1]
                             wx = np.int64(q) if a == 2 else w[2]
-                            s = _trilinear(flat, nb, o1, o2, o3, o4, wz, wy, wx, w_bits, w_code)
+                            s = _trilinear(
+                                vox, nb, o1, o2, o3, o4, wz, wy, wx, s_bits, w_bits, w_code
+                            )
                             if step > 0:
                                 ahead = s
                             else:
@@ -204,21 +208,45 @@ def _make_kernel(
 
 
 @numba.njit(inline="always")
-def _trilinear(flat, base, o1, o2, o3, o4, wz, wy, wx, w_bits, w_code):
-    """The trilinear sample of cell ``base``: :func:`~models.units.interp.bilinear_raw`
-    on its near slice, on its far slice unless the z weight is 0 (a lerp of weight 0
-    returns its first operand exactly: ``interp.lerp_plan``), then a z
-    :func:`~models.units.interp.lerp_raw` -- ``interp.lerp_corners``' order."""
-    near = interp_unit.bilinear_raw(
-        flat[base], flat[base + o1], flat[base + o2], flat[base + o3], wy, wx, w_bits, w_code
-    )
+def _trilinear(vox, base, o1, o2, o3, o4, wz, wy, wx, s_bits, w_bits, w_code):
+    """The trilinear sample of cell ``base`` of the raw voxels ``vox``: each corner
+    promoted as read (:func:`~models.units.interp.promote_raw`), then
+    :func:`~models.units.interp.bilinear_raw` on the near slice, on the far slice unless
+    the z weight is 0 (a lerp of weight 0 returns its first operand exactly:
+    ``interp.lerp_plan``), and a z :func:`~models.units.interp.lerp_raw` --
+    ``interp.lerp_corners``' order."""
+    near = _bilinear(vox, base, o1, o2, o3, wy, wx, s_bits, w_bits, w_code)
     if wz == 0:
-        return np.int64(near)
-    far = base + o4
-    far_v = interp_unit.bilinear_raw(
-        flat[far], flat[far + o1], flat[far + o2], flat[far + o3], wy, wx, w_bits, w_code
+        return near
+    far = _bilinear(vox, base + o4, o1, o2, o3, wy, wx, s_bits, w_bits, w_code)
+    return np.int64(interp_unit.lerp_raw(near, far, wz, w_bits, w_code))
+
+
+@numba.njit(inline="always")
+def _bilinear(vox, base, o1, o2, o3, wy, wx, s_bits, w_bits, w_code):
+    row = base + o2
+    return np.int64(
+        interp_unit.bilinear_raw(
+            interp_unit.promote_raw(np.int64(vox[base]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[base + o1]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[row]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[row + o1]), s_bits),
+            wy,
+            wx,
+            w_bits,
+            w_code,
+        )
     )
-    return np.int64(interp_unit.lerp_raw(near, far_v, wz, w_bits, w_code))
+
+
+def _narrowest(a: np.ndarray) -> np.ndarray:
+    """``a`` in the narrowest of uint8, uint16, int16, int32, int64 holding its values."""
+    lo, hi = (int(a.min()), int(a.max())) if a.size else (0, 0)
+    for dtype in (np.uint8, np.uint16, np.int16, np.int32):
+        info = np.iinfo(dtype)
+        if info.min <= lo and hi <= info.max:
+            return a.astype(dtype)
+    return a.astype(np.int64)
 
 
 #: Compiled kernels of this process, by configuration.
@@ -247,22 +275,26 @@ def eligible(backend) -> bool:
 class CompositeKernel:
     """The per-frame constants of one back end, packed for the kernel."""
 
-    def __init__(self, backend, flat: np.ndarray, diffs: list[np.ndarray] | None) -> None:
+    def __init__(self, backend, raw_diffs: list[np.ndarray] | None) -> None:
+        """``raw_diffs``: the voxel differences (``gradient.voxel_differences``) when the
+        gradient comes from voxels."""
         be, dp = backend, backend.dp
-        self.backend, self.flat = be, flat
+        self.backend = be
+        # The raw voxels (and differences) in their narrowest integer type, promoted as
+        # they are read: a quarter of the promoted int64 bytes, half of int32 (memory
+        # traffic is what a 256^3 frame waits on).
+        self.vox = _narrowest(be.raw.ravel())
         shape = be.volume.shape
         self.shape = np.asarray(shape, dtype=np.int64)
         self.offsets = interp_unit.corner_offsets(shape).astype(np.int64)
-        self.dxyz = (
-            [np.asarray(d) for d in diffs] if diffs is not None else [flat[:1], flat[:1], flat[:1]]
-        )
-        if len({d.dtype for d in self.dxyz}) > 1:
-            self.dxyz = [d.astype(np.int64) for d in self.dxyz]
-        self.dxyz = tuple(self.dxyz)
+        diffs = [self.vox[:1]] * 3 if raw_diffs is None else [_narrowest(d) for d in raw_diffs]
+        wide = np.result_type(*diffs)
+        self.dxyz = tuple(d.astype(wide, copy=False) for d in diffs)
         shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
         cfg = dp.composite
         self.kernel = _kernel_for(
             (
+                be.S,
                 dp.interp.weight_bits,
                 ROUNDING_CODES[dp.interp.rounding],
                 shift,
@@ -339,7 +371,7 @@ class CompositeKernel:
         be = self.backend
         sat = np.zeros(2, dtype=np.int64)
         self.kernel(
-            self.flat,
+            self.vox,
             self.dxyz,
             self.shape,
             self.offsets,

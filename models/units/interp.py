@@ -38,6 +38,7 @@ __all__ = [
     "lerp_corners",
     "lerp_plan",
     "promote",
+    "promote_raw",
     "lerp",
     "lerp_raw",
     "cell_weight",
@@ -174,8 +175,14 @@ def promote(flat: np.ndarray, cfg: InterpConfig) -> np.ndarray:
     top = max(abs(lo), abs(hi)) << cfg.sample_frac_bits
     narrow = (2 * top + 1) << cfg.weight_bits < 1 << 31
     out = flat.astype(np.int32 if narrow else np.int64)
-    out <<= cfg.sample_frac_bits  # fits: top is below 2**31 (int32) or 2**62 (int64)
-    return out
+    # fits: top is below 2**31 (int32) or 2**62 (int64)
+    return promote_raw(out, cfg.sample_frac_bits)
+
+
+def promote_raw(v, sample_frac_bits: int):
+    """The interpolator's input promotion ``v << sample_frac_bits`` of integer arrays (type
+    kept) or scalars (compiled kernels promote each voxel as they read it)."""
+    return v << sample_frac_bits
 
 
 def interpolate(

@@ -199,7 +199,7 @@ def test_the_cache_key_covers_every_unit_function_the_kernel_calls():
     assert len(fused.UNITS_HASH) == 64
     # The hash is a closure value of every kernel (numba's cache key holds closure
     # values), next to the configuration's constants.
-    config = (8, 1, 4, 4096, 10, 1024, 1 << 16, 1)
+    config = (4, 8, 1, 4, 4096, 10, 1024, 1 << 16, 1)
     kernel = fused._kernel_for(config)
     cells = {c.cell_contents for c in kernel.py_func.__closure__ if not callable(c.cell_contents)}
     assert fused.UNITS_HASH in cells
