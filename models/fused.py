@@ -124,10 +124,17 @@ def _make_kernel(
         strides = (ny * nx, nx, np.int64(1))
         o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
         cut = factor.shape[0] > 0
+        lit = grad_p[_LIT] != 0
         cell = np.empty(3, np.int64)  # the centre's cell along z, y, x
         w = np.empty(3, np.int64)  # its raw weights
-        g = np.empty(3, np.int64)  # gradient x, y, z
-        for i in range(zyx.shape[0]):
+        # Pass 1, per sample: value, classification, gradient; the visible samples are
+        # kept in these arrays (colour, opacity, ray, gradient x y z).
+        n = zyx.shape[0]
+        rgba = np.empty((4, n), np.int64)
+        vis_rays = np.empty(n, np.int64)
+        g = np.empty((3, n), np.int64)
+        m = 0
+        for i in range(n):
             for a in range(3):
                 c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
                 cell[a], w[a] = np.int64(c), np.int64(q)
@@ -139,11 +146,10 @@ def _make_kernel(
                 alpha = classify_unit.scale_alpha_raw(alpha, factor[i])
             if alpha <= 0:
                 continue  # transparent: changes nothing (Backend._composite's `vis`)
-            r, gr, b = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
             if grad_p[_NEED_GRAD]:
                 if grad_p[_FROM_VOXELS]:
                     for c3 in range(3):  # dxyz rows: x, y, z differences
-                        g[c3] = _trilinear(
+                        g[c3, m] = _trilinear(
                             dxyz[c3], base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code
                         )
                 else:
@@ -163,39 +169,55 @@ def _make_kernel(
                             if step > 0:
                                 ahead = s
                             else:
-                                g[2 - a] = ahead - s
+                                g[2 - a, m] = ahead - s
                 if grad_p[_WORLD]:
                     for c3 in range(3):
-                        g[c3] = round_shift_raw(g[c3] * ratio[c3], 12, 1)
+                        g[c3, m] = round_shift_raw(g[c3, m] * ratio[c3], 12, 1)
                 if grad_p[_MODULATES]:
-                    m = gradient_unit.isqrt_raw(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
-                    gi = classify_unit.gm_index_raw(m, grad_p[_GM_SCALE], grad_p[_GM_ENTRIES])
+                    gx, gy, gz = g[0, m], g[1, m], g[2, m]
+                    mag = gradient_unit.isqrt_raw(gx * gx + gy * gy + gz * gz)
+                    gi = classify_unit.gm_index_raw(mag, grad_p[_GM_SCALE], grad_p[_GM_ENTRIES])
                     alpha = classify_unit.scale_alpha_raw(alpha, gm_table[gi])
-                if grad_p[_LIT]:
-                    nxv, nyv, nzv = gradient_unit.normal_raw(g[0], g[1], g[2], f_bits)
-                    diffuse, specular = np.int64(0), np.int64(0)
-                    for k in range(light.shape[0]):
-                        d, si = shade_unit.light_terms_raw(
-                            nxv, nyv, nzv, light[k, 0], light[k, 1], light[k, 2],
-                            half[k, 0], half[k, 1], half[k, 2], intensity[k],
-                            grad_p[_KD], spec_entries, f_bits,
-                        )  # fmt: skip
-                        diffuse += d
-                        specular += shade_unit.specular_raw(intensity[k], grad_p[_KS], spec[si])
-                    ka = grad_p[_KA]
-                    r = shade_unit.shade_raw(ka, r, diffuse, specular)
-                    gr = shade_unit.shade_raw(ka, gr, diffuse, specular)
-                    b = shade_unit.shade_raw(ka, b, diffuse, specular)
-            # composite.alpha saturation (counted), then the opacity-correction ROM.
+            rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+            rgba[3, m] = alpha
+            vis_rays[m] = rays[i]
+            m += 1
+        if lit:
+            # Pass 2, shading, in loops without branches over the visible samples (the
+            # compiler vectorises them): normals, each light's terms, the colours.
+            for j in range(m):
+                g[0, j], g[1, j], g[2, j] = gradient_unit.normal_raw(
+                    g[0, j], g[1, j], g[2, j], f_bits
+                )
+            diffuse = np.zeros(m, np.int64)
+            specular = np.zeros(m, np.int64)
+            kd, ks, ka = grad_p[_KD], grad_p[_KS], grad_p[_KA]
+            for k in range(light.shape[0]):
+                lx, ly, lz, i_k = light[k, 0], light[k, 1], light[k, 2], intensity[k]
+                hx, hy, hz = half[k, 0], half[k, 1], half[k, 2]
+                for j in range(m):
+                    d, si = shade_unit.light_terms_raw(
+                        g[0, j], g[1, j], g[2, j], lx, ly, lz, hx, hy, hz, i_k, kd,
+                        spec_entries, f_bits,
+                    )  # fmt: skip
+                    diffuse[j] += d
+                    specular[j] += shade_unit.specular_raw(i_k, ks, spec[si])
+            for c3 in range(3):
+                for j in range(m):
+                    rgba[c3, j] = shade_unit.shade_raw(ka, rgba[c3, j], diffuse[j], specular[j])
+        # Pass 3: composite.alpha saturation (counted), the opacity-correction ROM, the
+        # blend (each ray at most once per call, so the order is free), termination.
+        for j in range(m):
+            alpha = rgba[3, j]
             if alpha < 0 or alpha > 4096:
                 sat[0] += 1
                 alpha = min(max(alpha, 0), 4096)
             alpha = table[alpha]
-            ray = rays[i]
+            ray = vis_rays[j]
             aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
-            r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, r, acc_code)
-            gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, gr, acc_code)
-            b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, b, acc_code)
+            r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, rgba[0, j], acc_code)
+            gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, rgba[1, j], acc_code)
+            b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, rgba[2, j], acc_code)
             for c4, v in enumerate((r, gr, b, acc[ray, 3] + aw)):
                 if v < 0 or v > one:  # composite.acc saturation (counted)
                     sat[1] += 1
