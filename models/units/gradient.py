@@ -223,9 +223,12 @@ def bit_length_raw(m):
     ``m >= 1``, 0 for 0, by a six-step binary search on shifts (exact for every int64;
     the float ``log2`` it replaces agreed below ``2**45``, and ``|g|`` stays below
     ``2**32``: ``|g|**2`` must fit int64)."""
-    b = m - m  # zero, of m's type and shape
-    for k in (32, 16, 8, 4, 2, 1):
-        b = b + k * ((m >> (b + k)) > 0)
+    b = 32 * ((m >> 32) > 0)  # written out: a loop over a tuple is a loop when compiled
+    b = b + 16 * ((m >> (b + 16)) > 0)
+    b = b + 8 * ((m >> (b + 8)) > 0)
+    b = b + 4 * ((m >> (b + 4)) > 0)
+    b = b + 2 * ((m >> (b + 2)) > 0)
+    b = b + ((m >> (b + 1)) > 0)
     return b + (m > 0)
 
 
