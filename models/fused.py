@@ -48,6 +48,7 @@ import numpy as np
 from numba.extending import register_jitable
 
 from hwsim.numerics import ROUNDING_CODES, SATURATIONS, round_scaled, round_shift_raw
+from models.datapath import Datapath
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
 from models.units import gradient as gradient_unit
@@ -92,33 +93,32 @@ _NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
 _GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS = range(5, 10)
 
 
-def _make_kernel(
-    units_hash: str,
-    s_bits: int,
-    w_bits: int,
-    w_code: int,
-    lut_shift: int,
-    entries: int,
-    f_bits: int,
-    spec_entries: int,
-    one: int,
-    acc_code: int,
-):
-    """The kernel compiled for one set of widths and rounding modes.
+def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
+    """The kernel, compiled for one configuration or for any.
 
-    They are closure variables, which numba compiles as constants: shifts by a known
-    amount and rounding branches resolved at compile time run about twice as fast as
-    the same code reading them at run time.  numba's on-disk cache is keyed by bytecode
-    and closure values, so each configuration, and each ``units_hash``, has its own
-    entry.
+    The configuration (``S``, interpolation weight bits and rounding, LUT index shift
+    and entries, normal bits, specular-table entries, accumulator 1.0 and rounding) is
+    the kernel's ``config`` argument.  With ``constants`` (that same tuple) the kernel
+    takes it from its closure instead, which numba compiles as constants: shifts by a
+    known amount and rounding branches resolved at compile time run about twice as fast
+    (:func:`_kernel_for` does this for a machine's own formats only, so a sweep over
+    widths compiles one generic kernel, not one per width).  numba's on-disk cache is
+    keyed by bytecode and closure values: each specialised configuration, the generic
+    kernel and each ``units_hash`` have their own entries.
     """
+    specialised = constants is not None
+    fixed = constants if constants is not None else (0,) * 9
 
     def kernel(
         vox, dxyz, shape, offsets, zyx, rays, factor, rgb12, alpha12,
         grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, ert_thr, alive, sat,
+        config,
     ):  # fmt: skip
         if len(units_hash) == 0:  # never: keeps the hash in the cache key
             return
+        s_bits, w_bits, w_code, lut_shift, entries, f_bits, spec_entries, one, acc_code = (
+            fixed if specialised else config
+        )
         ny, nx = shape[1], shape[2]
         hi = (shape[0] - 1.0, ny - 1.0, nx - 1.0)
         strides = (ny * nx, nx, np.int64(1))
@@ -272,13 +272,14 @@ def _narrowest(a: np.ndarray) -> np.ndarray:
 
 
 #: Compiled kernels of this process, by configuration.
-_KERNELS: dict[tuple[int, ...], object] = {}
+_KERNELS: dict[tuple[int, ...] | None, object] = {}
 
 
-def _kernel_for(config: tuple[int, ...]):
+def _kernel_for(config: tuple[int, ...] | None):
+    """The kernel specialised for ``config``, or the generic one for None."""
     kernel = _KERNELS.get(config)
     if kernel is None:
-        kernel = _KERNELS[config] = _make_kernel(UNITS_HASH, *config)
+        kernel = _KERNELS[config] = _make_kernel(UNITS_HASH, config)
     return kernel
 
 
@@ -314,19 +315,21 @@ class CompositeKernel:
         self.dxyz = tuple(d.astype(wide, copy=False) for d in diffs)
         shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
         cfg = dp.composite
-        self.kernel = _kernel_for(
-            (
-                be.S,
-                dp.interp.weight_bits,
-                ROUNDING_CODES[dp.interp.rounding],
-                shift,
-                dp.classify.entries,
-                dp.gradient.normal_frac_bits,
-                dp.shade.spec_table_entries,
-                1 << cfg.acc_frac_bits,
-                ROUNDING_CODES[cfg.acc.rounding],
-            )
+        self.config = (
+            be.S,
+            dp.interp.weight_bits,
+            ROUNDING_CODES[dp.interp.rounding],
+            shift,
+            dp.classify.entries,
+            dp.gradient.normal_frac_bits,
+            dp.shade.spec_table_entries,
+            1 << cfg.acc_frac_bits,
+            ROUNDING_CODES[cfg.acc.rounding],
         )
+        # Specialised for the machine's own formats; overridden widths (a width sweep)
+        # share the generic kernel.
+        own = dp == Datapath.for_volume(be.arch, be.volume)
+        self.kernel = _kernel_for(self.config if own else None)
         self.rgb12 = np.ascontiguousarray(be.lut.rgb12, dtype=np.int64)
         self.alpha12 = np.ascontiguousarray(be.lut.alpha12, dtype=np.int64)
         spacing = np.asarray(be.volume.spacing, dtype=np.float64)[::-1]
@@ -414,6 +417,7 @@ class CompositeKernel:
             self.ert_thr,
             state.alive,
             sat,
+            self.config,
         )
         if sat[0]:
             SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])

@@ -198,12 +198,26 @@ def test_the_cache_key_covers_every_unit_function_the_kernel_calls():
     assert {"round_shift_raw", "round_scaled", "cell_weight"} <= registered
     assert len(fused.UNITS_HASH) == 64
     # The hash is a closure value of every kernel (numba's cache key holds closure
-    # values), next to the configuration's constants.
+    # values), next to the configuration's constants when specialised.
     config = (4, 8, 1, 4, 4096, 10, 1024, 1 << 16, 1)
-    kernel = fused._kernel_for(config)
-    cells = {c.cell_contents for c in kernel.py_func.__closure__ if not callable(c.cell_contents)}
-    assert fused.UNITS_HASH in cells
-    assert set(config) <= cells
+    for key in (config, None):
+        kernel = fused._kernel_for(key)
+        cells = [c.cell_contents for c in kernel.py_func.__closure__]
+        assert fused.UNITS_HASH in cells
+        assert (config in cells) == (key is not None)
+
+
+def test_only_a_machines_own_formats_get_a_specialised_kernel(monkeypatch):
+    volume = make_phantom("head", size=12)
+    scene = _scene(size=16)
+    seen = []
+    original = fused._kernel_for
+    monkeypatch.setattr(fused, "_kernel_for", lambda key: seen.append(key) or original(key))
+    _render("volumepro500", volume, scene, {})
+    _render("volumepro500", volume, scene, {"interp.weight_bits": 6})
+    _render("volumepro500", volume, scene, {"gradient.normal_frac_bits": 8})
+    assert seen[0] is not None and seen[0][1] == 8  # specialised: S, weight bits 8, ...
+    assert seen[1:] == [None, None]  # a width sweep shares the generic kernel
 
 
 # --------------------------------------------------------------------------- whole frames
