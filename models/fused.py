@@ -1,4 +1,4 @@
-"""The functional rung's compiled composite stage: one pass per sample, position to accumulator.
+"""The functional rung's compiled composite stage: position to accumulator in a few loops.
 
 # Ref: design.md section 3 (functional rung); architectures.md section 9.1 (interpolator,
 #      classifier, gradient, shader and compositor units); docs/fidelity.md ("How the
@@ -6,24 +6,28 @@
 
 :meth:`models.backend.Backend._composite` runs the composite stage as a chain of
 vectorised unit calls, each producing a temporary array per step part.  Here the same
-chain is one numba-compiled loop over the samples: cell and weights
-(:func:`~models.units.interp.cell_weight`), the trilinear sample
-(:func:`~models.units.interp.trilinear_raw`), the LUT read
-(:func:`~models.units.classify.lut_index_raw`), the six neighbours of the sample gradient
-or the three interpolated voxel differences, gradient-opacity modulation, the normal
-(:func:`~models.units.gradient.normal_raw`), Phong
-(:func:`~models.units.shade.light_terms_raw`, :func:`~models.units.shade.shade_raw`), the
-opacity-correction table and the front-to-back blend
-(:func:`~models.units.composite.ftb_weight_raw`).
+chain is numba-compiled: one loop over the part's samples takes the cell and weights
+(:func:`~models.units.interp.cell_weight`), the trilinear sample (two
+:func:`~models.units.interp.bilinear_raw` and a :func:`~models.units.interp.lerp_raw` of
+voxels promoted as read, :func:`~models.units.interp.promote_raw`), the LUT read
+(:func:`~models.units.classify.lut_index_raw`) and, for the visible samples, the six
+neighbours of the sample gradient or the three interpolated voxel differences and the
+gradient-opacity modulation; then branch-free loops over the visible samples compute the
+normals (:func:`~models.units.gradient.normal_raw`), each light's Phong terms
+(:func:`~models.units.shade.light_terms_raw`) and the shaded colours
+(:func:`~models.units.shade.shade_raw`); a last loop applies the opacity-correction table
+and the front-to-back blend (:func:`~models.units.composite.ftb_weight_raw`).
 
-**One source of truth.**  The kernel contains no arithmetic of its own: every rounding,
-lerp, root, division and clamp is a ``*_raw`` function of its unit, the same function the
-unit's vectorised API calls on NumPy arrays; numba compiles it for scalars
-(``register_jitable``).  What the kernel adds is the order of the calls (the dataflow of
-``Backend._composite`` and ``gradient.sample_differences``), and ``tests/models/
-test_functional_fused.py`` checks that it gives the vectorised chain's bits on every
-supported configuration.  Integer scalars are int64; the vectorised chain's int32 lerps
-are exact (:func:`~models.units.interp.promote`), so both compute the same integers.
+**One source of truth.**  Every rounding, lerp, root, division and clamp of the
+datapath is a ``*_raw`` function of its unit, the same function the unit's vectorised
+API calls on NumPy arrays; numba compiles it for scalars (``register_jitable``).  What
+the kernel adds is the order of the calls (the dataflow of ``Backend._composite`` and
+``gradient.sample_differences``) and the overflow rule of ``composite.alpha`` and
+``composite.acc`` (count a value outside ``[0, 1.0]``, clamp it: ``_saturate_unit``),
+which the chain's bounds make unreachable here; ``tests/models/test_functional_fused.py``
+checks that it gives the vectorised chain's bits on every supported configuration.
+Integer scalars are int64; the vectorised chain's int32 lerps are exact
+(:func:`~models.units.interp.promote`), so both compute the same integers.
 
 **Scope.**  Post-classified composite through one LUT, steps whose samples share one
 ``dt`` (parallel views) and frames with one shader (or none), Phong (not reflectance
