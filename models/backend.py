@@ -312,6 +312,9 @@ class Backend:
                 step = subset_step(step, keep)
                 factor = factor[sel] if factor is not None else None
                 src = src.subset(sel)
+        fused = getattr(src, "composite_fused", None)
+        if fused is not None and fused(step, factor, state):
+            return  # the source ran this whole stage in one compiled pass (models.fused)
         if self.pre_classified:
             chans = src.channels()
             alpha = (chans[3] + (1 << (self.S - 1))) >> self.S
@@ -322,7 +325,7 @@ class Backend:
             else:
                 rgb, alpha = classify_unit.classify(s, self.lut, dp.voxel_bits, self.S, dp.classify)
         if factor is not None:
-            alpha = (alpha * factor + (1 << 11)) >> 12
+            alpha = classify_unit.scale_alpha_raw(alpha, factor)
         vis = alpha > 0
         if not vis.any():
             return

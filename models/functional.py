@@ -88,11 +88,20 @@ NEVER = np.iinfo(np.int64).max // 2
 
 
 class TapSource:
-    """Samples of one step interpolated from flat voxel arrays at each sample's taps."""
+    """Samples of one step interpolated from flat voxel arrays at each sample's taps
+    (computed when first asked for: the compiled composite stage does not need them)."""
 
     def __init__(self, rung: _Functional, step: Step) -> None:
         self.rung, self.step = rung, step
-        self.taps = interp_unit.interp_taps(step.zyx, rung.volume.shape, rung.dp.interp)
+        self._taps: interp_unit.InterpTaps | None = None
+
+    @property
+    def taps(self) -> interp_unit.InterpTaps:
+        if self._taps is None:
+            self._taps = interp_unit.interp_taps(
+                self.step.zyx, self.rung.volume.shape, self.rung.dp.interp
+            )
+        return self._taps
 
     def _interpolate(self, promoted: np.ndarray, taps: interp_unit.InterpTaps) -> np.ndarray:
         return interp_unit.interpolate(promoted, taps, self.rung.dp.interp, promoted=True)
@@ -102,6 +111,16 @@ class TapSource:
 
     def channels(self) -> list[np.ndarray]:
         return [self._interpolate(c, self.taps) for c in self.rung.pre]
+
+    def composite_fused(self, step: Step, factor: np.ndarray | None, state: RayState) -> bool:
+        """Run the back end's composite stage on ``step`` in one compiled pass
+        (:mod:`models.fused`) when the frame allows it; False: use the unit chain."""
+        kernel = self.rung.kernel
+        table = None if kernel is None else kernel.table(step.dt)
+        if table is None:
+            return False
+        kernel.run(step, factor, state, table)
+        return True
 
     def gradient(self, sel: np.ndarray) -> np.ndarray:
         rung, t = self.rung, self.taps
@@ -120,21 +139,44 @@ class TapSource:
 
 
 class _Functional:
-    def __init__(self, backend: Backend, *, leap_blocks: bool = True) -> None:
+    def __init__(
+        self, backend: Backend, *, leap_blocks: bool = True, compiled: bool = True
+    ) -> None:
         self.backend = be = backend
         self.leap = leap_blocks
         self.volume, self.dp, self.plan, self.arch = be.volume, be.dp, be.plan, be.arch
-        # Every array the interpolator reads, promoted once per frame (int32 when exact).
-        cfg = be.dp.interp
-        self.flat = interp_unit.promote(be.raw.ravel(), cfg)
         self.pre = None
         if be.pre_classified:
+            cfg = be.dp.interp
             self.pre = [interp_unit.promote(c.ravel(), cfg) for c in be.classified_voxels(be.raw)]
-        self.diffs = None
-        if be.need_grad and be.dp.gradient.source == "voxel":
-            self.diffs = [
-                interp_unit.promote(d, cfg) for d in gradient_unit.voxel_differences(be.raw)
+        self._flat: np.ndarray | None = None
+        self._diffs: list[np.ndarray] | None = None
+        self._voxel_diffs = be.need_grad and be.dp.gradient.source == "voxel"
+        self.kernel = None
+        if compiled:
+            from models import fused  # imports numba: only when a frame may use it
+
+            if fused.eligible(be):
+                raw_diffs = gradient_unit.voxel_differences(be.raw) if self._voxel_diffs else None
+                self.kernel = fused.CompositeKernel(be, raw_diffs)
+
+    # Every array the unit chain's interpolator reads, promoted once per frame (int32 when
+    # exact), when first needed: a frame that the compiled kernel runs reads none of them.
+
+    @property
+    def flat(self) -> np.ndarray:
+        if self._flat is None:
+            self._flat = interp_unit.promote(self.backend.raw.ravel(), self.dp.interp)
+        return self._flat
+
+    @property
+    def diffs(self) -> list[np.ndarray] | None:
+        if self._voxel_diffs and self._diffs is None:
+            self._diffs = [
+                interp_unit.promote(d, self.dp.interp)
+                for d in gradient_unit.voxel_differences(self.backend.raw)
             ]
+        return self._diffs
 
     def run(self, progress: Callable[[int, int], None] | None) -> FunctionalResult:
         plan, be = self.plan, self.backend
@@ -247,14 +289,18 @@ def render_functional(
     datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
     leap_blocks: bool = True,
+    compiled: bool = True,
 ) -> FunctionalResult:
     """Render with the fixed-point units of ``arch`` at ``plan``'s sample positions.
 
     ``leap_blocks`` lets the simulation skip blocks whose samples provably cannot change
     the image (:mod:`models.leap`); image, samples, rays, cycles and saturation counts
-    are the same either way, only the wall time differs.
+    are the same either way, only the wall time differs.  ``compiled`` runs the composite
+    stage, where the frame allows it, as one compiled pass per step part
+    (:mod:`models.fused`) instead of the chain of vectorised unit calls; again the same
+    bits either way.
     """
     if datapath is None:
         datapath = Datapath.for_volume(arch, volume)
     backend = Backend(scene, volume, transfer, arch, plan, datapath)
-    return _Functional(backend, leap_blocks=leap_blocks).run(progress)
+    return _Functional(backend, leap_blocks=leap_blocks, compiled=compiled).run(progress)

@@ -2,6 +2,7 @@
 
 from hwsim.numerics.format import (
     OVERFLOWS,
+    ROUNDING_CODES,
     ROUNDINGS,
     SATURATIONS,
     FixedFormat,
@@ -9,12 +10,15 @@ from hwsim.numerics.format import (
     SaturationLog,
     mul,
     rescale,
+    round_scaled,
     round_shift,
+    round_shift_raw,
 )
 from hwsim.numerics.metrics import max_abs_error, per_channel, psnr, rmse, ulp_distance
 
 __all__ = [
     "OVERFLOWS",
+    "ROUNDING_CODES",
     "ROUNDINGS",
     "SATURATIONS",
     "FixedFormat",
@@ -26,6 +30,8 @@ __all__ = [
     "psnr",
     "rescale",
     "rmse",
+    "round_scaled",
     "round_shift",
+    "round_shift_raw",
     "ulp_distance",
 ]

@@ -28,12 +28,18 @@ __all__ = [
     "OverflowError_",
     "SaturationLog",
     "round_shift",
+    "round_shift_raw",
+    "round_scaled",
+    "ROUNDING_CODES",
     "rescale",
     "mul",
     "SATURATIONS",
 ]
 
 ROUNDINGS = ("nearest-up", "nearest-even", "truncate", "floor")
+#: Integer code of each rounding mode, for :func:`round_shift_raw` and
+#: :func:`round_scaled` (plain integers, so compiled kernels can take them).
+ROUNDING_CODES = {"floor": 0, "nearest-up": 1, "truncate": 2, "nearest-even": 3}
 OVERFLOWS = ("saturate", "error")
 
 
@@ -153,13 +159,7 @@ class FixedFormat:
 
     def _round(self, scaled: np.ndarray) -> np.ndarray:
         """Scaled reals to integral float64 with this format's rounding."""
-        if self.rounding == "nearest-up":
-            return np.floor(scaled + 0.5)
-        if self.rounding == "nearest-even":
-            return np.round(scaled)
-        if self.rounding == "truncate":
-            return np.trunc(scaled)
-        return np.floor(scaled)
+        return round_scaled(scaled, ROUNDING_CODES[self.rounding])
 
     def to_float(self, raw: np.ndarray) -> np.ndarray:
         """Raw integers to their real values (float64, exact for widths <= 53)."""
@@ -175,20 +175,42 @@ def round_shift(
     guarantees that the values and the rounding addend fit it, e.g. int32 lerps).
     """
     raw = np.asarray(raw) if keep_dtype else np.asarray(raw, dtype=np.int64)
+    return round_shift_raw(raw, shift, ROUNDING_CODES[rounding])
+
+
+# The two functions below are the arithmetic of every rounding in the datapath, written
+# once in a form that runs both on NumPy integer arrays (the vectorised units) and on
+# integer scalars inside compiled kernels (models/fused.py registers them with numba):
+# plain operators only, no dtype conversions, no array-only calls.
+
+
+def round_shift_raw(raw, shift: int, code: int):
+    """:func:`round_shift` of an integer array or scalar ``raw`` (its own type kept), the
+    rounding given by its :data:`ROUNDING_CODES` code."""
     if shift <= 0:
         return raw << (-shift)
-    if rounding == "floor":
+    if code == 0:  # floor
         return raw >> shift
-    half = 1 << (shift - 1)  # a Python int: keeps raw's dtype
-    if rounding == "nearest-up":
+    half = 1 << (shift - 1)  # a Python int: keeps an array's dtype
+    if code == 1:  # nearest-up
         return (raw + half) >> shift
     floor = raw >> shift
     rem = raw - (floor << shift)
-    if rounding == "truncate":
-        return np.where((raw < 0) & (rem != 0), floor + 1, floor)
+    if code == 2:  # truncate: a negative value with a remainder goes up
+        return floor + ((raw < 0) & (rem != 0))
     # nearest-even
-    up = (rem > half) | ((rem == half) & ((floor & 1) == 1))
-    return floor + up.astype(floor.dtype)
+    return floor + ((rem > half) | ((rem == half) & ((floor & 1) == 1)))
+
+
+def round_scaled(scaled, code: int):
+    """Scaled reals (array or scalar) to integral float64 with the rounding of ``code``."""
+    if code == 1:
+        return np.floor(scaled + 0.5)
+    if code == 3:
+        return np.round(scaled)
+    if code == 2:
+        return np.trunc(scaled)
+    return np.floor(scaled)
 
 
 def rescale(raw: np.ndarray, src: FixedFormat, dst: FixedFormat) -> np.ndarray:

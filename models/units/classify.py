@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.numerics import round_shift
+from hwsim.numerics import round_shift_raw
 from hwsim.transfer import TransferFunction
 
 __all__ = [
@@ -28,6 +28,9 @@ __all__ = [
     "Lut",
     "build_lut",
     "lut_index",
+    "lut_index_raw",
+    "gm_index_raw",
+    "scale_alpha_raw",
     "classify",
     "classify_voxels",
     "expand",
@@ -100,8 +103,13 @@ def lut_index(
 ) -> np.ndarray:
     """The entry nearest a sample (``sample_frac_bits`` fraction bits), clamped."""
     shift = voxel_bits + sample_frac_bits - int(np.log2(cfg.entries))
-    idx = round_shift(sample, shift, "nearest-up")
-    return np.clip(idx, 0, cfg.entries - 1)
+    return lut_index_raw(np.asarray(sample, dtype=np.int64), shift, cfg.entries)
+
+
+def lut_index_raw(sample, shift: int, entries: int):
+    """The arithmetic of :func:`lut_index` on int64 arrays or scalars (compiled kernels
+    call it too): ``clamp(round(sample / 2**shift), 0, entries - 1)``, nearest-up."""
+    return np.minimum(np.maximum(round_shift_raw(sample, shift, 1), 0), entries - 1)
 
 
 def classify(
@@ -136,10 +144,21 @@ def gm_scale(units_per_magnitude: float, max_magnitude: float, cfg: ClassifyConf
 
 def gm_index(magnitude: np.ndarray, scale: int, cfg: ClassifyConfig) -> np.ndarray:
     """Table index of integer magnitudes: ``round(magnitude * scale / 2**24)``, clamped."""
-    idx = round_shift(np.asarray(magnitude, dtype=np.int64) * scale, _GM_SCALE_BITS, "nearest-up")
-    return np.clip(idx, 0, cfg.gm_entries - 1)
+    return gm_index_raw(np.asarray(magnitude, dtype=np.int64), scale, cfg.gm_entries)
+
+
+def gm_index_raw(magnitude, scale: int, entries: int):
+    """The arithmetic of :func:`gm_index` on int64 arrays or scalars."""
+    idx = round_shift_raw(magnitude * scale, _GM_SCALE_BITS, 1)
+    return np.minimum(np.maximum(idx, 0), entries - 1)
 
 
 def modulate(alpha: np.ndarray, index: np.ndarray, table: np.ndarray) -> np.ndarray:
     """``alpha * table[index]`` in UQ1.12, rounded half up."""
-    return round_shift(alpha * table[index], 12, "nearest-up")
+    return scale_alpha_raw(alpha, table[index])
+
+
+def scale_alpha_raw(alpha, factor):
+    """``round(alpha * factor / 2**12)``, nearest-up, of UQ1.12 values (int64 arrays or
+    scalars): gradient-magnitude modulation, and the cut-plane factor in the back end."""
+    return round_shift_raw(alpha * factor, 12, 1)

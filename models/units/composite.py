@@ -42,7 +42,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from hwsim.numerics import SATURATIONS, FixedFormat, OverflowError_, round_shift
+from hwsim.numerics import (
+    ROUNDING_CODES,
+    SATURATIONS,
+    FixedFormat,
+    OverflowError_,
+    round_shift,
+    round_shift_raw,
+)
 
 __all__ = [
     "ALPHA",
@@ -54,6 +61,9 @@ __all__ = [
     "correct_opacity",
     "correction_table",
     "front_to_back",
+    "ftb_weight_raw",
+    "ftb_colour_raw",
+    "correction_for",
     "iso_hit",
     "minip",
     "mip",
@@ -228,12 +238,18 @@ def correct_opacity(
         ``(n,)`` int64 UQ1.12.  One table per distinct quantised ``k`` (cached).
     """
     a = _saturate_unit(np.asarray(alpha, dtype=np.int64), ALPHA)
+    if np.ndim(k) == 0:
+        return correction_for(k, cfg)[a]
     kq = cfg.ratio.quantize(k)
-    if kq.ndim == 0:
-        return correction_table(int(kq), cfg)[a]
     values, inverse = np.unique(kq, return_inverse=True)
     tables = np.stack([correction_table(int(v), cfg) for v in values])
     return tables[inverse.reshape(a.shape), a]
+
+
+def correction_for(k: float, cfg: CompositeConfig = DEFAULT) -> np.ndarray:
+    """The :func:`correction_table` of one exponent ``k = dt / min(spacing)`` (quantised
+    nearest-up to UQ4.F; a value quantising to 0 raises)."""
+    return correction_table(int(cfg.ratio.quantize(k)), cfg)
 
 
 def _check_unit_inputs(rgb: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -269,11 +285,23 @@ def front_to_back(
     one = 1 << fmt.frac_bits
     rays = np.asarray(rays, dtype=np.int64)
     cur = np.take(acc, rays, axis=0)  # row gather; much faster than acc[rays] for (n, 4)
-    w = round_shift((one - cur[:, 3]) * a, _ALPHA_BITS, fmt.rounding)
-    dc = round_shift(w[:, None] * rgb, _ALPHA_BITS, fmt.rounding)
-    cur[:, :3] += dc
+    code = ROUNDING_CODES[fmt.rounding]
+    w = ftb_weight_raw(cur[:, 3], a, one, code)
+    cur[:, :3] += ftb_colour_raw(w[:, None], rgb, code)
     cur[:, 3] += w
     _put_rows(acc, rays, _saturate_unit(cur, fmt))
+
+
+def ftb_weight_raw(acc_alpha, alpha, one: int, code: int):
+    """``w = round((1 - A) a)`` of :func:`front_to_back` (int64 arrays or scalars; ``one``
+    is 1.0 of the accumulator, ``code`` its rounding's
+    :data:`~hwsim.numerics.ROUNDING_CODES` entry)."""
+    return round_shift_raw((one - acc_alpha) * alpha, _ALPHA_BITS, code)
+
+
+def ftb_colour_raw(w, colour, code: int):
+    """``round(w c)``, the colour increment of :func:`front_to_back`."""
+    return round_shift_raw(w * colour, _ALPHA_BITS, code)
 
 
 def _put_rows(acc: np.ndarray, rays: np.ndarray, rows: np.ndarray) -> None:

@@ -42,6 +42,10 @@ __all__ = [
     "to_world",
     "magnitude",
     "normals",
+    "isqrt_raw",
+    "normal_raw",
+    "floor_div_raw",
+    "bit_length_raw",
     "LATENCY",
     "II",
 ]
@@ -171,11 +175,7 @@ def to_world(
 
 def magnitude(g: np.ndarray) -> np.ndarray:
     """``floor(sqrt(gx^2 + gy^2 + gz^2))`` exactly (integer square root, vectorised)."""
-    s = np.einsum("ij,ij->i", g, g)
-    r = np.floor(np.sqrt(s.astype(np.float64))).astype(np.int64)
-    r += ((r + 1) * (r + 1) <= s).astype(np.int64)
-    r -= (r * r > s).astype(np.int64)
-    return r
+    return isqrt_raw(np.einsum("ij,ij->i", g, g))
 
 
 def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
@@ -185,18 +185,59 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
     magnitude has at least ``F + 2`` bits, so the magnitude's truncation costs under
     ``2**-(F+2)`` per component.
     """
-    f = cfg.normal_frac_bits
-    m0 = magnitude(g)
-    bits = np.floor(np.log2(np.maximum(m0, 1).astype(np.float64))).astype(np.int64) + 1
-    shift = np.clip(f + 2 - bits, 0, 40)
-    g = g << shift[:, None]
-    m = m0.copy()  # rows not shifted keep their magnitude: recompute only the others
-    moved = np.flatnonzero(shift)
-    if moved.size:
-        m[moved] = magnitude(np.take(g, moved, axis=0))
-    safe = np.maximum(m, 1)[:, None]
-    num = -g << f
-    n = (2 * num + safe) // (2 * safe)  # round half up, exact
-    n[m0 == 0] = 0
-    limit = 1 << cfg.normal_frac_bits
-    return np.clip(n, -limit, limit)
+    g = np.asarray(g, dtype=np.int64)
+    return np.stack(normal_raw(g[:, 0], g[:, 1], g[:, 2], cfg.normal_frac_bits), axis=1)
+
+
+# The two functions below are the unit's arithmetic, written once for int64 arrays (the
+# vectorised API above) and int64 scalars (the functional rung's compiled kernel).
+
+
+def isqrt_raw(s):
+    """``floor(sqrt(s))`` of non-negative int64 ``s`` (array or scalar), exactly: the float
+    root, then one correction step each way."""
+    r = np.int64(np.floor(np.sqrt(np.float64(s))))
+    r = r + ((r + 1) * (r + 1) <= s)
+    return r - (r * r > s)
+
+
+def normal_raw(gx, gy, gz, f: int):
+    """``(nx, ny, nz)``: :func:`normals` of the vector(s) ``(gx, gy, gz)`` (int64 arrays
+    or scalars), SQ1.``f``.  A zero vector gives 0: its numerators are 0 and the divisor
+    is 1, so the rounded quotient ``(0 + 1) // 2`` is 0."""
+    m0 = isqrt_raw(gx * gx + gy * gy + gz * gz)
+    bits = bit_length_raw(np.maximum(m0, 1))
+    shift = np.minimum(np.maximum(f + 2 - bits, 0), 40)
+    gx, gy, gz = gx << shift, gy << shift, gz << shift
+    safe = np.maximum(isqrt_raw(gx * gx + gy * gy + gz * gz), 1)
+    limit = 1 << f
+    return (
+        np.minimum(np.maximum(floor_div_raw(2 * (-gx << f) + safe, 2 * safe), -limit), limit),
+        np.minimum(np.maximum(floor_div_raw(2 * (-gy << f) + safe, 2 * safe), -limit), limit),
+        np.minimum(np.maximum(floor_div_raw(2 * (-gz << f) + safe, 2 * safe), -limit), limit),
+    )
+
+
+def bit_length_raw(m):
+    """Bits of non-negative int64 ``m`` (arrays or scalars): ``floor(log2 m) + 1`` for
+    ``m >= 1``, 0 for 0, by a six-step binary search on shifts (exact for every int64;
+    the float ``log2`` it replaces agreed below ``2**45``, and ``|g|`` stays below
+    ``2**32``: ``|g|**2`` must fit int64)."""
+    b = 32 * ((m >> 32) > 0)  # written out: a loop over a tuple is a loop when compiled
+    b = b + 16 * ((m >> (b + 16)) > 0)
+    b = b + 8 * ((m >> (b + 8)) > 0)
+    b = b + 4 * ((m >> (b + 4)) > 0)
+    b = b + 2 * ((m >> (b + 2)) > 0)
+    b = b + ((m >> (b + 1)) > 0)
+    return b + (m > 0)
+
+
+def floor_div_raw(n, d):
+    """``n // d`` of int64 ``n`` and ``d > 0`` (arrays or scalars), exactly, for quotients
+    below ``2**50`` in magnitude (here at most ``2**f + 1``): the float64 quotient is then
+    within one of the exact one (three roundings of relative ``2**-53``), and one
+    remainder test each way corrects it.  A float division and two compares cost far
+    less than an integer division."""
+    q = np.int64(np.floor(np.float64(n) / np.float64(d)))
+    r = n - q * d
+    return q - (r < 0) + (r >= d)

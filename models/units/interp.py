@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.numerics import FixedFormat, round_shift
+from hwsim.numerics import ROUNDING_CODES, FixedFormat, round_scaled, round_shift_raw
 
 __all__ = [
     "InterpConfig",
@@ -38,7 +38,11 @@ __all__ = [
     "lerp_corners",
     "lerp_plan",
     "promote",
+    "promote_raw",
     "lerp",
+    "lerp_raw",
+    "cell_weight",
+    "bilinear_raw",
     "bilinear",
     "error_bound",
     "LATENCY",
@@ -124,10 +128,22 @@ def axis_cells(
 
     ``p`` is one axis's coordinates with scalar ``hi``, or ``(3, n)`` with ``hi`` of shape
     ``(3, 1)``.  Returns int64 ``i0`` and raw fractions, both shaped like ``p``.
+    NaN or Inf positions raise ``ValueError`` (as ``interp.weight``'s quantiser does).
     """
-    p = np.clip(p, 0.0, hi)
-    i0 = np.minimum(np.floor(p), np.maximum(np.subtract(hi, 1.0), 0.0))
-    return i0.astype(np.int64), cfg.weight.quantize(p - i0)
+    p = np.asarray(p, dtype=np.float64)
+    if p.size and not np.isfinite(p.min() + p.max()):
+        raise ValueError("interp.weight: NaN or Inf cannot be quantised")
+    i0, frac = cell_weight(p, hi, cfg.weight_bits, ROUNDING_CODES[cfg.rounding])
+    return i0.astype(np.int64), frac.astype(np.int64)
+
+
+def cell_weight(p, hi, weight_bits: int, code: int):
+    """The arithmetic of :func:`axis_cells` on float arrays or scalars (compiled kernels
+    call it too): ``(i0, raw fraction)`` as integral floats.  The fraction ``p - i0`` lies
+    in ``[0, 1]``, so its UQ1.W quantisation never leaves the format."""
+    p = np.minimum(np.maximum(p, 0.0), hi)
+    i0 = np.minimum(np.floor(p), np.maximum(hi - 1.0, 0.0))
+    return i0, round_scaled((p - i0) * 2.0**weight_bits, code)
 
 
 def corner_offsets(shape: tuple[int, int, int]) -> np.ndarray:
@@ -159,8 +175,14 @@ def promote(flat: np.ndarray, cfg: InterpConfig) -> np.ndarray:
     top = max(abs(lo), abs(hi)) << cfg.sample_frac_bits
     narrow = (2 * top + 1) << cfg.weight_bits < 1 << 31
     out = flat.astype(np.int32 if narrow else np.int64)
-    out <<= cfg.sample_frac_bits  # fits: top is below 2**31 (int32) or 2**62 (int64)
-    return out
+    # fits: top is below 2**31 (int32) or 2**62 (int64)
+    return promote_raw(out, cfg.sample_frac_bits)
+
+
+def promote_raw(v, sample_frac_bits: int):
+    """The interpolator's input promotion ``v << sample_frac_bits`` of integer arrays (type
+    kept) or scalars (compiled kernels promote each voxel as they read it)."""
+    return v << sample_frac_bits
 
 
 def interpolate(
@@ -229,7 +251,13 @@ def lerp_corners(
 def lerp(a: np.ndarray, b: np.ndarray, f: np.ndarray, cfg: InterpConfig) -> np.ndarray:
     """One linear interpolation step: ``a + round((b - a) f / 2**W)`` (``f`` raw UQ1.W),
     in the operands' integer type."""
-    return a + round_shift((b - a) * f, cfg.weight_bits, cfg.rounding, keep_dtype=True)
+    return lerp_raw(a, b, f, cfg.weight_bits, ROUNDING_CODES[cfg.rounding])
+
+
+def lerp_raw(a, b, f, weight_bits: int, code: int):
+    """The arithmetic of :func:`lerp` on integer arrays (type kept) or scalars (compiled
+    kernels call it too); ``code`` from :data:`hwsim.numerics.ROUNDING_CODES`."""
+    return a + round_shift_raw((b - a) * f, weight_bits, code)
 
 
 def bilinear(v00, v01, v10, v11, fa, fb, cfg: InterpConfig) -> np.ndarray:
@@ -239,7 +267,20 @@ def bilinear(v00, v01, v10, v11, fa, fb, cfg: InterpConfig) -> np.ndarray:
     axis this is exactly :func:`interpolate` of a sample lying on a voxel slice (the
     principal-axis weight 0 or 1 selects one slice exactly), the lerp order x, y, z.
     """
-    return lerp(lerp(v00, v01, fb, cfg), lerp(v10, v11, fb, cfg), fa, cfg)
+    return bilinear_raw(v00, v01, v10, v11, fa, fb, cfg.weight_bits, ROUNDING_CODES[cfg.rounding])
+
+
+def bilinear_raw(v00, v01, v10, v11, fa, fb, weight_bits: int, code: int):
+    """The arithmetic of :func:`bilinear` on integer arrays or scalars (the functional
+    rung's compiled kernel builds each trilinear sample from two of these and a
+    :func:`lerp_raw` along z, :func:`lerp_corners`' order)."""
+    return lerp_raw(
+        lerp_raw(v00, v01, fb, weight_bits, code),
+        lerp_raw(v10, v11, fb, weight_bits, code),
+        fa,
+        weight_bits,
+        code,
+    )
 
 
 def error_bound(max_difference: float, cfg: InterpConfig) -> float:

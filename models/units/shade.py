@@ -23,9 +23,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.numerics import round_shift
+from hwsim.numerics import round_shift_raw
 
-__all__ = ["ShadeConfig", "Shader", "setup", "shade", "LATENCY", "II"]
+__all__ = [
+    "ShadeConfig",
+    "Shader",
+    "setup",
+    "shade",
+    "light_terms_raw",
+    "shade_raw",
+    "LATENCY",
+    "II",
+]
 
 LATENCY = 4  # cycles, [I] architectures.md 9.3 (shader 3-5)
 II = 1
@@ -141,19 +150,18 @@ def _cell_index(normals: np.ndarray, r: int) -> np.ndarray:
 def _lighting_terms(sh: Shader, normals: np.ndarray, half: np.ndarray):
     """Diffuse factor and specular term (both UQ4.12) of SQ1.F normals."""
     f = sh.cfg.normal_frac_bits
+    normals = np.asarray(normals, dtype=np.int64)
+    nx, ny, nz = normals[:, 0], normals[:, 1], normals[:, 2]
     diffuse = np.zeros(normals.shape[0], dtype=np.int64)
     specular = np.zeros(normals.shape[0], dtype=np.int64)
     for k in range(sh.light.shape[0]):
-        ndl = np.maximum(round_shift(normals @ sh.light[k], 2 * f - 12, "nearest-up"), 0)
         hk = half[:, k] if half.ndim == 3 else half[k]
-        ndh = np.einsum("ij,ij->i", normals, np.broadcast_to(hk, normals.shape))
-        ndh = np.clip(round_shift(ndh, 2 * f - 12, "nearest-up"), 0, ONE)
+        (lx, ly, lz), (hx, hy, hz) = sh.light[k], hk.T
         e = sh.cfg.spec_table_entries
-        s = sh.spec[round_shift(ndh * e, 12, "nearest-up")]
-        diffuse += round_shift(
-            sh.intensity[k] * sh.kd * np.minimum(ndl, ONE), 2 * _COEF, "nearest-up"
-        )
-        specular += round_shift(sh.intensity[k] * sh.ks * s, 2 * _COEF, "nearest-up")
+        d, si = light_terms_raw(nx, ny, nz, lx, ly, lz, hx, hy, hz, sh.intensity[k], sh.kd, e, f)
+        s = specular_raw(sh.intensity[k], sh.ks, sh.spec[si])
+        diffuse += d
+        specular += s
     return diffuse, specular
 
 
@@ -164,6 +172,31 @@ def shade(sh: Shader, rgb: np.ndarray, normals: np.ndarray) -> np.ndarray:
         diffuse, specular = sh.maps[0][i], sh.maps[1][i]
     else:
         diffuse, specular = _lighting_terms(sh, normals, sh.half)
-    ambient = round_shift(sh.ka * rgb, _COEF, "nearest-up")
-    lit = ambient + round_shift(diffuse[:, None] * rgb, 12, "nearest-up") + specular[:, None]
-    return np.clip(lit, 0, ONE)
+    return shade_raw(sh.ka, np.asarray(rgb, dtype=np.int64), diffuse[:, None], specular[:, None])
+
+
+# The two functions below are the shader's arithmetic, written once for int64 arrays (the
+# vectorised API above) and int64 scalars (the functional rung's compiled kernel).
+
+
+def light_terms_raw(nx, ny, nz, lx, ly, lz, hx, hy, hz, intensity, kd, entries: int, f: int):
+    """One light's diffuse factor (UQ4.12) and specular-table index (``entries`` steps) of
+    SQ1.``f`` normals ``(nx, ny, nz)`` (int64 arrays or scalars); ``(lx, ly, lz)`` and
+    ``(hx, hy, hz)`` are the light and half vectors, SQ1.``f`` (scalars, or the half
+    vector's components as ``(n,)`` rows)."""
+    ndl = np.maximum(round_shift_raw(nx * lx + ny * ly + nz * lz, 2 * f - 12, 1), 0)
+    ndh = round_shift_raw(nx * hx + ny * hy + nz * hz, 2 * f - 12, 1)
+    ndh = np.minimum(np.maximum(ndh, 0), ONE)
+    diffuse = round_shift_raw(intensity * kd * np.minimum(ndl, ONE), 2 * _COEF, 1)
+    return diffuse, round_shift_raw(ndh * entries, 12, 1)
+
+
+def specular_raw(intensity, ks, spec_value):
+    """One light's specular term (UQ4.12) from its table entry ``spec_value``."""
+    return round_shift_raw(intensity * ks * spec_value, 2 * _COEF, 1)
+
+
+def shade_raw(ka, rgb, diffuse, specular):
+    """``clamp(ka c + diffuse c + specular, 0, 1)`` in UQ1.12 (int64 arrays or scalars)."""
+    lit = round_shift_raw(ka * rgb, _COEF, 1) + round_shift_raw(diffuse * rgb, 12, 1) + specular
+    return np.minimum(np.maximum(lit, 0), ONE)

@@ -1,0 +1,429 @@
+"""The functional rung's compiled composite stage: position to accumulator in a few loops.
+
+# Ref: design.md section 3 (functional rung); architectures.md section 9.1 (interpolator,
+#      classifier, gradient, shader and compositor units); docs/fidelity.md ("How the
+#      functional rung simulates fast, exactly").
+
+:meth:`models.backend.Backend._composite` runs the composite stage as a chain of
+vectorised unit calls, each producing a temporary array per step part.  Here the same
+chain is numba-compiled: one loop over the part's samples takes the cell and weights
+(:func:`~models.units.interp.cell_weight`), the trilinear sample (two
+:func:`~models.units.interp.bilinear_raw` and a :func:`~models.units.interp.lerp_raw` of
+voxels promoted as read, :func:`~models.units.interp.promote_raw`), the LUT read
+(:func:`~models.units.classify.lut_index_raw`) and, for the visible samples, the six
+neighbours of the sample gradient or the three interpolated voxel differences and the
+gradient-opacity modulation; then branch-free loops over the visible samples compute the
+normals (:func:`~models.units.gradient.normal_raw`), each light's Phong terms
+(:func:`~models.units.shade.light_terms_raw`) and the shaded colours
+(:func:`~models.units.shade.shade_raw`); a last loop applies the opacity-correction table
+and the front-to-back blend (:func:`~models.units.composite.ftb_weight_raw`).
+
+**One source of truth.**  Every rounding, lerp, root, division and clamp of the
+datapath is a ``*_raw`` function of its unit, the same function the unit's vectorised
+API calls on NumPy arrays; numba compiles it for scalars (``register_jitable``).  What
+the kernel adds is the order of the calls (the dataflow of ``Backend._composite`` and
+``gradient.sample_differences``) and the overflow rule of ``composite.alpha`` and
+``composite.acc`` (count a value outside ``[0, 1.0]``, clamp it: ``_saturate_unit``),
+which the chain's bounds make unreachable here; ``tests/models/test_functional_fused.py``
+checks that it gives the vectorised chain's bits on every supported configuration.
+Integer scalars are int64; the vectorised chain's int32 lerps are exact
+(:func:`~models.units.interp.promote`), so both compute the same integers.
+
+**Scope.**  Post-classified composite through one LUT, steps whose samples share one
+``dt`` (parallel views) and frames with one shader (or none), Phong (not reflectance
+maps), gradients from samples or voxels, any crop, cut planes, modulation and early
+termination.  Anything else (pre-classification, multi-LUT classification, embedded
+geometry, perspective steps, reflectance maps, the elision check) takes the vectorised
+chain: :func:`eligible` and :meth:`CompositeKernel.table` say which.
+
+The compiled code is cached on disk (``cache=True``).  numba keys a cached kernel by the
+kernel's own source file and bytecode, not by the unit functions it inlines, so the key
+here also holds a hash of those functions' source (:data:`UNITS_HASH`): editing a unit
+recompiles the kernel instead of loading stale arithmetic.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+
+import numba
+import numpy as np
+from numba.extending import register_jitable
+
+from hwsim.numerics import ROUNDING_CODES, SATURATIONS, round_scaled, round_shift_raw
+from models.datapath import Datapath
+from models.units import classify as classify_unit
+from models.units import composite as composite_unit
+from models.units import gradient as gradient_unit
+from models.units import interp as interp_unit
+from models.units import shade as shade_unit
+
+__all__ = ["UNITS_HASH", "CompositeKernel", "eligible"]
+
+#: The unit functions the kernel calls: registered with numba so compiled code may call
+#: them (all take and return scalars only: array arguments would cost a reference-count
+#: update per call), and hashed into the cache key.
+_UNIT_FUNCTIONS = (
+    round_shift_raw,
+    round_scaled,
+    interp_unit.cell_weight,
+    interp_unit.promote_raw,
+    interp_unit.lerp_raw,
+    interp_unit.bilinear_raw,
+    classify_unit.lut_index_raw,
+    classify_unit.gm_index_raw,
+    classify_unit.scale_alpha_raw,
+    gradient_unit.isqrt_raw,
+    gradient_unit.normal_raw,
+    gradient_unit.floor_div_raw,
+    gradient_unit.bit_length_raw,
+    shade_unit.light_terms_raw,
+    shade_unit.specular_raw,
+    shade_unit.shade_raw,
+    composite_unit.ftb_weight_raw,
+    composite_unit.ftb_colour_raw,
+)
+for _fn in _UNIT_FUNCTIONS:
+    register_jitable(_fn)
+
+#: Hash of the called unit functions' source (part of the compiled kernel's cache key).
+UNITS_HASH = hashlib.sha256(
+    "".join(inspect.getsource(fn) for fn in _UNIT_FUNCTIONS).encode()
+).hexdigest()
+
+#: Kernel inputs ``grad_p`` (int64 flags and constants), by position.
+_NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
+_GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS = range(5, 10)
+
+
+def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
+    """The kernel, compiled for one configuration or for any.
+
+    The configuration (``S``, interpolation weight bits and rounding, LUT index shift
+    and entries, normal bits, specular-table entries, accumulator 1.0 and rounding) is
+    the kernel's ``config`` argument.  With ``constants`` (that same tuple) the kernel
+    takes it from its closure instead, which numba compiles as constants: shifts by a
+    known amount and rounding branches resolved at compile time run about twice as fast
+    (:func:`_kernel_for` does this for a machine's own formats only, so a sweep over
+    widths compiles one generic kernel, not one per width).  numba's on-disk cache is
+    keyed by bytecode and closure values: each specialised configuration, the generic
+    kernel and each ``units_hash`` have their own entries.
+    """
+    specialised = constants is not None
+    fixed = constants if constants is not None else (0,) * 9
+
+    def kernel(
+        vox, dxyz, shape, offsets, zyx, rays, factor, rgb12, alpha12,
+        grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, ert_thr, alive, sat,
+        config,
+    ):  # fmt: skip
+        if len(units_hash) == 0:  # never: keeps the hash in the cache key
+            return
+        s_bits, w_bits, w_code, lut_shift, entries, f_bits, spec_entries, one, acc_code = (
+            fixed if specialised else config
+        )
+        ny, nx = shape[1], shape[2]
+        hi = (shape[0] - 1.0, ny - 1.0, nx - 1.0)
+        strides = (ny * nx, nx, np.int64(1))
+        o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
+        cut = factor.shape[0] > 0
+        lit = grad_p[_LIT] != 0
+        cell = np.empty(3, np.int64)  # the centre's cell along z, y, x
+        w = np.empty(3, np.int64)  # its raw weights
+        # Pass 1, per sample: value, classification, gradient; the visible samples are
+        # kept in these arrays (colour, opacity, ray, gradient x y z).
+        n = zyx.shape[0]
+        rgba = np.empty((4, n), np.int64)
+        vis_rays = np.empty(n, np.int64)
+        g = np.empty((3, n), np.int64)
+        m = 0
+        for i in range(n):
+            for a in range(3):
+                c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
+                cell[a], w[a] = np.int64(c), np.int64(q)
+            base = (cell[0] * ny + cell[1]) * nx + cell[2]
+            value = _trilinear(vox, base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code)
+            idx = classify_unit.lut_index_raw(value, lut_shift, entries)
+            alpha = alpha12[idx]
+            if cut:
+                alpha = classify_unit.scale_alpha_raw(alpha, factor[i])
+            if alpha <= 0:
+                continue  # transparent: changes nothing (Backend._composite's `vis`)
+            if grad_p[_NEED_GRAD]:
+                if grad_p[_FROM_VOXELS]:
+                    for c3 in range(3):  # dxyz rows: x, y, z differences
+                        g[c3, m] = _trilinear(
+                            dxyz[c3], base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code
+                        )
+                else:
+                    # s(p + e) - s(p - e) per axis: the centre's cell and weights except
+                    # along the moved axis (gradient.sample_differences).
+                    for a in range(3):
+                        ahead = np.int64(0)
+                        for step in (1.0, -1.0):
+                            c, q = interp_unit.cell_weight(zyx[i, a] + step, hi[a], w_bits, w_code)
+                            nb = base + (np.int64(c) - cell[a]) * strides[a]
+                            wz = np.int64(q) if a == 0 else w[0]
+                            wy = np.int64(q) if a == 1 else w[1]
+                            wx = np.int64(q) if a == 2 else w[2]
+                            s = _trilinear(
+                                vox, nb, o1, o2, o3, o4, wz, wy, wx, s_bits, w_bits, w_code
+                            )
+                            if step > 0:
+                                ahead = s
+                            else:
+                                g[2 - a, m] = ahead - s
+                if grad_p[_WORLD]:
+                    for c3 in range(3):
+                        g[c3, m] = round_shift_raw(g[c3, m] * ratio[c3], 12, 1)
+                if grad_p[_MODULATES]:
+                    gx, gy, gz = g[0, m], g[1, m], g[2, m]
+                    mag = gradient_unit.isqrt_raw(gx * gx + gy * gy + gz * gz)
+                    gi = classify_unit.gm_index_raw(mag, grad_p[_GM_SCALE], grad_p[_GM_ENTRIES])
+                    alpha = classify_unit.scale_alpha_raw(alpha, gm_table[gi])
+            rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+            rgba[3, m] = alpha
+            vis_rays[m] = rays[i]
+            m += 1
+        if lit:
+            # Pass 2, shading, in loops without branches over the visible samples (the
+            # compiler vectorises them): normals, each light's terms, the colours.
+            for j in range(m):
+                g[0, j], g[1, j], g[2, j] = gradient_unit.normal_raw(
+                    g[0, j], g[1, j], g[2, j], f_bits
+                )
+            diffuse = np.zeros(m, np.int64)
+            specular = np.zeros(m, np.int64)
+            kd, ks, ka = grad_p[_KD], grad_p[_KS], grad_p[_KA]
+            for k in range(light.shape[0]):
+                lx, ly, lz, i_k = light[k, 0], light[k, 1], light[k, 2], intensity[k]
+                hx, hy, hz = half[k, 0], half[k, 1], half[k, 2]
+                for j in range(m):
+                    d, si = shade_unit.light_terms_raw(
+                        g[0, j], g[1, j], g[2, j], lx, ly, lz, hx, hy, hz, i_k, kd,
+                        spec_entries, f_bits,
+                    )  # fmt: skip
+                    diffuse[j] += d
+                    specular[j] += shade_unit.specular_raw(i_k, ks, spec[si])
+            for c3 in range(3):
+                for j in range(m):
+                    rgba[c3, j] = shade_unit.shade_raw(ka, rgba[c3, j], diffuse[j], specular[j])
+        # Pass 3: composite.alpha saturation (counted), the opacity-correction ROM, the
+        # blend (each ray at most once per call, so the order is free), termination.
+        for j in range(m):
+            alpha = rgba[3, j]
+            if alpha < 0 or alpha > 4096:
+                sat[0] += 1
+                alpha = min(max(alpha, 0), 4096)
+            alpha = table[alpha]
+            ray = vis_rays[j]
+            aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
+            r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, rgba[0, j], acc_code)
+            gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, rgba[1, j], acc_code)
+            b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, rgba[2, j], acc_code)
+            for c4, v in enumerate((r, gr, b, acc[ray, 3] + aw)):
+                if v < 0 or v > one:  # composite.acc saturation (counted)
+                    sat[1] += 1
+                    v = min(max(v, 0), one)
+                acc[ray, c4] = v
+            if ert_thr >= 0:
+                alive[ray] = acc[ray, 3] < ert_thr
+
+    return numba.njit(cache=True, nogil=True)(kernel)
+
+
+@numba.njit(inline="always")
+def _trilinear(vox, base, o1, o2, o3, o4, wz, wy, wx, s_bits, w_bits, w_code):
+    """The trilinear sample of cell ``base`` of the raw voxels ``vox``: each corner
+    promoted as read (:func:`~models.units.interp.promote_raw`), then
+    :func:`~models.units.interp.bilinear_raw` on the near slice, on the far slice unless
+    the z weight is 0 (a lerp of weight 0 returns its first operand exactly:
+    ``interp.lerp_plan``), and a z :func:`~models.units.interp.lerp_raw` --
+    ``interp.lerp_corners``' order."""
+    near = _bilinear(vox, base, o1, o2, o3, wy, wx, s_bits, w_bits, w_code)
+    if wz == 0:
+        return near
+    far = _bilinear(vox, base + o4, o1, o2, o3, wy, wx, s_bits, w_bits, w_code)
+    return np.int64(interp_unit.lerp_raw(near, far, wz, w_bits, w_code))
+
+
+@numba.njit(inline="always")
+def _bilinear(vox, base, o1, o2, o3, wy, wx, s_bits, w_bits, w_code):
+    row = base + o2
+    return np.int64(
+        interp_unit.bilinear_raw(
+            interp_unit.promote_raw(np.int64(vox[base]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[base + o1]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[row]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[row + o1]), s_bits),
+            wy,
+            wx,
+            w_bits,
+            w_code,
+        )
+    )
+
+
+def _narrowest(a: np.ndarray) -> np.ndarray:
+    """``a`` in the narrowest of uint8, uint16, int16, int32, int64 holding its values."""
+    lo, hi = (int(a.min()), int(a.max())) if a.size else (0, 0)
+    for dtype in (np.uint8, np.uint16, np.int16, np.int32):
+        info = np.iinfo(dtype)
+        if info.min <= lo and hi <= info.max:
+            return a.astype(dtype)
+    return a.astype(np.int64)
+
+
+#: Compiled kernels of this process, by configuration.
+_KERNELS: dict[tuple[int, ...] | None, object] = {}
+
+
+def _kernel_for(config: tuple[int, ...] | None):
+    """The kernel specialised for ``config``, or the generic one for None."""
+    kernel = _KERNELS.get(config)
+    if kernel is None:
+        kernel = _KERNELS[config] = _make_kernel(UNITS_HASH, config)
+    return kernel
+
+
+def eligible(backend) -> bool:
+    """Whether :class:`CompositeKernel` can run ``backend``'s composite stage (see Scope;
+    a step whose samples differ in length still takes the chain, :meth:`~CompositeKernel.table`)."""
+    be = backend
+    if be.mode != "composite" or be.pre_classified or be.exercise_unused:
+        return False
+    if be.multilut is not None or be.depth is not None:
+        return False
+    # One shader for the frame (parallel views), Phong rather than reflectance maps.
+    return not be.scene.lit or (be.shader is not None and be.shader.maps is None)
+
+
+class CompositeKernel:
+    """The per-frame constants of one back end, packed for the kernel."""
+
+    def __init__(self, backend, raw_diffs: list[np.ndarray] | None) -> None:
+        """``raw_diffs``: the voxel differences (``gradient.voxel_differences``) when the
+        gradient comes from voxels."""
+        be, dp = backend, backend.dp
+        self.backend = be
+        # The raw voxels (and differences) in their narrowest integer type, promoted as
+        # they are read: a quarter of the promoted int64 bytes, half of int32 (memory
+        # traffic is what a 256^3 frame waits on).
+        self.vox = _narrowest(be.raw.ravel())
+        shape = be.volume.shape
+        self.shape = np.asarray(shape, dtype=np.int64)
+        self.offsets = interp_unit.corner_offsets(shape).astype(np.int64)
+        diffs = [self.vox[:1]] * 3 if raw_diffs is None else [_narrowest(d) for d in raw_diffs]
+        wide = np.result_type(*diffs)
+        self.dxyz = tuple(d.astype(wide, copy=False) for d in diffs)
+        shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
+        cfg = dp.composite
+        self.config = (
+            be.S,
+            dp.interp.weight_bits,
+            ROUNDING_CODES[dp.interp.rounding],
+            shift,
+            dp.classify.entries,
+            dp.gradient.normal_frac_bits,
+            dp.shade.spec_table_entries,
+            1 << cfg.acc_frac_bits,
+            ROUNDING_CODES[cfg.acc.rounding],
+        )
+        # Specialised for the machine's own formats; overridden widths (a width sweep)
+        # share the generic kernel.
+        own = dp == Datapath.for_volume(be.arch, be.volume)
+        self.kernel = _kernel_for(self.config if own else None)
+        self.rgb12 = np.ascontiguousarray(be.lut.rgb12, dtype=np.int64)
+        self.alpha12 = np.ascontiguousarray(be.lut.alpha12, dtype=np.int64)
+        spacing = np.asarray(be.volume.spacing, dtype=np.float64)[::-1]
+        self.ratio = np.floor(spacing.min() / spacing * (1 << 12) + 0.5).astype(np.int64)
+        world = not np.all(self.ratio == 1 << 12)
+        modulates = be.need_grad and be.transfer.modulates
+        lit = bool(be.scene.lit)
+        sh = be.shader if lit else None
+        self.grad_p = np.array(
+            [
+                be.need_grad,
+                be.need_grad and dp.gradient.source == "voxel",
+                world,
+                modulates,
+                lit,
+                be.gm_scale if modulates else 0,
+                dp.classify.gm_entries,
+                sh.ka if sh else 0,
+                sh.kd if sh else 0,
+                sh.ks if sh else 0,
+            ],
+            dtype=np.int64,
+        )
+        self.gm_table = (
+            np.asarray(be.gm_table, dtype=np.int64) if modulates else np.zeros(1, np.int64)
+        )
+        if sh is not None:
+            self.light = np.ascontiguousarray(sh.light, dtype=np.int64)
+            self.half = np.ascontiguousarray(sh.half, dtype=np.int64).reshape(-1, 3)
+            self.intensity = np.asarray(sh.intensity, dtype=np.int64)
+            self.spec = np.asarray(sh.spec, dtype=np.int64)
+        else:
+            self.light = self.half = np.zeros((0, 3), np.int64)
+            self.intensity, self.spec = np.zeros(0, np.int64), np.zeros(2, np.int64)
+        self.ert_thr = -1  # early termination off
+        if be.ert < 1.0:
+            self.ert_thr = int(cfg.acc.quantize(max(be.ert, 0.0)))
+        self._tables: dict[float, np.ndarray] = {}
+        self._no_factor = np.zeros(0, dtype=np.int64)
+
+    def table(self, dt) -> np.ndarray | None:
+        """The opacity-correction ROM of a step whose samples all have step length
+        ``dt`` (a float, or an array of one repeated value: parallel shear-image steps);
+        None when the step must take the unit chain (unequal lengths, or an exponent
+        outside ``composite.ratio``, which the chain counts or refuses per call)."""
+        if not np.isscalar(dt):
+            if dt.size == 0 or dt.min() != dt.max():
+                return None
+            dt = dt.flat[0]
+        dt = float(dt)
+        table = self._tables.get(dt)
+        if table is None:
+            be, fmt = self.backend, self.backend.dp.composite.ratio
+            k = np.asarray(dt) / be.ref  # what Backend._composite hands correct_opacity
+            raw = round_scaled(k * 2.0**fmt.frac_bits, ROUNDING_CODES[fmt.rounding])
+            if not 1 <= raw <= fmt.raw_max:
+                return None
+            table = self._tables[dt] = composite_unit.correction_for(k, be.dp.composite)
+        return table
+
+    def run(self, step, factor, state, table: np.ndarray) -> None:
+        """Composite the samples of ``step`` (after masks) into ``state``, with the
+        opacity-correction ROM ``table`` (:meth:`table`)."""
+        be = self.backend
+        sat = np.zeros(2, dtype=np.int64)
+        self.kernel(
+            self.vox,
+            self.dxyz,
+            self.shape,
+            self.offsets,
+            np.ascontiguousarray(step.zyx, dtype=np.float64),
+            np.asarray(step.rays, dtype=np.int64),
+            self._no_factor if factor is None else np.asarray(factor, dtype=np.int64),
+            self.rgb12,
+            self.alpha12,
+            self.grad_p,
+            self.ratio,
+            self.gm_table,
+            self.light,
+            self.half,
+            self.intensity,
+            self.spec,
+            table,
+            state.acc,
+            self.ert_thr,
+            state.alive,
+            sat,
+            self.config,
+        )
+        if sat[0]:
+            SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
+        if sat[1]:
+            SATURATIONS[be.dp.composite.acc.name] += int(sat[1])
