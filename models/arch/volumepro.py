@@ -47,7 +47,13 @@ from models.arch.machine import (
 from models.arch.sdram_volume import SdramVolume
 from models.arch.slab_timing import run_timing
 from models.arch.trilinear import TrilinearSource
-from models.arch.volumepro_timing import SliceRecord, frame_period, record_trace, timing_inputs
+from models.arch.volumepro_timing import (
+    SliceRecord,
+    frame_period,
+    mini_blocks_read,
+    record_trace,
+    timing_inputs,
+)
 from models.backend import Backend, subset_step
 from models.units import classify as classify_unit
 from models.units import skew as skew_unit
@@ -404,18 +410,7 @@ class SlabMachine(Cube4Machine):
         cells[ra[live], rb[live]] = True
         cost = cells.reshape(self.n_a, C, P).any(axis=2).sum(axis=1)
         cells[ra[known], rb[known]] = True
-        voxels = cells[:, : self.n_b]
-        for axis in (0, 1):
-            v = np.moveaxis(voxels, axis, 0)
-            out = v.copy()
-            out[:-1] |= v[1:]
-            out[1:] |= v[:-1]
-            out[2:] |= v[:-2]
-            voxels = np.moveaxis(out, 0, axis)
-        pad = np.zeros((-(-self.n_a // 2) * 2, -(-self.n_b // 2) * 2), dtype=bool)
-        pad[: self.n_a, : self.n_b] = voxels
-        blocks = pad.reshape(pad.shape[0] // 2, 2, pad.shape[1] // 2, 2).any(axis=(1, 3))
-        needed[si, window[0] // 2 : window[1] // 2 + 1] |= blocks
+        needed[si, window[0] // 2 : window[1] // 2 + 1] |= mini_blocks_read(cells[:, : self.n_b])
         return cost
 
     def _finish(self, state, bus, records, sections, parked_counts, needed) -> CycleResult:

@@ -24,7 +24,7 @@ from models.arch.slab_timing import Delivery, SliceWork, run_timing
 if TYPE_CHECKING:
     from models.arch.volumepro import SlabMachine
 
-__all__ = ["SliceRecord", "timing_inputs", "frame_period", "record_trace"]
+__all__ = ["SliceRecord", "timing_inputs", "frame_period", "mini_blocks_read", "record_trace"]
 
 
 @dataclass
@@ -149,3 +149,22 @@ def frame_period(m: SlabMachine, deliveries, slices, capacity: int) -> int:
     )
     first = sum(b[0] for b in timing.blocks[: len(slices)])
     return int(timing.end - first)
+
+
+def mini_blocks_read(cells: np.ndarray) -> np.ndarray:
+    """Rule 6's reads: the mini-blocks ``(ceil(n_a / 2), ceil(n_b / 2))`` of a slab's
+    plane holding a voxel that some marked cell reads; cell ``(a, b)`` reads voxel rows
+    ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` (corners and gradient neighbours).
+    Shared by the cycle machine and the VolumePro 1000 transaction model."""
+    voxels = cells
+    for axis in (0, 1):
+        v = np.moveaxis(voxels, axis, 0)
+        out = v.copy()
+        out[:-1] |= v[1:]
+        out[1:] |= v[:-1]
+        out[2:] |= v[:-2]
+        voxels = np.moveaxis(out, 0, axis)
+    n_a, n_b = voxels.shape
+    pad = np.zeros((-(-n_a // 2) * 2, -(-n_b // 2) * 2), dtype=bool)
+    pad[:n_a, :n_b] = voxels
+    return pad.reshape(pad.shape[0] // 2, 2, pad.shape[1] // 2, 2).any(axis=(1, 3))

@@ -49,6 +49,7 @@ from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.arch.cube4_txn import TxnTiming
+from models.arch.volumepro_timing import mini_blocks_read
 from models.arch.volumepro_txn import SlabTransaction
 from models.backend import Backend
 from models.datapath import Datapath
@@ -151,28 +152,11 @@ def beam_skips(
         if live is not None:
             cells[ra if known is None else ra[known], rb if known is None else rb[known]] = True
         lo, hi = window(j)
-        needed[lo : hi + 1] |= _mini_blocks(cells[:, :n_b], n_u, n_mb)
+        needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
     stops = 0
     if stopped is not None and plan.ray_ids.size:
         stops = int(np.sum(stopped[plan.ray_ids] < plan.j_hi))
     return BeamSkips(cost, needed, live_count, stops)
-
-
-def _mini_blocks(cells: np.ndarray, n_u: int, n_mb: int) -> np.ndarray:
-    """Mini-blocks ``(n_u, n_mb)`` holding a voxel some cell reads: cell ``(a, b)`` reads
-    rows ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` (corners and gradient
-    neighbours)."""
-    voxels = cells
-    for axis in (0, 1):
-        v = np.moveaxis(voxels, axis, 0)
-        out = v.copy()
-        out[:-1] |= v[1:]
-        out[1:] |= v[:-1]
-        out[2:] |= v[:-2]
-        voxels = np.moveaxis(out, 0, axis)
-    pad = np.zeros((2 * n_u, 2 * n_mb), dtype=bool)
-    pad[: voxels.shape[0], : voxels.shape[1]] = voxels
-    return pad.reshape(n_u, 2, n_mb, 2).any(axis=(1, 3))
 
 
 class Vp1000Transaction(SlabTransaction):
