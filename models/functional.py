@@ -37,7 +37,7 @@ from hwsim.numerics import SATURATIONS
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
-from models import leap
+from models import fused_steps, leap
 from models.backend import Backend, RayState
 from models.datapath import Datapath
 from models.units import classify as classify_unit
@@ -204,6 +204,11 @@ class _Functional:
                 if progress is not None:
                     progress(j + 1, plan.n_steps)
             simulated = state.samples
+        elif fused_steps.applies(be, plan, self.kernel, blocks):
+            simulated = fused_steps.run_steps_compiled(
+                plan, blocks, self.kernel, state, stopped, progress
+            )
+            leap.visits(plan, be, stopped, state)
         else:
             simulated = self._run_leapt(leap.leapt_plan(plan, blocks), state, progress, stopped)
         sections = 0
