@@ -64,37 +64,44 @@ def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _step(
     j, order, offsets, base_a, base_b, axes, j_lo, j_hi, ray_ids, join, cursor,
-    active, alive, distance, block_shift, leap_per_block, resume, vol_hi, zyx, rays,
+    slots, alive, distance, block_shift, leap_per_block, vol_hi, zyx, rays,
 ):  # fmt: skip
     """Step ``j``'s kept samples into ``zyx`` and ``rays``; returns how many.
 
     ``join`` lists plan rays by ascending ``j_lo`` (rays with samples only); ``cursor``
-    holds the active count and the next ray to join; ``active`` the active plan rays.
+    holds the active count and the next ray to join.  ``slots`` holds the active rays,
+    one column each (read in order, compacted in place): ray id, last step, first step
+    not leapt, and the bit patterns of the first sums of the two sheared coordinates.
     """
     count, nxt = cursor[0], cursor[1]
     while nxt < join.shape[0] and j_lo[join[nxt]] <= j:
-        active[count] = join[nxt]
+        r = join[nxt]
+        slots[0, count], slots[1, count], slots[2, count] = ray_ids[r], j_hi[r], 0
+        slots[3, count] = base_a[r]
+        slots[4, count] = base_b[r]
         count += 1
         nxt += 1
     kp, a_ax, b_ax = axes[0], axes[1], axes[2]
     q, off_a, off_b = order[j], offsets[j, 0], offsets[j, 1]
+    sheared = slots[3:5].view(np.float64)
     p = np.empty(3)  # one sample's z, y, x
     kept = 0
     m = 0
     for t in range(count):
-        r = active[t]
-        ray = ray_ids[r]
-        if j_hi[r] < j or not alive[ray]:
+        ray = slots[0, t]
+        if slots[1, t] < j or not alive[ray]:
             continue  # leaves the active set
-        active[kept] = r
+        if kept != t:
+            for c5 in range(5):
+                slots[c5, kept] = slots[c5, t]
         kept += 1
-        if j < resume[r]:
+        if j < slots[2, kept - 1]:
             continue  # inside a leap: an unoccupied block's run
         # SamplePlan.position, shear-warp: the same terms in the same order
-        # (``base_a[r]`` is its first sum, ``row + base_origin[0]``).
+        # (the slot holds its first sum, ``row + base_origin[0]``).
         p[kp] = q
-        p[a_ax] = base_a[r] + off_a
-        p[b_ax] = base_b[r] + off_b
+        p[a_ax] = sheared[0, kept - 1] + off_a
+        p[b_ax] = sheared[1, kept - 1] + off_b
         bz = np.int64(min(max(p[0], 0.0), vol_hi[0])) >> block_shift
         by = np.int64(min(max(p[1], 0.0), vol_hi[1])) >> block_shift
         bx = np.int64(min(max(p[2], 0.0), vol_hi[2])) >> block_shift
@@ -102,7 +109,7 @@ def _step(
         if c > 0:
             # Opacity 0 whatever the sample interpolates to, and so for the next
             # floor(((c - 1) block - 1e-6) / |delta|_inf) steps (SamplePlan.leap's bound).
-            resume[r] = j + 1 + np.int64(np.floor((c - 1) * leap_per_block))
+            slots[2, kept - 1] = j + 1 + np.int64(np.floor((c - 1) * leap_per_block))
             continue
         zyx[m, 0], zyx[m, 1], zyx[m, 2] = p[0], p[1], p[2]
         rays[m] = ray
@@ -138,12 +145,11 @@ def run_steps_compiled(
         raise ValueError(f"occupancy block {blocks.block} is not a power of two")
     # The first sum of each position term, as SamplePlan.position forms it.
     ids = plan.ray_ids
-    base_a = ids // plan.shape[1] + plan.base_origin[0]
-    base_b = ids % plan.shape[1] + plan.base_origin[1]
+    base_a = (ids // plan.shape[1] + plan.base_origin[0]).view(np.int64)
+    base_b = (ids % plan.shape[1] + plan.base_origin[1]).view(np.int64)
     n = max(plan.ray_ids.size, 1)
-    active = np.empty(n, dtype=np.int64)
+    slots = np.empty((5, n), dtype=np.int64)
     cursor = np.zeros(2, dtype=np.int64)
-    resume = np.zeros(n, dtype=np.int64)  # per plan ray: the first step not leapt
     zyx = np.empty((n, 3))
     rays = np.empty(n, dtype=np.int64)
     stops = kernel.ert_thr >= 0
@@ -151,8 +157,8 @@ def run_steps_compiled(
     for j in range(plan.n_steps):
         m = _step(
             j, plan.order, plan.offsets, base_a, base_b, axes, plan.j_lo, plan.j_hi,
-            plan.ray_ids, join, cursor, active, state.alive, distance, block_shift,
-            leap_per_block, resume, vol_hi, zyx, rays,
+            plan.ray_ids, join, cursor, slots, state.alive, distance, block_shift,
+            leap_per_block, vol_hi, zyx, rays,
         )  # fmt: skip
         if m:
             step = Step(rays[:m], zyx[:m], plan._dt)
