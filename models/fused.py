@@ -114,7 +114,7 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
     fixed = constants if constants is not None else (0,) * 9
 
     def kernel(
-        vox, dxyz, shape, offsets, zyx, rays, factor, rgb12, alpha12,
+        vox, dxyz, shape, strides, offsets, zyx, rays, factor, rgb12, alpha12,
         grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, ert_thr, alive, sat,
         config,
     ):  # fmt: skip
@@ -123,9 +123,8 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
         s_bits, w_bits, w_code, lut_shift, entries, f_bits, spec_entries, one, acc_code = (
             fixed if specialised else config
         )
-        ny, nx = shape[1], shape[2]
-        hi = (shape[0] - 1.0, ny - 1.0, nx - 1.0)
-        strides = (ny * nx, nx, np.int64(1))
+        hi = (shape[0] - 1.0, shape[1] - 1.0, shape[2] - 1.0)
+        st_z, st_y, st_x = strides[0], strides[1], strides[2]
         o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
         cut = factor.shape[0] > 0
         lit = grad_p[_LIT] != 0
@@ -142,7 +141,7 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
             for a in range(3):
                 c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
                 cell[a], w[a] = np.int64(c), np.int64(q)
-            base = (cell[0] * ny + cell[1]) * nx + cell[2]
+            base = cell[0] * st_z + cell[1] * st_y + cell[2] * st_x
             value = _trilinear(vox, base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code)
             idx = classify_unit.lut_index_raw(value, lut_shift, entries)
             alpha = alpha12[idx]
@@ -237,32 +236,58 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
 def _trilinear(vox, base, o1, o2, o3, o4, wz, wy, wx, s_bits, w_bits, w_code):
     """The trilinear sample of cell ``base`` of the raw voxels ``vox``: each corner
     promoted as read (:func:`~models.units.interp.promote_raw`), then
-    :func:`~models.units.interp.bilinear_raw` on the near slice, on the far slice unless
-    the z weight is 0 (a lerp of weight 0 returns its first operand exactly:
-    ``interp.lerp_plan``), and a z :func:`~models.units.interp.lerp_raw` --
-    ``interp.lerp_corners``' order."""
-    near = _bilinear(vox, base, o1, o2, o3, wy, wx, s_bits, w_bits, w_code)
+    :func:`~models.units.interp.bilinear_raw` on the near slice, on the far slice and a
+    z :func:`~models.units.interp.lerp_raw` -- ``interp.lerp_corners``' order (x, y, z).
+
+    A lerp of weight 0 returns its first operand exactly (``interp.lerp_plan``), so an
+    axis whose weight is 0 (the principal axis of a sample on a voxel slice) is not
+    lerped and its far corners are not read: the remaining x, y or x, z or y, z lerps
+    are one bilinear in the same order."""
     if wz == 0:
-        return near
-    far = _bilinear(vox, base + o4, o1, o2, o3, wy, wx, s_bits, w_bits, w_code)
+        return _bilinear(vox, base, o1, o2, wy, wx, s_bits, w_bits, w_code)
+    if wy == 0:  # x lerps on the near and far slices, then z
+        return _bilinear(vox, base, o1, o4, wz, wx, s_bits, w_bits, w_code)
+    if wx == 0:  # y lerps on the near and far slices, then z
+        return _bilinear(vox, base, o2, o4, wz, wy, s_bits, w_bits, w_code)
+    near = _bilinear(vox, base, o1, o2, wy, wx, s_bits, w_bits, w_code)
+    far = _bilinear(vox, base + o4, o1, o2, wy, wx, s_bits, w_bits, w_code)
     return np.int64(interp_unit.lerp_raw(near, far, wz, w_bits, w_code))
 
 
 @numba.njit(inline="always")
-def _bilinear(vox, base, o1, o2, o3, wy, wx, s_bits, w_bits, w_code):
-    row = base + o2
+def _bilinear(vox, base, ob, oa, wa, wb, s_bits, w_bits, w_code):
+    """:func:`~models.units.interp.bilinear_raw` of the corners ``base``, ``+ ob``,
+    ``+ oa`` and ``+ oa + ob`` (lerps along ``b`` first, then ``a``)."""
+    row = base + oa
     return np.int64(
         interp_unit.bilinear_raw(
             interp_unit.promote_raw(np.int64(vox[base]), s_bits),
-            interp_unit.promote_raw(np.int64(vox[base + o1]), s_bits),
+            interp_unit.promote_raw(np.int64(vox[base + ob]), s_bits),
             interp_unit.promote_raw(np.int64(vox[row]), s_bits),
-            interp_unit.promote_raw(np.int64(vox[row + o1]), s_bits),
-            wy,
-            wx,
+            interp_unit.promote_raw(np.int64(vox[row + ob]), s_bits),
+            wa,
+            wb,
             w_bits,
             w_code,
         )
     )
+
+
+def _laid_out(a: np.ndarray, shape, order: tuple[int, int, int]) -> np.ndarray:
+    """Flat ``a`` (a ``(z, y, x)`` volume of ``shape``) with its axes in memory ``order``
+    (slowest first)."""
+    a = np.asarray(a).reshape(shape)
+    return (a if order == (0, 1, 2) else a.transpose(order)).ravel()
+
+
+def _strides(shape, order: tuple[int, int, int]) -> np.ndarray:
+    """Element strides of the z, y, x axes of a ``shape`` volume laid out in ``order``."""
+    strides = np.zeros(3, dtype=np.int64)
+    step = 1
+    for axis in reversed(order):
+        strides[axis] = step
+        step *= shape[axis]
+    return strides
 
 
 def _narrowest(a: np.ndarray) -> np.ndarray:
@@ -310,11 +335,23 @@ class CompositeKernel:
         # The raw voxels (and differences) in their narrowest integer type, promoted as
         # they are read: a quarter of the promoted int64 bytes, half of int32 (memory
         # traffic is what a 256^3 frame waits on).
-        self.vox = _narrowest(be.raw.ravel())
+        # Laid out with the principal axis slowest: a step's samples lie on one voxel
+        # slice, read from contiguous rows instead of one cache line each (x principal).
         shape = be.volume.shape
+        axis = be.plan.principal_axis
+        order = (2, 0, 1) if axis == 2 else (0, 1, 2)
+        self.vox = _narrowest(_laid_out(be.raw, shape, order))
         self.shape = np.asarray(shape, dtype=np.int64)
-        self.offsets = interp_unit.corner_offsets(shape).astype(np.int64)
-        diffs = [self.vox[:1]] * 3 if raw_diffs is None else [_narrowest(d) for d in raw_diffs]
+        self.strides = _strides(shape, order)
+        dz, dy, dx = (int(st) if n > 1 else 0 for st, n in zip(self.strides, shape, strict=True))
+        self.offsets = np.array(
+            [0, dx, dy, dx + dy, dz, dz + dx, dz + dy, dz + dy + dx], dtype=np.int64
+        )  # interp.corner_offsets in this layout
+        diffs = (
+            [self.vox[:1]] * 3
+            if raw_diffs is None
+            else [_narrowest(_laid_out(d, shape, order)) for d in raw_diffs]
+        )
         wide = np.result_type(*diffs)
         self.dxyz = tuple(d.astype(wide, copy=False) for d in diffs)
         shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
@@ -403,6 +440,7 @@ class CompositeKernel:
             self.vox,
             self.dxyz,
             self.shape,
+            self.strides,
             self.offsets,
             np.ascontiguousarray(step.zyx, dtype=np.float64),
             np.asarray(step.rays, dtype=np.int64),

@@ -265,6 +265,8 @@ CASES = {
     "em-cube": ("em-cube", "head", _scene(az=100, el=10), {}),
     "cube4": ("cube4", "head", _scene(), {}),
     "vp1000-voxel-gradients": ("volumepro1000", "head", _scene(az=-20, el=60), {}),
+    # x principal: the kernel reads voxels and differences laid out x-slowest.
+    "vp1000-x-principal": ("volumepro1000", "head-z", _scene(az=95, el=-5), {}),
     "vp1000-supersampled-cut": (
         "volumepro1000",
         "head",
