@@ -1,7 +1,9 @@
-"""The functional rung's compiled step walker for shear-warp frames.
+"""The functional rung's compiled step walker for slice-order frames.
 
 # Ref: Lacroute & Levoy, SIGGRAPH 1994 (shear-warp: one sample per base-plane pixel per
-#      slice); hwsim/golden/steps.py (the step engine this replaces for such frames);
+#      slice); architectures.md section 3 (VolumePro 1000's shear-image order: rays
+#      through pixel centres, samples on voxel slices); hwsim/golden/steps.py (the step
+#      engine this replaces for such frames);
 #      docs/fidelity.md ("How the functional rung simulates fast, exactly").
 
 :func:`models.functional._Functional.run` walks a frame's steps with
@@ -9,13 +11,14 @@
 :meth:`~hwsim.golden.positions.SamplePlan.leap`: NumPy calls per step for the active
 set, the positions and the chunks, and a leap march per frame.  On a 256^3 frame that
 bookkeeping costs as much as half the compiled composite stage.  Here one compiled call
-per step does it for a shear-warp plan:
+per step does it for a shear-warp or shear-image plan:
 
 * the *active set* is kept as in ``run_steps``: rays join at their ``j_lo``, leave after
   their ``j_hi`` or when early termination cleared their ``alive`` flag;
 * each active ray's position is the float expression of
   :meth:`SamplePlan.position <hwsim.golden.positions.SamplePlan.position>` for a
-  shear-warp plan, term for term and in the same order, so the samples are the same
+  shear-warp or shear-image plan, term for term and in the same order (the terms
+  that do not depend on the step formed once per ray), so the samples are the same
   floats (``tests/models/test_functional_fused.py`` compares the frames);
 * a sample whose block (:data:`~hwsim.golden.occupancy.BLOCK` voxels, position clamped to
   the volume) is not occupied in :func:`models.leap.invisible_blocks` is skipped: its
@@ -29,7 +32,8 @@ visits (``samples``, touched rays) is recounted from the full plan by
 :func:`models.leap.visits`, as on the leapt path.
 
 **Scope.**  Frames the composite kernel runs (:func:`models.fused.eligible`) on a
-shear-warp plan whose step length has a correction table, without crop box or cut
+shear-warp or shear-image plan whose samples share a step length with a correction table
+(parallel views), without crop box or cut
 planes (their masks stay in :meth:`models.backend.Backend.masks`): :func:`applies`.
 """
 
@@ -54,36 +58,41 @@ def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None
     return (
         kernel is not None
         and blocks is not None
-        and plan.kind == "shear-warp"
+        and plan.kind in ("shear-warp", "shear-image")
         and scene.crop is None
         and not scene.cut_planes
         and kernel.table(plan._dt) is not None
     )
 
 
+#: ``_step``'s plan kinds.
+_SHEAR_WARP, _SHEAR_IMAGE = 0, 1
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _step(
-    j, order, offsets, base_a, base_b, axes, j_lo, j_hi, ray_ids, join, cursor,
-    slots, alive, distance, block_shift, leap_per_block, vol_hi, zyx, rays,
+    j, kind, q_of_step, offsets, ss, axes, ray_ids, ray_cols, j_lo, j_hi, join, cursor,
+    slots, terms, alive, distance, block_shift, vol_hi, zyx, rays,
 ):  # fmt: skip
     """Step ``j``'s kept samples into ``zyx`` and ``rays``; returns how many.
 
     ``join`` lists plan rays by ascending ``j_lo`` (rays with samples only); ``cursor``
-    holds the active count and the next ray to join.  ``slots`` holds the active rays,
-    one column each (read in order, compacted in place): ray id, last step, first step
-    not leapt, and the bit patterns of the first sums of the two sheared coordinates.
+    holds the active count and the next ray to join.  The active rays are columns of
+    ``slots`` (ray id, last step, first step not leapt) and ``terms`` (their position
+    terms, :func:`_ray_terms`, and the steps leapt per block of distance), read in order
+    and compacted in place; ``ray_cols`` holds the same per plan ray, ready to join.
     """
     count, nxt = cursor[0], cursor[1]
     while nxt < join.shape[0] and j_lo[join[nxt]] <= j:
         r = join[nxt]
         slots[0, count], slots[1, count], slots[2, count] = ray_ids[r], j_hi[r], 0
-        slots[3, count] = base_a[r]
-        slots[4, count] = base_b[r]
+        for c in range(terms.shape[0]):
+            terms[c, count] = ray_cols[c, r]
         count += 1
         nxt += 1
     kp, a_ax, b_ax = axes[0], axes[1], axes[2]
-    q, off_a, off_b = order[j], offsets[j, 0], offsets[j, 1]
-    sheared = slots[3:5].view(np.float64)
+    off_a, off_b = offsets[j, 0], offsets[j, 1]
+    j_ss = np.float64(j) / ss
     p = np.empty(3)  # one sample's z, y, x
     kept = 0
     m = 0
@@ -92,16 +101,25 @@ def _step(
         if slots[1, t] < j or not alive[ray]:
             continue  # leaves the active set
         if kept != t:
-            for c5 in range(5):
-                slots[c5, kept] = slots[c5, t]
+            for c in range(3):
+                slots[c, kept] = slots[c, t]
+            for c in range(terms.shape[0]):
+                terms[c, kept] = terms[c, t]
+        k = kept
         kept += 1
-        if j < slots[2, kept - 1]:
+        if j < slots[2, k]:
             continue  # inside a leap: an unoccupied block's run
-        # SamplePlan.position, shear-warp: the same terms in the same order
-        # (the slot holds its first sum, ``row + base_origin[0]``).
-        p[kp] = q
-        p[a_ax] = sheared[0, kept - 1] + off_a
-        p[b_ax] = sheared[1, kept - 1] + off_b
+        # SamplePlan.position: the same terms in the same order.
+        if kind == _SHEAR_WARP:  # terms: row + base_origin[0], column + base_origin[1]
+            p[kp] = q_of_step[j]
+            p[a_ax] = terms[0, k] + off_a
+            p[b_ax] = terms[1, k] + off_b
+        else:  # terms: q0, sign, o and d along kp, a, b
+            q = terms[0, k] + terms[1, k] * j_ss
+            along = (q - terms[2, k]) / terms[3, k]
+            p[kp] = q
+            p[a_ax] = terms[4, k] + along * terms[5, k]
+            p[b_ax] = terms[6, k] + along * terms[7, k]
         bz = np.int64(min(max(p[0], 0.0), vol_hi[0])) >> block_shift
         by = np.int64(min(max(p[1], 0.0), vol_hi[1])) >> block_shift
         bx = np.int64(min(max(p[2], 0.0), vol_hi[2])) >> block_shift
@@ -109,13 +127,50 @@ def _step(
         if c > 0:
             # Opacity 0 whatever the sample interpolates to, and so for the next
             # floor(((c - 1) block - 1e-6) / |delta|_inf) steps (SamplePlan.leap's bound).
-            slots[2, kept - 1] = j + 1 + np.int64(np.floor((c - 1) * leap_per_block))
+            slots[2, k] = j + 1 + np.int64(np.floor((c - 1) * terms[terms.shape[0] - 1, k]))
             continue
         zyx[m, 0], zyx[m, 1], zyx[m, 2] = p[0], p[1], p[2]
         rays[m] = ray
         m += 1
     cursor[0], cursor[1] = kept, nxt
     return m
+
+
+def _axes(plan: SamplePlan) -> tuple[int, int, int]:
+    """The principal axis, then the other two in ascending order."""
+    kp = plan.principal_axis
+    return (kp, *(a for a in range(3) if a != kp))
+
+
+def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
+    """Per plan ray, the terms of its positions that do not depend on the step (formed
+    as :meth:`SamplePlan.position <hwsim.golden.positions.SamplePlan.position>` forms
+    them), then the steps it may leap per block of chessboard distance:
+    ``(c - 1) (block - 1e-6) / |delta|_inf``, never beyond the plan leap's
+    ``floor(((c - 1) block - 1e-6) / |delta|_inf)`` for any ``c >= 1``."""
+    kp, a_ax, b_ax = _axes(plan)
+    n = plan.ray_ids.size
+    delta = np.broadcast_to(plan._delta, (n, 3))
+    leap = (block - 1e-6) / np.max(np.abs(delta), axis=1)
+    if plan.kind == "shear-warp":
+        ids = plan.ray_ids
+        cols = [
+            ids // plan.shape[1] + plan.base_origin[0],
+            ids % plan.shape[1] + plan.base_origin[1],
+        ]
+    else:
+        o, d = plan._o, plan._d
+        cols = [
+            plan._q0,
+            plan._sign,
+            o[:, kp],
+            d[:, kp],
+            o[:, a_ax],
+            d[:, a_ax],
+            o[:, b_ax],
+            d[:, b_ax],
+        ]
+    return np.ascontiguousarray(np.stack([*cols, leap]), dtype=np.float64)
 
 
 def run_steps_compiled(
@@ -131,38 +186,36 @@ def run_steps_compiled(
     fills ``stopped`` as :meth:`models.functional._Functional._run_leapt` does and
     returns the samples simulated."""
     table = kernel.table(plan._dt)
-    has_samples = plan.j_lo <= plan.j_hi
-    join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
-    distance = np.ascontiguousarray(blocks.distance, dtype=np.int64)
-    reach = float(np.max(np.abs(plan._delta)))
-    # Steps per block of distance: (c - 1) * leap_per_block below SamplePlan.leap's
-    # floor(((c - 1) block - 1e-6) / reach) for every c >= 1 (so never farther).
-    leap_per_block = (blocks.block - 1e-6) / reach
-    axes = np.array([plan.principal_axis, *plan.other_axes], dtype=np.int64)
-    vol_hi = plan.n - 1.0
+    dt = plan._dt if np.isscalar(plan._dt) else float(plan._dt.flat[0])  # one value
     block_shift = int(blocks.block).bit_length() - 1
     if 1 << block_shift != blocks.block:
         raise ValueError(f"occupancy block {blocks.block} is not a power of two")
-    # The first sum of each position term, as SamplePlan.position forms it.
-    ids = plan.ray_ids
-    base_a = (ids // plan.shape[1] + plan.base_origin[0]).view(np.int64)
-    base_b = (ids % plan.shape[1] + plan.base_origin[1]).view(np.int64)
+    distance = np.ascontiguousarray(blocks.distance, dtype=np.int64)
+    has_samples = plan.j_lo <= plan.j_hi
+    join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
+    sheared = plan.kind == "shear-warp"
+    kind = _SHEAR_WARP if sheared else _SHEAR_IMAGE
+    q_of_step = plan.order if sheared else np.zeros(1)
+    offsets = plan.offsets if sheared else np.zeros((plan.n_steps, 2))
+    axes = np.array(_axes(plan), dtype=np.int64)
+    ray_cols = _ray_terms(plan, blocks.block)
     n = max(plan.ray_ids.size, 1)
-    slots = np.empty((5, n), dtype=np.int64)
+    slots = np.empty((3, n), dtype=np.int64)
+    terms = np.empty((ray_cols.shape[0], n))
     cursor = np.zeros(2, dtype=np.int64)
     zyx = np.empty((n, 3))
     rays = np.empty(n, dtype=np.int64)
     stops = kernel.ert_thr >= 0
+    ss = float(plan.scene.render.supersampling)
     simulated = 0
     for j in range(plan.n_steps):
         m = _step(
-            j, plan.order, plan.offsets, base_a, base_b, axes, plan.j_lo, plan.j_hi,
-            plan.ray_ids, join, cursor, slots, state.alive, distance, block_shift,
-            leap_per_block, vol_hi, zyx, rays,
+            j, kind, q_of_step, offsets, ss, axes, plan.ray_ids, ray_cols, plan.j_lo,
+            plan.j_hi, join, cursor, slots, terms, state.alive, distance, block_shift,
+            plan.n - 1.0, zyx, rays,
         )  # fmt: skip
         if m:
-            step = Step(rays[:m], zyx[:m], plan._dt)
-            kernel.run(step, None, state, table)
+            kernel.run(Step(rays[:m], zyx[:m], dt), None, state, table)
             simulated += m
             if stops:
                 kept = rays[:m]

@@ -338,11 +338,11 @@ def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
     np.testing.assert_array_equal(fast.image, ref.image)
     assert (fast.samples, fast.rays, fast.cycles) == (ref.samples, ref.rays, ref.cycles)
     assert fast.counters == ref.counters
-    # Shear-warp frames without masks take the compiled step walker, which skips
+    # Slice-order frames without masks take the compiled step walker, which skips
     # unoccupied blocks per sample (inside rays too): never more samples than the chain's
     # plan leap simulates.  Everything else walks the leapt plan, as the chain does.
-    sheared = resolve_arch(arch).order in ("shear-warp", "slice-parallel")
-    expect_walk = sheared and scene.crop is None and not scene.cut_planes
+    slices = resolve_arch(arch).order in ("shear-warp", "slice-parallel", "shear-image")
+    expect_walk = slices and scene.crop is None and not scene.cut_planes
     assert bool(walked) == expect_walk
     if walked:
         assert 0 < fast.simulated <= ref.simulated
