@@ -1,4 +1,4 @@
-"""The functional rung's compiled step walker for slice-order frames.
+"""The functional rung's compiled step walker.
 
 # Ref: Lacroute & Levoy, SIGGRAPH 1994 (shear-warp: one sample per base-plane pixel per
 #      slice); architectures.md section 3 (VolumePro 1000's shear-image order: rays
@@ -11,13 +11,13 @@
 :meth:`~hwsim.golden.positions.SamplePlan.leap`: NumPy calls per step for the active
 set, the positions and the chunks, and a leap march per frame.  On a 256^3 frame that
 bookkeeping costs as much as half the compiled composite stage.  Here one compiled call
-per step does it for a shear-warp or shear-image plan:
+per step does it for a shear-warp, shear-image or ray plan:
 
 * the *active set* is kept as in ``run_steps``: rays join at their ``j_lo``, leave after
   their ``j_hi`` or when early termination cleared their ``alive`` flag;
 * each active ray's position is the float expression of
   :meth:`SamplePlan.position <hwsim.golden.positions.SamplePlan.position>` for a
-  shear-warp or shear-image plan, term for term and in the same order (the terms
+  plan of that kind, term for term and in the same order (the terms
   that do not depend on the step formed once per ray), so the samples are the same
   floats (``tests/models/test_functional_fused.py`` compares the frames);
 * a sample whose block (:data:`~hwsim.golden.occupancy.BLOCK` voxels, position clamped to
@@ -32,8 +32,8 @@ visits (``samples``, touched rays) is recounted from the full plan by
 :func:`models.leap.visits`, as on the leapt path.
 
 **Scope.**  Frames the composite kernel runs (:func:`models.fused.eligible`) on a
-shear-warp or shear-image plan whose samples share a step length with a correction table
-(parallel views), without crop box or cut
+shear-warp, shear-image or ray plan whose samples share a step length with a correction
+table (parallel views; ray plans in perspective too), without crop box or cut
 planes (their masks stay in :meth:`models.backend.Backend.masks`): :func:`applies`.
 """
 
@@ -58,7 +58,7 @@ def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None
     return (
         kernel is not None
         and blocks is not None
-        and plan.kind in ("shear-warp", "shear-image")
+        and plan.kind in ("shear-warp", "shear-image", "ray")
         and scene.crop is None
         and not scene.cut_planes
         and kernel.table(plan._dt) is not None
@@ -66,13 +66,13 @@ def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None
 
 
 #: ``_step``'s plan kinds.
-_SHEAR_WARP, _SHEAR_IMAGE = 0, 1
+_SHEAR_WARP, _SHEAR_IMAGE, _RAY = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _step(
-    j, kind, q_of_step, offsets, ss, axes, ray_ids, ray_cols, j_lo, j_hi, join, cursor,
-    slots, terms, alive, distance, block_shift, vol_hi, zyx, rays,
+    j, kind, q_of_step, offsets, ss, k_min, dt, axes, ray_ids, ray_cols, j_lo, j_hi, join,
+    cursor, slots, terms, alive, distance, block_shift, vol_hi, zyx, rays,
 ):  # fmt: skip
     """Step ``j``'s kept samples into ``zyx`` and ``rays``; returns how many.
 
@@ -93,6 +93,7 @@ def _step(
     kp, a_ax, b_ax = axes[0], axes[1], axes[2]
     off_a, off_b = offsets[j, 0], offsets[j, 1]
     j_ss = np.float64(j) / ss
+    t_ray = np.float64(k_min + j) * dt
     p = np.empty(3)  # one sample's z, y, x
     kept = 0
     m = 0
@@ -114,6 +115,10 @@ def _step(
             p[kp] = q_of_step[j]
             p[a_ax] = terms[0, k] + off_a
             p[b_ax] = terms[1, k] + off_b
+        elif kind == _RAY:  # terms: o, then d (z, y, x)
+            p[0] = terms[0, k] + t_ray * terms[3, k]
+            p[1] = terms[1, k] + t_ray * terms[4, k]
+            p[2] = terms[2, k] + t_ray * terms[5, k]
         else:  # terms: q0, sign, o and d along kp, a, b
             q = terms[0, k] + terms[1, k] * j_ss
             along = (q - terms[2, k]) / terms[3, k]
@@ -137,8 +142,9 @@ def _step(
 
 
 def _axes(plan: SamplePlan) -> tuple[int, int, int]:
-    """The principal axis, then the other two in ascending order."""
-    kp = plan.principal_axis
+    """The principal axis, then the other two in ascending order (z, y, x for a ray
+    plan without one: its positions do not use them)."""
+    kp = 0 if plan.principal_axis is None else plan.principal_axis
     return (kp, *(a for a in range(3) if a != kp))
 
 
@@ -158,6 +164,9 @@ def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
             ids // plan.shape[1] + plan.base_origin[0],
             ids % plan.shape[1] + plan.base_origin[1],
         ]
+    elif plan.kind == "ray":
+        o, d = plan._o, np.broadcast_to(plan._d, (n, 3))
+        cols = [o[:, 0], o[:, 1], o[:, 2], d[:, 0], d[:, 1], d[:, 2]]
     else:
         o, d = plan._o, plan._d
         cols = [
@@ -194,7 +203,8 @@ def run_steps_compiled(
     has_samples = plan.j_lo <= plan.j_hi
     join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
     sheared = plan.kind == "shear-warp"
-    kind = _SHEAR_WARP if sheared else _SHEAR_IMAGE
+    kind = {"shear-warp": _SHEAR_WARP, "shear-image": _SHEAR_IMAGE, "ray": _RAY}[plan.kind]
+    k_min = int(getattr(plan, "k_min", 0))
     q_of_step = plan.order if sheared else np.zeros(1)
     offsets = plan.offsets if sheared else np.zeros((plan.n_steps, 2))
     axes = np.array(_axes(plan), dtype=np.int64)
@@ -210,9 +220,9 @@ def run_steps_compiled(
     simulated = 0
     for j in range(plan.n_steps):
         m = _step(
-            j, kind, q_of_step, offsets, ss, axes, plan.ray_ids, ray_cols, plan.j_lo,
-            plan.j_hi, join, cursor, slots, terms, state.alive, distance, block_shift,
-            plan.n - 1.0, zyx, rays,
+            j, kind, q_of_step, offsets, ss, k_min, dt, axes, plan.ray_ids, ray_cols,
+            plan.j_lo, plan.j_hi, join, cursor, slots, terms, state.alive, distance,
+            block_shift, plan.n - 1.0, zyx, rays,
         )  # fmt: skip
         if m:
             kernel.run(Step(rays[:m], zyx[:m], dt), None, state, table)

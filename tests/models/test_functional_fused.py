@@ -273,6 +273,17 @@ CASES = {
         _scene(cut_planes=CUT, render={"supersampling": 3.0}),
         {},
     ),
+    "vizard2-ert": ("vizard2", "head", _scene(az=40, el=25, render={"early_termination": 0.9}), {}),
+    "vizard2-perspective-unlit": (
+        "vizard2",
+        "head",
+        Scene(
+            transfer=TransferSpec(preset="ct"),
+            view=ViewSpec(azimuth=-30, elevation=10, width=40, height=40, projection="perspective"),
+            render=RenderSpec(lighting=False),
+        ),
+        {},
+    ),
     "nearest-even-narrow": (
         "volumepro500",
         "head",
@@ -338,11 +349,10 @@ def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
     np.testing.assert_array_equal(fast.image, ref.image)
     assert (fast.samples, fast.rays, fast.cycles) == (ref.samples, ref.rays, ref.cycles)
     assert fast.counters == ref.counters
-    # Slice-order frames without masks take the compiled step walker, which skips
+    # Frames without masks take the compiled step walker, which skips
     # unoccupied blocks per sample (inside rays too): never more samples than the chain's
     # plan leap simulates.  Everything else walks the leapt plan, as the chain does.
-    slices = resolve_arch(arch).order in ("shear-warp", "slice-parallel", "shear-image")
-    expect_walk = slices and scene.crop is None and not scene.cut_planes
+    expect_walk = scene.crop is None and not scene.cut_planes
     assert bool(walked) == expect_walk
     if walked:
         assert 0 < fast.simulated <= ref.simulated
