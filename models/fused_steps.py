@@ -39,7 +39,7 @@ planes (their masks stay in :meth:`models.backend.Backend.masks`): :func:`applie
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numba
 import numpy as np
@@ -49,7 +49,7 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.golden.steps import Step
 from models.backend import Backend, RayState
 
-__all__ = ["applies", "run_steps_compiled"]
+__all__ = ["applies", "plan_positions", "run_steps_compiled"]
 
 
 def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None) -> bool:
@@ -182,6 +182,53 @@ def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
     return np.ascontiguousarray(np.stack([*cols, leap]), dtype=np.float64)
 
 
+class _Walker:
+    """One plan's step walk: the static arguments of :func:`_step` and its buffers."""
+
+    def __init__(self, plan: SamplePlan, distance: np.ndarray, block: int) -> None:
+        block_shift = int(block).bit_length() - 1
+        if 1 << block_shift != block:
+            raise ValueError(f"occupancy block {block} is not a power of two")
+        sheared = plan.kind == "shear-warp"
+        has_samples = plan.j_lo <= plan.j_hi
+        join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
+        ray_cols = _ray_terms(plan, block)
+        n = max(plan.ray_ids.size, 1)
+        self.plan = plan
+        #: The step's samples: positions and ray ids (the first ``m`` rows).
+        self.zyx, self.rays = np.empty((n, 3)), np.empty(n, dtype=np.int64)
+        #: The step length (one value: ray plans read it for their positions).
+        self.dt = plan._dt if np.isscalar(plan._dt) else float(plan._dt.flat[0])
+        self._before = (
+            {"shear-warp": _SHEAR_WARP, "shear-image": _SHEAR_IMAGE, "ray": _RAY}[plan.kind],
+            plan.order if sheared else np.zeros(1),
+            plan.offsets if sheared else np.zeros((plan.n_steps, 2)),
+            float(plan.scene.render.supersampling),
+            int(getattr(plan, "k_min", 0)),
+            self.dt,
+            np.array(_axes(plan), dtype=np.int64),
+            plan.ray_ids,
+            ray_cols,
+            plan.j_lo,
+            plan.j_hi,
+            join,
+            np.zeros(2, dtype=np.int64),  # cursor
+            np.empty((3, n), dtype=np.int64),  # slots
+            np.empty((ray_cols.shape[0], n)),  # terms
+        )
+        self._after = (
+            np.ascontiguousarray(distance, dtype=np.int64),
+            block_shift,
+            plan.n - 1.0,
+            self.zyx,
+            self.rays,
+        )
+
+    def step(self, j: int, alive: np.ndarray) -> int:
+        """Step ``j``'s kept samples into :attr:`zyx` and :attr:`rays`; returns how many."""
+        return _step(j, *self._before, alive, *self._after)
+
+
 def run_steps_compiled(
     plan: SamplePlan,
     blocks: Occupancy,
@@ -195,41 +242,31 @@ def run_steps_compiled(
     fills ``stopped`` as :meth:`models.functional._Functional._run_leapt` does and
     returns the samples simulated."""
     table = kernel.table(plan._dt)
-    dt = plan._dt if np.isscalar(plan._dt) else float(plan._dt.flat[0])  # one value
-    block_shift = int(blocks.block).bit_length() - 1
-    if 1 << block_shift != blocks.block:
-        raise ValueError(f"occupancy block {blocks.block} is not a power of two")
-    distance = np.ascontiguousarray(blocks.distance, dtype=np.int64)
-    has_samples = plan.j_lo <= plan.j_hi
-    join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
-    sheared = plan.kind == "shear-warp"
-    kind = {"shear-warp": _SHEAR_WARP, "shear-image": _SHEAR_IMAGE, "ray": _RAY}[plan.kind]
-    k_min = int(getattr(plan, "k_min", 0))
-    q_of_step = plan.order if sheared else np.zeros(1)
-    offsets = plan.offsets if sheared else np.zeros((plan.n_steps, 2))
-    axes = np.array(_axes(plan), dtype=np.int64)
-    ray_cols = _ray_terms(plan, blocks.block)
-    n = max(plan.ray_ids.size, 1)
-    slots = np.empty((3, n), dtype=np.int64)
-    terms = np.empty((ray_cols.shape[0], n))
-    cursor = np.zeros(2, dtype=np.int64)
-    zyx = np.empty((n, 3))
-    rays = np.empty(n, dtype=np.int64)
+    walk = _Walker(plan, blocks.distance, blocks.block)
     stops = kernel.ert_thr >= 0
-    ss = float(plan.scene.render.supersampling)
     simulated = 0
     for j in range(plan.n_steps):
-        m = _step(
-            j, kind, q_of_step, offsets, ss, k_min, dt, axes, plan.ray_ids, ray_cols,
-            plan.j_lo, plan.j_hi, join, cursor, slots, terms, state.alive, distance,
-            block_shift, plan.n - 1.0, zyx, rays,
-        )  # fmt: skip
+        m = walk.step(j, state.alive)
         if m:
-            kernel.run(Step(rays[:m], zyx[:m], dt), None, state, table)
+            rays = walk.rays[:m]
+            kernel.run(Step(rays, walk.zyx[:m], walk.dt), None, state, table)
             simulated += m
             if stops:
-                kept = rays[:m]
-                stopped[kept[~state.alive[kept]]] = j
+                stopped[rays[~state.alive[rays]]] = j
         if progress is not None:
             progress(j + 1, plan.n_steps)
     return simulated
+
+
+def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray]]:
+    """``(j, zyx)`` for every step of ``plan`` with samples: the positions of all its
+    planned samples (no termination, no skipping), the same floats as
+    :meth:`SamplePlan.position <hwsim.golden.positions.SamplePlan.position>`, in an
+    order of the step's rays that is not the plan's.  ``zyx`` is reused between steps."""
+    # One block covering the volume (shift 62), occupied: nothing is skipped.
+    walk = _Walker(plan, np.zeros((1, 1, 1), dtype=np.int64), 1 << 62)
+    alive = np.ones(int(plan.ray_ids.max(initial=0)) + 1, dtype=bool)
+    for j in range(plan.n_steps):
+        m = walk.step(j, alive)
+        if m:
+            yield j, walk.zyx[:m]

@@ -44,6 +44,7 @@ from models.arch.machine import (
     CycleResult,
     buffer_table,
     cube4_buffers,
+    cube4_lanes,
     cube4_latency,
     elaborate_units,
     frame_result,
@@ -424,12 +425,8 @@ class Cube4Machine:
         return frame_result(self, image, state, cycles)
 
     def _lanes(self, source: HardwareSource) -> np.ndarray:
-        """Pipeline evaluating each sample: the module of its nearest voxel
-        (``cell + (fraction >= 1/2)``, clamped to the volume)."""
-        (ca, _, fa), (cb, _, fb) = source._cells
-        a = np.clip(ca + (fa >= 0.5), 0, self.n_a - 1)
-        b = np.clip(cb + (fb >= 0.5), 0, self.n_b - 1)
-        return (source.q + a + b) % self.P
+        """Pipeline evaluating each sample (:func:`~models.arch.machine.cube4_lanes`)."""
+        return cube4_lanes(source.q, source.pa, source.pb, self.n_a, self.n_b, self.P)
 
     def _hand_off(self, rays: np.ndarray, lanes: np.ndarray, prev_lane: np.ndarray, state) -> None:
         """Move accumulators to the pipeline of their ray's new sample (ring hand-off)."""

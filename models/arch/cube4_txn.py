@@ -39,10 +39,10 @@ from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
-from models.arch.machine import cube4_buffers, cube4_latency
+from models.arch.machine import cube4_buffers, cube4_lanes, cube4_latency
 from models.arch.pixel_bus_txn import PixelBus
 
-__all__ = ["Cube4Geometry", "Cube4Transaction", "slice_loads", "TxnTiming"]
+__all__ = ["Cube4Geometry", "Cube4Transaction", "busiest_lanes", "slice_loads", "TxnTiming"]
 
 
 @dataclass(frozen=True)
@@ -91,6 +91,24 @@ def slice_loads(plan: SamplePlan) -> tuple[np.ndarray, np.ndarray]:
     samples = np.cumsum(starts - stops)[:n]
     finishing = np.bincount(plan.j_hi, minlength=n)[:n]
     return samples.astype(np.int64), finishing.astype(np.int64)
+
+
+def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
+    """Samples of the busiest pipeline at each step of a shear-image (perspective) plan,
+    counted exactly with the cycle rung's lane rule
+    (:func:`~models.arch.machine.cube4_lanes`) over every planned sample's position
+    (:func:`models.fused_steps.plan_positions`, compiled)."""
+    from models import fused_steps  # imports numba: only for the frames that need it
+
+    kp = plan.principal_axis
+    a_ax, b_ax = (ax for ax in range(3) if ax != kp)
+    shape = plan.volume.shape
+    out = np.zeros(plan.n_steps, dtype=np.int64)
+    for j, zyx in fused_steps.plan_positions(plan):
+        q = int(zyx[0, kp])  # every sample of a step lies on its slice
+        lanes = cube4_lanes(q, zyx[:, a_ax], zyx[:, b_ax], shape[a_ax], shape[b_ax], pipelines)
+        out[j] = np.bincount(lanes, minlength=pipelines).max()
+    return out
 
 
 class Cube4Transaction:
@@ -144,6 +162,13 @@ class Cube4Transaction:
         start = time.perf_counter()
         geo, P, T = self.geo, self.geo.pipelines, self.geo.slice_cycles
         samples, finishing = slice_loads(self.plan)
+        if self.plan.kind == "shear-image":
+            # Rays are not one per voxel column: count each pipeline's samples.
+            busiest_of = busiest_lanes(self.plan, P)
+        else:
+            # One ray per base-plane pixel and slice: the skew spreads a slice's samples
+            # evenly, at most C per beam per pipeline, so no slice stretches.
+            busiest_of = -(-samples // P)
         env = simpy.Environment()
         slice_fifo = simpy.Store(env, capacity=1)
         bus = PixelBus(env, geo.pixel_fifo_depth, self.row_pixels)
@@ -158,7 +183,7 @@ class Cube4Transaction:
         def pipelines():
             for j in range(len(samples)):
                 yield slice_fifo.get()
-                busiest = -(-int(samples[j]) // P)
+                busiest = int(busiest_of[j])
                 stretch = max(0, busiest - T)
                 stats["stretch"] += stretch
                 yield env.timeout(T + geo.slice_overhead + stretch)

@@ -28,6 +28,7 @@ from models.units import skew as skew_unit
 
 __all__ = [
     "UNITS",
+    "cube4_lanes",
     "CycleResult",
     "cube4_buffers",
     "slab_buffers",
@@ -65,6 +66,21 @@ def cube4_latency(beam_cycles: int) -> int:
     """
     C = int(beam_cycles)
     return skew_unit.LATENCY + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
+
+
+def cube4_lanes(q: int, pa: np.ndarray, pb: np.ndarray, n_a: int, n_b: int, P: int) -> np.ndarray:
+    """The Cube-4 pipeline that evaluates each sample of slice ``q`` at in-slice index
+    positions ``(pa, pb)``: the memory module ``(q + a + b) mod P`` of its nearest voxel
+    (``cell + (fraction >= 1/2)``, clamped to the ``n_a x n_b`` slice).  A slice takes as
+    long as its busiest pipeline (timing rule 3 of docs/cycle.md).
+
+    # Ref: architectures.md section 1.1 (skewed memory, voxel (x, y, z) in module
+    #      (x + y + z) mod P).
+    """
+    ca, cb = np.floor(pa), np.floor(pb)
+    a = np.clip(ca.astype(np.int64) + (pa - ca >= 0.5), 0, n_a - 1)
+    b = np.clip(cb.astype(np.int64) + (pb - cb >= 0.5), 0, n_b - 1)
+    return (q + a + b) % P
 
 
 @dataclass
