@@ -13,17 +13,17 @@ voxels and clocks:
   slice FIFO (a :class:`simpy.Store`), which lets the memory run one slice ahead of the
   samples (the primed slice);
 * **pipelines**: take a slice, spend ``max(T, busiest lane)`` clocks on it plus the
-  machine's per-slice overhead, where the busiest lane is *estimated* as the slice's
-  sample count shared evenly over the P pipelines (the skew's balance, assumed rather
-  than traced per sample: the one approximation that moves cycle counts), then push the
-  rays that finished into the pixel FIFO (a :class:`simpy.Container`), waiting while it
-  is full;
+  machine's per-slice overhead, then push the rays that finished into the pixel FIFO (a
+  :class:`simpy.Container`), waiting while it is full.  On a shear-warp plan the skew
+  spreads a slice's samples evenly (``ceil(samples / P)``, never above ``T``); on a
+  shear-image (perspective) plan the busiest lane is counted over every planned sample's
+  position with the cycle rung's lane rule (:func:`busiest_lanes`);
 * **pixel bus**: drains the pixel FIFO one pixel per clock, in batches of at most one
   base-plane row.
 
 The frame ends when the last pixel has left and the pipeline latency (unit ``LATENCY``
 constants, the beam alignment and the gradient's look-ahead) has elapsed.  Sample and
-finishing-ray counts per slice come from the plan's ray ranges (no sample positions are computed).
+finishing-ray counts per slice come from the plan's ray ranges; no voxel is read.
 """
 
 from __future__ import annotations
