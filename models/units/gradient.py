@@ -69,18 +69,26 @@ class GradientConfig:
 
 
 def voxel_differences(raw: np.ndarray) -> list[np.ndarray]:
-    """Central differences at voxels, raveled, as ``[dx, dy, dz]`` (``2 h`` x derivative)."""
-    raw = np.asarray(raw, dtype=np.int64)
+    """Central differences at voxels, raveled, as ``[dx, dy, dz]`` (``2 h`` x derivative).
+
+    int32 when every voxel fits in 29 bits (then every difference, at most twice the
+    range, fits too: a quarter of the int64 bytes to write), else int64; exact either way.
+    """
+    raw = np.asarray(raw)
+    small = raw.size == 0 or (int(raw.min()) >= -(1 << 29) and int(raw.max()) < 1 << 29)
+    raw = raw.astype(np.int32 if small else np.int64, copy=False)
     out = []
     for axis in range(3):
-        d = np.zeros_like(raw)
         n = raw.shape[axis]
-        if n >= 2:
-            v = np.moveaxis(raw, axis, 0)
-            dv = np.moveaxis(d, axis, 0)
-            dv[1:-1] = v[2:] - v[:-2]
-            dv[0] = 2 * (v[1] - v[0])
-            dv[-1] = 2 * (v[-1] - v[-2])
+        if n < 2:
+            out.append(np.zeros(raw.size, dtype=raw.dtype))
+            continue
+        d = np.empty_like(raw)
+        v = np.moveaxis(raw, axis, 0)
+        dv = np.moveaxis(d, axis, 0)
+        np.subtract(v[2:], v[:-2], out=dv[1:-1])  # into place: no temporary
+        dv[0] = 2 * (v[1] - v[0])
+        dv[-1] = 2 * (v[-1] - v[-2])
         out.append(d.ravel())
     return out[::-1]
 
