@@ -258,15 +258,16 @@ def run_steps_compiled(
     return simulated
 
 
-def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray]]:
-    """``(j, zyx)`` for every step of ``plan`` with samples: the positions of all its
-    planned samples (no termination, no skipping), the same floats as
+def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+    """``(j, zyx, rays)`` for every step of ``plan`` with samples: the positions and ray
+    ids of all its planned samples (no termination, no skipping), the same floats as
     :meth:`SamplePlan.position <hwsim.golden.positions.SamplePlan.position>`, in an
-    order of the step's rays that is not the plan's.  ``zyx`` is reused between steps."""
+    order of the step's rays that is not the plan's.  Both arrays are reused between
+    steps."""
     # One block covering the volume (shift 62), occupied: nothing is skipped.
     walk = _Walker(plan, np.zeros((1, 1, 1), dtype=np.int64), 1 << 62)
     alive = np.ones(int(plan.ray_ids.max(initial=0)) + 1, dtype=bool)
     for j in range(plan.n_steps):
         m = walk.step(j, alive)
         if m:
-            yield j, walk.zyx[:m]
+            yield j, walk.zyx[:m], walk.rays[:m]

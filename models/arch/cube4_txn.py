@@ -104,7 +104,7 @@ def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
     shape = plan.volume.shape
     out = np.zeros(plan.n_steps, dtype=np.int64)
-    for j, zyx in fused_steps.plan_positions(plan):
+    for j, zyx, _ in fused_steps.plan_positions(plan):
         q = int(zyx[0, kp])  # every sample of a step lies on its slice
         lanes = cube4_lanes(q, zyx[:, a_ax], zyx[:, b_ax], shape[a_ax], shape[b_ax], pipelines)
         out[j] = np.bincount(lanes, minlength=pipelines).max()

@@ -130,14 +130,15 @@ def beam_skips(
     needed = np.zeros((-(-shape[kp] // 2), n_u, n_mb), dtype=bool)
     live_count = np.zeros(plan.n_steps, dtype=np.int64)
     cells = np.zeros((n_a, C * P), dtype=bool)
-    for j, step in enumerate(plan.steps()):
-        if not step.rays.size:
-            continue
-        ra = np.clip(np.floor(step.zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
-        rb = np.clip(np.floor(step.zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
+    from models import fused_steps  # imports numba: only for the frames that need it
+
+    # Every planned sample's position, step by step (compiled; the plan's own floats).
+    for j, zyx, rays in fused_steps.plan_positions(plan):
+        ra = np.clip(np.floor(zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
+        rb = np.clip(np.floor(zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
         known = live = None
         if stopped is not None:
-            last = stopped[step.rays]
+            last = stopped[rays]
             live = last >= j  # alive when the slice is processed
             if j >= lag:  # alive when the sequencer read the slab (a superset)
                 known = last > j - lag
