@@ -157,8 +157,7 @@ class _Functional:
             from models import fused  # imports numba: only when a frame may use it
 
             if fused.eligible(be):
-                raw_diffs = gradient_unit.voxel_differences(be.raw) if self._voxel_diffs else None
-                self.kernel = fused.CompositeKernel(be, raw_diffs)
+                self.kernel = fused.CompositeKernel(be, self._voxel_diffs)
 
     # Every array the unit chain's interpolator reads, promoted once per frame (int32 when
     # exact), when first needed: a frame that the compiled kernel runs reads none of them.

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import weakref
 
 import numba
 import numpy as np
@@ -300,6 +301,10 @@ def _narrowest(a: np.ndarray) -> np.ndarray:
     return a.astype(np.int64)
 
 
+#: Per-volume voxels (and voxel differences) in the kernel's layouts, by datapath voxel
+#: width and memory order; dropped with the volume.
+_DERIVED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
 #: Compiled kernels of this process, by configuration.
 _KERNELS: dict[tuple[int, ...] | None, object] = {}
 
@@ -327,9 +332,9 @@ def eligible(backend) -> bool:
 class CompositeKernel:
     """The per-frame constants of one back end, packed for the kernel."""
 
-    def __init__(self, backend, raw_diffs: list[np.ndarray] | None) -> None:
-        """``raw_diffs``: the voxel differences (``gradient.voxel_differences``) when the
-        gradient comes from voxels."""
+    def __init__(self, backend, voxel_diffs: bool) -> None:
+        """``voxel_diffs``: the gradient comes from voxels (the kernel then reads the
+        voxel differences, ``gradient.voxel_differences``)."""
         be, dp = backend, backend.dp
         self.backend = be
         # The raw voxels (and differences) in their narrowest integer type, promoted as
@@ -340,20 +345,31 @@ class CompositeKernel:
         shape = be.volume.shape
         axis = be.plan.principal_axis
         order = (2, 0, 1) if axis == 2 else (0, 1, 2)
-        self.vox = _narrowest(_laid_out(be.raw, shape, order))
+        # Kept per volume (as the golden renderer keeps its derived arrays): successive
+        # frames of one volume and datapath width lay the voxels out once per order.
+        derived = _DERIVED.setdefault(be.volume, {})
+        key = (dp.voxel_bits, order)
+        if key not in derived:
+            derived[key] = _narrowest(_laid_out(be.raw, shape, order))
+        self.vox = derived[key]
         self.shape = np.asarray(shape, dtype=np.int64)
         self.strides = _strides(shape, order)
         dz, dy, dx = (int(st) if n > 1 else 0 for st, n in zip(self.strides, shape, strict=True))
         self.offsets = np.array(
             [0, dx, dy, dx + dy, dz, dz + dx, dz + dy, dz + dy + dx], dtype=np.int64
         )  # interp.corner_offsets in this layout
-        diffs = (
-            [self.vox[:1]] * 3
-            if raw_diffs is None
-            else [_narrowest(_laid_out(d, shape, order)) for d in raw_diffs]
-        )
-        wide = np.result_type(*diffs)
-        self.dxyz = tuple(d.astype(wide, copy=False) for d in diffs)
+        if not voxel_diffs:
+            self.dxyz = (self.vox[:1],) * 3
+        else:
+            key = (dp.voxel_bits, order, "differences")
+            if key not in derived:
+                diffs = [
+                    _narrowest(_laid_out(d, shape, order))
+                    for d in gradient_unit.voxel_differences(be.raw)
+                ]
+                wide = np.result_type(*diffs)
+                derived[key] = tuple(d.astype(wide, copy=False) for d in diffs)
+            self.dxyz = derived[key]
         shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
         cfg = dp.composite
         self.config = (
