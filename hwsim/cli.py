@@ -65,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="rtl rung: HDL simulator (default verilator)",
     )
     r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
+    _add_max_memory(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
     sub.add_parser("scenes", help="list built-in scenes")
@@ -94,6 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
     t.add_argument("--size", metavar="N", type=int, default=64, help="phantom side (voxels)")
     t.add_argument("--out", metavar="DIR", required=True)
+    _add_max_memory(t)
     t.add_argument("--quiet", action="store_true")
     w = sub.add_parser("sweep", help="design-space sweep on Dask; rows in SQLite")
     w.add_argument("file", metavar="SWEEP.toml", help="sweep file (docs/sweeps.md)")
@@ -103,6 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--db", metavar="FILE", default="runs.db", help="SQLite file (runs.db)")
     w.add_argument("--out", metavar="DIR", help="also write each run's render folder here")
     w.add_argument("--retry-failed", action="store_true", help="rerun runs recorded as failed")
+    _add_max_memory(w)
     w.add_argument("--quiet", action="store_true")
     rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
     rp.add_argument(
@@ -126,6 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-size", metavar="N", type=int, default=256, help="skip scenarios above N^3 (256)"
     )
     f.add_argument("--out", metavar="DIR", required=True, help="writes figures.json/.csv/.md")
+    _add_max_memory(f)
     f.add_argument("--quiet", action="store_true")
     b = sub.add_parser("bench", help="speed of every rung and the goal ratios, as JSON")
     b.add_argument("--size", metavar="N", type=int, default=64, help="head phantom side (64)")
@@ -142,6 +146,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_max_memory(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--max-memory",
+        metavar="SIZE",
+        help="memory budget per process, e.g. 2G (default: half the available memory)",
+    )
+
+
 def _version() -> str:
     from hwsim import __version__
 
@@ -152,6 +164,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
+        if getattr(args, "max_memory", None) is not None:
+            from hwsim.budget import ENV_VAR, parse_size, set_memory_budget
+
+            set_memory_budget(parse_size(args.max_memory))
+            os.environ[ENV_VAR] = str(parse_size(args.max_memory))  # sweep workers inherit it
         return _COMMANDS[args.command](args)
     except InputError as exc:
         print(f"hwsim: error: {exc}", file=sys.stderr)
