@@ -15,7 +15,10 @@ from pathlib import Path
 
 from hwsim.errors import HwsimError, InputError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "DEFAULT_RENDER_OUT"]
+
+#: Where ``hwsim render`` writes without ``--out`` (the summary says when it replaced a render).
+DEFAULT_RENDER_OUT = "out/render"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -64,7 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("verilator", "icarus"),
         help="rtl rung: HDL simulator (default verilator)",
     )
-    r.add_argument("--out", metavar="DIR", default="out/render", help="output folder")
+    r.add_argument(
+        "--out", metavar="DIR", help=f"output folder (default {DEFAULT_RENDER_OUT}, replaced)"
+    )
     _add_max_memory(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
@@ -196,9 +201,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _cmd_render(args: argparse.Namespace) -> int:
     from hwsim.fidelity import render
     from hwsim.report import write_render
+    from hwsim.report.output import output_file, output_folder
     from hwsim.scene import load_scene
 
     scene = _apply_overrides(load_scene(args.scene), args)
+    out_dir = args.out if args.out is not None else DEFAULT_RENDER_OUT
+    replacing = args.out is None and (Path(out_dir) / "stats.json").is_file()
+    output_folder(out_dir)  # every output checked before the work starts
+    if args.trace:
+        output_file(args.trace, "--trace")
     with _progress_bar(args.quiet, "render") as progress:
         run = render(
             scene,
@@ -209,7 +220,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
             trace=args.trace,
             simulator=args.simulator,
         )
-    paths = write_render(run, args.out)
+    paths = write_render(run, out_dir)
     if not args.quiet:
         vol = run.volume
         print(
@@ -228,7 +239,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
                 f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
                 f"{run.samples / run.cycles:.2f} samples/cycle"
             )
-        print(f"  wrote {paths['png']}, {paths['npy'].name}, {paths['stats'].name}")
+        note = " (no --out given: replaced the previous render there)" if replacing else ""
+        print(f"  wrote {paths['png']}, {paths['npy'].name}, {paths['stats'].name}{note}")
     return 0
 
 
@@ -287,8 +299,10 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
+    from hwsim.report.output import output_folder
     from hwsim.report.report import write_report
 
+    output_folder(args.out)
     paths = write_report(args.runs, args.out)
     if not args.quiet:
         print(f"wrote {paths['md']} and {paths['html'].name}")

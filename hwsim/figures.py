@@ -288,9 +288,11 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
 def figures_command(args) -> int:
     """``hwsim figures``: measure, write the three files, print the table."""
     from hwsim.fidelity import builtin_archs, resolve_arch
+    from hwsim.report.output import output_folder
 
     if args.max_size < 1:
         raise InputError(f"invalid {args.max_size}", key="--max-size", allowed=">= 1")
+    output_folder(args.out)
     if args.arch:
         archs = [resolve_arch(a) for a in args.arch]
     else:

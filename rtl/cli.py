@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from hwsim.errors import InputError
 
@@ -42,6 +41,7 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace, progress=None) -> int:
     """Build the requested units; print one line per unit."""
+    from hwsim.paths import output_folder
     from rtl.build import TARGETS, UNITS, build, parse_settings
 
     if args.unit != "all" and args.unit not in TARGETS:
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace, progress=None) -> int:
                 key=unit,
                 allowed=", ".join(units),
             )
-    out = Path(args.out)
+    out = output_folder(args.out)
     report = build(units, out, settings, synth=not args.no_synth, abc=args.abc, progress=progress)
     if not args.quiet:
         for unit, entry in report["units"].items():

@@ -19,6 +19,7 @@ import numpy as np
 
 from hwsim import __version__
 from hwsim.errors import InputError
+from hwsim.paths import output_file, output_folder
 
 if TYPE_CHECKING:
     from hwsim.fidelity import RenderRun
@@ -30,6 +31,7 @@ __all__ = [
     "write_render",
     "image_to_rgb8",
     "output_folder",
+    "output_file",
 ]
 
 STATS_SCHEMA = 1
@@ -96,18 +98,6 @@ def image_to_rgb8(image: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
     scaled = (image - lo) / (hi - lo) if hi > lo else np.zeros_like(image)
     grey = np.round(scaled * 255.0).astype(np.uint8)
     return np.repeat(grey[..., None], 3, axis=2), {"display": "grey", "window": [lo, hi]}
-
-
-def output_folder(out_dir: str | Path) -> Path:
-    """Create ``out_dir`` (bad input, exit 2, if it cannot be created)."""
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(
-            f"cannot create output folder: {exc.strerror}", source=str(out), key="--out"
-        ) from None
-    return out
 
 
 def _atomic_write(path: Path, write) -> None:

@@ -14,6 +14,7 @@ __all__ = ["sweep_command"]
 
 def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the sweep the parsed ``args`` describe; exit status 1 if any run failed."""
+    from hwsim.report.output import output_file, output_folder
     from hwsim.sweep.db import RunsDB
     from hwsim.sweep.runner import connect, local_client, run_sweep
     from hwsim.sweep.spec import load_sweep
@@ -21,6 +22,9 @@ def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     if not 1 <= args.workers <= 256:
         raise InputError(f"{args.workers} is out of range", key="--workers", allowed="1 .. 256")
     sweep = load_sweep(args.file)
+    output_file(args.db, "--db")
+    if args.out:
+        output_folder(args.out)
     with contextlib.ExitStack() as stack:
         db = stack.enter_context(RunsDB(args.db))
         if args.retry_failed:
