@@ -7,7 +7,12 @@ internal fault (exit status 1).
 
 from __future__ import annotations
 
-__all__ = ["HwsimError", "InputError", "NotAvailableError"]
+import sys
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+__all__ = ["HwsimError", "InputError", "NotAvailableError", "warn_user", "one_line_warnings"]
 
 
 class HwsimError(Exception):
@@ -53,3 +58,21 @@ class InputError(HwsimError):
 
 class NotAvailableError(InputError):
     """A feature the user asked for that this build does not have yet (exit status 2)."""
+
+
+def warn_user(source: str, message: str) -> None:
+    """Tell the user something worth knowing about their input, as one stderr line."""
+    text = " ".join(str(message).split())
+    print(f"hwsim: warning: {source}: {text}", file=sys.stderr)
+
+
+@contextmanager
+def one_line_warnings(source: str) -> Iterator[None]:
+    """Catch the warnings a library (NumPy, nibabel, pydicom) raises while reading
+    ``source`` and pass each on once as a :func:`warn_user` line, never as a Python
+    source line on stderr."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    for message in dict.fromkeys(str(w.message) for w in caught):
+        warn_user(source, message)

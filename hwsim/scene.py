@@ -327,7 +327,7 @@ def _volume(t: Table) -> VolumeSpec:
     shape = t.raw("shape", None)
     if shape is not None:
         shape = tuple(int(v) for v in t.vector("shape", 3, lo=1))
-    spacing = t.vector("spacing", 3, lo=1e-9) if t.has("spacing") else None
+    spacing = t.vector("spacing", 3, lo=1e-6, hi=1e6) if t.has("spacing") else None
     spec = VolumeSpec(
         path=t.string("path") if t.has("path") else None,
         phantom=t.string("phantom") if t.has("phantom") else None,

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.budget import require_fits
 from hwsim.errors import InputError
 from hwsim.volumes.readers import make_volume
 from hwsim.volumes.volume import Volume
@@ -61,6 +62,15 @@ def read_dicom_series(folder: Path) -> Volume:
     _check_consistent(slices)
     slices, positions, how = _sort(slices)
     first = slices[0][1]
+    rows, cols = int(first.get("Rows", 0) or 0), int(first.get("Columns", 0) or 0)
+    # the stacked planes, then the rescaled copy: two float64-sized arrays at most
+    require_fits(
+        2 * 8 * len(slices) * rows * cols,
+        what=f"DICOM series {len(slices)}x{rows}x{cols}",
+        source=str(folder),
+        key="Rows/Columns",
+    )
+    _check_regular(folder, positions)
     planes, slopes, inters = [], [], []
     for path, ds in slices:
         try:
@@ -95,6 +105,32 @@ def read_dicom_series(folder: Path) -> Volume:
         bits=meta["bits_stored"],
         meta=meta,
     )
+
+
+#: Largest departure of a slice distance from the median, as a share of the median, that
+#: is still one regular spacing (scanners round positions to about 1e-3 mm).
+SLICE_TOLERANCE = 0.01
+
+
+def _check_regular(folder: Path, positions: np.ndarray) -> None:
+    """Refuse a series whose slices are not evenly spaced (gaps, tilted or mixed stacks).
+
+    Rendering it at the median distance would place slices at wrong depths in silence.
+    """
+    if len(positions) < 3:
+        return
+    steps = np.diff(positions)
+    median = float(np.median(steps))
+    worst = float(np.max(np.abs(steps - median)))
+    if median <= 0 or worst > SLICE_TOLERANCE * median:
+        raise InputError(
+            f"slice positions are not evenly spaced: distances {steps.min():g} .. "
+            f"{steps.max():g} mm around a median of {median:g} mm",
+            source=str(folder),
+            key="ImagePositionPatient",
+            allowed=f"every distance within {SLICE_TOLERANCE:.0%} of the median "
+            "(resample the series first)",
+        )
 
 
 def _check_consistent(slices: list[tuple[Path, Any]]) -> None:

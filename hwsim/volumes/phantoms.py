@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.budget import require_fits
 from hwsim.errors import InputError
 from hwsim.volumes.volume import Volume
 
@@ -337,6 +338,9 @@ def make_phantom(name: str, **params: Any) -> Volume:
                 f"unknown parameter {key!r}", source=source, key=key, allowed=", ".join(info.params)
             )
         values[key] = info.params[key].check(value, source, key)
+    if "size" in values:  # built in float64, then converted: two copies at most
+        n = int(values["size"])
+        require_fits(16 * n**3, what=f"phantom {n}^3", source=source, key="size")
     return info.build(source, **values)  # type: ignore[misc]
 
 

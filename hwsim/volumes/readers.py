@@ -9,14 +9,18 @@ only when that is lossless; anything a user can get wrong raises
 
 from __future__ import annotations
 
+import bz2
 import dataclasses
 import gzip
+import os
+import zlib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.budget import require_fits
+from hwsim.errors import InputError, one_line_warnings
 from hwsim.scene import VolumeSpec
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume
 
@@ -97,6 +101,14 @@ def read_volume(
     src = str(path)
     if not path.exists():
         raise InputError("file not found", source=src)
+    with one_line_warnings(src):
+        volume = _read_kind(path, src, shape, dtype, byte_order, header_bytes)
+    if spacing is not None:
+        volume = dataclasses.replace(volume, spacing=tuple(float(s) for s in spacing))
+    return volume
+
+
+def _read_kind(path, src, shape, dtype, byte_order, header_bytes) -> Volume:
     kind = _kind(path)
     if kind != ".raw" and (shape is not None or dtype is not None or header_bytes):
         raise InputError(
@@ -114,8 +126,6 @@ def read_volume(
         from hwsim.volumes.dicom import read_dicom_series
 
         volume = read_dicom_series(path)
-    if spacing is not None:
-        volume = dataclasses.replace(volume, spacing=tuple(float(s) for s in spacing))
     return volume
 
 
@@ -250,7 +260,50 @@ def make_volume(
 # ------------------------------------------------------------------------ formats
 
 
+def declare(shape, dtype: np.dtype, source: str, key: str = "shape") -> int:
+    """Bytes a header declares for ``shape`` of ``dtype``, refused before any allocation
+    when an axis is not a positive integer or the data would not fit the memory budget.
+
+    Conversions to a supported type may need a second copy, so twice the bytes are asked.
+    """
+    dims = [int(n) for n in shape]
+    if any(n < 1 for n in dims) or len(dims) == 0:
+        raise InputError(
+            f"axis of length zero in shape {tuple(dims)}",
+            source=source,
+            key=key,
+            allowed="every axis >= 1",
+        )
+    nbytes = int(np.prod(dims, dtype=object)) * int(dtype.itemsize)
+    require_fits(2 * nbytes, what=f"voxel data {'x'.join(map(str, dims))} {dtype}", source=source)
+    return nbytes
+
+
 def _read_npy(path: Path) -> Volume:
+    src = str(path)
+    try:
+        with open(path, "rb") as fh:
+            version = np.lib.format.read_magic(fh)
+            read_header = (
+                np.lib.format.read_array_header_1_0
+                if version == (1, 0)
+                else np.lib.format.read_array_header_2_0
+            )
+            shape, _, dtype = read_header(fh, max_header_size=1 << 16)
+            offset = fh.tell()
+    except (ValueError, OSError, EOFError, SyntaxError) as exc:
+        raise InputError(f"cannot read .npy header: {exc}", source=src) from None
+    if dtype.hasobject:
+        raise InputError("holds Python objects", source=src, key="dtype", allowed="numbers")
+    nbytes = declare(shape, dtype, src) if shape else dtype.itemsize
+    actual = path.stat().st_size - offset
+    if actual != nbytes:
+        raise InputError(
+            f"holds {actual} data bytes but its header declares {nbytes}",
+            source=src,
+            key="shape",
+            allowed=f"exactly {nbytes} bytes",
+        )
     try:
         data = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError) as exc:
@@ -260,28 +313,154 @@ def _read_npy(path: Path) -> Volume:
     return make_volume(data, str(path), name=_stem(path))
 
 
+#: Compressed NRRD encodings, inflated in bounded chunks by :func:`_inflate`.
+_DECOMPRESSORS = {
+    "gzip": lambda: zlib.decompressobj(zlib.MAX_WBITS | 32),
+    "gz": lambda: zlib.decompressobj(zlib.MAX_WBITS | 32),
+    "bzip2": bz2.BZ2Decompressor,
+    "bz2": bz2.BZ2Decompressor,
+}
+_CHUNK = 1 << 20
+
+
 def _read_nrrd(path: Path) -> Volume:
+    """NRRD with attached or detached data, raw, ASCII, gzip or bzip2 encoded.
+
+    The header is read first: the declared shape x type must fit the memory budget, a
+    raw payload must be as long as declared, and a compressed one is inflated in 1 MiB
+    chunks into a buffer of the declared size and refused the moment it runs past it.
+    """
     import nrrd
 
     src = str(path)
     try:
-        data, header = nrrd.read(src, index_order="C")
-    except (nrrd.NRRDError, OSError, ValueError, EOFError, gzip.BadGzipFile) as exc:
+        with open(path, "rb") as fh:
+            header = nrrd.read_header(fh)
+            dtype = nrrd.reader._determine_datatype(header)
+            nbytes = declare(header["sizes"], dtype, src, key="sizes")
+            data = _nrrd_payload(path, fh, header, dtype, nbytes)
+    except (nrrd.NRRDError, OSError, ValueError, EOFError, KeyError, TypeError) as exc:
         raise InputError(f"cannot read NRRD: {exc}", source=src) from None
-    except Exception as exc:  # zlib/bz2 errors from corrupt compressed data
-        raise InputError(f"cannot read NRRD: {type(exc).__name__}: {exc}", source=src) from None
-    spacing = np.ones(data.ndim)
-    if "spacings" in header:
-        spacing = np.asarray(header["spacings"], dtype=np.float64)
-    elif "space directions" in header:
-        dirs = np.asarray(header["space directions"], dtype=np.float64)
-        spacing = np.linalg.norm(dirs, axis=1)
-    spacing = np.where(np.isfinite(spacing) & (spacing > 0), spacing, 1.0)[::-1]
+    data = data.reshape(tuple(int(n) for n in header["sizes"][::-1]))
+    spacing = _nrrd_spacing(header, src)
     if data.ndim != 3:
         spacing = np.ones(3)  # make_volume refuses the shape with a clear message
     units = "HU" if "hounsfield" in str(header.get("content", "")).lower() else ""
     meta = {"nrrd_header": {k: str(v) for k, v in header.items()}}
     return make_volume(data, src, spacing=tuple(spacing), name=_stem(path), units=units, meta=meta)
+
+
+def _nrrd_payload(path: Path, fh, header: dict, dtype: np.dtype, nbytes: int) -> np.ndarray:
+    """The flat voxel array of a NRRD whose header ``fh`` has just been read."""
+    import nrrd
+
+    encoding = str(header.get("encoding", "raw")).lower()
+    skip = int(header.get("byte skip", header.get("byteskip", 0)))
+    lines = int(header.get("line skip", header.get("lineskip", 0)))
+    detached = header.get("data file", header.get("datafile"))
+    if encoding in ("ascii", "text", "txt") or not isinstance(detached, (str, type(None))):
+        fh.seek(0)  # text and multi-file data: pynrrd, now that the size is known to fit
+        return np.ravel(nrrd.read_data(header, fh, str(path), index_order="C"))
+    if encoding != "raw" and encoding not in _DECOMPRESSORS:
+        raise InputError(
+            f"unknown encoding {encoding!r}",
+            source=str(path),
+            key="encoding",
+            allowed="raw, ascii, gzip, bzip2",
+        )
+    if detached is not None:
+        data_path = Path(detached) if os.path.isabs(detached) else path.parent / detached
+        if not data_path.is_file():
+            raise InputError("data file not found", source=str(data_path), key="data file")
+        fh = open(data_path, "rb")
+    try:
+        for _ in range(lines):
+            fh.readline()
+        if encoding == "raw":
+            if skip == -1:
+                fh.seek(-nbytes, os.SEEK_END)
+            else:
+                fh.seek(skip, os.SEEK_CUR)
+            held = os.fstat(fh.fileno()).st_size - fh.tell()
+            if held != nbytes:
+                raise _size_error(path, held, nbytes)
+            payload = fh.read(nbytes)
+        else:
+            if skip < 0:
+                raise InputError(
+                    "byte skip -1 with compressed data", source=str(path), key="byte skip"
+                )
+            payload = _inflate(fh, _DECOMPRESSORS[encoding](), skip, nbytes, path)
+    finally:
+        if detached is not None:
+            fh.close()
+    return np.frombuffer(payload, dtype=dtype)
+
+
+def _inflate(fh, decompressor, skip: int, nbytes: int, path: Path) -> bytearray:
+    """Inflate ``fh`` into exactly ``skip + nbytes`` bytes; any more or less is refused.
+
+    Output is asked for at most one byte past what is wanted at a time, so a stream that
+    would inflate to gigabytes stops after ``skip + nbytes + 1`` bytes.
+    """
+    want = skip + nbytes
+    out = bytearray()
+    pending = b""
+    bz = isinstance(decompressor, bz2.BZ2Decompressor)
+    try:
+        while not decompressor.eof:
+            if bz and not decompressor.needs_input:
+                pending = b""  # output held back by max_length: drain it first
+            elif not pending:
+                pending = fh.read(_CHUNK)
+                if not pending:
+                    break
+            out += decompressor.decompress(pending, max_length=want + 1 - len(out))
+            pending = b"" if bz else decompressor.unconsumed_tail
+            if len(out) > want:
+                raise _size_error(path, None, nbytes)
+    except (zlib.error, OSError, EOFError) as exc:
+        raise InputError(f"damaged compressed data: {exc}", source=str(path)) from None
+    if len(out) != want:
+        raise _size_error(path, len(out) - skip, nbytes)
+    return out[skip:]
+
+
+def _size_error(path: Path, actual: int | None, nbytes: int) -> InputError:
+    held = f"more than {nbytes}" if actual is None else str(actual)
+    return InputError(
+        f"NRRD data holds {held} bytes but the header declares {nbytes}",
+        source=str(path),
+        key="sizes",
+        allowed=f"exactly {nbytes} bytes",
+    )
+
+
+def _nrrd_spacing(header: dict, src: str) -> np.ndarray:
+    """``(z, y, x)`` spacing from ``spacings`` or the ``space directions`` vector lengths.
+
+    A negative spacing is a flipped axis: its magnitude is the voxel size.  Zero or
+    non-finite spacings are refused (an axis without a spacing, ``nan`` in pynrrd,
+    defaults to 1.0).
+    """
+    ndim = len(header["sizes"])
+    if "spacings" in header:
+        spacing = np.abs(np.asarray(header["spacings"], dtype=np.float64))
+        key = "spacings"
+    elif "space directions" in header:
+        dirs = np.asarray(header["space directions"], dtype=np.float64).reshape(ndim, -1)
+        spacing = np.linalg.norm(dirs, axis=1)
+        key = "space directions"
+    else:
+        return np.ones(3)
+    if ndim == 3 and ((spacing == 0) | np.isinf(spacing)).any():
+        raise InputError(
+            f"spacing {spacing.tolist()} has a zero or infinite axis",
+            source=src,
+            key=key,
+            allowed="finite numbers > 0",
+        )
+    return np.where(np.isnan(spacing), 1.0, spacing)[::-1]
 
 
 def _read_raw(
@@ -322,7 +501,7 @@ def _read_raw(
             allowed=", ".join(str(d) for d in SUPPORTED_DTYPES),
         )
     dt = base.newbyteorder("<" if byte_order == "little" else ">")
-    expected = header_bytes + int(np.prod(shape, dtype=np.int64)) * dt.itemsize
+    expected = header_bytes + declare(shape, dt, src)
     actual = path.stat().st_size
     if actual != expected:
         raise InputError(
@@ -348,15 +527,19 @@ def _read_nifti(path: Path) -> Volume:
 
     src = str(path)
     try:
-        image = nib.load(src)
+        image = nib.load(src)  # the header only: the data stays on disk behind a proxy
         proxy = image.dataobj
-        raw = np.asarray(proxy.get_unscaled())
+        shape, dtype = tuple(int(n) for n in proxy.shape), np.dtype(proxy.dtype)
         slope, inter = float(proxy.slope), float(proxy.inter)
         zooms = [float(z) for z in image.header.get_zooms()]
         offset = int(proxy.offset)
     except Exception as exc:  # nibabel raises many types for damaged files
         raise InputError(f"cannot read NIfTI: {type(exc).__name__}: {exc}", source=src) from None
-    _check_nifti_size(path, offset + raw.nbytes)
+    _check_nifti_size(path, offset + declare(shape, dtype, src, key="dim"))
+    try:
+        raw = np.asarray(proxy.get_unscaled())
+    except Exception as exc:
+        raise InputError(f"cannot read NIfTI: {type(exc).__name__}: {exc}", source=src) from None
     if raw.ndim == 4 and raw.shape[3] == 1:
         raw = raw[..., 0]
     elif raw.ndim == 4:
@@ -388,16 +571,17 @@ def _check_nifti_size(path: Path, expected: int) -> None:
     if path.name.lower().endswith(".gz"):
         actual = 0
         try:
-            with gzip.open(path, "rb") as fh:
-                while chunk := fh.read(1 << 24):
+            with gzip.open(path, "rb") as fh:  # streamed, and stopped past the declared size
+                while actual <= expected and (chunk := fh.read(1 << 24)):
                     actual += len(chunk)
-        except (OSError, EOFError) as exc:
+        except (OSError, EOFError, zlib.error) as exc:
             raise InputError(f"damaged gzip stream: {exc}", source=str(path)) from None
     else:
         actual = path.stat().st_size
     if actual != expected:
+        held = f"more than {expected}" if actual > expected else str(actual)
         raise InputError(
-            f"file holds {actual} bytes but its header describes {expected}",
+            f"file holds {held} bytes but its header describes {expected}",
             source=str(path),
             key="size",
             allowed=f"exactly {expected} bytes",

@@ -13,7 +13,16 @@ import numpy as np
 
 from hwsim.errors import InputError
 
-__all__ = ["Volume", "SUPPORTED_DTYPES"]
+__all__ = ["Volume", "SUPPORTED_DTYPES", "SPACING_RANGE", "MAX_ANISOTROPY"]
+
+#: Voxel spacings a volume may have (world units, millimetres for medical data): wide
+#: enough for microscopy and geology, narrow enough that 1e-300 or 1e300 (a corrupt
+#: header) is refused instead of overflowing the sample plans.
+SPACING_RANGE = (1e-6, 1e6)
+#: Largest ratio of the largest to the smallest spacing.  Rays are sampled in units of
+#: the smallest spacing, so a ratio of r multiplies the samples along the other axes by
+#: r; clinical scans stay below about 20.
+MAX_ANISOTROPY = 1000.0
 
 #: Voxel types a volume may hold.  Integer data keeps its type; ``bits`` says how many of
 #: its bits are significant (8, 12 or 16 for the hardware's voxel formats).
@@ -82,12 +91,20 @@ class Volume:
                 f"{bad} voxels are NaN or Inf", source=where, key="data", allowed="finite values"
             )
         spacing = tuple(float(s) for s in self.spacing)
-        if len(spacing) != 3 or not all(np.isfinite(s) and s > 0 for s in spacing):
+        lo, hi = SPACING_RANGE
+        if len(spacing) != 3 or not all(np.isfinite(s) and lo <= s <= hi for s in spacing):
             raise InputError(
-                f"spacing {self.spacing} is invalid",
+                f"spacing {self.spacing} is out of range",
                 source=where,
                 key="spacing",
-                allowed="three finite numbers > 0",
+                allowed=f"three numbers in {lo:g} .. {hi:g}",
+            )
+        if max(spacing) / min(spacing) > MAX_ANISOTROPY:
+            raise InputError(
+                f"spacing {spacing} is {max(spacing) / min(spacing):.3g}x anisotropic",
+                source=where,
+                key="spacing",
+                allowed=f"largest / smallest <= {MAX_ANISOTROPY:g}",
             )
         object.__setattr__(self, "spacing", spacing)
         # Renderers cache arrays derived from a volume (float copy, gradients), so its data
