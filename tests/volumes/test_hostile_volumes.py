@@ -165,7 +165,7 @@ def test_dicom_series_with_a_gap_is_refused(tmp_path, capsys):
     assert "not evenly spaced" in err and "ImagePositionPatient" in err and err.count("\n") == 1
 
 
-def test_lying_headers_stay_far_below_1_gib(corpus):
+def test_lying_headers_stay_far_below_1_gib(corpus, tmp_path):
     """Peak memory of a child reading every lying header: a resource check, not a timing."""
     lying = [
         str(p)
@@ -175,10 +175,13 @@ def test_lying_headers_stay_far_below_1_gib(corpus):
     assert len(lying) == 4
     script = (
         "import sys\nfrom hwsim.cli import main\n"
-        "for p in sys.argv[1:]:\n"
-        "    assert main(['render', '--volume', p, '--out', '/nonexistent-dir/x', '--quiet']) == 2\n"
+        "for p in sys.argv[2:]:\n"
+        "    argv = ['render', '--volume', p, '--out', sys.argv[1], '--quiet']\n"
+        "    assert main(argv) == 2\n"
     )
-    done = subprocess.run([sys.executable, "-c", script, *lying], capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path / "o"), *lying], capture_output=True, text=True
+    )
     assert done.returncode == 0, done.stderr
     peak_kib = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     assert peak_kib * 1024 < GiB // 2, f"peak {peak_kib / 1024:.0f} MiB"
