@@ -27,6 +27,9 @@ __all__ = [
     "parse_size",
     "require_fits",
     "set_memory_budget",
+    "sample_budget",
+    "SAMPLE_ENV_VAR",
+    "DEFAULT_MAX_SAMPLES",
 ]
 
 #: Share of the available memory one run may plan to use when no budget is given: the
@@ -36,6 +39,11 @@ DEFAULT_FRACTION = 0.5
 #: What is assumed available when the operating system does not say (4 GiB).
 FALLBACK_AVAILABLE = 4 << 30
 ENV_VAR = "HWSIM_MAX_MEMORY"
+#: Most samples one frame may plan before it is refused (about an hour of the golden
+#: renderer, 5-10 minutes of the functional rung): a scene that asks for more is almost
+#: always a typo (a sample spacing of 1e-4, a 1e6 supersampling).
+DEFAULT_MAX_SAMPLES = 10**10
+SAMPLE_ENV_VAR = "HWSIM_MAX_SAMPLES"
 
 _SUFFIX = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 _SIZE = re.compile(r"^\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)(?:i?b)?\s*$", re.IGNORECASE)
@@ -127,3 +135,17 @@ def require_fits(nbytes: float, *, what: str, source: str | None = None, key: st
             source=source,
             key=key,
         )
+
+
+def sample_budget() -> int:
+    """Most samples one frame may plan: ``HWSIM_MAX_SAMPLES`` or :data:`DEFAULT_MAX_SAMPLES`."""
+    env = os.environ.get(SAMPLE_ENV_VAR)
+    if not env:
+        return DEFAULT_MAX_SAMPLES
+    try:
+        value = int(float(env))
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise InputError(f"{env!r} is not a positive count", key=SAMPLE_ENV_VAR, allowed=">= 1")
+    return value

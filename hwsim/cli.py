@@ -374,11 +374,13 @@ def _apply_overrides(scene, args: argparse.Namespace):
     from hwsim.scene import MAX_IMAGE, VolumeSpec
     from hwsim.volumes import parse_phantom_spec
 
-    if args.volume:
-        shape = _ints(args.shape, "--shape", 3) if args.shape else None
+    if args.volume is not None:
+        if not args.volume.strip():
+            raise InputError("empty path", key="--volume", allowed="a volume file or DICOM folder")
+        shape = _ints(args.shape, "--shape", 3) if args.shape is not None else None
         spec = VolumeSpec(path=str(Path(args.volume).resolve()), shape=shape, dtype=args.dtype)
         scene = scene.replace(volume=spec)
-    elif args.shape or args.dtype:
+    elif args.shape is not None or args.dtype is not None:
         raise InputError("only valid with --volume FILE.raw", key="--shape/--dtype")
     if args.phantom:
         name, params = parse_phantom_spec(args.phantom)
@@ -386,7 +388,7 @@ def _apply_overrides(scene, args: argparse.Namespace):
     render_spec, view = scene.render, scene.view
     if args.mode:
         render_spec = dataclasses.replace(render_spec, mode=args.mode)
-    if args.view:
+    if args.view is not None:
         parts = args.view.split(",")
         if len(parts) != 2:
             raise InputError(
@@ -395,7 +397,7 @@ def _apply_overrides(scene, args: argparse.Namespace):
         az = check_number(_float(parts[0], "--view"), "--view", "azimuth", -360, 360)
         el = check_number(_float(parts[1], "--view"), "--view", "elevation", -90, 90)
         view = dataclasses.replace(view, azimuth=az, elevation=el)
-    if args.image:
+    if args.image is not None:
         text = args.image.lower()
         w, h = text.split("x", 1) if "x" in text else (text, text)
         width = _int_in(w, "--image", 1, MAX_IMAGE)

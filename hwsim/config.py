@@ -36,6 +36,10 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"malformed TOML: {exc}", source=str(path)) from None
+    except RecursionError:  # tomllib recurses once per nesting level
+        raise InputError(
+            "nested too deeply", source=str(path), allowed="a few levels of tables and arrays"
+        ) from None
 
 
 class Table:

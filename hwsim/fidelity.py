@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.arch import ArchConfig, load_arch_file
+from hwsim.budget import SAMPLE_ENV_VAR, require_fits, sample_budget
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.scene import Scene
 from hwsim.scene_features import check_machine
@@ -150,6 +151,34 @@ def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
     return used, [s for s in _UNITS if not needs[s]]
 
 
+#: Bytes the renderers hold per image pixel (ray state, colour and opacity, positions;
+#: the golden rung measured about 450) and per voxel (the derived float copies and
+#: gradients the renderers cache per volume).
+BYTES_PER_PIXEL = 512
+BYTES_PER_VOXEL = 48
+
+
+def check_work(scene: Scene, volume: Volume) -> None:
+    """Refuse, before any work, a frame whose samples or memory exceed the budgets.
+
+    Samples are bounded by ``pixels x (volume diagonal / sample step + 1)``; memory by
+    :data:`BYTES_PER_PIXEL` per pixel plus :data:`BYTES_PER_VOXEL` per voxel.
+    """
+    pixels = scene.view.width * scene.view.height
+    step = scene.render.step * min(volume.spacing)
+    per_ray = int(np.ceil(float(np.linalg.norm(volume.extent)) / step)) + 1
+    samples = pixels * per_ray
+    if samples > sample_budget():
+        raise InputError(
+            f"the frame would plan up to {samples:.3g} samples ({pixels} rays x {per_ray} "
+            f"steps of {scene.render.step:g} voxel) over the budget of {sample_budget():.3g}",
+            key="render.sample_spacing",
+            allowed=f"a coarser sample spacing, a smaller image, or {SAMPLE_ENV_VAR}",
+        )
+    nbytes = BYTES_PER_PIXEL * pixels + BYTES_PER_VOXEL * int(np.prod(volume.shape))
+    require_fits(nbytes, what=f"a {scene.view.width}x{scene.view.height} frame", key="view")
+
+
 def render(
     scene: Scene,
     *,
@@ -242,6 +271,7 @@ def render(
 
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
+    check_work(scene, volume)
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene)
     cycles = clock = None

@@ -56,6 +56,8 @@ GRADIENT_SOURCES = ("voxel", "sample")
 CLASSIFICATION_ORDERS = ("post", "pre")
 TF_PRESETS = ("auto", "ct", "mr", "ramp")
 DEFAULT_SCENE = "head"
+#: Largest image side.  Whether a large image fits is the memory budget's call
+#: (hwsim.fidelity.check_work: about 512 bytes per pixel, 4096^2 needs 8 GiB).
 MAX_IMAGE = 4096
 
 
@@ -239,7 +241,12 @@ class Scene:
     def to_dict(self) -> dict[str, Any]:
         """The resolved scene as plain data (for stats.json)."""
         out = dataclasses.asdict(self)
-        out["volume"]["params"] = dict(self.volume.params)
+        volume = out["volume"]
+        volume["params"] = dict(self.volume.params)
+        # Only the keys that describe this kind of volume, so the dict parses back.
+        unused = ("shape", "dtype", "byte_order", "header_bytes") if self.volume.phantom else ()
+        for key in (*unused, *(("params",) if self.volume.path else ())):
+            volume.pop(key)
         out["schema"] = SCHEMA
         return out
 
@@ -322,6 +329,16 @@ def _volume(t: Table) -> VolumeSpec:
             "give exactly one of volume.path or volume.phantom",
             'path = "file" or phantom = "ball"',
         )
+    if t.has("phantom"):
+        for key in ("shape", "dtype", "byte_order", "header_bytes"):
+            if t.has(key):
+                raise t.error(
+                    key,
+                    "describes a .raw file, not a phantom",
+                    "phantom size goes in volume.params, e.g. params = { size = 64 }",
+                )
+    elif t.has("params"):
+        raise t.error("params", "phantom parameters need volume.phantom", "remove it")
     params = t.table("params")
     items = tuple(sorted((k, params.raw(k)) for k in list(params.data)))
     shape = t.raw("shape", None)

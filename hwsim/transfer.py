@@ -182,19 +182,29 @@ def _table_points(spec: TransferSpec, volume: Volume, base_dir: Path) -> np.ndar
     if not path.is_absolute():
         path = base_dir / path
     source = str(path)
+    key = "transfer.table"
+    if path.is_dir():
+        raise InputError("is a folder, expected an .npy file", source=source, key=key)
+    if path.exists() and path.stat().st_size > 64 << 20:  # 65536 x 4 float64 is 2 MiB
+        raise InputError("file is over 64 MiB", source=source, key=key, allowed="an (N, 4) .npy")
     try:
         table = np.load(path, allow_pickle=False)
     except FileNotFoundError:
-        raise InputError("file not found", source=source, key="transfer.table") from None
-    except ValueError as exc:
+        raise InputError("file not found", source=source, key=key) from None
+    except (ValueError, OSError, EOFError) as exc:
+        raise InputError(f"not a readable .npy table: {exc}", source=source, key=key) from None
+    if not isinstance(table, np.ndarray):  # an .npz archive
+        table.close()
+        raise InputError("an .npz archive, expected one .npy array", source=source, key=key)
+    if table.dtype.kind not in "biuf":
         raise InputError(
-            f"not a readable .npy table: {exc}", source=source, key="transfer.table"
-        ) from None
+            f"table of {table.dtype} values", source=source, key=key, allowed="real numbers"
+        )
     if table.ndim != 2 or table.shape[1] != 4 or not 2 <= table.shape[0] <= 65536:
         raise InputError(
             f"table shape {table.shape} is invalid",
             source=source,
-            key="transfer.table",
+            key=key,
             allowed="(N, 4) with 2 <= N <= 65536",
         )
     table = table.astype(np.float64)

@@ -11,6 +11,7 @@ unit's range is refused with the file and key named.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -62,7 +63,7 @@ class Datapath:
         for key, value in table.items():
             unit, _, name = key.partition(".")
             if unit == "voxel" and name == "bits":
-                voxel_bits = int(value)
+                voxel_bits = _typed(value, 0, arch.source, "formats.voxel.bits")
                 continue
             fields = (
                 {f.name for f in dataclasses.fields(UNIT_CONFIGS.get(unit, object))}
@@ -76,7 +77,8 @@ class Datapath:
                 raise InputError(
                     "unknown format key", source=arch.source, key=f"formats.{key}", allowed=allowed
                 )
-            units[unit][name] = value
+            default = next(f for f in dataclasses.fields(UNIT_CONFIGS[unit]) if f.name == name)
+            units[unit][name] = _typed(value, default.default, arch.source, f"formats.{key}")
         if "normal_frac_bits" in units["shade"]:
             raise InputError(
                 "the shader reads the gradient unit's normals",
@@ -106,3 +108,31 @@ class Datapath:
         for unit in UNIT_CONFIGS:
             out[unit] = dataclasses.asdict(getattr(self, unit))
         return out
+
+
+def _typed(value: Any, default: Any, source: str, key: str) -> Any:
+    """``value`` if it has the type of the field's ``default`` (an int is a float too).
+
+    A float where a bit width belongs is refused here, naming the key, rather than deep
+    inside the compiled kernels.
+    """
+    kind = type(default)
+    if kind is bool:
+        ok = isinstance(value, bool)
+    elif kind is int:
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif kind is float:
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        ok = ok and math.isfinite(value)
+    else:
+        ok = isinstance(value, kind)
+    if not ok:
+        names = {bool: "true or false", int: "an integer", float: "a finite number"}
+        raise InputError(
+            f"{value!r} is not {names.get(kind, kind.__name__)}",
+            source=source,
+            key=key,
+            allowed=names.get(kind, kind.__name__),
+        )
+    return float(value) if kind is float else value
+

@@ -362,7 +362,7 @@ def _sweep_blocks(path: Path) -> list[Block]:
     from hwsim.sweep.db import RunsDB
 
     try:
-        with RunsDB(path) as db:
+        with RunsDB(path, create=False) as db:
             rows = db.rows()
     except sqlite3.DatabaseError as exc:
         raise InputError(f"unreadable sweep database: {exc}", source=str(path)) from None
@@ -392,7 +392,7 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     runs, trades, sweeps, figures = [], [], [], []
     for f in folders:
         folder = Path(f)
-        if folder.is_file() and folder.suffix == ".db":
+        if folder.is_file():  # a sweep database (refused if it is not one)
             sweeps.append(folder)
         elif (folder / "trade.json").is_file():
             trades.append(folder)

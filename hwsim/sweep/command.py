@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+from pathlib import Path
 from typing import Any
 
 from hwsim.errors import InputError
@@ -15,14 +16,17 @@ __all__ = ["sweep_command"]
 def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the sweep the parsed ``args`` describe; exit status 1 if any run failed."""
     from hwsim.report.output import output_file, output_folder
-    from hwsim.sweep.db import RunsDB
-    from hwsim.sweep.runner import connect, local_client, run_sweep
+    from hwsim.sweep.db import RunsDB, check_ours
+    from hwsim.sweep.runner import check_address, connect, local_client, run_sweep
     from hwsim.sweep.spec import load_sweep
 
     if not 1 <= args.workers <= 256:
         raise InputError(f"{args.workers} is out of range", key="--workers", allowed="1 .. 256")
     sweep = load_sweep(args.file)
     output_file(args.db, "--db")
+    check_ours(Path(args.db))
+    if args.scheduler:
+        check_address(args.scheduler)
     if args.out:
         output_folder(args.out)
     with contextlib.ExitStack() as stack:

@@ -56,6 +56,41 @@ COLUMNS = (
 _NAMES = ["key", *(name for name, _ in COLUMNS)]
 
 
+def check_ours(path: Path, *, must_exist: bool = False) -> None:
+    """Refuse, read-only and before anything is written, a file that is not an hwsim
+    results database: another application's SQLite file is never modified.
+
+    A missing or empty file is fine (it becomes a new database) unless ``must_exist``.
+    """
+    if not path.exists() or path.stat().st_size == 0:
+        if must_exist:
+            raise InputError("no such results database", source=str(path), key="--db")
+        return
+    if path.is_dir():
+        raise InputError("is a folder, expected an SQLite file", source=str(path), key="--db")
+    try:
+        conn = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master")}
+            schema = (
+                conn.execute("SELECT value FROM meta WHERE name = 'schema'").fetchone()
+                if "meta" in tables
+                else None
+            )
+        finally:
+            conn.close()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"not an SQLite database: {exc}", source=str(path), key="--db") from None
+    if "runs" not in tables or schema is None:
+        found = ", ".join(sorted(t for t in tables if not t.startswith("sqlite_"))) or "none"
+        raise InputError(
+            f"not an hwsim results database (its tables: {found}); nothing was written",
+            source=str(path),
+            key="--db",
+            allowed="a file written by hwsim sweep, or a new file",
+        )
+
+
 class RunsDB:
     """Table ``runs`` of an SQLite file (created on first use).
 
@@ -65,8 +100,9 @@ class RunsDB:
         The database file (``--db``); its folder must exist.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, *, create: bool = True) -> None:
         self.path = Path(path)
+        check_ours(self.path, must_exist=not create)
         try:
             self.conn = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
             self.conn.execute("PRAGMA journal_mode=WAL")

@@ -169,11 +169,25 @@ def local_client(workers: int) -> Iterator[Any]:
             cluster.close()
 
 
+def check_address(address: str) -> None:
+    """``[tcp://]host:port`` with a port in 1 .. 65535, or a one-line input error."""
+    rest = address.split("://", 1)[-1]
+    host, _, port = rest.rpartition(":")
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise InputError(
+            f"{address!r} has no port",
+            source=address,
+            key="--scheduler",
+            allowed="tcp://HOST:PORT with PORT in 1 .. 65535",
+        )
+
+
 @contextlib.contextmanager
 def connect(address: str) -> Iterator[Any]:
     """A Dask client on an existing scheduler (``tcp://host:port``)."""
     from distributed import Client
 
+    check_address(address)
     try:
         client = Client(address, timeout="5s")
     except (OSError, TimeoutError) as exc:

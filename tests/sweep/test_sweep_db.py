@@ -45,5 +45,5 @@ def test_retry_failed_deletes_only_failed_rows(tmp_path):
 def test_a_file_that_is_not_a_database_is_bad_input(tmp_path):
     bad = tmp_path / "r.db"
     bad.write_text("not sqlite " * 100)
-    with pytest.raises(InputError, match="r.db: --db: cannot open database"):
+    with pytest.raises(InputError, match="r.db: --db: not an SQLite database"):
         RunsDB(bad)
