@@ -14,8 +14,10 @@ Sizes are written as bytes or with a binary suffix: ``512M``, ``2G``, ``1.5GiB``
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
+from collections.abc import Iterator
 
 from hwsim.errors import InputError
 
@@ -27,6 +29,7 @@ __all__ = [
     "parse_size",
     "require_fits",
     "set_memory_budget",
+    "memory_budget_of",
     "sample_budget",
     "SAMPLE_ENV_VAR",
     "DEFAULT_MAX_SAMPLES",
@@ -88,6 +91,25 @@ def set_memory_budget(nbytes: int | None) -> None:
     """Fix the budget for this process (``None``: back to the environment or default)."""
     global _override
     _override = None if nbytes is None else int(nbytes)
+
+
+@contextlib.contextmanager
+def memory_budget_of(nbytes: int) -> Iterator[None]:
+    """Run a block under a budget of ``nbytes``, also exported as ``HWSIM_MAX_MEMORY`` so
+    the processes it starts (sweep workers) inherit it; both are restored afterwards, so
+    one in-process CLI call does not bound the next."""
+    global _override
+    saved, saved_env = _override, os.environ.get(ENV_VAR)
+    _override = int(nbytes)
+    os.environ[ENV_VAR] = str(int(nbytes))
+    try:
+        yield
+    finally:
+        _override = saved
+        if saved_env is None:
+            os.environ.pop(ENV_VAR, None)
+        else:
+            os.environ[ENV_VAR] = saved_env
 
 
 def memory_budget() -> int:

@@ -170,10 +170,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         if getattr(args, "max_memory", None) is not None:
-            from hwsim.budget import ENV_VAR, parse_size, set_memory_budget
+            from hwsim.budget import memory_budget_of, parse_size
 
-            set_memory_budget(parse_size(args.max_memory))
-            os.environ[ENV_VAR] = str(parse_size(args.max_memory))  # sweep workers inherit it
+            with memory_budget_of(parse_size(args.max_memory, key="--max-memory")):
+                return _COMMANDS[args.command](args)
         return _COMMANDS[args.command](args)
     except InputError as exc:
         print(f"hwsim: error: {exc}", file=sys.stderr)
@@ -295,7 +295,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _cmd_figures(args: argparse.Namespace) -> int:
     from hwsim.figures import figures_command
 
-    return figures_command(args)
+    return figures_command(args, _progress_bar)
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -433,24 +433,36 @@ def _ints(text: str, flag: str, count: int) -> tuple[int, ...]:
 
 
 class _progress_bar:
-    """A tqdm bar that appears only when the work takes over a second."""
+    """A tqdm bar with an ETA that appears only when the work takes over a second.
 
-    def __init__(self, quiet: bool, label: str) -> None:
-        self.quiet, self.label, self.bar = quiet, label, None
+    The callback is ``update(done, total)``, or ``update(done, total, what)`` to name
+    the part under way.
+    """
+
+    def __init__(self, quiet: bool, label: str, unit: str = "step") -> None:
+        self.quiet, self.label, self.unit, self.bar = quiet, label, unit, None
 
     def __enter__(self):
         if self.quiet:
             return None
         return self._update
 
-    def _update(self, done: int, total: int) -> None:
+    def _update(self, done: int, total: int, what: str | None = None) -> None:
         if self.bar is None:
             from tqdm import tqdm
 
             self.bar = tqdm(
-                total=total, desc=self.label, unit="step", delay=1.0, leave=False, file=sys.stderr
+                total=total,
+                desc=self.label,
+                unit=self.unit,
+                unit_scale=self.unit != "step",
+                delay=1.0,  # keeps short renders silent
+                leave=False,
+                file=sys.stderr,
             )
-        self.bar.update(done - self.bar.n)  # tqdm's delay keeps short renders silent
+        if what is not None:
+            self.bar.set_postfix_str(what, refresh=False)
+        self.bar.update(done - self.bar.n)
 
     def __exit__(self, *exc) -> None:
         if self.bar is not None:

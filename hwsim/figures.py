@@ -128,13 +128,15 @@ def measure_figures(
     rungs: tuple[str, ...] = TIMING_RUNGS,
     *,
     max_size: int = DEFAULT_SIZE,
-    progress: Callable[[str], None] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
 ) -> list[FigureRow]:
     """Every numeric published figure of ``archs`` at each of ``rungs``.
 
     A scenario larger than ``max_size`` (or than the machine addresses) is reported as
     ``skipped`` with the reason; a rung the machine lacks as ``not modelled``.  One
     render per (machine, size, rung) serves all that machine's figures at that size.
+    ``progress(done, total, what)`` counts voxels of the planned renders (a render's
+    work grows with its voxels), advancing within each render as it reports.
     """
     from hwsim.fidelity import render, times_back_to_back
     from hwsim.volumes import load_volume
@@ -146,16 +148,19 @@ def measure_figures(
         )
     rows: list[FigureRow] = []
     volumes: dict[int, Any] = {}
+    plans = {arch.name: _figure_sizes(arch) for arch in archs}
+    total = sum(
+        size**3 * len(rungs)
+        for arch in archs
+        for size in set(s for _, s in plans[arch.name].values())
+        if size <= min(max_size, max(arch.max_volume))
+    )
+    done = 0
     for arch in archs:
         published = arch.published
         tolerance = published.get("tolerance", {}) or {}
         notes = published.get("notes", {}) or {}
-        figures = {
-            k: (float(v), figure_size(arch, k))
-            for k, v in published.items()
-            if isinstance(v, (int, float)) and not isinstance(v, bool)
-        }
-        figures = {k: v for k, v in figures.items() if v[1] is not None}
+        figures = plans[arch.name]
         machine = _widest(arch)
         for rung in rungs:
             runs: dict[int, Any] = {}
@@ -175,8 +180,14 @@ def measure_figures(
                     row.note = "; ".join(filter(None, [why, row.note]))
                     continue
                 if size not in runs:
+                    what = f"{arch.name} {rung} {size}^3"
                     if progress is not None:
-                        progress(f"{arch.name} {rung} {size}^3")
+                        progress(done, total, what)
+
+                    def advance(d: int, t: int, base=done, work=size**3, what=what) -> None:
+                        if progress is not None and t:
+                            progress(base + work * min(d, t) // t, total, what)
+
                     scene = figure_scene(size)
                     if size not in volumes:
                         volumes[size] = load_volume(scene.volume, scene.base_dir)
@@ -188,11 +199,15 @@ def measure_figures(
                             volume=volumes[size],
                             steady_state=rung in ("cycle", "transaction")
                             and times_back_to_back(arch),
+                            progress=advance,
                         )
                     except NotAvailableError:
                         runs[size] = None
                     except HwsimError as exc:  # InputError: the rung refuses the scenario
                         runs[size] = exc
+                    done += size**3
+                    if progress is not None:
+                        progress(done, total, what)
                 run = runs[size]
                 if run is None:
                     row.status = "not modelled"
@@ -216,6 +231,16 @@ def measure_figures(
                 if row.tolerance is not None:
                     row.within = bool(abs(row.difference) <= row.tolerance)
     return rows
+
+
+def _figure_sizes(arch: ArchConfig) -> dict[str, tuple[float, int]]:
+    """Each numeric published figure of ``arch`` with the volume size it is quoted at."""
+    figures = {
+        k: (float(v), figure_size(arch, k))
+        for k, v in arch.published.items()
+        if isinstance(v, (int, float)) and not isinstance(v, bool)
+    }
+    return {k: (v, size) for k, (v, size) in figures.items() if size is not None}
 
 
 def machine_facts() -> dict[str, Any]:
@@ -285,7 +310,7 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
     return header, body
 
 
-def figures_command(args) -> int:
+def figures_command(args, progress_bar: Any) -> int:
     """``hwsim figures``: measure, write the three files, print the table."""
     from hwsim.fidelity import builtin_archs, resolve_arch
     from hwsim.report.output import output_folder
@@ -298,8 +323,8 @@ def figures_command(args) -> int:
     else:
         archs = [a for a in builtin_archs().values() if a.published]
     rungs = tuple(r.strip() for r in args.rungs.split(",")) if args.rungs else TIMING_RUNGS
-    say = None if args.quiet else (lambda text: print(f"figures: {text}", flush=True))
-    rows = measure_figures(archs, rungs, max_size=args.max_size, progress=say)
+    with progress_bar(args.quiet, "figures", unit="voxel") as progress:
+        rows = measure_figures(archs, rungs, max_size=args.max_size, progress=progress)
     paths = write_figures(rows, args.out)
     if not args.quiet:
         print(paths["md"].read_text())

@@ -135,4 +135,3 @@ def _typed(value: Any, default: Any, source: str, key: str) -> Any:
             allowed=names.get(kind, kind.__name__),
         )
     return float(value) if kind is float else value
-

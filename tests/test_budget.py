@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from hwsim import budget
@@ -62,3 +64,14 @@ def test_cli_flag_is_validated(capsys):
     assert main(["render", "--max-memory", "lots", "--out", "/nonexistent/x"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--max-memory" in err
+
+
+def test_a_cli_budget_ends_with_its_command(tmp_path, capsys):
+    """--max-memory bounds its own command (and the workers it starts), not the next call
+    in the same process: the suite's in-process CLI calls leaked 64M into later tests."""
+    small = ["render", "--phantom", "ball:size=8", "--image", "256", "--quiet"]
+    assert main([*small, "--max-memory", "1M", "--out", str(tmp_path / "a")]) == 2
+    assert "memory budget of 1.0 MiB" in capsys.readouterr().err
+    assert budget.ENV_VAR not in os.environ
+    assert budget._override is None
+    assert main([*small, "--out", str(tmp_path / "b")]) == 0

@@ -14,9 +14,21 @@ from hwsim.numerics.format import (
     round_shift,
     round_shift_raw,
 )
-from hwsim.numerics.metrics import max_abs_error, per_channel, psnr, rmse, ulp_distance
+from hwsim.numerics.metrics import (
+    EXACT_MATCHES,
+    ROUND_OFF,
+    agreement,
+    max_abs_error,
+    per_channel,
+    psnr,
+    rmse,
+    ulp_distance,
+)
 
 __all__ = [
+    "EXACT_MATCHES",
+    "ROUND_OFF",
+    "agreement",
     "OVERFLOWS",
     "ROUNDING_CODES",
     "ROUNDINGS",

@@ -27,6 +27,7 @@ import numpy as np
 from hwsim.errors import HwsimError, InputError
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
+from hwsim.trade.files import EXACT_LEGEND, psnr_cell
 
 __all__ = ["RunRecord", "load_run", "build_report", "write_report"]
 
@@ -321,18 +322,8 @@ def _trade_blocks(folder: Path, out: Path) -> list[Block]:
                 _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
                 f"{sps / 1e6:.2f}" if sps else "-",
                 _fmt(r["cycles"]) if r["cycles"] is not None else "-",
-                "exact"
-                if r["status"] == "ok" and r["numerical_rmse"] == 0
-                else (
-                    f"{r['numerical_psnr_db']:.1f}" if r["numerical_psnr_db"] is not None else "-"
-                ),
-                "exact"
-                if r["status"] == "ok" and r["algorithmic_rmse"] == 0
-                else (
-                    f"{r['algorithmic_psnr_db']:.1f}"
-                    if r["algorithmic_psnr_db"] is not None
-                    else "-"
-                ),
+                psnr_cell(r, "numerical"),
+                psnr_cell(r, "algorithmic"),
                 f"{r['cycle_error']:.2%}"
                 if r.get("cycle_error") is not None
                 else (r.get("cycle_reference") or "-"),
@@ -343,7 +334,7 @@ def _trade_blocks(folder: Path, out: Path) -> list[Block]:
             "p",
             "Numerical: the rung against golden at the same sample positions. "
             "Algorithmic: golden at the machine's positions against the ideal ray caster. "
-            "Cycle error: against the cycle rung of the same case.",
+            "Cycle error: against the cycle rung of the same case. " + EXACT_LEGEND + ".",
         )
     )
     blocks.append(("table", header, table))

@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from hwsim.errors import InputError
+from hwsim.trade.files import EXACT_LEGEND, fmt_cell, psnr_cell
 
 __all__ = ["trade_command"]
 
@@ -34,14 +35,6 @@ def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
     return 0
 
 
-def _fmt(value: Any, spec: str, width: int) -> str:
-    if value is None:
-        return f"{'-':>{width}}"
-    if isinstance(value, float) and value == float("inf"):
-        return f"{'exact':>{width}}"
-    return f"{value:>{width}{spec}}"
-
-
 def format_ladder(rows: list[dict[str, Any]]) -> str:
     """The trade table as fixed-width text (one line per scene, architecture and rung)."""
     lines = [
@@ -52,16 +45,17 @@ def format_ladder(rows: list[dict[str, Any]]) -> str:
         sps = r["wall_samples_per_second"]
         lines.append(
             f"{r['scene'][:14]:<15}{r['arch'][:14]:<15}{r['rung']:<12}"
-            f"{_fmt(r['wall_seconds'], '.3f', 8)}"
-            f"{_fmt(sps / 1e6 if sps else None, '.2f', 9)}"
-            f"{_fmt(r['cycles'], ',d', 11)}"
-            f"{_fmt(r['numerical_psnr_db'], '.1f', 9)}"
-            f"{_fmt(r['algorithmic_psnr_db'], '.1f', 9)}"
-            f"{_fmt(r.get('cycle_error'), '.1%', 8)}  {r['status']}"
+            f"{fmt_cell(r['wall_seconds'], '.3f', 8)}"
+            f"{fmt_cell(sps / 1e6 if sps else None, '.2f', 9)}"
+            f"{fmt_cell(r['cycles'], ',d', 11)}"
+            f"{psnr_cell(r, 'numerical', 9)}"
+            f"{psnr_cell(r, 'algorithmic', 9)}"
+            f"{fmt_cell(r.get('cycle_error'), '.1%', 8)}  {r['status']}"
         )
     lines.append(
         "num PSNR: against golden at the same sample positions; alg PSNR: golden at the "
-        "machine's positions against the ideal ray caster; cyc err: against the cycle rung"
+        "machine's positions against the ideal ray caster; cyc err: against the cycle rung\n"
+        + EXACT_LEGEND
     )
     return "\n".join(lines)
 

@@ -1,4 +1,4 @@
-"""Writing trade tables: CSV and JSON with the same rows."""
+"""Trade tables: CSV and JSON with the same rows, and their printed cells."""
 
 from __future__ import annotations
 
@@ -8,7 +8,32 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["write_rows"]
+from hwsim.numerics import EXACT_MATCHES, ROUND_OFF
+
+__all__ = ["write_rows", "fmt_cell", "psnr_cell", "EXACT_LEGEND"]
+
+#: The legend of the PSNR columns, shared by the printed table and the report.
+EXACT_LEGEND = (
+    "exact: identical images, or a difference within float64 round-off "
+    f"(max abs error <= {ROUND_OFF:g} of the peak; the *_match columns say which)"
+)
+
+
+def fmt_cell(value: Any, spec: str, width: int = 0) -> str:
+    """One right-aligned table cell: ``-`` when not measured, ``exact`` for infinity."""
+    if value is None:
+        return f"{'-':>{width}}"
+    if isinstance(value, float) and value == float("inf"):
+        return f"{'exact':>{width}}"
+    return f"{value:>{width}{spec}}"
+
+
+def psnr_cell(row: dict[str, Any], prefix: str, width: int = 0) -> str:
+    """A PSNR column: ``exact`` when the images are identical or differ only by float64
+    round-off (the ``*_match`` column says which), else the dB value."""
+    if row.get(f"{prefix}_match") in EXACT_MATCHES:
+        return f"{'exact':>{width}}"
+    return fmt_cell(row[f"{prefix}_psnr_db"], ".1f", width)
 
 
 def write_rows(

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.numerics import max_abs_error, per_channel, psnr, rmse
+from hwsim.numerics import EXACT_MATCHES, agreement, max_abs_error, per_channel, psnr, rmse
 from hwsim.report.output import output_folder
 from hwsim.scene import Scene, ViewSpec, VolumeSpec, load_scene
 from hwsim.trade.files import write_rows
@@ -105,13 +105,14 @@ def image_error(reference: np.ndarray, test: np.ndarray) -> dict[str, Any]:
         "rmse": rmse(reference, test),
         "psnr_db": psnr(reference, test, peak),
         "max_abs": max_abs_error(reference, test),
+        "match": agreement(reference, test, peak),
         "peak": peak,
         "per_channel": per_channel(reference, test, peak),
     }
 
 
 def _error_columns(prefix: str, err: dict[str, Any] | None) -> dict[str, Any]:
-    keys = ("rmse", "psnr_db", "max_abs")
+    keys = ("rmse", "psnr_db", "max_abs", "match")
     return {f"{prefix}_{k}": (err[k] if err else None) for k in keys}
 
 
@@ -147,7 +148,7 @@ def ladder_trade(
         render(case.scene, fidelity="golden", volume=case.volume)
         ideal = render(case.scene, fidelity="golden", volume=case.volume)
         reference = _row(case, "ideal", ideal, status="ok", note="reference: ideal ray caster")
-        reference["total_rmse"] = 0.0
+        reference["total_rmse"], reference["total_match"] = 0.0, "identical"
         rows.append(reference)
         tick()
         for arch in arch_names:
@@ -178,7 +179,8 @@ def ladder_trade(
                 )
             for rung, run in runs.items():
                 row = _row(case, arch, run, status="ok")
-                row["total_rmse"] = rmse(ideal.image, run.image)
+                total = image_error(ideal.image, run.image)
+                row["total_rmse"], row["total_match"] = total["rmse"], total["match"]
                 if golden is not None:
                     row.update(
                         _error_columns("algorithmic", image_error(ideal.image, golden.image))
@@ -218,10 +220,13 @@ _COLUMNS = (
     "numerical_rmse",
     "numerical_psnr_db",
     "numerical_max_abs",
+    "numerical_match",
     "algorithmic_rmse",
     "algorithmic_psnr_db",
     "algorithmic_max_abs",
+    "algorithmic_match",
     "total_rmse",
+    "total_match",
     "cycle_error",
     "cycle_reference",
     "elaborated_units",
@@ -297,12 +302,14 @@ def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[
     for ax, scene in zip(axes.flat, scenes, strict=False):
         measured = [r for r in rows if r["scene"] == scene and r["status"] == "ok"]
         pts = []
-        errors = [e for e in (r["total_rmse"] for r in measured) if e]
+        errors = [r["total_rmse"] for r in measured if r["total_match"] == "differs"]
         floor = min(errors) / 10 if errors else 1e-6
         for r in measured:
             err = r["total_rmse"]
             if err is None:
                 continue
+            if r["total_match"] in EXACT_MATCHES:
+                err = 0.0
             y = max(err, floor)
             pts.append((r["wall_seconds"], y))
             ax.scatter(

@@ -72,6 +72,21 @@ def test_rows_are_the_rungs_own_cycle_counts(tiny):
     assert "a note" in skipped.note
 
 
+def test_progress_counts_the_planned_voxels_up_to_the_total(tiny):
+    """The figures bar: monotone, ends at its total (8^3 voxels per rung; 16^3 is skipped)."""
+    calls = []
+    measure_figures(
+        [resolve_arch(str(tiny))],
+        ("functional", "cycle"),
+        max_size=8,
+        progress=lambda d, t, what: calls.append((d, t, what)),
+    )
+    done = [d for d, _, _ in calls]
+    assert {t for _, t, _ in calls} == {2 * 8**3}
+    assert done == sorted(done) and done[-1] == 2 * 8**3 and 0 < done[len(done) // 2] < 2 * 8**3
+    assert {w for _, _, w in calls} == {"tiny-cube4 functional 8^3", "tiny-cube4 cycle 8^3"}
+
+
 def test_a_figure_inside_or_outside_its_band(tmp_path):
     arch = resolve_arch(str(_tiny(tmp_path, 100.0)))
     (row,) = [r for r in measure_figures([arch], ("cycle",), max_size=8) if r.figure == "fps_8"]

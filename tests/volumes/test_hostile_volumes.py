@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import bz2
 import gzip
+import os
 import subprocess
 import sys
 import zlib
@@ -71,27 +72,19 @@ def _cases(tmp):
     p = tmp / "short.nii"
     _nifti_claiming(p, (8, 8, 8))
     cases.append((p, "header describes"))
-    p = tmp / "bomb.nrrd"
-    _nrrd(p, (64, 64, 64), _gzip_bomb(64 << 20), "gzip")  # 256 KiB declared, 64 MiB inside
-    cases.append((p, "more than 262144"))
-    p = tmp / "bigclaim.nrrd"
-    _nrrd(p, (4096, 4096, 4096), gzip.compress(b"\0" * 100), "gzip")
-    cases.append((p, "memory budget"))
-    p = tmp / "short-gzip.nrrd"
-    _nrrd(p, (8, 8, 8), gzip.compress(b"\0" * 100), "gzip")
-    cases.append((p, "100 bytes"))
-    p = tmp / "short-bz2.nrrd"
-    _nrrd(p, (8, 8, 8), bz2.compress(b"\0" * 100), "bzip2")
-    cases.append((p, "100 bytes"))
-    p = tmp / "long-bz2.nrrd"
-    _nrrd(p, (8, 8, 8), bz2.compress(b"\0" * 10_000), "bzip2")
-    cases.append((p, "more than 512"))
-    p = tmp / "damaged.nrrd"
-    _nrrd(p, (8, 8, 8), b"\x1f\x8b\x08\x00garbage-not-deflate" * 4, "gzip")
-    cases.append((p, "damaged"))
-    p = tmp / "short.nrrd"
-    _nrrd(p, (8, 8, 8), b"\0" * 500)
-    cases.append((p, "500 bytes"))
+    nrrds = [  # name, sizes, payload, encoding, fragment
+        ("bomb", (64, 64, 64), _gzip_bomb(64 << 20), "gzip", "more than 262144"),  # 64 MiB in
+        ("bigclaim", (4096,) * 3, gzip.compress(b"\0" * 100), "gzip", "memory budget"),
+        ("short-gzip", (8, 8, 8), gzip.compress(b"\0" * 100), "gzip", "100 bytes"),
+        ("short-bz2", (8, 8, 8), bz2.compress(b"\0" * 100), "bzip2", "100 bytes"),
+        ("long-bz2", (8, 8, 8), bz2.compress(b"\0" * 10_000), "bzip2", "more than 512"),
+        ("damaged", (8, 8, 8), b"\x1f\x8b\x08\x00garbage-not-deflate" * 4, "gzip", "damaged"),
+        ("short", (8, 8, 8), b"\0" * 500, "raw", "500 bytes"),
+    ]
+    for name, sizes, payload, encoding, fragment in nrrds:
+        p = tmp / f"{name}.nrrd"
+        _nrrd(p, sizes, payload, encoding)
+        cases.append((p, fragment))
     p = tmp / "detached.nhdr"
     _nrrd(p, (8, 8, 8), b"", extra="data file: missing.raw")
     cases.append((tmp / "missing.raw", "data file not found"))
@@ -172,17 +165,23 @@ def test_lying_headers_stay_far_below_1_gib(corpus, tmp_path):
         if fragment in ("memory budget", "more than 262144", "header describes 1073741824")
     ]
     assert len(lying) == 4
-    # The child reports its own peak: RUSAGE_CHILDREN is the largest of every child this
-    # worker ever waited for, so another test's big subprocess would be counted here.
+    # The child reports its own peak, VmHWM (this process image's high-water mark, reset
+    # by exec): RUSAGE_CHILDREN is the largest of every child this worker waited for, and
+    # a child's ru_maxrss keeps the size of the forking worker across exec.
     script = (
-        "import resource, sys\nfrom hwsim.cli import main\n"
+        "import sys\nfrom hwsim.cli import main\n"
         "for p in sys.argv[2:]:\n"
         "    argv = ['render', '--volume', p, '--out', sys.argv[1], '--quiet']\n"
         "    assert main(argv) == 2\n"
-        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
+        "status = open('/proc/self/status').read()\n"
+        "print(status.split('VmHWM:')[1].split()[0])\n"
     )
+    env = {k: v for k, v in os.environ.items() if k != "HWSIM_MAX_MEMORY"}
     done = subprocess.run(
-        [sys.executable, "-c", script, str(tmp_path / "o"), *lying], capture_output=True, text=True
+        [sys.executable, "-c", script, str(tmp_path / "o"), *lying],
+        capture_output=True,
+        text=True,
+        env=env,
     )
     assert done.returncode == 0, done.stderr
     peak_kib = int(done.stdout.split()[-1])
