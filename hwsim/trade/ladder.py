@@ -292,7 +292,14 @@ def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[
     archs = list(dict.fromkeys(r["arch"] for r in rows))
     markers = dict(zip(archs, "o^sDvP*Xh<>", strict=False))
     colours = {r: plt.cm.tab10(i) for i, r in enumerate(rungs)}
-    from matplotlib.ticker import FormatStrFormatter, NullFormatter
+    from matplotlib.ticker import (
+        FixedFormatter,
+        FixedLocator,
+        FormatStrFormatter,
+        LogLocator,
+        NullFormatter,
+        NullLocator,
+    )
 
     ncols = min(len(scenes), 3)
     nrows = -(-len(scenes) // ncols)
@@ -323,13 +330,21 @@ def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[
         front = pareto_front(pts)
         ax.plot([p[0] for p in front], [p[1] for p in front], "k--", lw=0.8, zorder=2)
         ax.axhline(floor, color="grey", lw=0.5, ls=":")
+        all_exact = all(y == floor for _, y in pts)
+        if all_exact:  # no error to scale: one row of points on the floor, labelled so
+            ax.set_ylim(floor / 3, floor * 3)
         ax.set_xscale("log")
         ax.set_yscale("log")
+        if all_exact:
+            ax.yaxis.set_major_locator(FixedLocator([floor]))
+            ax.yaxis.set_major_formatter(FixedFormatter(["exact"]))
+            ax.yaxis.set_minor_locator(NullLocator())
         ax.set_title(scene, fontsize=10)
         ax.set_xlabel("wall seconds per frame (log)")
         ax.set_ylabel("RMSE vs ideal golden (log; dotted: exact)")
         xs = [p[0] for p in pts]
         if xs and max(xs) < 10 * min(xs):  # within a decade: label the minor ticks
+            ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 3.0, 5.0)))  # none beside 10^k
             ax.xaxis.set_minor_formatter(FormatStrFormatter("%.2g"))
             ax.tick_params(axis="x", which="minor", labelsize=7, labelrotation=45)
         else:
