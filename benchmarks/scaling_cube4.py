@@ -65,7 +65,7 @@ def rule_cycles(n: int, P: int, latency_units: int) -> int:
 
 
 def run(sizes: Sequence[int], pipelines: Sequence[int]) -> dict[str, Any]:
-    from models.arch.cube4 import UNITS
+    from models.machines.cube4.cycle import UNITS
 
     base = resolve_arch("cube4")
     rows = []

@@ -6,11 +6,12 @@
 The core only validates the generic shape of a machine (pipelines, clock, processing
 order, limits, features).  The ``[formats]`` and ``[memory]`` tables are handed to the
 models layer, which owns their meaning; the application layer (``hwsim.fidelity``)
-looks built-in names up in ``models/arch/*.toml``.
+looks built-in names up in ``models/machines/<family>/*.toml``.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,9 @@ class ArchConfig:
         Identity and a one-line summary.
     order : str
         Processing order, one of :data:`ORDERS` (selects the sample positions).
+    family : str
+        The machine family that models it (``models/machines/<family>``); empty: the
+        family registered first for ``order``.
     pipelines : int
         Parallel rendering pipelines, each one sample per clock at best.
     clock_hz : float
@@ -68,6 +72,7 @@ class ArchConfig:
     description: str = ""
     source: str = "<built-in>"
     order: str = "slice-parallel"
+    family: str = ""
     pipelines: int = 4
     clock_hz: float = 125e6
     voxel_bits: tuple[int, ...] = (8, 12, 16)
@@ -104,6 +109,13 @@ def load_arch_file(path: str | Path, name: str | None = None) -> ArchConfig:
     return parse_arch(read_toml(path), source=str(path), name=name or path.stem)
 
 
+def _family(pipeline: Table) -> str:
+    family = pipeline.string("family", "")
+    if family and not re.fullmatch(r"[a-z][a-z0-9_]*", family):
+        raise pipeline.error("family", f"invalid name {family!r}", "a Python package name")
+    return family
+
+
 def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     """Validate parsed TOML into an :class:`ArchConfig`."""
     top = Table(data, source)
@@ -126,6 +138,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         description=top.string("description", ""),
         source=source,
         order=p.choice("order", ORDERS),
+        family=_family(p),
         pipelines=p.integer("count", lo=1, hi=4096),
         clock_hz=p.number("clock_hz", lo=1.0, hi=10e9),
         voxel_bits=tuple(bits),

@@ -200,8 +200,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _cmd_render(args: argparse.Namespace) -> int:
     from hwsim.fidelity import render
-    from hwsim.report import write_render
-    from hwsim.report.output import output_file, output_folder
+    from hwsim.output import write_render
+    from hwsim.paths import output_file, output_folder
     from hwsim.scene import load_scene
 
     scene = _apply_overrides(load_scene(args.scene), args)
@@ -262,17 +262,11 @@ def _cmd_phantoms(args: argparse.Namespace) -> int:
 
 
 def _cmd_archs(args: argparse.Namespace) -> int:
-    from hwsim.fidelity import builtin_archs
-    from models.cycle import CYCLE_ORDERS
-    from models.transaction import has_transaction_model
-    from rtl.frame import RTL_ORDERS
+    from hwsim.fidelity import builtin_archs, machine_rungs
 
     print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
     for name, arch in builtin_archs().items():
-        rungs = "golden functional"
-        rungs += " transaction" if has_transaction_model(arch) else ""
-        rungs += " cycle" if arch.order in CYCLE_ORDERS else ""
-        rungs += " rtl" if arch.order in RTL_ORDERS else ""
+        rungs = " ".join(machine_rungs(arch))
         print(
             f"{name:<15} {arch.order:<15} {arch.pipelines:>3} {arch.clock_hz / 1e6:>6.2f} MHz "
             f"{arch.peak_samples_per_second / 1e6:>7.0f} MS/s  {rungs}"
@@ -299,7 +293,7 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from hwsim.report.output import output_folder
+    from hwsim.paths import output_folder
     from hwsim.report.report import write_report
 
     output_folder(args.out)
@@ -314,7 +308,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     from hwsim.bench import format_bench, run_bench
     from hwsim.fidelity import resolve_arch
-    from hwsim.report.output import output_folder
+    from hwsim.paths import output_folder
 
     for flag, value, lo, hi in (
         ("--size", args.size, 8, 512),

@@ -2,7 +2,8 @@
 
 ``render(scene, fidelity=...)`` loads the scene's volume and transfer function, runs the
 requested rung and returns a :class:`RenderRun` holding the image and the raw numbers
-``stats.json`` is written from.  Rungs that are not built yet raise
+``stats.json`` is written from.  A rung that does not model the machine (no family in
+the registry, ``models.machines``, has it at that rung) raises
 :class:`~hwsim.errors.NotAvailableError` (exit status 2 at the CLI).
 """
 
@@ -11,7 +12,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +28,6 @@ from hwsim.volumes.volume import Volume
 
 __all__ = [
     "FIDELITIES",
-    "AVAILABLE_FIDELITIES",
     "SAMPLINGS",
     "RenderRun",
     "render",
@@ -37,7 +36,6 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-AVAILABLE_FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
 #: The machine a timed rung models when no --arch is given.
 DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
@@ -71,13 +69,15 @@ class RenderRun:
 
 
 def builtin_archs() -> dict[str, ArchConfig]:
-    """The built-in machines of ``models/arch``, by name."""
-    folder = resources.files("models.arch")
+    """The built-in machines: every registered family's architecture files
+    (``models/machines/<family>/*.toml``), by name, in file-name order."""
+    from models.machines import families
+
+    files = [path for family in families() for path in family.arch_files()]
     out = {}
-    for item in sorted(folder.iterdir(), key=lambda p: p.name):
-        if item.name.endswith(".toml"):
-            cfg = load_arch_file(Path(str(item)))
-            out[cfg.name] = cfg
+    for path in sorted(files, key=lambda p: p.name):
+        cfg = load_arch_file(path)
+        out[cfg.name] = cfg
     return out
 
 
@@ -124,9 +124,25 @@ def check_scene_fits(scene: Scene, arch: ArchConfig) -> None:
 
 def times_back_to_back(arch: ArchConfig) -> bool:
     """Whether ``arch``'s cycle model times back-to-back frames (``steady_state``)."""
-    from models.cycle import STEADY_STATE_ORDERS
+    from models.machines import machine_for
 
-    return arch.order in STEADY_STATE_ORDERS
+    try:
+        return machine_for(arch).steady_state
+    except NotAvailableError:
+        return False
+
+
+def machine_rungs(arch: ArchConfig) -> list[str]:
+    """The rungs that model ``arch`` (golden and functional model every machine)."""
+    from models.machines import machine_for
+
+    try:
+        machine = machine_for(arch)
+    except NotAvailableError:
+        return ["golden", "functional"]
+    modelled = {"transaction": machine.transaction, "cycle": machine.cycle}
+    rungs = ["golden", "functional"] + [r for r, model in modelled.items() if model is not None]
+    return rungs + (["rtl"] if machine.rtl_top else [])
 
 
 def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
@@ -199,7 +215,7 @@ def render(
     scene : Scene
         The validated scene.
     fidelity : str
-        One of :data:`FIDELITIES`; only :data:`AVAILABLE_FIDELITIES` run today.
+        One of :data:`FIDELITIES`.
     arch : str or ArchConfig, optional
         Architecture name, file or config (a sweep's overrides).  At the golden rung
         it selects the machine's sample positions (so golden vs. a timed rung differs
@@ -225,12 +241,6 @@ def render(
     if fidelity not in FIDELITIES:
         raise InputError(
             f"unknown fidelity {fidelity!r}", key="--fidelity", allowed=", ".join(FIDELITIES)
-        )
-    if fidelity not in AVAILABLE_FIDELITIES:
-        raise NotAvailableError(
-            f"fidelity {fidelity!r} is not yet available",
-            key="--fidelity",
-            allowed=", ".join(AVAILABLE_FIDELITIES),
         )
     if steady_state and fidelity not in ("cycle", "transaction"):
         raise InputError(

@@ -257,7 +257,7 @@ def machine_facts() -> dict[str, Any]:
 
 def write_figures(rows: list[FigureRow], out_dir: str | Path) -> dict[str, Path]:
     """``figures.json``, ``figures.csv`` and ``figures.md`` in ``out_dir``."""
-    from hwsim.report.output import output_folder
+    from hwsim.paths import output_folder
 
     out = output_folder(out_dir)
     data = {"schema": 1, "machine": machine_facts(), "rows": [asdict(r) for r in rows]}
@@ -313,7 +313,7 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
 def figures_command(args, progress_bar: Any) -> int:
     """``hwsim figures``: measure, write the three files, print the table."""
     from hwsim.fidelity import builtin_archs, resolve_arch
-    from hwsim.report.output import output_folder
+    from hwsim.paths import output_folder
 
     if args.max_size < 1:
         raise InputError(f"invalid {args.max_size}", key="--max-size", allowed=">= 1")

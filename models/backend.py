@@ -26,7 +26,7 @@ import numpy as np
 
 from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
-from hwsim.golden import geometry
+from hwsim.golden import geometry, occupancy
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.scene import Scene
@@ -285,6 +285,25 @@ class Backend:
             self.lights, self.plan.toward_viewer(rays), self.material, self.dp.shade
         )
         return shade_unit.shade(shader, rgb, normals)
+
+    def occupied_blocks(self, block: int = occupancy.BLOCK) -> np.ndarray | None:
+        """Blocks of ``block^3`` voxels that can give a visible sample, for space leaping:
+        those whose voxel range (with the ``+1`` neighbours) reaches an entry of *this*
+        datapath's LUT with non-zero opacity (lerps are convex, so a sample lies in the
+        range and its entry between the range's entries), or, for iso, the iso value.
+        ``None`` where leaping does not apply (MIP, MinIP and X-ray see every sample).
+        One rule for the cycle and transaction models of every machine that leaps."""
+        if self.mode not in ("composite", "iso"):
+            return None
+        lo, hi = (x.astype(np.int64) for x in occupancy.block_ranges(self.raw, block))
+        if self.mode == "iso":
+            return (hi << self.S) >= self.iso_raw
+        dp = self.dp
+        first, last = (
+            classify_unit.lut_index(v << self.S, dp.voxel_bits, self.S, dp.classify)
+            for v in (lo, hi)
+        )
+        return self.transparent_ranges()[first] <= last
 
     def transparent_ranges(self) -> np.ndarray:
         """``next_visible[i]``: the first LUT entry ``>= i`` with non-zero opacity (the

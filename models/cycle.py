@@ -3,12 +3,10 @@
 # Ref: design.md section 3 (cycle rung: bit-identical to functional, exact cycle count,
 #      per-unit busy/stall counters, optional VCD); architectures.md section 1 (Cube-4).
 
-Modelled: the Cube-4 family (processing order ``slice-parallel``: ``cube4``,
-``cube4-teramac`` and user variants; :class:`models.arch.cube4.Cube4Machine`) and the
-VolumePro family (``shear-warp``: ``volumepro500``, ``em-cube``; ``shear-image``:
-``volumepro1000``; :class:`models.arch.volumepro.SlabMachine`) and VIZARD II (``ray``:
-:mod:`models.arch.vizard2`).  Other machines raise
-:class:`~hwsim.errors.NotAvailableError` naming what is.
+The machine is the family the registry (:mod:`models.machines`) holds for the
+architecture's processing order: the Cube-4 family (``slice-parallel``), the VolumePro
+family (``shear-warp``, ``shear-image``) and VIZARD II (``ray``).  An order no family
+models at this rung raises :class:`~hwsim.errors.NotAvailableError` naming those that are.
 """
 
 from __future__ import annotations
@@ -23,23 +21,25 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
-from models.arch.cube4 import Cube4Machine, CycleResult, Faults
-from models.arch.volumepro import SlabMachine
 from models.backend import Backend
 from models.datapath import Datapath
+from models.machines import families, machine_for
+from models.machines.common.results import CycleResult
 
-__all__ = ["render_cycle", "CYCLE_ORDERS", "STEADY_STATE_ORDERS", "Faults", "CycleResult"]
+__all__ = ["render_cycle", "has_cycle_model", "steady_state_orders", "CycleResult"]
 
-#: The machine model of each processing order the cycle rung models.
-MACHINES = {
-    "slice-parallel": Cube4Machine,
-    "shear-warp": SlabMachine,
-    "shear-image": SlabMachine,
-}
-#: Processing orders the cycle rung models.
-CYCLE_ORDERS = (*MACHINES, "ray")
-#: Orders whose machine times back-to-back frames (``steady_state``).
-STEADY_STATE_ORDERS = ("shear-warp", "shear-image")
+
+def has_cycle_model(arch: ArchConfig) -> bool:
+    """Whether the cycle rung models ``arch`` (its machine family)."""
+    try:
+        return machine_for(arch).cycle is not None
+    except NotAvailableError:
+        return False
+
+
+def steady_state_orders() -> tuple[str, ...]:
+    """Orders whose machine times back-to-back frames (``steady_state``)."""
+    return tuple(o for m in families() if m.steady_state for o in m.orders)
 
 
 def render_cycle(
@@ -49,7 +49,7 @@ def render_cycle(
     arch: ArchConfig,
     plan: SamplePlan,
     *,
-    faults: Faults | None = None,
+    faults: object | None = None,
     elaborate_all: bool = False,
     trace: str | Path | None = None,
     datapath: Datapath | None = None,
@@ -60,7 +60,7 @@ def render_cycle(
 
     Parameters
     ----------
-    faults : Faults, optional
+    faults : the family's ``faults_type``, optional
         Structures to break (fault-injection tests).
     elaborate_all : bool
         Simulate every unit, even those the scene does not use, discarding what they
@@ -71,33 +71,28 @@ def render_cycle(
         VolumePro family: also time a second frame back to back and report the cycles
         between the two frames' ends (``frame.period_cycles``: the continuous frame rate).
     """
-    if steady_state and arch.order not in STEADY_STATE_ORDERS:
+    machine = machine_for(arch, "cycle")
+    if steady_state and not machine.steady_state:
         raise InputError(
             f"{arch.name} ({arch.order} order) times single frames only",
             key="steady_state",
-            allowed=f"a machine of order {', '.join(STEADY_STATE_ORDERS)}",
+            allowed=f"a machine of order {', '.join(steady_state_orders())}",
         )
-    if arch.order == "ray":  # VIZARD II (docs/cycle.md)
-        from models.arch.vizard2 import render_vizard2
-
-        return render_vizard2(
-            scene, volume, transfer, arch, plan, faults, elaborate_all, trace, datapath, progress
-        )
-    if arch.order not in CYCLE_ORDERS:
-        raise NotAvailableError(
-            f"{arch.name} ({arch.order} order) is not modelled at cycle fidelity",
-            key="--arch",
-            allowed=f"a machine of order {', '.join(CYCLE_ORDERS)}",
-        )
+    if faults is not None and not isinstance(faults, machine.faults_type):
+        raise TypeError(f"{arch.name} takes {machine.faults_type.__name__} faults")
     if datapath is None:
         datapath = Datapath.for_volume(arch, volume)
     backend = Backend(scene, volume, transfer, arch, plan, datapath, exercise_unused=elaborate_all)
     vcd = VcdTrace() if trace is not None else None
-    extra = {"steady_state": True} if steady_state else {}
-    machine = MACHINES[arch.order](
-        backend, plan, faults=faults, elaborate_all=elaborate_all, trace=vcd, **extra
+    result = machine.cycle(
+        backend,
+        plan,
+        faults=faults,
+        elaborate_all=elaborate_all,
+        trace=vcd,
+        progress=progress,
+        steady_state=steady_state,
     )
-    result = machine.run(progress)
     if vcd is not None:
         vcd.write(trace)
     return result

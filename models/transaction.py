@@ -7,21 +7,11 @@
 The image is the functional rung's (:func:`models.functional.render_functional`, called,
 not duplicated), so it is bit-identical to the functional and cycle images.  The cycle
 count comes from a discrete-event model of the machine at a coarser granularity than the
-cycle rung (slices, beam batches, pixel rows), which never calls the cycle machine.
-Machines with a transaction model, by processing order:
-
-``slice-parallel``
-    the Cube-4 family (:class:`models.arch.cube4_txn.Cube4Transaction`);
-``shear-warp``, ``shear-image``
-    the VolumePro family's SDRAM-fed slab machines
-    (:class:`models.arch.volumepro_txn.SlabTransaction`): VolumePro 500 and EM-Cube,
-    sections included; machines that skip beams (VolumePro 1000: early ray termination,
-    space leaping) with :class:`models.arch.vp1000_txn.Vp1000Transaction`, which reads
-    each ray's termination step from the functional rung's result;
-``ray``
-    VIZARD II (:class:`models.arch.vizard2_txn.VizardTransaction`): ray packets, the
-    block cache's misses as SDRAM bursts, the pixel FIFO.
-
+cycle rung (slices, beam batches, pixel rows), which never calls the cycle machine.  The
+model is the one the registry (:mod:`models.machines`) holds for the architecture's
+processing order: the Cube-4 family's slices and beams, the VolumePro family's SDRAM-fed
+slabs (sections, and beam skipping on VolumePro 1000, which reads each ray's termination
+step from the functional rung's result), VIZARD II's ray packets and block-cache misses.
 Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
 """
 
@@ -41,34 +31,18 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
-from models.arch.cube4_txn import Cube4Transaction
-from models.arch.vizard2_txn import VizardTransaction
-from models.arch.volumepro_txn import SlabTransaction
-from models.arch.vp1000_txn import Vp1000Transaction
 from models.datapath import Datapath
 from models.functional import render_functional
+from models.machines import families, machine_for
 
 __all__ = [
-    "TRANSACTION_ORDERS",
+    "transaction_orders",
     "TransactionResult",
     "has_transaction_model",
     "render_transaction",
     "transaction_model",
     "transaction_timing",
 ]
-
-#: Processing orders with a transaction model, and the model's class.
-TRANSACTION_ORDERS = {
-    "slice-parallel": Cube4Transaction,
-    "shear-warp": SlabTransaction,
-    "shear-image": SlabTransaction,
-    "ray": VizardTransaction,
-}
-
-
-#: Options only the models that read the frame's volume and termination steps take.
-_SKIPPING_OPTIONS = ("volume", "transfer", "stopped", "datapath")
-_READS_THE_FRAME = (Vp1000Transaction, VizardTransaction)
 
 
 @dataclass
@@ -83,39 +57,38 @@ class TransactionResult:
     derived: dict[str, Any] = field(default_factory=dict)
 
 
+def transaction_orders() -> tuple[str, ...]:
+    """Processing orders with a transaction model."""
+    return tuple(o for m in families() if m.transaction is not None for o in m.orders)
+
+
 def has_transaction_model(arch: ArchConfig) -> bool:
-    """Whether the transaction rung models ``arch`` (its processing order)."""
-    return arch.order in TRANSACTION_ORDERS
+    """Whether the transaction rung models ``arch`` (its machine family)."""
+    try:
+        return machine_for(arch).transaction is not None
+    except NotAvailableError:
+        return False
 
 
 def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
     """The event model of ``arch`` for one frame (not yet run).
 
-    ``options`` go to the machine's model: ``pixel_fifo_depth`` (Cube-4 family),
+    ``options`` go to the machine's model: ``pixel_fifo_depth`` (every family),
     ``groups`` and ``steady_state`` (VolumePro family; refused elsewhere), ``volume``,
-    ``transfer``, ``stopped``, ``datapath`` (VolumePro 1000 and VIZARD II; ignored by
-    the others).
+    ``transfer``, ``stopped``, ``datapath`` (the models that read the frame: VolumePro
+    1000 and VIZARD II; the others ignore them).
     """
-    model = TRANSACTION_ORDERS.get(arch.order)
-    if model is None:
-        raise NotAvailableError(
-            f"{arch.name} ({arch.order} order) has no transaction model yet",
-            key="--arch",
-            allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000, vizard2",
-        )
-    if model is SlabTransaction and (arch.early_termination or arch.space_leaping):
-        model = Vp1000Transaction
-    if options.get("steady_state") and not issubclass(model, SlabTransaction):
+    machine = machine_for(arch, "transaction")
+    if options.get("steady_state") and not machine.steady_state:
         raise InputError(
             f"{arch.name} ({arch.order} order) times single frames only",
             key="steady_state",
-            allowed="a machine of order shear-warp, shear-image",
+            allowed="a machine of order "
+            + ", ".join(o for m in families() if m.steady_state for o in m.orders),
         )
-    if not issubclass(model, SlabTransaction):
+    if not machine.steady_state:
         options.pop("steady_state", None)
-    if model not in _READS_THE_FRAME:
-        options = {k: v for k, v in options.items() if k not in _SKIPPING_OPTIONS}
-    return model(scene, arch, plan, **options)
+    return machine.transaction(scene, arch, plan, **options)
 
 
 def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
@@ -128,7 +101,7 @@ def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **optio
 
     Returns
     -------
-    models.arch.cube4_txn.TxnTiming
+    models.machines.common.transaction.TxnTiming
         Cycles and counters (:func:`transaction_model` for ``options``).
     """
     return transaction_model(scene, arch, plan, **options).run()
@@ -169,7 +142,7 @@ def render_transaction(
         scene, volume, transfer, arch, plan, datapath=datapath, progress=progress
     )
     image_seconds = time.perf_counter() - start
-    if isinstance(model, _READS_THE_FRAME):
+    if getattr(model, "READS_THE_FRAME", False):
         model.stopped = image.stopped  # the rays' termination steps (ERT hardware)
     timing = model.run()
     counters = dict(timing.counters)

@@ -17,7 +17,7 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
     """Render ``program`` on :class:`~rtl.top.Cube4Top` in the Amaranth simulator.
 
     ``stall_every``: refuse the pixel bus every that many clocks (0: never).
-    Returns the frame's :class:`~models.arch.cube4.CycleResult`.
+    Returns the frame's :class:`~models.machines.cube4.cycle.CycleResult`.
     """
     top = Cube4Top(program.dp, program.geo)
     sim = Simulator(top)

@@ -29,10 +29,11 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
-from models.arch.cube4 import UNITS, Cube4Machine, CycleResult
-from models.arch.machine import cube4_latency, elaborate_units
 from models.backend import Backend
 from models.datapath import Datapath
+from models.machines.common.results import UNITS, CycleResult, elaborate_units
+from models.machines.cube4.frame import Cube4Frame
+from models.machines.cube4.timing import cube4_latency
 from models.units import composite as composite_unit
 from rtl.top import (
     LOAD_CORRECTION,
@@ -166,7 +167,7 @@ def prepare(
             arch.source,
         )
     backend = Backend(scene, volume, transfer, arch, plan, dp)
-    machine = Cube4Machine(backend, plan)  # the cycle rung's refusals and geometry
+    machine = Cube4Frame(backend, plan)  # the machine's refusals and frame geometry
     P = machine.P
     geo = TopGeometry(P, max_axis)
     n_rays = plan.shape[0] * plan.shape[1]
@@ -314,7 +315,7 @@ def _canonical(cell, weight, frac, full: int):
     return cell + up, np.where(up, 0, weight), np.where(up, 0.0, frac)
 
 
-def _check_neighbours(machine: Cube4Machine, step, j: int, full: int) -> None:
+def _check_neighbours(machine: Cube4Frame, step, j: int, full: int) -> None:
     """The gradient's in-slice neighbours (positions ``p +- 1`` along each in-slice axis,
     the cells and weights the cycle rung gives them) must be the cells next to the
     sample's with the sample's own weight: the top reads them off the neighbouring slots."""
@@ -334,7 +335,7 @@ def _check_neighbours(machine: Cube4Machine, step, j: int, full: int) -> None:
                 )
 
 
-def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> list[dict[str, int]]:
+def _slice_constants(machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi) -> list[dict[str, int]]:
     """Per step: slice, cell shift, base-plane offset and weights, checked sample by
     sample against the plan (the hardware's slot rule must give exactly its samples)."""
     P, C, T = machine.P, machine.C, machine.T
@@ -405,7 +406,7 @@ def _slice_constants(machine: Cube4Machine, plan: SamplePlan, j_lo, j_hi) -> lis
 
 
 def decode(program: FrameProgram, pixels: list[dict[str, Any]], cycles: int, samples: int):
-    """The frame's :class:`~models.arch.cube4.CycleResult` from the delivered pixels.
+    """The frame's :class:`~models.machines.cube4.cycle.CycleResult` from the delivered pixels.
 
     ``pixels``: ``{"ray", "acc" (4 ints), "mip"}`` in bus order.  Every ray of the plan
     must arrive exactly once; the host builds the image only from them.

@@ -6,9 +6,9 @@
 ``render_rtl`` prepares the frame (:func:`rtl.frame.prepare`), exports the top's Verilog
 once per configuration (pipelines, voxel width, unit formats) into its own build folder
 per simulator, runs :mod:`rtl.top_cocotb` through cocotb's Python runner and decodes the
-pixels into a :class:`~models.arch.cube4.CycleResult` (image, cycles, samples), like the
-cycle rung.  ``trace=FILE.vcd`` runs the same top in Amaranth's simulator instead, which
-writes the waveform.
+pixels into a :class:`~models.machines.common.results.CycleResult` (image, cycles,
+samples), like the cycle rung.  ``trace=FILE.vcd`` runs the same top in Amaranth's
+simulator instead, which writes the waveform.
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
-from models.arch.cube4 import CycleResult
 from models.datapath import Datapath
+from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
 from rtl.top import pixel_layout
 from rtl.top_bench import ROM_WORDS

@@ -7,7 +7,7 @@ The kernel is vectorised: a component advances over a *block* of cycles at once 
 a slice) with NumPy arrays indexed by ``(lane, cycle)``, and every cycle inside the block
 stays exact -- a delay line of depth D returns exactly what entered D cycles earlier, a
 channel transfers exactly where ``valid & ready``.  Nothing here knows about volume
-rendering; ``models.arch`` assembles machines from it.
+rendering; ``models.machines`` assembles machines from it.
 """
 
 from hwsim.engine.channel import Channel

@@ -25,6 +25,10 @@ cycle form moves the later one to the next free cycle.  On streams without such
 collisions the two forms agree cycle for cycle; docs/memory.md gives the measured
 difference where they do collide.
 
+No rung uses :class:`SdramEventModel` itself (the transaction rung takes the batch
+port below): it stays as the event-driven statement of the SDRAM rules, held against the
+cycle-exact form as an independent reference by ``tests/memory/test_sdram_events.py``.
+
 Embedding in a larger model: create :class:`SdramEventModel` on the caller's
 ``simpy.Environment`` and call :meth:`SdramEventModel.request` from any process; wait on
 the returned request's ``done`` (or ``read_done``) event.

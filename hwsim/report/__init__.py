@@ -1,5 +1,3 @@
-"""Run outputs: ``stats.json``, images, CSVs and (later) human reports."""
-
-from hwsim.report.output import STATS_SCHEMA, stats_dict, write_render
-
-__all__ = ["STATS_SCHEMA", "stats_dict", "write_render"]
+"""Human reports of run folders, trades and sweep databases: ``report.md`` and a
+self-contained ``report.html`` (:mod:`hwsim.report.report`).  Render outputs themselves
+(``stats.json``, images, CSVs) are :mod:`hwsim.output`."""

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.config import flatten_table
-from hwsim.report.output import image_to_rgb8
+from hwsim.output import image_to_rgb8
 
 __all__ = [
     "unit_counters",

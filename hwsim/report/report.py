@@ -469,7 +469,7 @@ def _figures_blocks(path: Path) -> list[Block]:
 
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:
     """Write ``report.md``, ``report.html`` and the PNG plots into ``out_dir``."""
-    from hwsim.report.output import output_folder
+    from hwsim.paths import output_folder
 
     if not folders:
         raise InputError("give at least one run folder", key="RUN_DIR")

@@ -84,7 +84,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
     reads), with ``sweep.json``: the run's key, parameters and architecture overrides.
     """
     from hwsim.fidelity import render
-    from hwsim.report.output import stats_plain, write_render
+    from hwsim.output import stats_plain, write_render
 
     p = run.values
     row: dict[str, Any] = {

@@ -249,7 +249,7 @@ def _as_list(value: Any, source: str, key: str) -> list[Any]:
 
 
 def _check(name: str, value: Any, source: str, key: str, base: str) -> Any:
-    from hwsim.fidelity import AVAILABLE_FIDELITIES, FIDELITIES, builtin_archs
+    from hwsim.fidelity import FIDELITIES, builtin_archs
 
     if name in ("scene", "phantom", "volume", "arch") and not isinstance(value, str):
         raise InputError(f"must be a string, got {value!r}", source=source, key=key)
@@ -279,13 +279,6 @@ def _check(name: str, value: Any, source: str, key: str, base: str) -> Any:
         if value not in FIDELITIES:
             raise InputError(
                 f"unknown fidelity {value!r}", source=source, key=key, allowed=", ".join(FIDELITIES)
-            )
-        if value not in AVAILABLE_FIDELITIES:
-            raise InputError(
-                f"fidelity {value!r} is not yet available",
-                source=source,
-                key=key,
-                allowed=", ".join(AVAILABLE_FIDELITIES),
             )
     elif name == "mode":
         if value not in MODES:

@@ -13,7 +13,7 @@ __all__ = ["trade_command"]
 
 def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the trade ``args`` asks for, write its files and print its table."""
-    from hwsim.report.output import output_folder
+    from hwsim.paths import output_folder
 
     if not 8 <= args.image <= 1024:
         raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")

@@ -7,8 +7,8 @@ For each scene the ideal float64 ray caster (``golden`` without an architecture)
 reference.  Then for each architecture of :func:`hwsim.fidelity.builtin_archs` and each
 rung of :data:`hwsim.fidelity.FIDELITIES`:
 
-* a rung that is not built (not in ``AVAILABLE_FIDELITIES``) gets a row with status
-  ``not available``, nothing measured;
+* a rung that does not model the machine gets a row with status ``not available``,
+  nothing measured, the reason in ``note``;
 * ``golden`` at the machine's sample positions gives the **algorithmic** error (its
   image against the ideal ray caster);
 * every other rung gives the **numerical** error (its image against golden at the same
@@ -31,7 +31,7 @@ import numpy as np
 
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.numerics import EXACT_MATCHES, agreement, max_abs_error, per_channel, psnr, rmse
-from hwsim.report.output import output_folder
+from hwsim.paths import output_folder
 from hwsim.scene import Scene, ViewSpec, VolumeSpec, load_scene
 from hwsim.trade.files import write_rows
 from hwsim.volumes.volume import Volume
@@ -123,7 +123,7 @@ def ladder_trade(
     progress: Callable[[int, int], None] | None = None,
 ) -> list[dict[str, Any]]:
     """Measure every (scene, architecture, rung); one row each (see the module doc)."""
-    from hwsim.fidelity import AVAILABLE_FIDELITIES, FIDELITIES, builtin_archs, render
+    from hwsim.fidelity import FIDELITIES, builtin_archs, render
 
     arch_names = list(archs) if archs else list(builtin_archs())
     rung_names = list(rungs) if rungs else list(FIDELITIES)
@@ -155,10 +155,6 @@ def ladder_trade(
             runs: dict[str, Any] = {}
             pending: list[dict[str, Any]] = []
             for rung in rung_names:
-                if rung not in AVAILABLE_FIDELITIES:
-                    pending.append(_empty(case, arch, rung, "not available"))
-                    tick()
-                    continue
                 try:
                     runs[rung] = render(case.scene, fidelity=rung, arch=arch, volume=case.volume)
                 except NotAvailableError as exc:  # the rung does not model this machine yet
@@ -241,7 +237,7 @@ _COLUMNS = (
 def _empty(case: TradeCase, arch: str, rung: str, status: str, note: str = "") -> dict[str, Any]:
     row: dict[str, Any] = dict.fromkeys(_COLUMNS)
     row.update(scene=case.label, volume=case.volume.name, arch=arch, rung=rung, status=status)
-    row["note"] = note or f"the {rung} rung is not built yet"
+    row["note"] = note
     return row
 
 

@@ -19,7 +19,7 @@ from typing import Any
 from hwsim.arch import ArchConfig
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import max_abs_error, psnr, rmse
-from hwsim.report.output import output_folder
+from hwsim.paths import output_folder
 from hwsim.scene import Scene
 from hwsim.trade.files import write_rows
 from hwsim.transfer import resolve_transfer

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from hwsim.engine import Counters
-from models.arch.cube4_memory import Cube4Memory
+from models.machines.cube4.memory import Cube4Memory
 
 pytestmark = pytest.mark.model
 

@@ -13,7 +13,7 @@ import pytest
 
 from hwsim.bench import GOALS, run_bench
 from hwsim.cli import main
-from hwsim.fidelity import AVAILABLE_FIDELITIES, FIDELITIES
+from hwsim.fidelity import FIDELITIES
 
 REPO = Path(__file__).resolve().parents[2]
 if str(REPO) not in sys.path:
@@ -23,11 +23,8 @@ if str(REPO) not in sys.path:
 def test_every_rung_and_ratio_is_reported_and_missing_ones_say_so():
     report = run_bench(16, 16, "volumepro500", 1, vtk=False, sweep=False)
     assert set(report["rungs"]) == set(FIDELITIES)
-    for rung, r in report["rungs"].items():
-        if rung in AVAILABLE_FIDELITIES:
-            assert r["status"] == "ok" and r["seconds"] > 0 and r["samples_per_second"] > 0
-        else:
-            assert r == {"status": "not available"}
+    for r in report["rungs"].values():
+        assert r["status"] == "ok" and r["seconds"] > 0 and r["samples_per_second"] > 0
     # volumepro500 is modelled at the cycle rung (issue 5): measured on itself, no note.
     assert report["rungs"]["cycle"]["arch"] == "volumepro500"
     assert "note" not in report["rungs"]["cycle"]
@@ -48,9 +45,7 @@ def test_every_rung_and_ratio_is_reported_and_missing_ones_say_so():
     assert tvc["timing_model_vs_cycle"] == pytest.approx(
         report["rungs"]["cycle"]["seconds"] / tvc["timing_model_seconds"]
     )
-    cvr, cyc = ratios["cycle_vs_rtl"], report["rungs"]["cycle"]
-    if "rtl" not in AVAILABLE_FIDELITIES:  # against the toolchain's RTL figure meanwhile
-        assert cvr["value"] == pytest.approx(cyc["simulated_cycles_per_second"] / 30e3)
+    cyc = report["rungs"]["cycle"]
     assert ratios["cycle_samples_per_second"]["value"] == cyc["samples_per_second"]
     assert ratios["golden_vs_vtk"]["note"] == "skipped (--no-vtk)"
     assert {"cpu_model", "usable_cores", "python", "numpy"} <= set(report["machine"])

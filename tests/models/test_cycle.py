@@ -11,49 +11,18 @@ import dataclasses
 
 import numpy as np
 import pytest
+from rungs import assert_identical, functional_and_cycle, scene_of
 
 from hwsim.fidelity import render, resolve_arch
-from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.scene import CropSpec, CutPlane, TransferSpec
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
-from models.arch.cube4 import UNITS
-from models.cycle import render_cycle
-from models.functional import render_functional
+from models.machines.cube4.cycle import UNITS
 
 pytestmark = pytest.mark.model
 
 VIEWS = [(0, 0), (45, 0), (0, 90), (30, 20), (180, 0), (37, -61), (90, 45)]
 MODES = ["composite", "mip", "minip", "xray", "iso"]
-
-
-def scene_of(az=30, el=20, *, size=28, mode="composite", projection="parallel", **extra):
-    render_kw = extra.pop("render", {})
-    return Scene(
-        volume=VolumeSpec(phantom="head"),
-        transfer=extra.pop("transfer", TransferSpec(preset="ct")),
-        view=ViewSpec(
-            azimuth=az, elevation=el, width=size, height=size, zoom=1.2, projection=projection
-        ),
-        render=RenderSpec(mode=mode, **render_kw),
-        **extra,
-    )
-
-
-def both(scene, volume, arch="cube4", **kw):
-    machine = resolve_arch(arch) if isinstance(arch, str) else arch
-    tf = resolve_transfer(scene.transfer, volume)
-    plan = make_plan(scene, volume, machine.order)
-    fixed = render_functional(scene, volume, tf, machine, plan)
-    cycle = render_cycle(scene, volume, tf, machine, plan, **kw)
-    return fixed, cycle, plan
-
-
-def assert_identical(fixed, cycle):
-    assert cycle.image.dtype == fixed.image.dtype and cycle.image.shape == fixed.image.shape
-    assert np.array_equal(cycle.image, fixed.image), "cycle image differs from functional"
-    assert cycle.samples == fixed.samples
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +33,7 @@ def head():
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize(("az", "el"), VIEWS)
 def test_cycle_equals_functional_bit_for_bit_parallel(head, mode, az, el):
-    fixed, cycle, _ = both(scene_of(az, el, mode=mode), head)
+    fixed, cycle, _ = functional_and_cycle(scene_of(az, el, mode=mode), head, "cube4")
     assert_identical(fixed, cycle)
     if mode == "composite":
         assert cycle.image[..., 3].max() > 0.5  # not a trivially empty picture
@@ -74,14 +43,14 @@ def test_cycle_equals_functional_bit_for_bit_parallel(head, mode, az, el):
 @pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20), (45, 0), (150, -30)])
 def test_cycle_equals_functional_bit_for_bit_perspective(head, mode, az, el):
     scene = scene_of(az, el, mode=mode, projection="perspective")
-    fixed, cycle, _ = both(scene, head)
+    fixed, cycle, _ = functional_and_cycle(scene, head, "cube4")
     assert_identical(fixed, cycle)
 
 
 @pytest.mark.parametrize("pipelines", [1, 3, 8])
 def test_any_pipeline_count_renders_the_same_image(head, pipelines):
     arch = dataclasses.replace(resolve_arch("cube4"), pipelines=pipelines)
-    fixed, cycle, _ = both(scene_of(60, 25), head, arch)
+    fixed, cycle, _ = functional_and_cycle(scene_of(60, 25), head, arch)
     assert_identical(fixed, cycle)
     assert cycle.counters["memory.conflicts"] == 0
 
@@ -91,7 +60,11 @@ def test_non_cubic_anisotropic_volume(rng):
     data[3:7, 4:10, 5:18] += 900
     vol = Volume(data=data, spacing=(2.0, 1.0, 0.7), bits=12, name="box")
     for az, el in [(20, 10), (100, 0), (0, 80)]:
-        assert_identical(*both(scene_of(az, el, transfer=TransferSpec(preset="auto")), vol)[:2])
+        assert_identical(
+            *functional_and_cycle(
+                scene_of(az, el, transfer=TransferSpec(preset="auto")), vol, "cube4"
+            )[:2]
+        )
 
 
 @pytest.mark.parametrize(
@@ -107,7 +80,7 @@ def test_non_cubic_anisotropic_volume(rng):
     ids=["pre-classified", "crop", "cut-plane", "gm-modulation", "unlit", "ert"],
 )
 def test_scene_features_stay_bit_identical(head, extra):
-    assert_identical(*both(scene_of(40, 15, **extra), head)[:2])
+    assert_identical(*functional_and_cycle(scene_of(40, 15, **extra), head, "cube4")[:2])
 
 
 def test_marschner_lobb_and_ball():
@@ -115,7 +88,9 @@ def test_marschner_lobb_and_ball():
         vol = make_phantom(name, size=24)
         for mode in ("composite", "mip"):
             tf = TransferSpec(preset="auto")
-            assert_identical(*both(scene_of(25, 35, mode=mode, transfer=tf), vol)[:2])
+            assert_identical(
+                *functional_and_cycle(scene_of(25, 35, mode=mode, transfer=tf), vol, "cube4")[:2]
+            )
 
 
 @pytest.mark.slow
@@ -124,11 +99,11 @@ def test_real_volumes_are_bit_identical(shared_data, name):
     vol = read_volume(shared_data / name)
     for mode, view in (("composite", (30, 15)), ("mip", (90, 0))):
         scene = scene_of(*view, size=40, mode=mode, transfer=TransferSpec(preset="auto"))
-        assert_identical(*both(scene, vol)[:2])
+        assert_identical(*functional_and_cycle(scene, vol, "cube4")[:2])
 
 
 def test_counters_add_up_and_throughput_never_exceeds_P(head):
-    fixed, cycle, plan = both(scene_of(33, 21), head)
+    fixed, cycle, plan = functional_and_cycle(scene_of(33, 21), head, "cube4")
     c, P = cycle.counters, 4
     assert c["memory.conflicts"] == 0
     assert cycle.samples <= P * cycle.cycles
@@ -151,7 +126,7 @@ def test_axis_aligned_cycle_count_has_its_closed_form():
     pixel-bus drain."""
     n, P = 16, 4
     vol = make_phantom("head", size=n)
-    fixed, cycle, plan = both(scene_of(0, 0, size=n), vol)
+    fixed, cycle, plan = functional_and_cycle(scene_of(0, 0, size=n), vol, "cube4")
     C = -(-n // P)
     latency = 1 + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
     rays = plan.ray_ids.size  # all finish on the last slice; the bus drains one per clock
@@ -161,10 +136,10 @@ def test_axis_aligned_cycle_count_has_its_closed_form():
 
 def test_a_small_pixel_fifo_costs_cycles_not_pixels(head):
     scene = scene_of(30, 20)
-    fixed, roomy, _ = both(scene, head)
-    from models.cycle import Faults
+    fixed, roomy, _ = functional_and_cycle(scene, head, "cube4")
+    from models.machines.cube4.cycle import Faults
 
-    _, tight, _ = both(scene, head, faults=Faults(pixel_fifo_depth=8))
+    _, tight, _ = functional_and_cycle(scene, head, "cube4", faults=Faults(pixel_fifo_depth=8))
     assert np.array_equal(tight.image, roomy.image)
     assert tight.cycles > roomy.cycles
     stalls = tight.counters["pipeline[0].composite.stall_cycles"]
@@ -186,7 +161,7 @@ def test_perspective_rays_denser_than_voxels_stretch_slices_not_the_rules():
     slice; every unit still accounts each cycle exactly once and samples/cycle <= P."""
     vol = make_phantom("head", size=12)
     scene = scene_of(20, 10, size=64, projection="perspective")
-    fixed, cycle, plan = both(scene, vol)
+    fixed, cycle, plan = functional_and_cycle(scene, vol, "cube4")
     assert_identical(fixed, cycle)
     n, P = 12, 4
     T = n * -(-n // P)

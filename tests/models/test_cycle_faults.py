@@ -10,27 +10,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.engine import DeadlockError
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.scene import CropSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
-from models.cycle import Faults, render_cycle
-from models.functional import render_functional
+from models.cycle import render_cycle
+from models.machines.cube4.cycle import Faults
 
 pytestmark = pytest.mark.model
 
 
-def scene_of(mode="composite", lighting=True, **extra):
-    return Scene(
-        volume=VolumeSpec(phantom="head"),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(azimuth=35, elevation=20, width=36, height=36, zoom=1.2),
-        render=RenderSpec(mode=mode, lighting=lighting),
-        **extra,
-    )
+scene_of = rungs.fault_scene
 
 
 @pytest.fixture(scope="module")
@@ -39,12 +33,7 @@ def head():
 
 
 def run(scene, volume, **kw):
-    arch = resolve_arch("cube4")
-    tf = resolve_transfer(scene.transfer, volume)
-    plan = make_plan(scene, volume, arch.order)
-    return render_functional(scene, volume, tf, arch, plan), render_cycle(
-        scene, volume, tf, arch, plan, **kw
-    )
+    return rungs.functional_and_cycle(scene, volume, "cube4", **kw)[:2]
 
 
 @pytest.mark.parametrize(

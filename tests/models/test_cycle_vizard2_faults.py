@@ -8,30 +8,21 @@ pixel FIFO of depth 0 likewise; a shallow pixel FIFO costs cycles, not pixels.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.engine import DeadlockError
 from hwsim.fidelity import resolve_arch
-from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
-from models.arch.vizard2 import VizardFaults
-from models.cycle import render_cycle
-from models.functional import render_functional
+from models.machines.vizard2.cycle import VizardFaults
 
 pytestmark = pytest.mark.model
 
 
-def scene_of(mode="composite", lighting=True):
-    return Scene(
-        volume=VolumeSpec(phantom="head"),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(azimuth=35, elevation=20, width=24, height=24, zoom=1.2),
-        render=RenderSpec(mode=mode, lighting=lighting),
-    )
+scene_of = functools.partial(rungs.fault_scene, size=24)
 
 
 @pytest.fixture(scope="module")
@@ -39,13 +30,8 @@ def head():
     return make_phantom("head", size=20)
 
 
-def run(scene, volume, arch=None, **kw):
-    arch = arch or resolve_arch("vizard2")
-    tf = resolve_transfer(scene.transfer, volume)
-    plan = make_plan(scene, volume, arch.order)
-    return render_functional(scene, volume, tf, arch, plan), render_cycle(
-        scene, volume, tf, arch, plan, **kw
-    )
+def run(scene, volume, arch="vizard2", **kw):
+    return rungs.functional_and_cycle(scene, volume, arch, **kw)[:2]
 
 
 @pytest.fixture(scope="module")

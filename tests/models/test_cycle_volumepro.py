@@ -10,57 +10,23 @@ sections.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
+from rungs import assert_identical, functional_and_cycle, machine, scene_of
 
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.scene import CropSpec, CutPlane, TransferSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
-from models.cycle import CYCLE_ORDERS, render_cycle
-from models.functional import render_functional
+from models.cycle import has_cycle_model, render_cycle
 
 pytestmark = pytest.mark.model
 
 ARCHS = ["volumepro500", "em-cube", "volumepro1000"]
 VIEWS = [(0, 0), (30, 20), (90, 45), (200, -30), (37, -61)]
 MODES = ["composite", "mip", "minip", "xray", "iso"]
-
-
-def scene_of(az=30, el=20, *, size=28, mode="composite", projection="parallel", **extra):
-    render_kw = extra.pop("render", {})
-    return Scene(
-        volume=VolumeSpec(phantom="head"),
-        transfer=extra.pop("transfer", TransferSpec(preset="ct")),
-        view=ViewSpec(
-            azimuth=az, elevation=el, width=size, height=size, zoom=1.2, projection=projection
-        ),
-        render=RenderSpec(mode=mode, **render_kw),
-        **extra,
-    )
-
-
-def both(scene, volume, arch, **kw):
-    machine = resolve_arch(arch) if isinstance(arch, str) else arch
-    tf = resolve_transfer(scene.transfer, volume)
-    plan = make_plan(scene, volume, machine.order)
-    fixed = render_functional(scene, volume, tf, machine, plan)
-    cycle = render_cycle(scene, volume, tf, machine, plan, **kw)
-    return fixed, cycle, plan
-
-
-def assert_identical(fixed, cycle):
-    assert cycle.image.dtype == fixed.image.dtype and cycle.image.shape == fixed.image.shape
-    assert np.array_equal(cycle.image, fixed.image), "cycle image differs from functional"
-    assert cycle.samples == fixed.samples
-
-
-def with_(arch: str, **changes):
-    return dataclasses.replace(resolve_arch(arch), **changes)
 
 
 @pytest.fixture(scope="module")
@@ -70,14 +36,14 @@ def head():
 
 def test_the_volumepro_family_is_modelled():
     for name in ARCHS:
-        assert resolve_arch(name).order in CYCLE_ORDERS
+        assert has_cycle_model(resolve_arch(name))
 
 
 @pytest.mark.parametrize("arch", ARCHS)
 @pytest.mark.parametrize("mode", MODES)
 def test_bit_identical_over_modes_and_views_parallel(head, arch, mode):
     for az, el in VIEWS:
-        fixed, cycle, _ = both(scene_of(az, el, mode=mode), head, arch)
+        fixed, cycle, _ = functional_and_cycle(scene_of(az, el, mode=mode), head, arch)
         assert_identical(fixed, cycle)
         assert cycle.counters["memory.conflicts"] == 0
     if mode == "composite":
@@ -88,7 +54,7 @@ def test_bit_identical_over_modes_and_views_parallel(head, arch, mode):
 @pytest.mark.parametrize(("az", "el"), [(0, 0), (30, 20), (150, -30)])
 def test_volumepro1000_perspective_is_bit_identical(head, mode, az, el):
     scene = scene_of(az, el, mode=mode, projection="perspective")
-    assert_identical(*both(scene, head, "volumepro1000")[:2])
+    assert_identical(*functional_and_cycle(scene, head, "volumepro1000")[:2])
 
 
 @pytest.mark.parametrize("pipelines", [1, 3, 8])
@@ -96,7 +62,7 @@ def test_any_pipeline_count_against_four_sdram_modules(head, pipelines):
     """The de-skew network feeds P pipelines from M = 4 modules for any P."""
     for arch in ("volumepro500", "volumepro1000"):
         scene = scene_of(60, 25, render={"supersampling": 2.0})
-        fixed, cycle, _ = both(scene, head, with_(arch, pipelines=pipelines))
+        fixed, cycle, _ = functional_and_cycle(scene, head, machine(arch, pipelines=pipelines))
         assert_identical(fixed, cycle)
         assert cycle.counters["memory.conflicts"] == 0
 
@@ -115,14 +81,16 @@ def test_z_supersampling_interpolates_across_two_slices_bit_identically(head, ar
     """Sample slices between voxel slices: trilinear with models.units.interp's lerps."""
     for az, el in [(30, 20), (90, 45), (200, -30)]:
         scene = scene_of(az, el, render={"supersampling": factor})
-        fixed, cycle, plan = both(scene, head, arch)
+        fixed, cycle, plan = functional_and_cycle(scene, head, arch)
         assert_identical(fixed, cycle)
     assert plan.n_steps == int(np.floor((21 - 1) * factor + 1e-9)) + 1
 
 
 def test_supersampling_costs_pipeline_time_in_proportion(head):
-    one = both(scene_of(0, 0), head, "volumepro500")[1]
-    four = both(scene_of(0, 0, render={"supersampling": 4.0}), head, "volumepro500")[1]
+    one = functional_and_cycle(scene_of(0, 0), head, "volumepro500")[1]
+    four = functional_and_cycle(
+        scene_of(0, 0, render={"supersampling": 4.0}), head, "volumepro500"
+    )[1]
     # 81 sample slices against 21, each of n_a C clocks; memory reads each voxel once.
     assert four.counters["pipeline.beams_processed"] == 81 * 21
     assert one.counters["memory.bursts"] == four.counters["memory.bursts"]
@@ -158,7 +126,7 @@ def test_supersampling_costs_pipeline_time_in_proportion(head):
 )
 @pytest.mark.parametrize("arch", ["volumepro500", "volumepro1000"])
 def test_volumepro_features_stay_bit_identical(head, arch, extra):
-    assert_identical(*both(scene_of(40, 15, **extra), head, arch)[:2])
+    assert_identical(*functional_and_cycle(scene_of(40, 15, **extra), head, arch)[:2])
 
 
 @pytest.mark.parametrize("bits", [8, 12])
@@ -168,7 +136,7 @@ def test_eight_and_twelve_bit_voxels(rng, bits):
     vol = Volume(data=data, spacing=(1.5, 1.0, 0.8), bits=bits, name="box")
     for az, el in [(20, 10), (100, 0), (0, 80)]:
         scene = scene_of(az, el, transfer=TransferSpec(preset="auto"))
-        fixed, cycle, _ = both(scene, vol, "volumepro500")
+        fixed, cycle, _ = functional_and_cycle(scene, vol, "volumepro500")
         assert_identical(fixed, cycle)
     assert cycle.counters["memory.conflicts"] == 0
 
@@ -177,15 +145,15 @@ def test_volumepro1000_gradients_are_taken_at_voxels(head):
     arch = resolve_arch("volumepro1000")
     assert arch.formats["gradient"]["source"] == "voxel"
     lit = scene_of(30, 20, render={"lighting": True})
-    voxel = both(lit, head, arch)
-    sample = both(lit, head, with_("volumepro1000", formats={}))
+    voxel = functional_and_cycle(lit, head, arch)
+    sample = functional_and_cycle(lit, head, machine("volumepro1000", formats={}))
     assert_identical(*voxel[:2])
     assert_identical(*sample[:2])
     assert not np.array_equal(voxel[1].image, sample[1].image)  # the source matters
 
 
 def test_counters_add_up_and_every_mini_block_is_read_once(head):
-    fixed, cycle, plan = both(scene_of(33, 21), head, "volumepro500")
+    fixed, cycle, plan = functional_and_cycle(scene_of(33, 21), head, "volumepro500")
     c, P = cycle.counters, 4
     assert c["memory.conflicts"] == 0
     assert cycle.samples <= P * cycle.cycles
@@ -209,7 +177,7 @@ def test_counters_add_up_and_every_mini_block_is_read_once(head):
 @pytest.mark.parametrize("axis_view", [(0, 0), (90, 0), (0, 90)], ids=["z", "x", "y"])
 def test_skew_is_conflict_free_along_every_principal_axis(head, axis_view):
     for arch in ARCHS:
-        cycle = both(scene_of(*axis_view, mode="mip"), head, arch)[1]
+        cycle = functional_and_cycle(scene_of(*axis_view, mode="mip"), head, arch)[1]
         assert cycle.counters["memory.conflicts"] == 0
 
 
@@ -219,11 +187,11 @@ def test_block_layout_without_the_bank_skew_renders_the_same_and_stalls_more(hea
     bursts of a module now often hit one bank, and the row conflicts that the bank skew
     hides behind other banks' bursts stall the pipelines."""
     memory = dict(resolve_arch("em-cube").memory)
-    one_level_arch = with_("em-cube", memory={**memory, "skew": "block"})
+    one_level_arch = machine("em-cube", memory={**memory, "skew": "block"})
     for view in [(90, 0), (0, 90)]:
         scene = scene_of(*view, mode="mip")
-        two_level = both(scene, head, "em-cube")[1]
-        fixed, one_level, _ = both(scene, head, one_level_arch)
+        two_level = functional_and_cycle(scene, head, "em-cube")[1]
+        fixed, one_level, _ = functional_and_cycle(scene, head, one_level_arch)
         assert_identical(fixed, one_level)
         assert np.array_equal(one_level.image, two_level.image)
         assert one_level.counters["memory.conflicts"] == 0
@@ -235,11 +203,17 @@ def test_block_layout_without_the_bank_skew_renders_the_same_and_stalls_more(hea
 def test_refresh_and_slower_memory_cost_cycles_by_mechanism(head):
     """Rules 1-3: the pipelines stall exactly when data is late."""
     scene = scene_of(0, 0, mode="mip")
-    base = both(scene, head, "volumepro500")[1]
+    base = functional_and_cycle(scene, head, "volumepro500")[1]
     memory = dict(resolve_arch("volumepro500").memory)
-    no_refresh = both(scene, head, with_("volumepro500", memory={**memory, "t_refi": 0}))[1]
-    often = both(scene, head, with_("volumepro500", memory={**memory, "t_refi": 40}))[1]
-    half = both(scene, head, with_("volumepro500", memory={**memory, "clock_ratio": 0.5}))[1]
+    no_refresh = functional_and_cycle(
+        scene, head, machine("volumepro500", memory={**memory, "t_refi": 0})
+    )[1]
+    often = functional_and_cycle(
+        scene, head, machine("volumepro500", memory={**memory, "t_refi": 40})
+    )[1]
+    half = functional_and_cycle(
+        scene, head, machine("volumepro500", memory={**memory, "clock_ratio": 0.5})
+    )[1]
     assert no_refresh.counters["memory.sdram.refreshes"] == 0
     assert 0 < base.counters["memory.sdram.refreshes"] < often.counters["memory.sdram.refreshes"]
     # A refresh every 976 clocks hides in the buffer's slack here; one every 40 does not.
@@ -257,7 +231,7 @@ def test_with_memory_never_late_the_rules_have_their_closed_form(head, factor):
     continuous period is exactly the beam clocks (sample slices x n_a x C); one frame
     adds the first burst's arrival, the pipeline latency and the pixel-bus drain."""
     memory = dict(resolve_arch("volumepro500").memory)
-    fast = with_("volumepro500", memory={**memory, "t_refi": 0, "clock_ratio": 64.0})
+    fast = machine("volumepro500", memory={**memory, "t_refi": 0, "clock_ratio": 64.0})
     scene = scene_of(0, 0, mode="mip", render={"supersampling": factor})
     tf = resolve_transfer(scene.transfer, head)
     plan = make_plan(scene, head, fast.order)
@@ -273,16 +247,16 @@ def test_with_memory_never_late_the_rules_have_their_closed_form(head, factor):
 
 def test_a_pipeline_slice_overhead_adds_per_slice(head):
     scene = scene_of(0, 0, mode="mip")
-    base = both(scene, head, "volumepro500")[1]
-    slow = both(scene, head, with_("volumepro500", slice_overhead_cycles=10))[1]
+    base = functional_and_cycle(scene, head, "volumepro500")[1]
+    slow = functional_and_cycle(scene, head, machine("volumepro500", slice_overhead_cycles=10))[1]
     assert base.cycles < slow.cycles <= base.cycles + 21 * 10
 
 
 def test_elision_changes_neither_image_nor_cycles(head):
     for mode in ("mip", "composite"):
         scene = scene_of(30, 20, mode=mode, render={"lighting": mode == "composite"})
-        _, lean, _ = both(scene, head, "volumepro500")
-        _, full, _ = both(scene, head, "volumepro500", elaborate_all=True)
+        _, lean, _ = functional_and_cycle(scene, head, "volumepro500")
+        _, full, _ = functional_and_cycle(scene, head, "volumepro500", elaborate_all=True)
         assert np.array_equal(lean.image, full.image) and lean.cycles == full.cycles
         assert len(full.elaborated_units) >= len(lean.elaborated_units)
 
@@ -295,9 +269,9 @@ def test_early_ray_termination_saves_cycles_on_volumepro1000_only(head):
     dense = TransferSpec(points=((0.0, 1, 1, 1, 0.0), (200.0, 1, 1, 1, 0.9), (4095.0, 1, 1, 1, 1)))
     scene = scene_of(30, 20, transfer=dense, render={"early_termination": 0.95})
     plain = scene_of(30, 20, transfer=dense, render={"early_termination": 1.0})
-    fixed, ert, _ = both(scene, head, "volumepro1000")
+    fixed, ert, _ = functional_and_cycle(scene, head, "volumepro1000")
     assert_identical(fixed, ert)
-    full = both(plain, head, "volumepro1000")[1]
+    full = functional_and_cycle(plain, head, "volumepro1000")[1]
     assert ert.cycles < full.cycles
     assert ert.counters["pipeline.beam_cycles"] < full.counters["pipeline.beam_cycles"]
     assert ert.counters["memory.bursts_skipped"] > full.counters["memory.bursts_skipped"]
@@ -306,7 +280,10 @@ def test_early_ray_termination_saves_cycles_on_volumepro1000_only(head):
     assert differs.any() and (alpha[differs] >= 0.95 - 1e-3).all()
     assert np.abs(ert.image - full.image).max() <= 0.05 + 1e-3
     # VolumePro 500 has no ERT hardware: the threshold is honoured, no cycle is saved.
-    vp500 = both(scene, head, "volumepro500")[1], both(plain, head, "volumepro500")[1]
+    vp500 = (
+        functional_and_cycle(scene, head, "volumepro500")[1],
+        functional_and_cycle(plain, head, "volumepro500")[1],
+    )
     assert vp500[0].cycles == vp500[1].cycles
     assert vp500[0].counters["pipeline.beams_skipped"] == 0
 
@@ -319,8 +296,8 @@ def test_space_leaping_is_a_feature_users_turn_on(head):
     )
     scene = scene_of(30, 20, transfer=sparse)
     assert resolve_arch("volumepro1000").space_leaping is False
-    off = both(scene, head, "volumepro1000")
-    on = both(scene, head, with_("volumepro1000", space_leaping=True))
+    off = functional_and_cycle(scene, head, "volumepro1000")
+    on = functional_and_cycle(scene, head, machine("volumepro1000", space_leaping=True))
     assert_identical(*off[:2])
     assert np.array_equal(on[1].image, off[0].image)
     assert on[1].samples < off[1].samples
@@ -328,10 +305,12 @@ def test_space_leaping_is_a_feature_users_turn_on(head):
     assert on[1].counters["memory.mbb_reads"] < off[1].counters["memory.mbb_reads"]
     # Space leaping without ERT hardware (VP500 with the feature on): a scene's ERT
     # threshold is honoured in the image but saves no cycle.
-    vp500 = with_("volumepro500", space_leaping=True)
-    ert = both(scene_of(30, 20, transfer=sparse, render={"early_termination": 0.5}), head, vp500)
+    vp500 = machine("volumepro500", space_leaping=True)
+    ert = functional_and_cycle(
+        scene_of(30, 20, transfer=sparse, render={"early_termination": 0.5}), head, vp500
+    )
     assert np.array_equal(ert[1].image, ert[0].image)
-    plain = both(scene, head, vp500)[1]
+    plain = functional_and_cycle(scene, head, vp500)[1]
     assert ert[1].cycles == plain.cycles and plain.cycles < off[1].cycles * 1.1
 
 
@@ -341,8 +320,10 @@ def test_sections_park_partial_rays_and_keep_the_image(head, arch):
     reloaded; overlap mini-block beams are re-read.  Compositing stays front to back."""
     for az, el in [(30, 20), (200, -35), (0, 0)]:
         scene = scene_of(az, el, render={"lighting": True})
-        whole = both(scene, head, arch)
-        banded = both(scene, head, with_(arch, section_width=6, section_overhead_cycles=50))
+        whole = functional_and_cycle(scene, head, arch)
+        banded = functional_and_cycle(
+            scene, head, machine(arch, section_width=6, section_overhead_cycles=50)
+        )
         assert_identical(*whole[:2])
         assert np.array_equal(banded[1].image, whole[0].image)
         c = banded[1].counters
@@ -356,9 +337,9 @@ def test_sections_park_partial_rays_and_keep_the_image(head, arch):
 def test_a_volume_too_big_for_the_sdram_is_refused_naming_the_key(head):
     from hwsim.errors import InputError
 
-    tiny = with_("volumepro500", memory={**resolve_arch("volumepro500").memory, "rows": 1})
+    tiny = machine("volumepro500", memory={**resolve_arch("volumepro500").memory, "rows": 1})
     with pytest.raises(InputError, match=r"volumepro500.toml: memory.rows: .* \(allowed: >= 2"):
-        both(scene_of(30, 20), head, tiny)
+        functional_and_cycle(scene_of(30, 20), head, tiny)
 
 
 def test_perspective_refuses_sections(head):
@@ -366,7 +347,7 @@ def test_perspective_refuses_sections(head):
 
     scene = scene_of(30, 20, projection="perspective")
     with pytest.raises(InputError, match="overheads.section_width"):
-        both(scene, head, with_("volumepro1000", section_width=6))
+        functional_and_cycle(scene, head, machine("volumepro1000", section_width=6))
 
 
 def test_render_entry_point_runs_the_volumepro_machines(head):
@@ -401,7 +382,7 @@ def test_real_volumes_are_bit_identical(shared_data, name):
         ("volumepro1000", "composite", (20, 10), "perspective"),
     ):
         scene = scene_of(*view, size=40, mode=mode, transfer=tf, projection=projection)
-        assert_identical(*both(scene, vol, arch)[:2])
+        assert_identical(*functional_and_cycle(scene, vol, arch)[:2])
 
 
 def test_voxel_gradients_load_slices_one_ahead_not_in_a_chain():

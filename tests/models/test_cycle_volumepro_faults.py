@@ -13,29 +13,19 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.engine import DeadlockError
 from hwsim.fidelity import resolve_arch
-from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
-from models.cycle import Faults, render_cycle
-from models.functional import render_functional
+from models.machines.volumepro.cycle import SlabFaults as Faults
 
 pytestmark = pytest.mark.model
 
 ARCHS = ["volumepro500", "em-cube", "volumepro1000"]
 
 
-def scene_of(mode="composite", lighting=True, **extra):
-    return Scene(
-        volume=VolumeSpec(phantom="head"),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(azimuth=35, elevation=20, width=36, height=36, zoom=1.2),
-        render=RenderSpec(mode=mode, lighting=lighting),
-        **extra,
-    )
+scene_of = rungs.fault_scene
 
 
 @pytest.fixture(scope="module")
@@ -44,12 +34,7 @@ def head():
 
 
 def run(scene, volume, arch, **kw):
-    machine = resolve_arch(arch) if isinstance(arch, str) else arch
-    tf = resolve_transfer(scene.transfer, volume)
-    plan = make_plan(scene, volume, machine.order)
-    return render_functional(scene, volume, tf, machine, plan), render_cycle(
-        scene, volume, tf, machine, plan, **kw
-    )
+    return rungs.functional_and_cycle(scene, volume, arch, **kw)[:2]
 
 
 @pytest.mark.parametrize("arch", ARCHS)

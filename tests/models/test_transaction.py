@@ -12,36 +12,29 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
+from rungs import CONTRACT
 
-import models.arch.cube4 as cube4_module
 import models.cycle as cycle_module
+import models.machines.cube4.cycle as cube4_module
 from hwsim.engine.fifo import DeadlockError
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec, load_scene
+from hwsim.scene import TransferSpec, VolumeSpec, load_scene
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
-from models.arch.cube4 import UNITS
-from models.arch.cube4_txn import busiest_lanes, slice_loads
 from models.cycle import render_cycle
+from models.machines.common.transaction import slice_loads
+from models.machines.cube4.cycle import UNITS
+from models.machines.cube4.transaction import busiest_lanes
 from models.transaction import render_transaction, transaction_timing
 
 pytestmark = pytest.mark.model
 
-#: Issue 5: transaction cycle counts within 2 % of the cycle rung.
-CONTRACT = 0.02
 
-
-def scene_of(phantom="head", az=30, el=20, *, image=24, mode="composite", projection="parallel"):
-    return Scene(
-        volume=VolumeSpec(phantom=phantom),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(
-            azimuth=az, elevation=el, width=image, height=image, zoom=1.2, projection=projection
-        ),
-        render=dataclasses.replace(Scene().render, mode=mode),
-    )
+def scene_of(phantom="head", az=30, el=20, *, image=24, **kw):
+    return rungs.scene_of(az, el, phantom=phantom, size=image, **kw)
 
 
 def cube4(P=4, **changes):
@@ -63,11 +56,7 @@ def error(exact, approx):
 
 @pytest.fixture(scope="module")
 def phantoms():
-    return {
-        "head": make_phantom("head", size=23),
-        "ball": make_phantom("ball", size=20),
-        "marschner-lobb": make_phantom("marschner-lobb", size=21),
-    }
+    return rungs.phantom_set(23, 20, 21)
 
 
 @pytest.mark.parametrize("mode", ["composite", "mip", "xray"])
@@ -240,9 +229,9 @@ def test_every_order_has_a_transaction_model_and_unmodelled_memories_are_refused
     VIZARD II); what a model does not cover is refused naming the key, not ignored."""
     from hwsim.arch import ORDERS
     from hwsim.fidelity import builtin_archs
-    from models.transaction import TRANSACTION_ORDERS, has_transaction_model
+    from models.transaction import has_transaction_model, transaction_orders
 
-    assert set(ORDERS) <= set(TRANSACTION_ORDERS)
+    assert set(ORDERS) <= set(transaction_orders())
     assert all(has_transaction_model(arch) for arch in builtin_archs().values())
     vizard = resolve_arch("vizard2")
     fast = dataclasses.replace(vizard, memory={**vizard.memory, "clock_ratio": 2.0})

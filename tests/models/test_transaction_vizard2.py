@@ -1,6 +1,6 @@
 """The ``transaction`` rung on VIZARD II: ray packets, block-cache misses as SDRAM bursts.
 
-The model (``models/arch/vizard2_txn.py``) resolves each packet's block lookups at once
+The model (``models/machines/vizard2/transaction.py``) resolves each packet's block lookups at once
 against a tag-only direct-mapped cache and sends each miss group's fill to the shared
 SDRAM transaction port; early ray termination comes from the functional rung's
 termination steps, its speculative rounds estimated with stall-free rounds.  Without a
@@ -14,50 +14,43 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.engine import DeadlockError
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
-from hwsim.volumes import make_phantom, read_volume
+from hwsim.volumes import read_volume
 from models import cycle as cycle_module
-from models.arch import vizard2 as vizard2_module
-from models.arch.vizard2_memory import VolumeImage
-from models.arch.vizard2_txn import BlockLayout
 from models.functional import render_functional
-from models.transaction import render_transaction, transaction_timing
+from models.machines.vizard2 import cycle as vizard2_module
+from models.machines.vizard2.memory import VolumeImage
+from models.machines.vizard2.transaction import BlockLayout
+from models.transaction import transaction_timing
 
 pytestmark = pytest.mark.model
 
-CONTRACT = 0.02
 #: What the model resolves exactly as the machine does when no ray stops early.
 EXACT = ("cache.lookups", "cache.fills", "memory.bursts", "frame.issued_samples")
 
 
-def scene_of(phantom="head", *, image=24, ert=1.0, projection="parallel", mode="composite"):
-    return Scene(
-        volume=VolumeSpec(phantom=phantom),
-        transfer=TransferSpec(preset="auto"),
-        view=ViewSpec(
-            azimuth=30, elevation=15, width=image, height=image, zoom=1.0, projection=projection
-        ),
-        render=RenderSpec(mode=mode, early_termination=ert),
+def scene_of(phantom="head", *, image=24, ert=1.0, **kw):
+    return rungs.scene_of(
+        30,
+        15,
+        phantom=phantom,
+        size=image,
+        preset="auto",
+        zoom=1.0,
+        render={"early_termination": ert},
+        **kw,
     )
 
 
 def machine(leaping=True, **buffers):
     arch = resolve_arch("vizard2")
     return dataclasses.replace(arch, space_leaping=leaping, buffers={**arch.buffers, **buffers})
-
-
-def both_rungs(scene, volume, arch):
-    plan = make_plan(scene, volume, arch.order)
-    tf = resolve_transfer(scene.transfer, volume)
-    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan)
-    approx = render_transaction(scene, volume, tf, arch, plan)
-    return exact, approx
 
 
 def timing(scene, volume, arch, **options):
@@ -68,11 +61,7 @@ def timing(scene, volume, arch, **options):
 
 @pytest.fixture(scope="module")
 def phantoms():
-    return {
-        "head": make_phantom("head", size=24),
-        "ball": make_phantom("ball", size=24),
-        "marschner-lobb": make_phantom("marschner-lobb", size=25),
-    }
+    return rungs.phantom_set(24, 24, 25)
 
 
 @pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
@@ -81,13 +70,10 @@ def phantoms():
 @pytest.mark.parametrize("leaping", [False, True])
 def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
     volume = phantoms[phantom]
-    exact, approx = both_rungs(
+    exact, approx = rungs.cycle_and_transaction(
         scene_of(phantom, ert=ert, projection=projection), volume, machine(leaping)
     )
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
-        exact.cycles,
-        approx.cycles,
-    )
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
     assert np.array_equal(approx.image, exact.image)  # functional = cycle image
     if ert == 1.0:  # nothing estimated: the machine's rules, exactly
         assert approx.cycles == exact.cycles
@@ -97,15 +83,15 @@ def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, project
 
 @pytest.mark.parametrize("mode", ["mip", "iso"])
 def test_other_modes_within_the_contract(phantoms, mode):
-    exact, approx = both_rungs(scene_of(mode=mode), phantoms["head"], machine())
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+    exact, approx = rungs.cycle_and_transaction(scene_of(mode=mode), phantoms["head"], machine())
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
 
 
 def test_a_smaller_cache_misses_more_and_each_fill_is_its_bursts(phantoms):
     volume, scene = phantoms["head"], scene_of(image=32)
     roomy = timing(scene, volume, machine())
     small = timing(scene, volume, machine(cache_sets=[2, 2, 2]))
-    exact, _ = both_rungs(scene, volume, machine(cache_sets=[2, 2, 2]))
+    exact, _ = rungs.cycle_and_transaction(scene, volume, machine(cache_sets=[2, 2, 2]))
     assert small.counters["cache.fills"] > roomy.counters["cache.fills"] > 0
     assert small.cycles > roomy.cycles
     assert small.cycles == exact.cycles
@@ -199,11 +185,8 @@ def test_termination_steps_are_read_not_recomputed(phantoms):
 def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
     volume = read_volume(shared_data / name)
     scene = scene_of(image=32, ert=ert, projection=projection)
-    exact, approx = both_rungs(scene, volume, machine(leaping))
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
-        exact.cycles,
-        approx.cycles,
-    )
+    exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
 
 
 @pytest.mark.parametrize("arch", ["vizard2", "volumepro1000"])
@@ -219,6 +202,6 @@ def test_hwsim_render_at_the_transaction_rung(tmp_path, arch):
     assert main([*args, "--fidelity", "cycle", "--out", str(tmp_path / "c")]) == 0
     txn, cyc = (json.loads((tmp_path / d / "stats.json").read_text()) for d in ("t", "c"))
     assert txn["cycles"] == txn["counters"]["frame.cycles"]
-    assert abs(txn["cycles"] - cyc["cycles"]) <= CONTRACT * cyc["cycles"]
+    rungs.assert_within_contract(cyc["cycles"], txn["cycles"])
     images = [np.load(tmp_path / d / "image.npy") for d in ("t", "c")]
     assert np.array_equal(*images)

@@ -1,10 +1,9 @@
 """The ``transaction`` rung on VolumePro 500 and EM-Cube: SDRAM-fed slab machines.
 
 The event model times the VolumePro-family rules of docs/cycle.md at beam-group
-granularity over the shared SDRAM model (``SdramTransactionPort``).  Where the cycle rung
-models the machine too (the VolumePro-family cycle model, branch ``slicefam``), the
-counts are compared against the 2 % contract; otherwise those tests skip, saying why,
-and the mechanism tests below still hold the model to the machine's rules.
+granularity over the shared SDRAM model (``SdramTransactionPort``).  The cycle rung
+models the same machines, and the counts are compared against the 2 % contract; the
+mechanism tests below also hold the model to the machine's rules.
 """
 
 from __future__ import annotations
@@ -13,31 +12,27 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.engine.fifo import DeadlockError
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
 from hwsim.memory import parse_memory
-from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.scene import TransferSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
-from models.arch.cube4 import UNITS
+from models.machines.cube4.cycle import UNITS
 from models.transaction import transaction_timing
 
 pytestmark = pytest.mark.model
 
-CONTRACT = 0.02
 MACHINES = ["volumepro500", "em-cube"]
 
 
 def scene_of(phantom="head", az=30, el=20, *, image=32, mode="composite", ss=1.0):
-    base = Scene()
-    return Scene(
-        volume=VolumeSpec(phantom=phantom),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(azimuth=az, elevation=el, width=image, height=image, zoom=1.2),
-        render=dataclasses.replace(base.render, mode=mode, supersampling=ss),
+    return rungs.scene_of(
+        az, el, phantom=phantom, size=image, mode=mode, render={"supersampling": ss}
     )
 
 
@@ -46,17 +41,9 @@ def timing(scene, volume, arch, **options):
     return transaction_timing(scene, arch, plan, **options), plan
 
 
-def cycle_rung_models(arch) -> bool:
-    from models.cycle import CYCLE_ORDERS
-
-    return arch.order in CYCLE_ORDERS
-
-
 def cycle_count(scene, volume, arch) -> int:
     from models.cycle import render_cycle
 
-    if not cycle_rung_models(arch):
-        pytest.skip(f"the cycle rung does not model {arch.name} on this branch (slicefam adds it)")
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
     return render_cycle(scene, volume, tf, arch, plan).cycles
@@ -142,7 +129,7 @@ def test_a_small_input_buffer_waits_and_one_too_small_deadlocks(head):
 def test_the_slab_model_refuses_beam_skipping_rather_than_ignoring_it(head):
     """VolumePro 1000 goes to its own model (tests/models/test_transaction_vp1000.py);
     the plain slab model, asked directly, refuses a machine that skips beams."""
-    from models.arch.volumepro_txn import SlabTransaction
+    from models.machines.volumepro.transaction import SlabTransaction
 
     arch = resolve_arch("volumepro1000")
     plan = make_plan(scene_of(), head, arch.order)
@@ -173,7 +160,7 @@ def test_sections_park_the_rays_that_cross_a_band_and_reread_the_overlap(head):
 
 
 def test_sections_need_a_parallel_view():
-    from models.arch.sections_txn import bands_of
+    from models.machines.common.sections import bands_of
 
     volume = make_phantom("head", size=16)
     scene = scene_of(image=16)
@@ -190,7 +177,7 @@ def test_sectioned_cycles_within_the_contract(width, overhead, az, el):
     scene = scene_of(az=az, el=el, image=24)
     exact = cycle_count(scene, volume, arch)
     approx = timing(scene, volume, arch)[0].cycles
-    assert abs(approx - exact) <= CONTRACT * exact, (exact, approx)
+    rungs.assert_within_contract(exact, approx)
 
 
 @pytest.mark.parametrize("arch", MACHINES)
@@ -202,7 +189,7 @@ def test_cycles_within_the_contract_of_the_cycle_rung(arch, phantom, az, el):
     scene = scene_of(phantom, az, el)
     exact = cycle_count(scene, volume, machine)
     approx = timing(scene, volume, machine)[0].cycles
-    assert abs(approx - exact) <= CONTRACT * exact, (exact, approx)
+    rungs.assert_within_contract(exact, approx)
 
 
 @pytest.mark.parametrize("ss", [2.0, 3.0])
@@ -211,7 +198,7 @@ def test_supersampled_cycles_within_the_contract(ss):
     scene = scene_of(image=24, ss=ss)
     exact = cycle_count(scene, volume, machine)
     approx = timing(scene, volume, machine)[0].cycles
-    assert abs(approx - exact) <= CONTRACT * exact, (exact, approx)
+    rungs.assert_within_contract(exact, approx)
 
 
 def test_finer_groups_approach_the_cycle_count(head):
@@ -230,4 +217,4 @@ def test_real_volumes_within_the_contract(shared_data, name):
     scene = scene_of(az=30, el=20, image=96).replace(transfer=TransferSpec(preset="auto"))
     exact = cycle_count(scene, volume, machine)
     approx = timing(scene, volume, machine)[0].cycles
-    assert abs(approx - exact) <= CONTRACT * exact, (exact, approx)
+    rungs.assert_within_contract(exact, approx)

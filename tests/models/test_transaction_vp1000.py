@@ -1,11 +1,11 @@
 """The ``transaction`` rung on VolumePro 1000: beam skipping (early ray termination, space
 leaping) in the slab machine's event model.
 
-The model (``models/arch/vp1000_txn.py``) takes each ray's termination step from the
-functional rung and each slice's live cells from the plan, and times the frame at
-beam-group / mini-block-beam-chunk granularity over the shared SDRAM transaction port.
-These tests hold it to the cycle rung (docs/cycle.md rule 6) within the 2 % contract, and
-check that its inputs (beams, bursts, clocks) are the machine's.
+The model (``models/machines/volumepro/vp1000_transaction.py``) takes each ray's
+termination step from the functional rung and each slice's live cells from the plan, and
+times the frame at beam-group / mini-block-beam-chunk granularity over the shared SDRAM
+transaction port.  These tests hold it to the cycle rung (docs/cycle.md rule 6) within
+the 2 % contract, and check that its inputs (beams, bursts, clocks) are the machine's.
 """
 
 from __future__ import annotations
@@ -14,35 +14,29 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.scene import ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models import cycle as cycle_module
-from models.arch import volumepro as volumepro_module
 from models.functional import NEVER, render_functional
+from models.machines.volumepro import cycle as volumepro_module
 from models.transaction import render_transaction, transaction_timing
 
 pytestmark = pytest.mark.model
 
-CONTRACT = 0.02
 #: Counters the event model's inputs must share with the cycle rung exactly: rule 6 is
 #: decided per beam and per mini-block, not estimated.
 EXACT = ("memory.bursts", "memory.mbb_reads", "pipeline.beams_processed", "pipeline.beam_cycles")
 
 
-def scene_of(phantom="head", az=30, el=20, *, image=40, ert=1.0, projection="parallel"):
-    base = Scene()
-    return Scene(
-        volume=VolumeSpec(phantom=phantom),
-        transfer=TransferSpec(preset="auto"),
-        view=ViewSpec(
-            azimuth=az, elevation=el, width=image, height=image, zoom=1.2, projection=projection
-        ),
-        render=dataclasses.replace(base.render, mode="composite", early_termination=ert),
+def scene_of(phantom="head", az=30, el=20, *, image=40, ert=1.0, **kw):
+    return rungs.scene_of(
+        az, el, phantom=phantom, size=image, preset="auto", render={"early_termination": ert}, **kw
     )
 
 
@@ -50,21 +44,9 @@ def machine(leaping: bool):
     return dataclasses.replace(resolve_arch("volumepro1000"), space_leaping=leaping)
 
 
-def both_rungs(scene, volume, arch):
-    plan = make_plan(scene, volume, arch.order)
-    tf = resolve_transfer(scene.transfer, volume)
-    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan)
-    approx = render_transaction(scene, volume, tf, arch, plan)
-    return exact, approx
-
-
 @pytest.fixture(scope="module")
 def phantoms():
-    return {
-        "head": make_phantom("head", size=40),
-        "ball": make_phantom("ball", size=40),
-        "marschner-lobb": make_phantom("marschner-lobb", size=41),
-    }
+    return rungs.phantom_set(40, 40, 41)
 
 
 @pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
@@ -74,11 +56,8 @@ def phantoms():
 def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
     volume = phantoms[phantom]
     scene = scene_of(phantom, image=volume.shape[0], ert=ert, projection=projection)
-    exact, approx = both_rungs(scene, volume, machine(leaping))
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
-        exact.cycles,
-        approx.cycles,
-    )
+    exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
     for key in EXACT:
         assert approx.counters[key] == exact.counters[key], key
     assert np.array_equal(approx.image, exact.image)  # functional = cycle image
@@ -87,8 +66,8 @@ def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, project
 @pytest.mark.parametrize("view", [(0, 0), (150, -30), (90, 45)])
 def test_other_views_within_the_contract(phantoms, view):
     scene = scene_of("head", *view, image=48, ert=0.95)
-    exact, approx = both_rungs(scene, phantoms["head"], machine(True))
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+    exact, approx = rungs.cycle_and_transaction(scene, phantoms["head"], machine(True))
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
 
 
 def test_termination_and_leaping_save_cycles_beams_and_bursts(phantoms):
@@ -196,11 +175,8 @@ def test_what_the_model_refuses(phantoms):
 def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
     volume = read_volume(shared_data / name)
     scene = scene_of(image=64, ert=ert, projection=projection)
-    exact, approx = both_rungs(scene, volume, machine(leaping))
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles, (
-        exact.cycles,
-        approx.cycles,
-    )
+    exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
     for key in EXACT:
         assert approx.counters[key] == exact.counters[key], key
 
@@ -221,7 +197,7 @@ def test_embedded_geometry_stops_rays_as_termination_does():
     exact = render(scene, fidelity="cycle", arch=arch)
     approx = render(scene, fidelity="transaction", arch=arch)
     assert approx.counters["ert.stopped_rays"] > 0
-    assert abs(approx.cycles - exact.cycles) <= CONTRACT * exact.cycles
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
     for key in EXACT:
         assert approx.counters[key] == exact.counters[key], key
     assert np.array_equal(approx.image, exact.image)
@@ -244,7 +220,7 @@ def test_back_to_back_frames_give_the_cycle_rungs_period(name, az, el):
         exact.counters["frame.period_cycles"],
     )
     assert period < approx.cycles  # the fill and the drain overlap the neighbours
-    assert abs(period - reference) <= CONTRACT * reference, (reference, period)
+    rungs.assert_within_contract(reference, period)
     single = render_transaction(scene, volume, tf, arch, plan)
     assert single.cycles == approx.cycles and "frame.period_cycles" not in single.counters
 

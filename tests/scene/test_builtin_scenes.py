@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hwsim.fidelity import render
-from hwsim.report.output import image_to_rgb8
+from hwsim.output import image_to_rgb8
 from hwsim.scene import builtin_scenes, load_scene
 
 pytestmark = pytest.mark.system

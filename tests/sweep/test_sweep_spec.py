@@ -136,7 +136,7 @@ def test_missing_sweep_table_and_wrong_schema(tmp_path):
 
 
 def test_an_arch_file_beside_the_sweep_file_is_found_and_its_errors_name_it(tmp_path):
-    good = (REPO / "models" / "arch" / "cube4.toml").read_text()
+    good = (REPO / "models" / "machines" / "cube4" / "cube4.toml").read_text()
     (tmp_path / "mine.toml").write_text(good.replace('name = "cube4"', 'name = "mine"'))
     _, arch, _, _ = build_run(sweep({"arch": ["mine.toml"]}, tmp_path).runs[0])
     assert arch.name == "mine"

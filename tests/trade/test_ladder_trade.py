@@ -25,16 +25,14 @@ ARCHS = ["volumepro500", "vizard2", "cube4"]
 
 def runs_on(rung: str, arch: str) -> bool:
     """Whether this build has ``rung`` for ``arch`` (cycle, transaction: the Cube-4 family)."""
-    from models.cycle import CYCLE_ORDERS
+    from models.cycle import has_cycle_model
     from models.transaction import has_transaction_model
 
-    if rung not in fidelity.AVAILABLE_FIDELITIES:
-        return False
     if rung == "rtl":  # the RTL top renders unlit Cube-4 scenes of <= 16^3: not these
         return False
     machine = fidelity.resolve_arch(arch)
     if rung == "cycle":
-        return machine.order in CYCLE_ORDERS
+        return has_cycle_model(machine)
     return rung != "transaction" or has_transaction_model(machine)
 
 

@@ -1,0 +1,159 @@
+"""The machines: one package per family behind one :class:`Machine` interface.
+
+# Ref: docs/architectures.md ("The machine packages": the map and how to add a machine).
+
+``models/machines/<family>/`` holds everything one family is: its architecture files
+(``*.toml``), memory layout, cycle model, transaction model, faults type and the units
+only it has; ``machine.py`` in the package declares its :class:`Machine`.  Shared by
+every family, and importable by ``rtl/``: :mod:`models.machines.common`.
+
+The registry holds the families by name; an architecture file names its family
+(``[pipeline] family``), or else gets the first family registered for its processing
+order.  The rungs, ``hwsim archs``, the ladder, trade, figures and sweeps ask it; no
+module outside a family's package names the family's classes.  Adding a machine is its
+package plus one line of :data:`FAMILIES` (or :func:`register` at run time, as the test
+suite does with a toy machine).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from hwsim.arch import ArchConfig
+from hwsim.errors import NotAvailableError
+
+__all__ = ["FAMILIES", "Machine", "families", "machine_for", "orders", "register", "unregister"]
+
+#: The built-in families, by module that declares each one's :class:`Machine`.
+FAMILIES = (
+    "models.machines.cube4.machine",
+    "models.machines.volumepro.machine",
+    "models.machines.vizard2.machine",
+)
+
+
+@dataclass(frozen=True)
+class Machine:
+    """One machine family as the rungs see it.
+
+    Attributes
+    ----------
+    name : str
+        The family (``cube4``); its package is ``models.machines.<name>``.
+    orders : tuple of str
+        The processing orders it models.
+    cycle : callable or None
+        ``cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state)``
+        runs one frame on the cycle model and returns a
+        :class:`~models.machines.common.results.CycleResult`; ``None``: no cycle model.
+    transaction : callable or None
+        ``transaction(scene, arch, plan, **options)`` builds the frame's event model (its
+        ``run()`` gives the timing); ``None``: no transaction model.
+    faults_type : type or None
+        The structures the cycle model can break (fault-injection tests).
+    steady_state : bool
+        Whether the cycle and transaction models time back-to-back frames.
+    rtl_top : str or None
+        The module of the family's RTL top, where one exists.
+    package : str
+        The package holding the family's architecture files.
+    """
+
+    name: str
+    orders: tuple[str, ...]
+    cycle: Callable[..., Any] | None
+    transaction: Callable[..., Any] | None
+    faults_type: type | None = None
+    steady_state: bool = False
+    rtl_top: str | None = None
+    package: str = field(default="")
+
+    def arch_files(self) -> list[Path]:
+        """The family's built-in architecture files."""
+        if not self.package:
+            return []
+        folder = resources.files(self.package)
+        return [Path(str(p)) for p in folder.iterdir() if p.name.endswith(".toml")]
+
+
+_registry: dict[str, Machine] = {}  # by family name, in registration order
+_loaded = False
+
+
+def _load() -> dict[str, Machine]:
+    """The registry, with the built-in families loaded first on first use."""
+    global _loaded
+    if not _loaded:
+        _loaded = True
+        added = dict(_registry)
+        _registry.clear()
+        for module in FAMILIES:
+            register(importlib.import_module(module).MACHINE)
+        _registry.update(added)
+    return _registry
+
+
+def register(machine: Machine) -> None:
+    """Add ``machine`` under its name (replacing a family of that name)."""
+    _registry[machine.name] = machine
+
+
+def unregister(machine: Machine) -> None:
+    """Remove ``machine`` (a family added at run time, e.g. by a test)."""
+    if _registry.get(machine.name) is machine:
+        del _registry[machine.name]
+
+
+def families() -> list[Machine]:
+    """Every registered family, in registration order."""
+    return list(_load().values())
+
+
+def orders() -> tuple[str, ...]:
+    """Every processing order some family models."""
+    return tuple(dict.fromkeys(o for m in families() for o in m.orders))
+
+
+def machine_for(arch: ArchConfig, rung: str | None = None) -> Machine:
+    """The family modelling ``arch``: its ``family`` key, else the first family registered
+    for its processing order.  With ``rung`` (``"cycle"`` or ``"transaction"``), a
+    :class:`~hwsim.errors.NotAvailableError` naming what is modelled when the family has
+    no model at that rung."""
+    registry = _load()
+    if arch.family:
+        machine = registry.get(arch.family)
+        if machine is None:
+            raise NotAvailableError(
+                f"{arch.name}: no machine family {arch.family!r}",
+                source=arch.source,
+                key="pipeline.family",
+                allowed=", ".join(registry),
+            )
+        if arch.order not in machine.orders:
+            raise NotAvailableError(
+                f"{arch.name}: family {arch.family} does not model the {arch.order} order",
+                source=arch.source,
+                key="pipeline.order",
+                allowed=", ".join(machine.orders),
+            )
+    else:
+        machine = next((m for m in registry.values() if arch.order in m.orders), None)
+        if machine is None:
+            raise NotAvailableError(
+                f"{arch.name} ({arch.order} order) has no machine model",
+                key="--arch",
+                allowed=f"a machine of order {', '.join(orders())}",
+            )
+    if rung is not None and getattr(machine, rung) is None:
+        modelled = [m.name for m in registry.values() if getattr(m, rung) is not None]
+        raise NotAvailableError(
+            f"{arch.name} ({machine.name} family) is not modelled at {rung} fidelity",
+            key="--arch",
+            allowed=f"a machine of family {', '.join(modelled)}",
+        )
+    return machine

@@ -1,0 +1,150 @@
+"""What every cycle machine shares: its units, its result, buffer tables, elaboration.
+
+# Ref: docs/cycle.md (timing rules, counters, "model only what the scene requires");
+#      architectures.md section 9.2 (buffer sizes [I]).
+
+One copy for the Cube-4 machine, the VolumePro slab machine, VIZARD II and the
+transaction models that check the same buffers; no machine is named here (the rules of one
+family live in its package, e.g. :mod:`models.machines.cube4.timing`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.engine import Counters, DrainFifo
+from hwsim.engine.metrics import derive
+from hwsim.errors import InputError
+from models.units import classify as classify_unit
+from models.units import composite as composite_unit
+from models.units import crop as crop_unit
+from models.units import gradient as gradient_unit
+from models.units import interp as interp_unit
+from models.units import shade as shade_unit
+
+__all__ = [
+    "UNITS",
+    "CycleResult",
+    "buffer_table",
+    "publish_pixel_bus",
+    "frame_result",
+    "elaborate_units",
+]
+
+#: The units of every Cube-4 pipeline, in dataflow order, with their models.
+UNITS = {
+    "interp": interp_unit,
+    "gradient": gradient_unit,
+    "classify": classify_unit,
+    "shade": shade_unit,
+    "composite": composite_unit,
+    "crop": crop_unit,
+}
+
+
+@dataclass
+class CycleResult:
+    """What the cycle rung returns: image, exact cycles, raw counters, elaboration."""
+
+    image: np.ndarray
+    samples: int
+    rays: int
+    cycles: int
+    counters: dict[str, Any] = field(default_factory=dict)
+    elaborated_units: list[str] = field(default_factory=list)
+    elided_units: list[str] = field(default_factory=list)
+    derived: dict[str, Any] = field(default_factory=dict)
+
+
+def buffer_table(
+    arch: ArchConfig, defaults: dict[str, int], needs: dict[str, int]
+) -> dict[str, int]:
+    """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
+    refused naming the file and key) and checked against what this volume ``needs``."""
+    table = dict(arch.buffers)
+    out = {}
+    for key, default in defaults.items():
+        value = table.pop(key, default)
+        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+            raise InputError(
+                f"invalid {value!r}",
+                source=arch.source,
+                key=f"buffers.{key}",
+                allowed="an integer >= 0",
+            )
+        out[key] = value
+    if table:
+        raise InputError(
+            "unknown key",
+            source=arch.source,
+            key=f"buffers.{sorted(table)[0]}",
+            allowed=", ".join(defaults),
+        )
+    for key, need in needs.items():
+        if out[key] < need:
+            raise InputError(
+                f"{arch.name} cannot hold this volume's {key.split('_entries')[0]} "
+                f"({need} entries per pipeline)",
+                source=arch.source,
+                key=f"buffers.{key}",
+                allowed=f">= {need}",
+            )
+    return out
+
+
+def publish_pixel_bus(counters: Counters, fifo: DrainFifo, drain: int) -> None:
+    """The pixel bus's counters: pixels, busy cycles, peak occupancy, final drain."""
+    counters.set("pixel_bus.pixels", fifo.pushed)
+    counters.set("pixel_bus.busy_cycles", fifo.busy_cycles)
+    counters.set("pixel_bus.max_occupancy", fifo.max_occupancy)
+    counters.set("pixel_bus.drain_cycles", drain)
+
+
+def frame_result(
+    machine, image: np.ndarray, state, cycles: int, derive_samples: int | None = None
+) -> CycleResult:
+    """A frame's :class:`CycleResult` from a machine (``counters``, ``P``, ``arch``,
+    ``elaborated``, ``elided``) and its back end's final state; derived metrics per
+    ``derive_samples`` samples (default: the composited samples)."""
+    raw = machine.counters.as_dict()
+    derived = derive(
+        raw,
+        cycles=cycles,
+        samples=state.samples if derive_samples is None else derive_samples,
+        pipelines=machine.P,
+        clock_hz=machine.arch.clock_hz,
+    )
+    return CycleResult(
+        image=image,
+        samples=state.samples,
+        rays=int(state.touched.sum()),
+        cycles=int(cycles),
+        counters=raw,
+        elaborated_units=list(machine.elaborated),
+        elided_units=list(machine.elided),
+        derived=derived,
+    )
+
+
+def elaborate_units(
+    backend, everything: bool, structures: tuple[str, ...]
+) -> tuple[list[str], list[str]]:
+    """The units a scene needs (all of :data:`UNITS` when ``everything``), between the
+    machine's front ``structures`` and its pixel bus; and the units elided."""
+    be, mode = backend, backend.mode
+    needs = {
+        "interp": True,
+        "gradient": be.need_grad,
+        "classify": mode in ("composite", "iso"),
+        "shade": be.scene.lit,
+        "composite": True,
+        "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
+    }
+    if everything:
+        needs = dict.fromkeys(needs, True)
+    units = [*structures] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
+    return units, [u for u in UNITS if not needs[u]]

@@ -1,0 +1,49 @@
+"""One Cube-4 frame as a host driver sets it up: the scenes the machine refuses, the slice
+axes and direction, clocks per beam and slice, buffer capacities and the geometry unit.
+
+The cycle model (:class:`~models.machines.cube4.cycle.Cube4Machine`) extends it with the
+memory, datapath and timing; the RTL rung's host (``rtl/frame.py``) uses it alone to write
+the registers a driver would, so the RTL never imports the cycle model.
+
+# Ref: architectures.md sections 1.1-1.3 (slice order, beams, P pipelines).
+"""
+
+from __future__ import annotations
+
+from hwsim.errors import InputError
+from hwsim.golden.positions import SamplePlan
+from models.backend import Backend
+from models.machines.common.slice_order import SliceOrderMachine
+from models.machines.cube4.timing import cube4_buffers
+
+__all__ = ["Cube4Frame"]
+
+
+class Cube4Frame(SliceOrderMachine):
+    """The frame geometry of ``plan`` on ``backend``'s Cube-4 machine (refused with an
+    :class:`~hwsim.errors.InputError` where the machine cannot render it)."""
+
+    def __init__(self, backend: Backend, plan: SamplePlan) -> None:
+        self.be, self.plan, self.dp = backend, plan, backend.dp
+        self.arch = arch = backend.arch
+        self.P = arch.pipelines
+        if backend.scene.render.supersampling != 1.0:
+            raise InputError(
+                "the Cube-4 model samples once per slice",
+                source=arch.source,
+                key="render.supersampling",
+                allowed="1",
+            )
+        if backend.dp.gradient.source != "sample":
+            raise InputError(
+                "Cube-4 estimates gradients from samples",
+                source=arch.source,
+                key="formats.gradient.source",
+                allowed="sample",
+            )
+        self._slice_geometry(backend.volume.shape)
+        self.capacity = cube4_buffers(arch, self.C, self.T)
+
+    def slice_of(self, j: int) -> int:
+        """The volume slice read at step ``j`` of the frame."""
+        return j if self.forward else self.n_kp - 1 - j

@@ -1,0 +1,198 @@
+"""The Cube-4 machine as a SimPy discrete-event model (the ``transaction`` rung's timing).
+
+# Ref: architectures.md sections 1.1-1.4 (Pfister & Kaufman, VolVis 1996: slice-parallel
+#      pipelines on a skewed memory, one pixel bus) and 9.2-9.3 (buffer sizes, latencies
+#      [I]); docs/cycle.md "Timing rules" (the rules this model approximates).
+
+Three cooperating SimPy processes exchange whole slices and batches of pixels instead of
+voxels and clocks:
+
+* **memory**: the P skewed modules read a slice's ``n_a`` beams back to back, ``C =
+  ceil(n_b / P)`` clocks per beam, as one batch (the skew never lets two voxels of a beam
+  meet in one module, so a beam batch cannot conflict); the finished slice goes into the
+  slice FIFO (a :class:`simpy.Store`), which lets the memory run one slice ahead of the
+  samples (the primed slice);
+* **pipelines**: take a slice, spend ``max(T, busiest lane)`` clocks on it plus the
+  machine's per-slice overhead, then push the rays that finished into the pixel FIFO (a
+  :class:`simpy.Container`), waiting while it is full.  On a shear-warp plan the skew
+  spreads a slice's samples evenly (``ceil(samples / P)``, never above ``T``); on a
+  shear-image (perspective) plan the busiest lane is counted over every planned sample's
+  position with the cycle rung's lane rule (:func:`busiest_lanes`);
+* **pixel bus**: drains the pixel FIFO one pixel per clock, in batches of at most one
+  base-plane row.
+
+The frame ends when the last pixel has left and the pipeline latency (unit ``LATENCY``
+constants, the beam alignment and the gradient's look-ahead) has elapsed.  Sample and
+finishing-ray counts per slice come from the plan's ray ranges; no voxel is read.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import simpy
+
+from hwsim.arch import ArchConfig
+from hwsim.errors import InputError
+from hwsim.golden.positions import SamplePlan
+from hwsim.scene import Scene
+from models.machines.common.pixel_bus import PixelBus
+from models.machines.common.slice_order import slice_direction
+from models.machines.common.transaction import TxnTiming, slice_loads
+from models.machines.cube4.timing import cube4_buffers, cube4_lanes, cube4_latency
+
+__all__ = ["Cube4Geometry", "Cube4Transaction", "busiest_lanes"]
+
+
+@dataclass(frozen=True)
+class Cube4Geometry:
+    """What sets a Cube-4 frame's length: pipelines, slice shape and buffer depths."""
+
+    pipelines: int
+    slices: int
+    beams: int  # n_a: beams per slice
+    beam_voxels: int  # n_b: voxels per beam
+    slice_overhead: int
+    pixel_fifo_depth: int
+
+    @property
+    def beam_cycles(self) -> int:
+        """``C``: clocks one beam takes (each pipeline reads ``ceil(n_b / P)`` voxels)."""
+        return -(-self.beam_voxels // self.pipelines)
+
+    @property
+    def slice_cycles(self) -> int:
+        """``T = n_a C``: clocks the memory spends on one slice."""
+        return self.beams * self.beam_cycles
+
+    @property
+    def latency(self) -> int:
+        """Address/de-skew, beam alignment ``C + 1``, the gradient's look-ahead ``C`` and
+        every unit's latency (the cycle rung's rule 5, one copy)."""
+        return cube4_latency(self.beam_cycles)
+
+
+def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
+    """Samples of the busiest pipeline at each step of a shear-image (perspective) plan,
+    counted exactly with the cycle rung's lane rule
+    (:func:`~models.machines.cube4.timing.cube4_lanes`) over every planned sample's position
+    (:func:`models.fused_steps.plan_positions`, compiled)."""
+    from models import fused_steps  # imports numba: only for the frames that need it
+
+    kp = plan.principal_axis
+    a_ax, b_ax = (ax for ax in range(3) if ax != kp)
+    shape = plan.volume.shape
+    out = np.zeros(plan.n_steps, dtype=np.int64)
+    for j, zyx, _ in fused_steps.plan_positions(plan):
+        q = int(zyx[0, kp])  # every sample of a step lies on its slice
+        lanes = cube4_lanes(q, zyx[:, a_ax], zyx[:, b_ax], shape[a_ax], shape[b_ax], pipelines)
+        out[j] = np.bincount(lanes, minlength=pipelines).max()
+    return out
+
+
+class Cube4Transaction:
+    """SimPy model of one Cube-4 frame at slice / beam-batch granularity.
+
+    Parameters
+    ----------
+    scene : Scene
+    arch : ArchConfig
+        A slice-parallel machine.
+    plan : SamplePlan
+        The frame's sample plan (``slice-parallel``).
+    pixel_fifo_depth : int, optional
+        Override of ``[buffers] pixel_fifo_entries`` (studies of a shallow pixel FIFO).
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        arch: ArchConfig,
+        plan: SamplePlan,
+        *,
+        pixel_fifo_depth: int | None = None,
+    ) -> None:
+        if scene.render.supersampling != 1.0:
+            raise InputError(
+                "the Cube-4 model samples once per slice",
+                source=arch.source,
+                key="render.supersampling",
+                allowed="1",
+            )
+        self.plan = plan
+        kp = plan.principal_axis
+        a_ax, b_ax = (ax for ax in range(3) if ax != kp)
+        shape = plan.volume.shape
+        C = -(-shape[b_ax] // arch.pipelines)
+        depth = cube4_buffers(arch, C, shape[a_ax] * C)["pixel_fifo_entries"]
+        self.geo = Cube4Geometry(
+            pipelines=arch.pipelines,
+            slices=shape[kp],
+            beams=shape[a_ax],
+            beam_voxels=shape[b_ax],
+            slice_overhead=arch.slice_overhead_cycles,
+            pixel_fifo_depth=depth if pixel_fifo_depth is None else pixel_fifo_depth,
+        )
+        self.row_pixels = max(1, plan.shape[1])
+        slice_direction(plan)  # one slice order per frame, or refused
+
+    def run(self) -> TxnTiming:
+        """Simulate the frame; return its cycles and the event model's counters."""
+        start = time.perf_counter()
+        geo, P, T = self.geo, self.geo.pipelines, self.geo.slice_cycles
+        samples, finishing = slice_loads(self.plan)
+        if self.plan.kind == "shear-image":
+            # Rays are not one per voxel column: count each pipeline's samples.
+            busiest_of = busiest_lanes(self.plan, P)
+        else:
+            # One ray per base-plane pixel and slice: the skew spreads a slice's samples
+            # evenly, at most C per beam per pipeline, so no slice stretches.
+            busiest_of = -(-samples // P)
+        env = simpy.Environment()
+        slice_fifo = simpy.Store(env, capacity=1)
+        bus = PixelBus(env, geo.pixel_fifo_depth, self.row_pixels)
+        stats = {"events": 0, "stretch": 0, "pipe_end": 0}
+
+        def memory():
+            for j in range(geo.slices):
+                yield env.timeout(T)  # n_a beams of C clocks, no conflicts by the skew
+                yield slice_fifo.put(j)
+                stats["events"] += 2
+
+        def pipelines():
+            for j in range(len(samples)):
+                yield slice_fifo.get()
+                busiest = int(busiest_of[j])
+                stretch = max(0, busiest - T)
+                stats["stretch"] += stretch
+                yield env.timeout(T + geo.slice_overhead + stretch)
+                stats["events"] += 2
+                yield from bus.push(int(finishing[j]))
+            stats["pipe_end"] = int(env.now)
+
+        env.process(memory())
+        env.process(pipelines())
+        env.run()  # until nothing is scheduled: the bus has sent every pixel
+        end = max(stats["pipe_end"], bus.end)
+        # Frame start: the memory begins reading slice 0 (the primed slice) at cycle 0.
+        cycles = end + geo.latency
+        voxels = geo.slices * geo.beams * geo.beam_voxels
+        counters: dict[str, Any] = {
+            "memory.busy_cycles": geo.slices * T,
+            "memory.reads": voxels,
+            "memory.read_bytes": 2 * voxels,  # 16-bit words, as the cycle model counts
+            "pipelines.busy_cycles": -(-int(samples.sum()) // P) if P else 0,
+            "pipelines.stall_cycles": bus.stall_cycles,
+            "pipelines.stretch_cycles": stats["stretch"],
+            **bus.counters(stats["pipe_end"]),
+            "pipeline.latency_cycles": geo.latency,
+            "frame.cycles": cycles,
+            "frame.samples": int(samples.sum()),
+            "transaction.events": stats["events"] + bus.events,
+            "transaction.granularity": "slice (n_a beam batch) / pixel row",
+            "transaction.timing_seconds": time.perf_counter() - start,
+        }
+        return TxnTiming(int(cycles), counters)

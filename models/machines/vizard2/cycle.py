@@ -1,0 +1,352 @@
+"""VIZARD II at cycle fidelity: ray packets, block cache on SDRAM, ERT and space leaping.
+
+# Ref: architectures.md section 5 (Meissner et al., EGGH 1998 and GH 2002: image-order
+#      ray casting from the view plane, trilinear interpolation, post-classification,
+#      per-sample Phong, table of pre-computed gradients, geometry-based space leaping,
+#      early ray termination [V]; ray queueing, Doggett ISCAS 2000 [V]; VoxelCache, Kanus
+#      et al. GH 2003 [V]).  Structure and timing rules below are [I]; docs/cycle.md.
+
+Rays are cast from the image plane (the golden ``ray`` plan).  The ray generator cuts the
+image into tiles (``[buffers] ray_tile``, row-major); a tile's rays enter the ray queue
+(``ray_queue_entries`` at a time) as one *packet*, and the packet is marched in lock
+step: round ``j`` issues sample ``j`` of each of its live rays, ``P`` per clock (lane
+``i mod P``), then round ``j + 1`` (ray queueing: neighbouring rays at the same depth, so
+consecutive lookups share cache blocks and SDRAM pages).  Each sample's 8 voxels and 8
+gradient-table entries come from the block cache (:mod:`models.machines.vizard2.memory`); a
+miss stalls the issue until its line is filled over the SDRAM channel
+(``hwsim.memory.SdramController``, cycle-exact).  The shared back end
+(``models.backend``) interpolates, classifies, shades and composites what the cache
+delivered; a packet's accumulators leave through the pixel FIFO when it retires, and
+the image is built only from what left.
+
+Timing (every cycle counted, nothing fitted):
+
+1. a round of ``n`` live rays issues its ``n`` samples in ``ceil(n / P)`` clocks;
+2. a lookup group that misses waits until its last fill's last beat has arrived, plus one
+   clock to write the line; the fill's bursts go to the SDRAM when the group reaches the
+   cache (blocking, in order);
+3. with early ray termination (``features.early_termination``; composite with a scene
+   threshold < 1, or iso's first hit) a ray stops issuing from the first round that
+   starts ``FEEDBACK`` clocks or more after its terminating sample issued (the
+   compositor's verdict travels back to the ray generator); samples issued meanwhile are
+   fetched and discarded (``ert.speculative_samples``).  Without the feature, dead rays
+   keep issuing (and fetching) samples the compositor ignores;
+4. geometry-based space leaping (``features.space_leaping``, composite and iso): each
+   ray's first and last samples are moved past 4^3 blocks the host's occupancy geometry
+   marks empty (``SamplePlan.leap``), so those samples are never issued;
+5. a retiring packet's pixels enter the pixel FIFO (drained one per clock); a full FIFO
+   stalls the issue;
+6. the pipeline latency ``FEEDBACK`` and the final FIFO drain are added once.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+
+import numpy as np
+
+from hwsim.engine import Clock, Counters, DeadlockError, DrainFifo, Stage, VcdTrace
+from hwsim.golden.occupancy import occupancy_from_ranges
+from hwsim.golden.positions import SamplePlan, Step
+from hwsim.memory import SdramController
+from models.backend import Backend
+from models.machines.common.results import UNITS, CycleResult, elaborate_units, frame_result
+from models.machines.vizard2.config import VizardFaults, check_frame, memory_of, parse_buffers
+from models.machines.vizard2.memory import BLOCK, BlockCache, CacheFetch, VolumeImage
+from models.units import interp as interp_unit
+
+__all__ = ["VizardMachine", "VizardFaults", "UNITS", "LOOKUP_LATENCY", "FEEDBACK"]
+
+LOOKUP_LATENCY = 1  # cache tag check [I]
+FILL_WRITE = 1  # last beat to line written [I]
+#: Issue of a sample to its opacity at the compositor: lookup + every unit [I].
+FEEDBACK = LOOKUP_LATENCY + sum(u.LATENCY for u in UNITS.values())
+
+
+class CacheSource:
+    """Samples of one step interpolated from the voxels the block cache delivered."""
+
+    def __init__(self, machine: VizardMachine, fetch: CacheFetch, frac: np.ndarray, pick):
+        self.m, self.fetch, self.frac, self.pick = machine, fetch, frac, pick
+
+    def _interp(self, corners: np.ndarray, frac: np.ndarray) -> np.ndarray:
+        n = corners.shape[1]
+        taps = interp_unit.InterpTaps(np.arange(8 * n).reshape(8, n), frac)
+        return interp_unit.interpolate(corners.ravel(), taps, self.m.dp.interp)
+
+    def value(self) -> np.ndarray:
+        return self._interp(self.fetch.corners()[:, self.pick], self.frac[:, self.pick])
+
+    def channels(self) -> list[np.ndarray]:
+        raw = self.fetch.corners()[:, self.pick]
+        rgba = self.m.be.classified_voxels(raw)  # the LUT on the cache's output [I]
+        frac = self.frac[:, self.pick]
+        return [self._interp(c.reshape(raw.shape), frac) for c in rgba]
+
+    def gradient(self, sel: np.ndarray) -> np.ndarray:
+        which = self.pick[sel]
+        frac = self.frac[:, which]
+        return np.stack(
+            [self._interp(self.fetch.gradient_corners(which, c), frac) for c in range(3)], axis=1
+        )
+
+
+class VizardMachine:
+    """P VIZARD II pipelines rendering one frame of ``plan`` for ``backend``'s scene."""
+
+    def __init__(
+        self,
+        backend: Backend,
+        plan: SamplePlan,
+        *,
+        faults: VizardFaults | None = None,
+        elaborate_all: bool = False,
+        trace: VcdTrace | None = None,
+    ) -> None:
+        self.be, self.dp, self.arch = backend, backend.dp, backend.arch
+        self.trace = trace
+        arch = self.arch
+        self.faults = faults or VizardFaults()
+        self.P = arch.pipelines
+        check_frame(arch, plan, self.dp)
+        self.buffers = parse_buffers(arch)
+        self.memory_cfg = memory_of(arch)
+        self.counters = Counters()
+        self.elaborated, self.elided = self._elaborate(elaborate_all)
+        self.image = VolumeImage(
+            backend.raw,
+            self.memory_cfg,
+            voxel_bits=self.dp.voxel_bits,
+            gradients=backend.need_grad,
+            stuck_word=self.faults.stuck_word,
+            stuck_bank=self.faults.stuck_bank,
+            source=arch.source,
+        )
+        self.cache = BlockCache(
+            self.buffers.cache_sets,
+            self.image,
+            corrupt_line=self.faults.corrupt_line,
+            dropped_fill=self.faults.dropped_fill,
+        )
+        # Rays end early on an opacity threshold (composite) or a first hit (iso).
+        ert = backend.ert < 1.0 if backend.mode == "composite" else backend.mode == "iso"
+        self.ert = arch.early_termination and ert
+        self.full_plan = plan
+        self.plan = self._leaped(plan) if arch.space_leaping else plan
+
+    # ------------------------------------------------------------------ set-up
+
+    def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
+        return elaborate_units(self.be, everything, ("memory", "cache"))
+
+    def _leaped(self, plan: SamplePlan) -> SamplePlan:
+        occupied = self.be.occupied_blocks(BLOCK)
+        if occupied is None:
+            return plan
+        leaped = copy.copy(plan)  # leap() rebinds arrays; the caller's plan is untouched
+        leaped.leap(occupancy_from_ranges(occupied, BLOCK))
+        return leaped
+
+    def _generator_order(self) -> np.ndarray:
+        """Plan-ray indices in the order the ray generator emits them: image tiles
+        (``[buffers] ray_tile``) in row-major order, rays row-major inside a tile."""
+        order = np.lexsort((self.plan.ray_ids, self._tile_of()))
+        return order
+
+    def _tile_of(self) -> np.ndarray:
+        plan, (th, tw) = self.plan, self.buffers.ray_tile
+        width = plan.shape[1]
+        rows, cols = plan.ray_ids // width, plan.ray_ids % width
+        return (rows // th) * (-(-width // tw)) + cols // tw
+
+    def _tiles(self, order: np.ndarray) -> list[np.ndarray]:
+        """``order`` (generator order) cut where the tile changes."""
+        tile = self._tile_of()[order]
+        return np.split(order, np.flatnonzero(np.diff(tile)) + 1) if order.size else []
+
+    # ------------------------------------------------------------------ frame
+
+    def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
+        be, plan, P = self.be, self.plan, self.P
+        state = be.new_state(plan.n_rays)
+        bus = be.new_state(plan.n_rays)
+        depth = self.faults.pixel_fifo_depth
+        depth = self.buffers.pixel_fifo_entries if depth is None else depth
+        pixel_fifo = DrainFifo("pixel_bus.fifo", depth)
+        queue_depth = self.faults.ray_queue_entries
+        queue_depth = self.buffers.ray_queue_entries if queue_depth is None else queue_depth
+        self.sdram = SdramController(self.memory_cfg.sdram)
+        self.clock = Clock(self.arch.clock_hz)
+        self.issued = 0
+        generator = self._generator_order()
+        if generator.size and queue_depth <= 0:
+            raise DeadlockError(
+                f"ray_queue: depth {queue_depth} can never accept a ray; the ray generator "
+                f"waits forever with {generator.size} rays pending at cycle 0"
+            )
+        self._where = np.zeros(plan.ray_ids.size, dtype=np.int64)
+        self.terminated_at = np.full(plan.ray_ids.size, np.iinfo(np.int64).max // 2)
+        self.speculative = 0
+        blocks: list[tuple[np.ndarray, int, int]] = []
+        packets = [
+            tile[i : i + queue_depth]
+            for tile in self._tiles(generator)
+            for i in range(0, tile.size, queue_depth)
+        ]
+        retired = 0  # cycle of the last retirement
+        for k, packet in enumerate(packets):
+            j_lo, j_hi = plan.j_lo[packet], plan.j_hi[packet]
+            for j in range(int(j_lo.min()), int(j_hi.max()) + 1):
+                live = packet[(j_lo <= j) & (j <= j_hi)]
+                if self.ert:  # rule 3: known terminations stop the issue
+                    known = self.clock.cycle >= self.terminated_at[live] + FEEDBACK
+                    live = live[state.alive[plan.ray_ids[live]] | ~known]
+                if live.size:
+                    blocks.append(self._round(live, j, state))
+            # The packet retires: its accumulators leave through the pixel FIFO.
+            rays = plan.ray_ids[packet]
+            bus.acc[rays] = state.acc[rays]
+            bus.touched[rays] = state.touched[rays]
+            if bus.dt_sum is not None:
+                bus.dt_sum[rays] = state.dt_sum[rays]
+            stall = pixel_fifo.advance(self.clock.cycle - retired, int(rays.size), retired)
+            if stall:
+                blocks.append((np.zeros(P, np.int64), stall, stall))
+                self.clock.advance(stall)
+            retired = self.clock.cycle
+            if progress is not None:
+                progress(k + 1, len(packets))
+        return self._finish(state, bus, blocks, pixel_fifo)
+
+    def _round(self, live: np.ndarray, j: int, state):
+        """Issue packet step ``j`` (plan rays ``live``): cache lookups, fills, timing and
+        the back end.  Returns the block's (busy per lane, cycles, stall cycles)."""
+        plan, P, be = self.plan, self.P, self.be
+        rays = plan.ray_ids[live]
+        zyx = plan.position(j, live)
+        taps = interp_unit.interp_taps(zyx, be.volume.shape, self.dp.interp)
+        fetch = self.cache.fetch(taps.idx)
+        n = live.size
+        group = np.arange(n) // P
+        now = start = self.clock.cycle
+        stall = np.zeros(-(-n // P), dtype=np.int64)
+        if fetch.miss_blocks.size:
+            self._fill(fetch, start, stall)
+        issue = start + group + np.cumsum(stall)[group]
+        end = start + -(-n // P) + int(stall.sum())
+        if self.trace is not None:
+            self._trace_round(now, end, issue, rays)
+        self.clock.advance(end - now)
+        self.issued += n
+        step = Step(
+            rays,
+            zyx,
+            plan._dt if np.isscalar(plan._dt) else plan._dt[live],
+            plan._view[live] if plan._view.ndim == 2 else plan._view,
+        )
+        where = self._where
+        where[live] = np.arange(n)
+        frac = taps.frac
+
+        def source(s: Step) -> CacheSource:
+            # The back end may drop samples (terminated rays, crop): find the rest.
+            pick = np.arange(n) if s is step else where[np.searchsorted(plan.ray_ids, s.rays)]
+            return CacheSource(self, fetch, frac, pick)
+
+        if self.ert:
+            before = state.alive[rays]
+            self.speculative += n - int(before.sum())
+        be.process(step, source, state)
+        if self.ert:  # the issue cycle of each ray's terminating sample
+            ended = before & ~state.alive[rays]
+            self.terminated_at[live[ended]] = issue[ended]
+        busy = np.bincount(np.arange(n) % P, minlength=P)
+        return busy, end - now, int(stall.sum())
+
+    def _trace_round(self, now: int, end: int, issue: np.ndarray, rays: np.ndarray) -> None:
+        """Per lane: ``i__valid`` high in the clocks it issues a sample, ``i__payload`` the
+        sample's ray (pixel index)."""
+        cycles = np.arange(now, end)
+        lanes = np.arange(issue.size) % self.P
+        for m in range(self.P):
+            valid = np.zeros(cycles.size, dtype=np.int64)
+            payload = np.zeros(cycles.size, dtype=np.int64)
+            mine = lanes == m
+            valid[issue[mine] - now] = 1
+            payload[issue[mine] - now] = rays[mine]
+            self.trace.record(f"pipeline[{m}].cache", "i__valid", 1, cycles, valid)
+            self.trace.record(f"pipeline[{m}].cache", "i__payload", 32, cycles, payload)
+
+    def _trace_memory(self, schedule, cycles: int) -> None:
+        """``memory.o__valid``: high in every clock a data beat arrives."""
+        sd = self.memory_cfg.sdram
+        beats = np.zeros(cycles + 1, dtype=np.int64)
+        first = sd.to_pipeline_cycles(schedule.data_first)
+        end = sd.to_pipeline_cycles(schedule.data_end)
+        np.add.at(beats, np.minimum(first, cycles), 1)
+        np.add.at(beats, np.minimum(end, cycles), -1)
+        self.trace.record("memory", "o__valid", 1, np.arange(cycles + 1), np.cumsum(beats) > 0)
+
+    def _fill(self, fetch: CacheFetch, start: int, stall: np.ndarray) -> None:
+        """Rule 2: each lookup group that misses sends its fills' bursts to the SDRAM when
+        it reaches the cache and waits for the last beat (``stall[g]`` += the wait)."""
+        sd = self.memory_cfg.sdram
+        miss_group = fetch.miss_samples // self.P
+        cuts = np.flatnonzero(np.diff(miss_group)) + 1
+        waited = 0
+        for g, blocks in zip(
+            np.split(miss_group, cuts), np.split(fetch.miss_blocks, cuts), strict=True
+        ):
+            arrive = start + int(g[0]) + waited
+            banks, rows = self.image.bursts(blocks)
+            order = np.lexsort((rows, banks))  # the fills of one group sorted page by page
+            first = len(self.sdram)
+            earliest = int(sd.to_memory_cycles(arrive))
+            self.sdram.issue_many(banks[order], rows[order], np.full(order.size, earliest))
+            last = max(self.sdram.data_end(i) for i in range(first, len(self.sdram)))
+            ready = int(sd.to_pipeline_cycles(last)) + FILL_WRITE
+            if ready > arrive:
+                stall[int(g[0])] += ready - arrive
+                waited += ready - arrive
+
+    def _finish(self, state, bus, blocks, pixel_fifo) -> CycleResult:
+        c, P = self.counters, self.P
+        stages = [Stage("cache", LOOKUP_LATENCY, 1, P, c)] + [
+            Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
+        ]
+        if blocks:
+            busy_k, cycles_k, stall_k = (np.array(x) for x in zip(*blocks, strict=True))
+            for stage in stages:
+                stage.account(busy_k, cycles_k, stall_k)
+        drain = pixel_fifo.flush()
+        tail = FEEDBACK + drain
+        cycles = self.clock.advance(tail)
+        idle = np.zeros(P, dtype=np.int64)
+        for stage in stages:
+            stage.account(idle, tail)
+            stage.publish()
+        schedule = self.sdram.schedule()
+        if self.trace is not None:
+            self._trace_memory(schedule, cycles)
+        for key, value in schedule.stats.to_counters("memory").items():
+            c.set(key, value)
+        c.set("cache.lines", self.cache.lines)
+        c.set("cache.lookups", self.cache.lookups)
+        c.set("cache.hits", self.cache.hits)
+        c.set("cache.misses", self.cache.lookups - self.cache.hits)
+        c.set("cache.fills", self.cache.fills)
+        c.set("ray_generator.rays", self.plan.ray_ids.size)
+        c.set("pixel_bus.pixels", pixel_fifo.pushed)
+        c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
+        c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)
+        c.set("pixel_bus.drain_cycles", drain)
+        c.set("pipeline.latency_cycles", FEEDBACK)
+        c.set("frame.cycles", cycles)
+        c.set("frame.issued_samples", self.issued)
+        c.set("ert.speculative_samples", self.speculative)
+        c.set("frame.samples", state.samples)
+        c.set("frame.planned_samples", self.full_plan.samples)
+        c.set("frame.leaped_samples", self.full_plan.samples - self.plan.samples)
+        image = self.be.finish(bus.acc, bus.touched, bus.dt_sum)
+        return frame_result(self, image, state, cycles, derive_samples=self.issued)

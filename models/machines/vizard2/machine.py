@@ -1,0 +1,34 @@
+"""VIZARD II (``ray``) as a :class:`Machine`.
+
+# Ref: architectures.md section 6 (VIZARD II); docs/cycle.md (the VIZARD II model).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from models.machines import Machine
+from models.machines.vizard2.config import VizardFaults
+from models.machines.vizard2.cycle import VizardMachine
+from models.machines.vizard2.transaction import VizardTransaction
+
+
+def cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
+    """One frame on :class:`VizardMachine` (single frames only)."""
+    machine = VizardMachine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=trace)
+    return machine.run(progress)
+
+
+def transaction(scene, arch, plan, **frame: Any) -> VizardTransaction:
+    """The ray-packet event model; it reads the volume (the block cache's misses)."""
+    return VizardTransaction(scene, arch, plan, **frame)
+
+
+MACHINE = Machine(
+    name="vizard2",
+    orders=("ray",),
+    cycle=cycle,
+    transaction=transaction,
+    faults_type=VizardFaults,
+    package="models.machines.vizard2",
+)

@@ -1,0 +1,436 @@
+"""VIZARD II as a SimPy event model at ray-packet granularity (the ``transaction`` rung).
+
+# Ref: docs/cycle.md "VIZARD II" timing rules 1-6 (the rules this model approximates);
+#      architectures.md section 5 (image-order ray casting, ray queueing, VoxelCache's
+#      4^3 blocks, pre-computed gradient table, early ray termination, space leaping).
+
+The frame is a sequence of *packets* (a tile's rays, ``ray_queue_entries`` at a time, in
+the ray generator's order).  For each packet, at once and without any voxel:
+
+* its samples in issue order (round after round, the packet's live rays in order), from
+  the plan's positions; which rays are live comes from the rays' sample ranges (the
+  leaped plan when the machine leaps) and, with early-termination hardware, from each
+  ray's termination step as the **functional rung** reports it
+  (:attr:`models.functional.FunctionalResult.stopped`);
+* the block lookups (the up to 8 blocks of a sample's cell, distinct ones only) resolved
+  against a *tag-only* model of the direct-mapped block cache in one vectorised pass;
+* its **miss groups**: the lookup groups (``P`` samples of one clock) holding a miss,
+  each with the SDRAM bursts of its fills (value region, and the gradient table when the
+  scene needs gradients).
+
+A SimPy process then plays the packets: issue clocks as timeouts, each miss group's
+bursts as one read on the shared :class:`hwsim.memory.SdramTransactionPort` (sorted
+page by page, as the machine's fill sequencer does) that blocks the issue until its last
+beat plus the line write; a retiring packet pushes its pixels into the pixel FIFO
+(:class:`models.machines.common.pixel_bus.PixelBus`).
+
+What is coarser than the cycle rung (the error's sources): **early termination** is
+decided per packet from stall-free round lengths (a ray keeps issuing until a round
+starts ``FEEDBACK`` clocks after its terminating sample; the cycle rung measures that
+with the real, stalled clocks, so this model issues a few more speculative samples), and
+the speculative samples' lookups follow from that estimate.  Without a termination
+threshold the cache, bursts and clocks are resolved exactly as the machine's rules say.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import simpy
+
+from hwsim.arch import ArchConfig
+from hwsim.errors import NotAvailableError
+from hwsim.golden.occupancy import occupancy_from_ranges
+from hwsim.golden.positions import SamplePlan
+from hwsim.memory import SdramTransactionPort
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction
+from hwsim.volumes.volume import Volume
+from models.backend import Backend
+from models.datapath import Datapath
+from models.machines.common.pixel_bus import PixelBus
+from models.machines.common.results import UNITS
+from models.machines.common.transaction import ReadsTheFrame, TxnTiming
+from models.machines.vizard2.config import check_frame, memory_of, parse_buffers
+from models.units import interp as interp_unit
+
+__all__ = ["BLOCK", "FEEDBACK", "BlockLayout", "VizardTransaction"]
+
+#: Block edge in voxels (VoxelCache's 4^3 blocks [V]).
+BLOCK = 4
+LOOKUP_LATENCY = 1  # cache tag check [I] (docs/cycle.md rule 3)
+FILL_WRITE = 1  # last beat to line written [I] (rule 2)
+#: Issue of a sample to its opacity at the compositor: lookup + every unit (rule 3).
+FEEDBACK = LOOKUP_LATENCY + sum(u.LATENCY for u in UNITS.values())
+_VALUE_BITS = 16
+
+
+@dataclass(frozen=True)
+class BlockLayout:
+    """Where a 4^3 block's fill lives in SDRAM (docs/cycle.md, VIZARD II "memory image"):
+    blocks one after another, a value region of 16-bit voxels, then the gradient table
+    (``gradient_bits`` per difference, three per voxel) from the next page boundary."""
+
+    nb: tuple[int, int, int]
+    burst_length: int
+    columns: int
+    banks: int
+    value_words: int
+    gradient_words: int
+    gradient_base: int
+    value_bursts: int
+    gradient_bursts: int
+
+    @classmethod
+    def of(cls, shape, sdram, voxel_bits: int, gradients: bool) -> BlockLayout:
+        nb = tuple(-(-n // BLOCK) for n in shape)
+        voxels = BLOCK**3
+        gradient_bits = -(-((2 << voxel_bits).bit_length() + 1) // 8) * 8
+        value_words = voxels // (sdram.word_bits // _VALUE_BITS)
+        gradient_words = -(-voxels * 3 * gradient_bits // sdram.word_bits)
+        blocks = int(np.prod(nb))
+        gradient_base = -(-blocks * value_words // sdram.columns) * sdram.columns
+        return cls(
+            nb,
+            sdram.burst_length,
+            sdram.columns,
+            sdram.banks,
+            value_words,
+            gradient_words,
+            gradient_base,
+            -(-value_words // sdram.burst_length),
+            -(-gradient_words // sdram.burst_length) if gradients else 0,
+        )
+
+    def bursts(self, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bank and row of every READ burst filling ``blocks``, in order."""
+        starts = [
+            blocks[:, None] * self.value_words + np.arange(self.value_bursts) * self.burst_length
+        ]
+        if self.gradient_bursts:
+            base = self.gradient_base + blocks[:, None] * self.gradient_words
+            starts.append(base + np.arange(self.gradient_bursts) * self.burst_length)
+        page = np.concatenate(starts, axis=1).ravel() // self.columns
+        return page % self.banks, page // self.banks
+
+
+class VizardTransaction(ReadsTheFrame):
+    """SimPy model of one VIZARD II frame at ray-packet granularity.
+
+    Parameters
+    ----------
+    scene, arch, plan
+        ``arch`` of order ``ray``; ``plan`` the frame's (unleaped) ``ray`` plan.
+    volume, transfer
+        Empty space (space leaping) and, when ``stopped`` is absent and rays may stop,
+        the functional rung's termination steps.
+    stopped : ndarray, optional
+        :attr:`models.functional.FunctionalResult.stopped` of this frame.
+    datapath : Datapath, optional
+    pixel_fifo_depth : int, optional
+        Override of ``[buffers] pixel_fifo_entries``.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        arch: ArchConfig,
+        plan: SamplePlan,
+        *,
+        volume: Volume | None = None,
+        transfer: TransferFunction | None = None,
+        stopped: np.ndarray | None = None,
+        datapath: Datapath | None = None,
+        pixel_fifo_depth: int | None = None,
+    ) -> None:
+        self._take_frame(arch, volume, transfer, stopped, datapath, "cache blocks, space leaping")
+        self.scene, self.arch, self.planned = scene, arch, plan
+        check_frame(arch, plan, self.datapath)
+        self.buffers = parse_buffers(arch)
+        self.memory = memory_of(arch)
+        if self.memory.sdram.clock_ratio != 1.0:
+            raise NotAvailableError(
+                "the transaction model runs the SDRAM at the pipeline clock",
+                source=arch.source,
+                key="memory.clock_ratio",
+                allowed="1.0",
+            )
+        self.P = arch.pipelines
+        self.backend = be = Backend(scene, volume, transfer, arch, plan, self.datapath)
+        stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"
+        self.ert = arch.early_termination and stops
+        self.plan = self._leaped(plan) if arch.space_leaping else plan
+        self.layout = BlockLayout.of(
+            volume.shape, self.memory.sdram, self.datapath.voxel_bits, be.need_grad
+        )
+        depth = self.buffers.pixel_fifo_entries
+        self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
+
+    # ------------------------------------------------------------------ set-up
+
+    def _leaped(self, plan: SamplePlan) -> SamplePlan:
+        """Rule 4: rays' first and last samples moved past blocks that cannot give a
+        visible sample through this datapath's LUT (or reach the iso value): the cycle
+        rung's host geometry, from the same shared helpers."""
+        occupied = self.backend.occupied_blocks(BLOCK)
+        if occupied is None:
+            return plan
+        leaped = copy.copy(plan)
+        leaped.leap(occupancy_from_ranges(occupied, BLOCK))
+        return leaped
+
+    def _packets(self) -> list[np.ndarray]:
+        """Plan-ray indices per packet: image tiles row-major, rays row-major inside a
+        tile, ``ray_queue_entries`` at a time (the ray generator's order)."""
+        plan, (th, tw) = self.plan, self.buffers.ray_tile
+        depth = self.buffers.ray_queue_entries
+        if plan.ray_ids.size and depth <= 0:
+            from hwsim.engine.fifo import DeadlockError
+
+            raise DeadlockError(
+                f"ray_queue: depth {depth} can never accept a ray; the ray generator waits "
+                f"forever with {plan.ray_ids.size} rays pending at cycle 0"
+            )
+        width = plan.shape[1]
+        rows, cols = plan.ray_ids // width, plan.ray_ids % width
+        tile = (rows // th) * (-(-width // tw)) + cols // tw
+        order = np.lexsort((plan.ray_ids, tile))
+        cuts = np.flatnonzero(np.diff(tile[order])) + 1
+        return [t[i : i + depth] for t in np.split(order, cuts) for i in range(0, t.size, depth)]
+
+    # ------------------------------------------------------------------ one packet
+
+    def _last_rounds(
+        self, packet: np.ndarray, stopped: np.ndarray | None, tags: np.ndarray
+    ) -> np.ndarray:
+        """Last round each ray of ``packet`` issues: its last planned sample, or with ERT
+        hardware its terminating round plus the speculative rounds that start less than
+        ``FEEDBACK`` clocks after its terminating sample issued (rule 3).
+
+        The rounds are timed *before* the packet is simulated: ``ceil(live / P)`` issue
+        clocks (speculative rays included, by fixed-point iteration) plus, for each lookup
+        group that misses when only the non-speculative samples are looked up, the fill's
+        unloaded time (CAS latency, its bursts' data clocks, the line write: a row hit,
+        the common case).  The cycle rung measures the real, contended stalls instead.
+        """
+        plan, P = self.plan, self.P
+        j_lo, j_hi = plan.j_lo[packet], plan.j_hi[packet]
+        if stopped is None:
+            return j_hi
+        stop = np.minimum(stopped[plan.ray_ids[packet]], j_hi)
+        ending = np.flatnonzero(stop < j_hi)
+        if not ending.size:
+            return j_hi
+        j0 = int(j_lo.min())
+        rounds = np.arange(j0, int(j_hi.max()) + 1)
+        sd = self.memory.sdram
+        per_fill = self.layout.value_bursts + self.layout.gradient_bursts
+        wide = plan.ray_ids.size + 1
+        last = stop.copy()
+        t = stop[ending] - j0
+        for _ in range(4):  # speculative samples lengthen rounds and may miss: iterate
+            # Fill stalls of each lookup group that misses (on a copy of the tags).
+            t_idx, index, _, sample, block, line = self._lookups(packet, last)
+            miss = self._resolve(tags.copy(), block, line)
+            m_sample = sample[miss]
+            groups, fills = np.unique(
+                t_idx[m_sample] * wide + index[m_sample] // P, return_counts=True
+            )
+            stall = sd.cas_latency + fills * per_fill * sd.burst_cycles + FILL_WRITE
+            g_round, g_clock = groups // wide, groups % wide
+            live = (j_lo[:, None] <= rounds) & (rounds <= last[:, None])
+            clocks = -(-live.sum(axis=0) // P)
+            clocks = clocks + np.bincount(g_round, weights=stall, minlength=rounds.size)
+            starts = np.concatenate([[0], np.cumsum(clocks)])
+            rank = live[:, t].cumsum(axis=0)[ending, np.arange(ending.size)] - 1
+            issue_clock = rank // P
+            # Stalls of the round's missing groups at or before the ray's issue clock.
+            before = np.array(
+                [
+                    stall[(g_round == r_k) & (g_clock <= c_k)].sum()
+                    for r_k, c_k in zip(t.tolist(), issue_clock.tolist(), strict=True)
+                ]
+            )
+            issued = starts[t] + issue_clock + before
+            # Rounds that start before issued + FEEDBACK still issue the ray.
+            first_stop = np.searchsorted(starts, issued + FEEDBACK, side="left")
+            new = np.minimum(np.maximum(j0 + first_stop - 1, stop[ending]), j_hi[ending])
+            if np.array_equal(new, last[ending]):
+                break
+            last[ending] = new
+        return last
+
+    def _lookups(self, packet: np.ndarray, last: np.ndarray):
+        """The packet's samples in issue order and their block lookups.
+
+        Returns ``(round of each sample, index in its round, lookup sample, lookup block,
+        lookup line)``, lookups sample-major, corners in ``c = 4 dz + 2 dy + dx`` order,
+        a corner looked up only when its block differs from the lower corners' (its set
+        axes all straddle a block boundary)."""
+        plan = self.plan
+        j_lo = plan.j_lo[packet]
+        j0 = int(j_lo.min())
+        rounds = np.arange(j0, int(last.max()) + 1)
+        live = (j_lo[:, None] <= rounds) & (rounds <= last[:, None])
+        t_idx, ray = np.nonzero(live.T)  # round-major, packet order inside a round
+        j = rounds[t_idx]
+        zyx = plan.position(j, packet[ray])
+        shape = self.volume.shape
+        taps = interp_unit.interp_taps(zyx, shape, self.datapath.interp)
+        i0 = taps.cells  # (3, n)
+        straddle = [(i0[a] % BLOCK == BLOCK - 1) & (shape[a] > 1) for a in range(3)]
+        mask = 4 * straddle[0] + 2 * straddle[1] + straddle[2]
+        corners = np.arange(8)
+        looked = (corners[None, :] & ~mask[:, None]) == 0  # (n, 8)
+        sample, corner = np.nonzero(looked)
+        nbz, nby, nbx = self.layout.nb
+        bz = (i0[0][sample] + ((corner >> 2) & 1)) // BLOCK
+        by = (i0[1][sample] + ((corner >> 1) & 1)) // BLOCK
+        bx = (i0[2][sample] + (corner & 1)) // BLOCK
+        block = (bz * nby + by) * nbx + bx
+        sz, sy, sx = self.buffers.cache_sets
+        line = ((bz % sz) * sy + by % sy) * sx + bx % sx
+        counts = live.sum(axis=0)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        index = np.arange(t_idx.size) - first[t_idx]
+        return t_idx, index, counts, sample, block, line
+
+    def _resolve(self, tags: np.ndarray, block: np.ndarray, line: np.ndarray) -> np.ndarray:
+        """Hit or miss of each lookup, in order, on the direct-mapped tags (updated)."""
+        order = np.argsort(line, kind="stable")
+        s_line, s_tag = line[order], block[order]
+        first = np.ones(s_line.size, dtype=bool)
+        first[1:] = s_line[1:] != s_line[:-1]
+        prev = np.empty(s_line.size, dtype=np.int64)
+        prev[1:] = s_tag[:-1]
+        prev[first] = tags[s_line[first]]
+        miss = np.empty(s_line.size, dtype=bool)
+        miss[order] = prev != s_tag
+        last = np.ones(s_line.size, dtype=bool)
+        last[:-1] = first[1:]
+        tags[s_line[last]] = s_tag[last]
+        return miss
+
+    def _fill_bursts(self, m_clock: np.ndarray, blocks: np.ndarray):
+        """The packet's miss groups ``(clock in the packet, banks, rows)``: each group's
+        fills' bursts, sorted page by page (bank, then row, stable) as the fill sequencer
+        sends them; computed for the whole packet at once."""
+        if not m_clock.size:
+            return [], 0
+        cuts = np.flatnonzero(np.diff(m_clock)) + 1
+        group = np.zeros(m_clock.size, dtype=np.int64)
+        group[cuts] = 1
+        group = np.cumsum(group)
+        banks, rows = self.layout.bursts(blocks)
+        per_fill = banks.size // blocks.size
+        of_burst = np.repeat(group, per_fill)
+        order = np.lexsort((rows, banks, of_burst))
+        banks, rows = banks[order].tolist(), rows[order].tolist()
+        bounds = np.concatenate([[0], cuts, [m_clock.size]]) * per_fill
+        starts = m_clock[np.concatenate([[0], cuts])].tolist()
+        out = [
+            (clock, banks[lo:hi], rows[lo:hi])
+            for clock, lo, hi in zip(starts, bounds[:-1].tolist(), bounds[1:].tolist(), strict=True)
+        ]
+        return out, len(banks)
+
+    # ------------------------------------------------------------------ frame
+
+    def run(self) -> TxnTiming:
+        """Simulate the frame; return its cycles and the event model's counters."""
+        start = time.perf_counter()
+        stopped = self.stopped
+        if self.ert and stopped is None:
+            from models.functional import render_functional
+
+            stopped = render_functional(
+                self.scene,
+                self.volume,
+                self.transfer,
+                self.arch,
+                self.planned,
+                datapath=self.datapath,
+            ).stopped
+        stopped = stopped if self.ert else None
+        P = self.P
+        env = simpy.Environment()
+        port = SdramTransactionPort(env, self.memory.sdram)
+        ctl = port.controller
+        bus = PixelBus(env, self.pixel_fifo_depth, self.buffers.ray_queue_entries)
+        tags = np.full(self.buffers.cache_lines, -1, dtype=np.int64)
+        stats = {"lookups": 0, "fills": 0, "issued": 0, "speculative": 0, "events": 0}
+        stats["groups"] = stats["pipe_end"] = stats["stall"] = 0
+        packets = self._packets()
+
+        def issue():
+            for packet in packets:
+                last = self._last_rounds(packet, stopped, tags)
+                if stopped is not None:
+                    stop = np.minimum(stopped[self.plan.ray_ids[packet]], last)
+                    stats["speculative"] += int((last - stop).sum())
+                t_idx, index, counts, sample, block, line = self._lookups(packet, last)
+                miss = self._resolve(tags, block, line)
+                stats["lookups"] += block.size
+                stats["fills"] += int(miss.sum())
+                stats["issued"] += t_idx.size
+                clocks = -(-counts // P)
+                round_start = np.concatenate([[0], np.cumsum(clocks)])
+                begin, waited = env.now, 0
+                m_sample = sample[miss]
+                # Lookup group of each miss: its sample's clock in the packet.
+                m_clock = round_start[t_idx[m_sample]] + index[m_sample] // P
+                groups, bursts = self._fill_bursts(m_clock, block[miss])
+                for clock, banks, rows in groups:
+                    arrive = begin + clock + waited
+                    if arrive > env.now:
+                        yield env.timeout(arrive - env.now)
+                    # The port's read (hwsim.memory.SdramTransactionPort.read) without
+                    # re-validating the lists the layout built, as slab_timing does.
+                    first = len(ctl)
+                    ctl._run(banks, rows, [int(env.now)] * len(banks))
+                    ready = ctl.data_end(first + len(banks) - 1) + FILL_WRITE
+                    yield env.timeout(ready - env.now)
+                    waited += int(env.now - arrive)
+                    stats["events"] += 2
+                stats["groups"] += len(groups)
+                stats["stall"] += waited
+                end = begin + int(round_start[-1]) + waited
+                if end > env.now:
+                    yield env.timeout(end - env.now)
+                yield from bus.push(int(packet.size))  # the packet retires
+                stats["events"] += 2
+            stats["pipe_end"] = int(env.now)
+
+        env.process(issue())
+        env.run()
+        end = max(stats["pipe_end"], bus.end)
+        cycles = end + FEEDBACK
+        sched = port.schedule()
+        counters: dict[str, Any] = {k: int(v) for k, v in sched.stats.to_counters("memory").items()}
+        counters.update(
+            {
+                "cache.lines": self.buffers.cache_lines,
+                "cache.lookups": stats["lookups"],
+                "cache.hits": stats["lookups"] - stats["fills"],
+                "cache.misses": stats["fills"],
+                "cache.fills": stats["fills"],
+                "cache.miss_groups": stats["groups"],
+                "memory.stall_cycles": stats["stall"],
+                "ray_generator.rays": int(self.plan.ray_ids.size),
+                **bus.counters(stats["pipe_end"]),
+                "pipeline.latency_cycles": FEEDBACK,
+                "frame.cycles": cycles,
+                "frame.issued_samples": stats["issued"],
+                "ert.speculative_samples": stats["speculative"],
+                "frame.planned_samples": self.planned.samples,
+                "frame.leaped_samples": self.planned.samples - self.plan.samples,
+                "transaction.events": stats["events"] + bus.events,
+                "transaction.granularity": f"packets of {self.buffers.ray_queue_entries} rays",
+                "transaction.timing_seconds": time.perf_counter() - start,
+            }
+        )
+        return TxnTiming(int(cycles), counters)

@@ -1,0 +1,482 @@
+"""VolumePro 500, EM-Cube and VolumePro 1000 at cycle fidelity: Cube-4's pipelines fed by SDRAM.
+
+# Ref: architectures.md sections 2 (EM-Cube: Cube-4 derived, 4 ASICs, block-skewed SDRAM,
+#      sectioning), 3 (VolumePro 500: shear-warp order, two-level mini-block skew,
+#      z-supersampling, sectioning with partial rays parked off-chip), 4 (VolumePro 1000:
+#      shear-image order, gradients at voxels then interpolated, early ray termination,
+#      perspective) and 9.1-9.3 (units, buffers, latencies [I]).
+
+:class:`SlabMachine` is a slice-order machine of the Cube-4 lineage
+(:class:`~models.machines.common.slice_order.SliceOrderMachine`) whose memory is
+:class:`~models.machines.volumepro.memory.SdramVolume` (mini-blocks in SDRAM, read as bursts and
+de-skewed into the Cube-4 slice stream), whose interpolators are trilinear across two voxel
+slices (z-supersampling, :class:`TrilinearSource`), whose gradient unit works on samples or
+on voxels, and whose frame is timed by :func:`models.machines.volumepro.slab_timing.run_timing` (the
+SDRAM controllers, the input buffer, the beam-by-beam pipelines).  The ring links, beam
+FIFO, compositing hand-offs, pixel bus and back end are Cube-4's.  Timing rules:
+docs/cycle.md ("The VolumePro family").
+
+Two passes, one frame: the *data pass* moves every voxel from the SDRAM words through the
+de-skew network, ring links and FIFOs into the interpolators and the back end, section by
+section and slice by slice, and records what each beam of each slice did (live samples,
+lanes, finishing and parked rays); the *timing pass* replays that record against the
+memory (which mini-block beams are read, when they are ready, when the buffer frees them).
+Timing never changes data, so the order of the passes changes nothing.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
+from hwsim.errors import InputError
+from hwsim.golden.occupancy import occupancy_from_ranges
+from hwsim.golden.positions import SamplePlan, make_plan
+from hwsim.memory import SdramStats, parse_memory
+from models.backend import Backend, subset_step
+from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
+from models.machines.common.slice_order import SliceFaults, SliceOrderMachine
+from models.machines.common.slices import SliceDatapath, SlicePath
+from models.machines.volumepro.memory import SdramVolume
+from models.machines.volumepro.slab_timing import run_timing, slab_buffers
+from models.machines.volumepro.timing import (
+    SliceRecord,
+    frame_period,
+    mini_blocks_read,
+    record_trace,
+    timing_inputs,
+)
+from models.machines.volumepro.trilinear import TrilinearSource
+from models.units import classify as classify_unit
+from models.units import skew as skew_unit
+
+__all__ = ["SlabFaults", "SlabMachine", "TrilinearSource"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SlabFaults(SliceFaults):
+    """The VolumePro family's faults: those of every slice-order machine
+    (:class:`SliceFaults`) and ``stuck_bank = (k, b, value)``: bank ``b`` of SDRAM module
+    ``k`` returns ``value``; ``lost_spill = s``: the partial rays parked at the end of
+    section ``s`` are lost; ``slab_buffer_adjust``: entries per pipeline added to (removed
+    from) the input buffer."""
+
+    stuck_bank: tuple[int, int, int] | None = None
+    lost_spill: int | None = None
+    slab_buffer_adjust: int = 0
+
+
+class SlabMachine(SliceOrderMachine):
+    """P VolumePro-family pipelines fed by SDRAM, rendering one frame of ``plan``."""
+
+    def __init__(
+        self,
+        backend: Backend,
+        plan: SamplePlan,
+        *,
+        faults: SlabFaults | None = None,
+        elaborate_all: bool = False,
+        trace: VcdTrace | None = None,
+        steady_state: bool = False,
+    ) -> None:
+        self.be, self.dp = backend, backend.dp
+        self.steady_state = steady_state
+        self.faults = faults or SlabFaults()
+        self.arch = arch = backend.arch
+        self.P = P = arch.pipelines
+        self.trace = trace
+        self.skipping = arch.early_termination or arch.space_leaping
+        if arch.space_leaping and backend.mode == "composite":
+            plan = make_plan(backend.scene, backend.volume, plan.kind, occupancy=self._occupancy())
+        self.plan = plan
+        self._slice_geometry(backend.volume.shape)
+        self.memory_cfg = parse_memory(arch.memory, source=arch.source)
+        self.capacity = self._slab_buffers()
+        self.counters = Counters()
+        self.elaborated, self.elided = self._elaborate(elaborate_all)
+        self.elaborate_all = elaborate_all
+        self.voxel_gradients = self.dp.gradient.source == "voxel"
+        self.need_value = (
+            not backend.pre_classified or backend.need_grad or "gradient" in self.elaborated
+        )
+        self.memory = SdramVolume(
+            backend.raw,
+            self.memory_cfg,
+            P,
+            self.counters,
+            stuck_module=self.faults.stuck_module,
+            stuck_bank=self.faults.stuck_bank,
+            source=arch.source,
+        )
+        self.datapath = SliceDatapath(
+            SlicePath(
+                pipelines=P,
+                beam_fifo_adjust=self.faults.beam_fifo_adjust,
+                dropped_link=self.faults.dropped_link,
+            ),
+            (self.n_a, self.n_b),
+            self.counters,
+        )
+        self.weight_one = 1 << self.dp.interp.weight_bits
+        self.skip_transparent = backend.mode == "composite" and not elaborate_all
+        if backend.mode == "composite":
+            self.next_visible = backend.transparent_ranges()
+        self._planes: dict[int, dict[str, np.ndarray]] = {}
+        self._voxels: dict[int, np.ndarray] = {}
+        self._diffed: set[int] = set()  # slices whose gradient planes are in _planes
+        # Rule 6: the sequencer reads a slab up to two slabs (four voxel slices) before
+        # the slice that consumes it, so it knows the termination mask of that many sample
+        # slices earlier.
+        self.read_lag = int(np.ceil(4 * plan.scene.render.supersampling))
+
+    # ------------------------------------------------------------------ set-up
+
+    def _occupancy(self):
+        """Blocks that can hold a visible sample (:meth:`Backend.occupied_blocks`), for
+        space leaping: exact, as the skipping rule."""
+        return occupancy_from_ranges(self.be.occupied_blocks())
+
+    def _slab_buffers(self) -> dict[str, int]:
+        return slab_buffers(self.arch, self.C)
+
+    # ------------------------------------------------------------------ geometry
+
+    def k_taps(self, pk: np.ndarray) -> tuple[int, int, int]:
+        """Principal-axis taps of a step's samples (one slice position per step): the
+        functional rung's ``i0``, ``i1`` and quantised weight."""
+        p = float(pk[0]) if np.ndim(pk) else float(pk)
+        if np.ndim(pk) and pk.size and not (pk == p).all():
+            raise AssertionError("samples of one step lie on one slice")
+        n = self.n_kp
+        p = min(max(p, 0.0), n - 1.0)
+        i0 = int(min(np.floor(p), max(n - 2, 0)))
+        w = int(self.dp.interp.weight.quantize(np.array([p - i0]))[0])
+        return i0, min(i0 + 1, n - 1), w
+
+    def nearest_slice(self, pk: np.ndarray) -> int:
+        p = float(pk[0]) if pk.size else 0.0
+        return int(min(max(np.floor(p + 0.5), 0), self.n_kp - 1))
+
+    def slice_position(self, j: int) -> float:
+        """Principal-axis position of sample slice ``j`` (the plan's formula)."""
+        plan = self.plan
+        if plan.kind == "shear-warp":
+            return float(plan.order[j])
+        ss = plan.scene.render.supersampling
+        q0 = 0.0 if self.forward else (plan.slice_count - 1) / ss
+        return q0 + (1.0 if self.forward else -1.0) * (j / ss)
+
+    def window(self, j: int) -> tuple[int, int]:
+        """Voxel slices the beams of sample slice ``j`` read: ``i0 - 1 .. i0 + 2``."""
+        i0 = self.k_taps(np.array([self.slice_position(j)]))[0]
+        return max(i0 - 1, 0), min(i0 + 2, self.n_kp - 1)
+
+    def _sections(self) -> list[tuple[int, int]]:
+        """Row bands ``[a0, a1)`` in processing order (the rays' drift direction)."""
+        S, n = self.arch.section_width, self.n_a
+        if S <= 0 or S >= n:
+            return [(0, n)]
+        if self.plan.camera.perspective:
+            raise InputError(
+                "sections need rays that drift one way: perspective rays diverge",
+                source=self.arch.source,
+                key="overheads.section_width",
+                allowed="0 (no sectioning) for perspective views",
+            )
+        bands = [(a0, min(a0 + S, n)) for a0 in range(0, n, S)]
+        delta = np.asarray(self.plan._delta)
+        drift = float(delta[..., self.a_ax].ravel()[0]) if delta.size else 0.0
+        return bands[::-1] if drift < 0 else bands
+
+    # ------------------------------------------------------------------ slices
+
+    def planes(self, q: int) -> dict[str, np.ndarray]:
+        """Corner planes of voxel slice ``q`` (read from SDRAM on first use, kept while the
+        slice is in the window)."""
+        planes = self._planes.get(q)
+        if planes is None:
+            planes = self._planes[q] = self._load(q)
+        if self._gradient_planes and q not in self._diffed:
+            # After the load, not inside it: the differences read slice q + 1, whose own
+            # differences are computed when it is used (no chain of loads ahead).
+            planes.update(self._differences(q))
+            self._diffed.add(q)
+        return planes
+
+    def _load(self, q: int) -> dict[str, np.ndarray]:
+        be, S = self.be, self.dp.interp.sample_frac_bits
+        stream = self.memory.read_slice(self.kp, q)
+        payloads = {}
+        if be.pre_classified:
+            rgba = be.classified_voxels(stream)
+            payloads.update((c, v.reshape(stream.shape)) for c, v in zip("rgba", rgba, strict=True))
+        if self.need_value:
+            payloads["value"] = stream
+        corners = {k: self.datapath.corners(v, q) for k, v in payloads.items()}
+        if "value" in corners:
+            self._voxels[q] = corners["value"][0, 2 : 2 + self.n_a, 2 : 2 + self.n_b]
+        planes = {}
+        if self.skip_transparent:
+            if be.pre_classified:
+                planes["amax"] = corners["a"].max(axis=0).ravel()
+            else:
+                value = corners["value"] << S
+                planes["lo"], planes["hi"] = (
+                    classify_unit.lut_index(x.ravel(), self.dp.voxel_bits, S, self.dp.classify)
+                    for x in (value.min(axis=0), value.max(axis=0))
+                )
+        planes.update((k, (v << S).reshape(4, -1).T.copy()) for k, v in corners.items())
+        return planes
+
+    @property
+    def _gradient_planes(self) -> bool:
+        """Whether slices carry interpolated voxel-gradient planes (``source = "voxel"``)."""
+        return self.voxel_gradients and (self.be.need_grad or "gradient" in self.elaborated)
+
+    def _voxel_plane(self, q: int) -> np.ndarray:
+        if q not in self._voxels:
+            self._planes[q] = self._load(q)
+        return self._voxels[q]
+
+    def _differences(self, q: int) -> dict[str, np.ndarray]:
+        """The gradient unit at voxels (``source = "voxel"``): central differences of the
+        delivered slices ``q - 1, q, q + 1`` (``2 (v[1] - v[0])`` at edges), streamed back
+        through the ring and beam FIFO as corner planes to be interpolated."""
+        S = self.dp.interp.sample_frac_bits
+        cur = self._voxel_plane(q)
+        n = self.n_kp
+        diffs: list[np.ndarray] = [None, None, None]  # type: ignore[list-item]
+        if n >= 2:
+            if q == 0:
+                dk = 2 * (self._voxel_plane(1) - cur)
+            elif q == n - 1:
+                dk = 2 * (cur - self._voxel_plane(n - 2))
+            else:
+                dk = self._voxel_plane(q + 1) - self._voxel_plane(q - 1)
+        else:
+            dk = np.zeros_like(cur)
+        diffs[self.kp] = dk
+        for ax, axis in ((self.a_ax, 0), (self.b_ax, 1)):
+            d = np.zeros_like(cur)
+            if cur.shape[axis] >= 2:
+                v, dv = np.moveaxis(cur, axis, 0), np.moveaxis(d, axis, 0)
+                dv[1:-1] = v[2:] - v[:-2]
+                dv[0] = 2 * (v[1] - v[0])
+                dv[-1] = 2 * (v[-1] - v[-2])
+            diffs[ax] = d
+        sched = self.memory.schedule(self.kp, q)
+        b = np.where(sched.valid, sched.b, 0)
+        out = {}
+        for name, axis in (("dx", 2), ("dy", 1), ("dz", 0)):
+            stream = np.where(sched.valid, diffs[axis][sched.a, b], 0)
+            corners = self.datapath.corners(stream, q) << S
+            out[name] = corners.reshape(4, -1).T.copy()
+        return out
+
+    def _evict(self, lo: int) -> None:
+        """Drop slices behind the window (processing order)."""
+        for q in [q for q in self._planes if (q < lo - 1 if self.forward else q > lo + 1)]:
+            del self._planes[q]
+            self._voxels.pop(q, None)
+            self._diffed.discard(q)
+
+    def _lanes(self, source) -> np.ndarray:
+        (ca, _, fa), (cb, _, fb) = source._cells
+        a = np.clip(ca + (fa >= 0.5), 0, self.n_a - 1)
+        b = np.clip(cb + (fb >= 0.5), 0, self.n_b - 1)
+        return (source.q + a + b) % self.P
+
+    # ------------------------------------------------------------------ frame
+
+    def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
+        be, plan, P = self.be, self.plan, self.P
+        state = be.new_state(plan.n_rays)
+        sections = self._sections()
+        bus = {
+            "acc": be.new_state(plan.n_rays).acc,
+            "touched": np.zeros(plan.n_rays, dtype=bool),
+            "dt_sum": None if state.dt_sum is None else np.zeros_like(state.dt_sum),
+        }
+        last_j = np.full(plan.n_rays, -1, dtype=np.int64)
+        last_j[plan.ray_ids] = plan.j_hi
+        prev_lane = np.full(plan.n_rays, -1, dtype=np.int64)
+        records: list[SliceRecord] = []
+        parked_counts: list[int] = []
+        sram_acc = np.zeros_like(state.acc)
+        sram_dt = None if state.dt_sum is None else np.zeros_like(state.dt_sum)
+        parked = np.zeros(0, dtype=np.int64)
+        # Terminated rays save work only on a machine with ERT hardware (rule 6).
+        ert_hardware = self.arch.early_termination and be.mode in ("composite", "iso")
+        n_slabs, n_u, n_mb = -(-self.n_kp // 2), -(-self.n_a // 2), -(-self.n_b // 2)
+        # Mini-blocks a processed beam needs, per section (rule 6: the others are not read).
+        needed = np.zeros((len(sections), n_slabs, n_u, n_mb), dtype=bool)
+        if not self.skipping:
+            for si, (a0, a1) in enumerate(sections):
+                needed[si, :, max(a0 - 1, 0) // 2 : (min(a1 + 1, self.n_a - 1)) // 2 + 1] = True
+        total = plan.n_steps * len(sections)
+        for si, (a0, a1) in enumerate(sections):
+            if parked.size:  # reload the partial rays this section continues
+                state.acc[parked] = sram_acc[parked]
+                if sram_dt is not None:
+                    state.dt_sum[parked] = sram_dt[parked]
+            seen = np.zeros(plan.n_rays, dtype=bool)
+            # Termination masks of the last slices: the memory reads a slab while the
+            # pipelines are up to ``lag`` sample slices behind (rule 6).
+            history: deque[np.ndarray] = deque(maxlen=self.read_lag)
+            done = np.zeros(plan.n_rays, dtype=bool)
+            self._planes.clear()
+            self._voxels.clear()
+            self._diffed.clear()
+            for j, step in enumerate(plan.steps()):
+                lo, hi = self.window(j)
+                self._evict(lo if self.forward else hi)
+                if len(sections) > 1 and step.rays.size:
+                    rows = np.clip(np.floor(step.zyx[:, self.a_ax]), 0, self.n_a - 1)
+                    inside = (rows >= a0) & (rows < a1)
+                    step = subset_step(step, inside)
+                busy = np.zeros(P, dtype=np.int64)
+                cost = None
+                fin = np.zeros(0, dtype=np.int64)
+                if step.rays.size:
+                    seen[step.rays] = True
+                    source = TrilinearSource(self, step)
+                    lanes = self._lanes(source)
+                    live = np.ones(step.rays.size, dtype=bool)
+                    if ert_hardware:
+                        live = state.alive[step.rays]
+                    busy = np.bincount(lanes[live] if self.skipping else lanes, minlength=P)
+                    if self.skipping:
+                        known = np.ones(step.rays.size, dtype=bool)
+                        if ert_hardware and len(history) == history.maxlen:
+                            known = history[0][step.rays]
+                        cost = self._live_cells(source, live, known, si, (lo, hi), needed)
+                    self._hand_off(step.rays, lanes, prev_lane, state)
+                    be.process(
+                        step,
+                        lambda s, src=source, full=step: (
+                            src if s is full else TrilinearSource(self, s)
+                        ),
+                        state,
+                    )
+                    fin = step.rays[last_j[step.rays] == j]
+                    if fin.size:
+                        done[fin] = True
+                        bus["acc"][fin] = state.acc[fin]
+                        bus["touched"][fin] = state.touched[fin]
+                        if bus["dt_sum"] is not None:
+                            bus["dt_sum"][fin] = state.dt_sum[fin]
+                elif self.skipping:
+                    cost = np.zeros(self.n_a, dtype=np.int64)
+                records.append(SliceRecord(si, (lo, hi), cost, busy, int(fin.size)))
+                if ert_hardware:
+                    history.append(state.alive.copy())
+                if progress is not None:
+                    progress(si * plan.n_steps + j + 1, total)
+            parked = np.flatnonzero(seen & ~done)
+            parked_counts.append(int(parked.size))
+            if parked.size:  # park the partial rays in the section SRAM
+                lost = self.faults.lost_spill == si
+                fresh = be.new_state(1)
+                sram_acc[parked] = fresh.acc[0] if lost else state.acc[parked]
+                state.acc[parked] = fresh.acc[0]
+                if sram_dt is not None:
+                    sram_dt[parked] = 0 if lost else state.dt_sum[parked]
+                    state.dt_sum[parked] = 0
+                if records:
+                    records[-1].arrivals += int(parked.size)
+        return self._finish(state, bus, records, sections, parked_counts, needed)
+
+    def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:
+        """Rule 6 at one sample slice: the clocks each beam costs (clock groups of P cells
+        holding a sample of a live ray, ``live``) and the mini-blocks the memory reads for
+        it (marked in ``needed``): those of the cells of rays the sequencer still knew
+        alive when it read the slab (``known``, a superset of ``live``); cell ``(a, b)``
+        reads voxel rows ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` of the window's
+        slices (corners and gradient neighbours)."""
+        P, C = self.P, self.C
+        ra = np.clip(np.floor(source.pa), 0, self.n_a - 1).astype(np.int64)
+        rb = np.clip(np.floor(source.pb), 0, self.n_b - 1).astype(np.int64)
+        cells = np.zeros((self.n_a, C * P), dtype=bool)
+        cells[ra[live], rb[live]] = True
+        cost = cells.reshape(self.n_a, C, P).any(axis=2).sum(axis=1)
+        cells[ra[known], rb[known]] = True
+        needed[si, window[0] // 2 : window[1] // 2 + 1] |= mini_blocks_read(cells[:, : self.n_b])
+        return cost
+
+    def _finish(self, state, bus, records, sections, parked_counts, needed) -> CycleResult:
+        be, c, P = self.be, self.counters, self.P
+        deliveries, slices = timing_inputs(self, records, sections, parked_counts, needed)
+        depth = self.faults.pixel_fifo_depth
+        pixel_fifo = DrainFifo(
+            "pixel_bus.fifo", self.capacity["pixel_fifo_entries"] if depth is None else depth
+        )
+        c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
+        entries = self.capacity["slab_buffer_entries"] + self.faults.slab_buffer_adjust
+        capacity = max(entries, 0) // (4 * self.C)
+        c.set("memory.slab_buffer_entries", max(entries, 0))
+        c.set("memory.slab_buffer_mbbs", capacity)
+        timing = run_timing(
+            self.memory_cfg,
+            deliveries,
+            slices,
+            capacity=capacity,
+            pixel_fifo=pixel_fifo,
+            counters=c,
+        )
+        stages = {
+            u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
+        }
+        if slices:
+            busy_k = np.array([s.busy for s in slices])
+            cycles_k = np.array([b[0] for b in timing.blocks])
+            stall_k = np.array([b[1] for b in timing.blocks])
+            for stage in stages.values():
+                stage.account(busy_k, cycles_k, stall_k)
+        if self.trace is not None:
+            record_trace(self, timing)
+        latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
+        drain = pixel_fifo.flush()
+        cycles = timing.end + latency + drain
+        if self.steady_state:
+            c.set("frame.period_cycles", frame_period(self, deliveries, slices, capacity))
+        idle = np.zeros(P, dtype=np.int64)
+        for stage in stages.values():
+            stage.account(idle, latency + drain)
+            stage.publish()
+        self.memory.publish()
+        sdram = SdramStats.combine(timing.stats)
+        for key, value in sdram.to_counters("memory.sdram").items():
+            c.set(key, int(value))
+        for m, stats in enumerate(timing.stats):
+            c.set(f"memory.module[{m}].bursts", stats.bursts)
+            c.set(f"memory.module[{m}].busy_cycles", stats.data_busy_cycles)
+        n_beams = sum(s.needs.size for s in slices)
+        all_beams = sum(sections[r.section][1] - sections[r.section][0] for r in records)
+        c.set("memory.mbb_reads", len(deliveries))
+        c.set("memory.bursts_skipped", int(needed.size - needed.sum()))
+        c.set("memory.bursts", sdram.bursts)
+        c.set("memory.stall_cycles", timing.memory_stall)
+        c.set("memory.buffer_full_cycles", sdram.stall_arrival_cycles)
+        c.set("pipeline.beams_processed", n_beams)
+        c.set("pipeline.beams_skipped", all_beams - n_beams)
+        c.set("pipeline.beam_cycles", int(sum(int(s.cycles.sum()) for s in slices)))
+        c.set(
+            "pipeline.slice_stretch_cycles",
+            sum(s.extra for s in slices) - len(slices) * self.arch.slice_overhead_cycles,
+        )
+        c.set("section.count", len(sections))
+        c.set("section.parked_rays", sum(parked_counts))
+        c.set("section.reload_cycles", sum(parked_counts[:-1]))
+        c.set("section.overhead_cycles", (len(sections) - 1) * self.arch.section_overhead_cycles)
+        publish_pixel_bus(c, pixel_fifo, drain)
+        c.set("pixel_bus.stall_cycles", timing.pixel_stall)
+        c.set("pipeline.latency_cycles", latency)
+        c.set("frame.cycles", cycles)
+        c.set("frame.samples", state.samples)
+        c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
+        image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
+        return frame_result(self, image, state, cycles)

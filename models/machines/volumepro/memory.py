@@ -1,0 +1,182 @@
+"""The VolumePro-family volume memory: SDRAM modules holding 2x2x2 mini-blocks, read in bursts.
+
+# Ref: architectures.md section 3 (US 6,266,733 two-level mini-block storage [V abstract]:
+#      mini-blocks skewed across modules, then across banks; a de-skewing network reorders
+#      the data; one mini-block = one burst of 8 [I]), section 2 (EM-Cube block skewing
+#      [R med]) and 9.1 (voxel memory controller, de-skew network).
+
+The host writes the volume once into ``[memory] modules`` SDRAM devices in the layout
+``[memory] skew`` names (:mod:`models.units.skew`, the same formulas as
+:mod:`models.memory_streams`):
+
+``miniblock``
+    mini-block ``(bx, by, bz)``, ``s = bx + by + bz``: module ``s mod M``, bank
+    ``(s div M) mod K``, word address :func:`models.units.skew.vp500_miniblock`.
+``block``
+    the same module skew, mini-blocks stored linearly per module, the bank taken from the
+    top address bits (no bank skew).
+
+Volumes of any shape are stored in the layout of the enclosing even cube (side ``n``, the
+largest side rounded up to even); the padding words are never read.  A slice is read as
+the bursts of the mini-blocks it lies in; the de-skew network hands each pipeline the
+Cube-4 slice stream (pipeline ``m`` receives voxel ``b = g P + ((m - q - a) mod P)`` of
+beam ``a`` at clock ``a C + g``: :meth:`Cube4Memory.schedule`), which the ring links and
+beam FIFO of :mod:`models.machines.common.slices` turn into cell corners.  Every slice read
+checks the skew: each run of ``M`` consecutive mini-blocks along a beam must come from
+``M`` distinct modules (``memory.conflicts``, which the tests require to be 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hwsim.engine import Counters
+from hwsim.errors import InputError
+from hwsim.memory import MemoryConfig
+from models.machines.common.slices import SliceSchedule, slice_schedule
+from models.units import skew as sk
+
+__all__ = ["SdramVolume", "layout"]
+
+
+def layout(memory: MemoryConfig, n: int, x, y, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Module, bank and word address (inside the bank) of voxels ``(x, y, z)`` of an
+    ``n``-cube (``n`` even) in ``memory``'s mini-block layout."""
+    M, K = memory.modules, memory.sdram.banks
+    if memory.skew == "miniblock":
+        return sk.vp500_miniblock(x, y, z, n, M, K)
+    if memory.skew == "block":
+        x, y, z = (np.asarray(v, dtype=np.int64) for v in (x, y, z))
+        nb = n // 2
+        bx, by, bz = x >> 1, y >> 1, z >> 1
+        pitch = -(-nb // M) * M
+        o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
+        linear = 8 * (((bz * nb + by) * pitch + bx) // M) + o
+        per_bank = -(-int(8 * nb * nb * pitch // M) // K)
+        per_bank = -(-per_bank // memory.sdram.columns) * memory.sdram.columns
+        bank, address = np.divmod(linear, per_bank)
+        return (bx + by + bz) % M, bank, address
+    raise ValueError(f"the SDRAM front end reads mini-blocks: skew {memory.skew!r} unsupported")
+
+
+class SdramVolume:
+    """``M`` SDRAM modules holding one volume in mini-blocks.
+
+    Parameters
+    ----------
+    raw : numpy.ndarray
+        ``(z, y, x)`` raw voxels (at most 16 bits).
+    memory : MemoryConfig
+        Modules, skew and device (the arch's ``[memory]`` table).
+    pipelines : int
+        P: the de-skew network's output lanes.
+    counters : Counters
+    stuck_module : (int, int), optional
+        Fault: module ``k`` returns ``value`` for every word.
+    stuck_bank : (int, int, int), optional
+        Fault: bank ``b`` of module ``k`` returns ``value`` for every word.
+    source : str, optional
+        The arch file, named when the volume does not fit the devices.
+    """
+
+    def __init__(
+        self,
+        raw: np.ndarray,
+        memory: MemoryConfig,
+        pipelines: int,
+        counters: Counters,
+        *,
+        stuck_module: tuple[int, int] | None = None,
+        stuck_bank: tuple[int, int, int] | None = None,
+        source: str | None = None,
+    ) -> None:
+        self.shape = tuple(int(v) for v in raw.shape)
+        self.memory, self.P, self.counters = memory, int(pipelines), counters
+        self.M, self.K = memory.modules, memory.sdram.banks
+        self.n = max(2, max(self.shape) + max(self.shape) % 2)
+        self.stuck_module, self.stuck_bank = stuck_module, stuck_bank
+        self.words = self._load(raw)
+        rows = -(-self.words.shape[2] // memory.sdram.columns)
+        if rows > memory.sdram.rows:
+            raise InputError(
+                f"the volume needs {rows} SDRAM rows per bank, the device has {memory.sdram.rows}",
+                source=source,
+                key="memory.rows",
+                allowed=f">= {rows} (or a smaller volume)",
+            )
+        counters.set("memory.words_per_bank", self.words.shape[2])
+        self._schedules: dict = {}  # the de-skew network's output order (Cube-4's)
+        self.reads = np.zeros(self.M, dtype=np.int64)
+
+    def _load(self, raw: np.ndarray) -> np.ndarray:
+        """The host's write: ``words[module, bank, address]``, one z-plane at a time."""
+        nz, ny, nx = self.shape
+        y, x = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+        planes = []
+        size = 0
+        for z in range(nz):
+            m, b, a = layout(self.memory, self.n, x, y, np.full_like(x, z))
+            planes.append((m.ravel(), b.ravel(), a.ravel()))
+            size = max(size, int(a.max()) + 1)
+        words = np.zeros((self.M, self.K, size), dtype=np.uint16)
+        for z, (m, b, a) in enumerate(planes):
+            words[m, b, a] = raw[z].ravel()
+        return words
+
+    def schedule(self, kp: int, q: int) -> SliceSchedule:
+        """Where each pipeline's voxel of slice ``q`` comes from, clock by clock."""
+        return slice_schedule(self.shape, self.P, kp, q, self._schedules)
+
+    def read_slice(self, kp: int, q: int) -> np.ndarray:
+        """Voxel slice ``q`` along ``kp`` as the de-skewed ``(P, T)`` stream (0 in idle
+        slots), read word by word from the modules that hold it; checks the skew."""
+        sched = self.schedule(kp, q)
+        z, y, x = sched.zyx
+        module, bank, address = layout(self.memory, self.n, x, y, z)
+        stream = self.words[module, bank, address].astype(np.int64)
+        if self.stuck_module is not None:
+            k, value = self.stuck_module
+            stream[module == k] = value
+        if self.stuck_bank is not None:
+            k, b, value = self.stuck_bank
+            stream[(module == k) & (bank == b)] = value
+        stream[~sched.valid] = 0
+        conflicts = self._conflicts(kp, q)
+        self.counters.add("memory.conflicts", conflicts)
+        if conflicts:
+            raise AssertionError(f"skew violated: {conflicts} mini-block reads of slice {q}")
+        self.reads += np.bincount(module[sched.valid], minlength=self.M)
+        return stream
+
+    def _conflicts(self, kp: int, q: int) -> int:
+        """Runs of M consecutive mini-blocks along a beam of slice ``q`` that hit a module
+        twice (0 for the mini-block and block layouts: ``s`` grows by one per mini-block)."""
+        axes = [ax for ax in range(3) if ax != kp]
+        n_a, n_b = self.shape[axes[0]], self.shape[axes[1]]
+        coords = [None, None, None]
+        coords[kp] = np.full((n_a, -(-n_b // 2)), q)
+        coords[axes[0]] = np.arange(n_a)[:, None] + 0 * coords[kp]
+        coords[axes[1]] = 2 * np.arange(-(-n_b // 2))[None, :] + 0 * coords[kp]
+        module = layout(self.memory, self.n, coords[2], coords[1], coords[0])[0]
+        window = min(self.M, module.shape[1])
+        return int(sum(np.count_nonzero(module[:, :-k] == module[:, k:]) for k in range(1, window)))
+
+    def slab_bursts(self, kp: int, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bursts of slab ``slab`` (voxel slices ``2 slab``, ``2 slab + 1`` along ``kp``):
+        ``(module, bank, row)`` arrays ``(n_u, n_mb)`` of its mini-block beams ``u``
+        (rows ``2u, 2u + 1`` of axis ``a``) and mini-blocks along the beam."""
+        axes = [ax for ax in range(3) if ax != kp]
+        n_u = -(-self.shape[axes[0]] // 2)
+        n_mb = -(-self.shape[axes[1]] // 2)
+        coords = [None, None, None]
+        coords[kp] = np.full((n_u, n_mb), 2 * slab)
+        coords[axes[0]] = 2 * np.arange(n_u)[:, None] + 0 * coords[kp]
+        coords[axes[1]] = 2 * np.arange(n_mb)[None, :] + 0 * coords[kp]
+        module, bank, address = layout(self.memory, self.n, coords[2], coords[1], coords[0])
+        return module, bank, address // self.memory.sdram.columns
+
+    def publish(self) -> None:
+        """Per-module words delivered (2 bytes each)."""
+        self.counters.add_lanes("memory.module[{}].words_read", self.reads)
+        self.counters.add_lanes("memory.module[{}].read_bytes", 2 * self.reads)
+        self.reads[:] = 0

@@ -1,0 +1,184 @@
+"""Frame timing of the VolumePro-family machines: pipelines fed by SDRAM through an input buffer.
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)"; architectures.md 9.1 (voxel memory
+#      controller, burst scheduling) and 9.5 item 3 (cycles per frame from the mechanisms).
+
+Two in-order processes meet at the input (slab) buffer:
+
+* the **memory**: mini-block beams (*deliveries*) in read order, each a list of bursts per
+  module, scheduled cycle-exactly by one :class:`hwsim.memory.SdramController` per module
+  (row hits, misses, conflicts, refresh, CAS latency).  Delivery ``g`` may not issue its
+  first burst before the buffer has room: the cycle delivery ``g - cap`` was freed.  It is
+  *ready* after the last data beat of its last burst on any module.
+* the **pipelines**: beams of ``C`` clocks in processing order.  A beam starts when the
+  previous one has finished and its last needed delivery is ready (else the pipelines
+  stall: ``memory.stall_cycles``).  After a slice's last beam come the slice's extra
+  cycles (overhead, perspective stretch) and the pixel-bus FIFO (a full FIFO stalls).
+  A delivery is freed when the last beam that needs it has finished.
+
+When a beam waits for a delivery that cannot issue until that very beam (or a later one)
+has finished, the buffer is too small for the machine to progress: :class:`DeadlockError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.engine import Counters, DeadlockError, DrainFifo
+from hwsim.memory import MemoryConfig, SdramController, SdramStats
+from models.machines.common.results import buffer_table
+
+__all__ = ["SliceWork", "Delivery", "FrameTiming", "run_timing", "slab_buffers"]
+
+
+@dataclass
+class Delivery:
+    """One mini-block beam: per module, the ``(banks, rows)`` int64 arrays of its bursts."""
+
+    bursts: list[tuple[np.ndarray, np.ndarray]]
+    free_after: int = -1  # global beam index whose end frees it (set by the caller)
+
+
+@dataclass
+class SliceWork:
+    """One sample slice of one section as the pipelines see it.
+
+    ``needs``: per processed beam, the index of the last delivery it needs (-1: none);
+    ``cycles``: per processed beam, its clocks (``C``, fewer when skipping, rule 6);
+    ``extra``: cycles after the last beam (slice overhead, perspective stretch);
+    ``pre``: stall cycles before the first beam (a section change);
+    ``arrivals``: accumulators pushed into the pixel FIFO at the slice's end.
+    """
+
+    needs: np.ndarray
+    cycles: np.ndarray
+    extra: int = 0
+    pre: int = 0
+    arrivals: int = 0
+    busy: np.ndarray | None = None
+
+
+@dataclass
+class FrameTiming:
+    """Per-slice blocks (cycles, stall cycles) and the totals the counters report."""
+
+    blocks: list[tuple[int, int]] = field(default_factory=list)
+    beam_ends: np.ndarray | None = None
+    beam_cycles: np.ndarray | None = None
+    schedules: list = field(default_factory=list)
+    end: int = 0
+    memory_stall: int = 0
+    pixel_stall: int = 0
+    stats: list[SdramStats] = field(default_factory=list)
+
+
+def run_timing(
+    memory: MemoryConfig,
+    deliveries: list[Delivery],
+    slices: list[SliceWork],
+    *,
+    capacity: int,
+    pixel_fifo: DrainFifo,
+    counters: Counters,
+) -> FrameTiming:
+    """Run the pipelines and the memory of one frame (rules of docs/cycle.md).
+
+    Parameters
+    ----------
+    memory : MemoryConfig
+        Modules and device timing.
+    deliveries : list of Delivery
+        Mini-block beams in read order, ``free_after`` set.
+    slices : list of SliceWork
+        Processing order.
+    capacity : int
+        Input-buffer capacity in deliveries (>= 0).
+    pixel_fifo : DrainFifo
+    counters : Counters
+    """
+    dev = memory.sdram
+    controllers = [SdramController(dev) for _ in range(memory.modules)]
+    tail = dev.cas_latency + dev.burst_cycles
+    n_beams = sum(int(s.needs.size) for s in slices)
+    ends = np.zeros(max(n_beams, 1), dtype=np.int64)
+    ready = np.zeros(max(len(deliveries), 1), dtype=np.int64)
+    out = FrameTiming()
+    state = {"g": 0, "bi": 0}
+
+    def deliver() -> None:
+        g = state["g"]
+        if g >= len(deliveries):
+            raise DeadlockError(f"a beam needs delivery {g}, which the memory never reads")
+        earliest = 0
+        if g >= capacity:
+            f = deliveries[g - capacity].free_after
+            if f >= state["bi"]:
+                raise DeadlockError(
+                    f"input buffer: {capacity} mini-block beams cannot hold the sample "
+                    f"window; delivery {g} waits for beam {f} to free a slot while the "
+                    f"pipelines wait for it at beam {state['bi']}"
+                )
+            earliest = int(ends[f])
+        e_mem = int(np.ceil(earliest * dev.clock_ratio))
+        last = 0
+        for ctl, (banks, rows) in zip(controllers, deliveries[g].bursts, strict=True):
+            if not len(banks):
+                continue
+            # The controller's own loop (``issue_many`` without re-validating arrays the
+            # layout built): any split of a stream gives the batch schedule.
+            arrive = np.zeros(len(banks), dtype=np.int64)
+            arrive[0] = e_mem
+            ctl._run(banks, rows, arrive)
+            last = max(last, int(ctl.reads[-1]) + tail)
+        ready[g] = int(np.ceil(last / dev.clock_ratio))
+        state["g"] = g + 1
+
+    t = 0
+    for work in slices:
+        start_block = t
+        t += work.pre
+        stall = 0
+        for need, clocks in zip(work.needs.tolist(), work.cycles.tolist(), strict=True):
+            while need >= state["g"]:
+                deliver()
+            begin = t if need < 0 or ready[need] <= t else int(ready[need])
+            stall += begin - t
+            t = begin + clocks
+            ends[state["bi"]] = t
+            state["bi"] += 1
+        t += work.extra
+        pix = pixel_fifo.advance(t - start_block, work.arrivals, start_block)
+        t += pix
+        out.memory_stall += stall
+        out.pixel_stall += pix
+        out.blocks.append((t - start_block, stall + pix + work.pre))
+    while state["g"] < len(deliveries):  # reads no beam waits for (none by construction)
+        deliver()
+    out.end = t
+    out.schedules = [ctl.schedule() for ctl in controllers]
+    out.stats = [sched.stats for sched in out.schedules]
+    out.beam_ends = ends[:n_beams]
+    out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else ends[:0]
+    return out
+
+
+def slab_buffers(arch: ArchConfig, C: int) -> dict[str, int]:
+    """A VolumePro-family machine's capacities per pipeline (``[buffers]``, entries),
+    checked against a volume of ``C`` clocks per beam.  One copy for the cycle and
+    transaction models.
+
+    ``slab_buffer_entries`` defaults to ``8 n ceil(n / P)`` for ``n = max(max_volume)``:
+    four mini-block slabs -- the sample window (voxel slices ``i0 - 1 .. i0 + 2``, up to
+    three slabs) and one slab read ahead.
+    """
+    n_max = max(arch.max_volume)
+    c_max = -(-n_max // arch.pipelines)
+    defaults = {
+        "slab_buffer_entries": 8 * n_max * c_max,
+        "beam_fifo_entries": c_max + 1,
+        "pixel_fifo_entries": n_max * n_max,
+    }
+    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1})

@@ -1,0 +1,171 @@
+"""The timing pass of the VolumePro-family model: from the data pass's record to the clock.
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-9; architectures.md 9.1
+#      (voxel memory controller, burst scheduling).
+
+:func:`timing_inputs` turns what each sample slice did (:class:`SliceRecord`) into the
+memory's deliveries (mini-block beams to read, in order, with the bursts each module
+issues) and the pipelines' work (beams, their clocks and the deliveries they wait for),
+which :func:`models.machines.volumepro.slab_timing.run_timing` plays out;
+:func:`frame_period` plays two frames back to back (rule 9) and :func:`record_trace`
+writes the waveform.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hwsim.engine import Counters, DrainFifo
+from models.machines.volumepro.slab_timing import Delivery, SliceWork, run_timing
+
+if TYPE_CHECKING:
+    from models.machines.volumepro.cycle import SlabMachine
+
+__all__ = ["SliceRecord", "timing_inputs", "frame_period", "mini_blocks_read", "record_trace"]
+
+
+@dataclass
+class SliceRecord:
+    """What one sample slice of one section did (the data pass's record for timing)."""
+
+    section: int
+    window: tuple[int, int]  # voxel slices [lo, hi] the slice's beams read
+    cost: np.ndarray | None  # clocks of each row's beam (None: C for every row of the section)
+    busy: np.ndarray  # samples per lane
+    arrivals: int  # accumulators pushed into the pixel FIFO at its end
+
+
+def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
+    """Deliveries (mini-block beams to read, in order) and the pipelines' slices."""
+    n_slabs = needed.shape[1]
+    slab_order = range(n_slabs) if m.forward else range(n_slabs - 1, -1, -1)
+    index = np.full(needed.shape[:3], -1, dtype=np.int64)
+    deliveries: list[Delivery] = []
+    M = m.memory_cfg.modules
+    for si in range(len(sections)):
+        for slab in slab_order:
+            us = np.flatnonzero(needed[si, slab].any(axis=1))
+            if not us.size:
+                continue
+            module, bank, row = m.memory.slab_bursts(m.kp, slab)
+            for u in us.tolist():
+                index[si, slab, u] = len(deliveries)
+                keep = needed[si, slab, u]
+                bursts = []
+                for k in range(M):
+                    sel = (module[u] == k) & keep
+                    bursts.append((bank[u][sel].astype(np.int64), row[u][sel].astype(np.int64)))
+                deliveries.append(Delivery(bursts))
+    free_after = np.full(len(deliveries), -1, dtype=np.int64)
+    slices: list[SliceWork] = []
+    beam = 0
+    prev_section = 0
+    for rec in records:
+        a0, a1 = sections[rec.section]
+        rows = np.arange(a0, a1)
+        if rec.cost is None:
+            cycles = np.full(rows.size, m.C, dtype=np.int64)
+        else:
+            cycles = rec.cost[a0:a1]
+            rows, cycles = rows[cycles > 0], cycles[cycles > 0]
+        u_lo = np.maximum(rows - 1, 0) // 2
+        u_hi = np.minimum(rows + 2, m.n_a - 1) // 2
+        slabs = np.arange(rec.window[0] // 2, rec.window[1] // 2 + 1)
+        need = np.full(rows.size, -1, dtype=np.int64)
+        ids = np.arange(beam, beam + rows.size)
+        for d in range(3):
+            u = np.minimum(u_lo + d, u_hi)
+            got = index[rec.section][np.ix_(slabs, u)]  # (slabs, beams)
+            need = np.maximum(need, got.max(axis=0, initial=-1))
+            for row_ids in got:
+                ok = row_ids >= 0
+                np.maximum.at(free_after, row_ids[ok], ids[ok])
+        beam += rows.size
+        pre = 0
+        if rec.section != prev_section:
+            pre = m.arch.section_overhead_cycles + parked_counts[prev_section]
+            prev_section = rec.section
+        stretch = max(0, int(rec.busy.max(initial=0)) - int(cycles.sum()))
+        slices.append(
+            SliceWork(
+                need,
+                cycles,
+                extra=m.arch.slice_overhead_cycles + stretch,
+                pre=pre,
+                arrivals=rec.arrivals,
+                busy=rec.busy,
+            )
+        )
+    for g, f in enumerate(free_after.tolist()):
+        deliveries[g].free_after = f
+    return deliveries, slices
+
+
+def record_trace(m: SlabMachine, timing) -> None:
+    """VCD: each SDRAM module's data bus (``memory[m]/o__valid``, pipeline clocks) and
+    the pipelines' beams (``pipelines/i__valid``: a beam is being processed)."""
+    ratio = m.memory_cfg.sdram.clock_ratio
+
+    def ranges(first: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        edges = np.concatenate([first, end])
+        values = np.concatenate([np.ones(first.size), np.zeros(end.size)]).astype(np.int64)
+        # A range starting where the previous one ended keeps the signal high.
+        keep = ~np.isin(end, first)
+        edges = np.concatenate([first, end[keep]])
+        values = values[np.concatenate([np.ones(first.size, bool), keep])]
+        return edges, values
+
+    for k, sched in enumerate(timing.schedules):
+        first = np.floor(sched.data_first / ratio).astype(np.int64)
+        end = np.ceil(sched.data_end / ratio).astype(np.int64)
+        m.trace.record(f"memory[{k}]", "o__valid", 1, *ranges(first, end))
+    ends = timing.beam_ends
+    starts = ends - timing.beam_cycles
+    m.trace.record("pipelines", "i__valid", 1, *ranges(starts, ends))
+
+
+def frame_period(m: SlabMachine, deliveries, slices, capacity: int) -> int:
+    """Cycles between the ends of two frames rendered back to back (the continuous frame
+    rate): the same memory controllers and pixel FIFO carry on into a second frame, so
+    its fill overlaps the first frame's last slices and the first frame's pixels drain
+    while the second is processed."""
+    n_beams = sum(s.needs.size for s in slices)
+    n_del = len(deliveries)
+    again = [Delivery(d.bursts, d.free_after + n_beams) for d in deliveries]
+    shifted = [
+        dataclasses.replace(s, needs=np.where(s.needs >= 0, s.needs + n_del, -1)) for s in slices
+    ]
+    fifo = DrainFifo("pixel_bus.fifo", m.capacity["pixel_fifo_entries"])
+    timing = run_timing(
+        m.memory_cfg,
+        deliveries + again,
+        slices + shifted,
+        capacity=capacity,
+        pixel_fifo=fifo,
+        counters=Counters(),
+    )
+    first = sum(b[0] for b in timing.blocks[: len(slices)])
+    return int(timing.end - first)
+
+
+def mini_blocks_read(cells: np.ndarray) -> np.ndarray:
+    """Rule 6's reads: the mini-blocks ``(ceil(n_a / 2), ceil(n_b / 2))`` of a slab's
+    plane holding a voxel that some marked cell reads; cell ``(a, b)`` reads voxel rows
+    ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` (corners and gradient neighbours).
+    Shared by the cycle machine and the VolumePro 1000 transaction model."""
+    voxels = cells
+    for axis in (0, 1):
+        v = np.moveaxis(voxels, axis, 0)
+        out = v.copy()
+        out[:-1] |= v[1:]
+        out[1:] |= v[:-1]
+        out[2:] |= v[:-2]
+        voxels = np.moveaxis(out, 0, axis)
+    n_a, n_b = voxels.shape
+    pad = np.zeros((-(-n_a // 2) * 2, -(-n_b // 2) * 2), dtype=bool)
+    pad[:n_a, :n_b] = voxels
+    return pad.reshape(pad.shape[0] // 2, 2, pad.shape[1] // 2, 2).any(axis=(1, 3))

@@ -1,0 +1,433 @@
+"""The VolumePro-family machines as a SimPy event model (the ``transaction`` rung's timing).
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-5, 7 and 8 (the rules this
+#      model approximates); architectures.md section 3 (VolumePro 500: two-level
+#      mini-block skew, US 6,266,733 [V abstract]), section 2 (EM-Cube) and 9.1 (voxel
+#      memory controller, burst scheduling, refresh).
+
+P pipelines fed by ``[memory] modules`` SDRAM devices through an input (slab) buffer,
+as cooperating SimPy processes at *beam-group* granularity:
+
+* **memory**: reads the volume slab by slab (two voxel slices, front to back), each slab
+  in ``groups`` chunks of mini-block beams (mbbs: two beams of a slab, ``n_b / 2`` bursts);
+  a chunk's bursts go to each module's :class:`hwsim.memory.SdramTransactionPort` in one
+  call (row hits, misses, refresh and CAS timed by the shared SDRAM model) and the chunk
+  is *ready* when every module has delivered it.  A chunk may not issue before the input
+  buffer has room: the chunk ``capacity`` places earlier must have been freed;
+* **pipelines**: every sample slice (z-supersampling included) is ``groups`` groups of
+  beams, ``C = ceil(n_b / P)`` clocks per beam; a group starts when the chunks its rows'
+  trilinear windows need (voxel slices ``i0 - 1 .. i0 + 2``, rows ``a - 2 .. a + 2``)
+  are ready, and frees the chunks no later group needs; after a slice come the
+  per-slice overhead, the perspective stretch (the slice's samples shared evenly over
+  the pipelines, as the Cube-4 model) and the pixel FIFO (:class:`PixelBus`).
+
+With ``[overheads] section_width`` the slices' beams are processed band by band
+(:mod:`models.machines.common.sections`): each band re-reads the mbbs of its rows, pays the
+section overhead and reloads the rays the last band parked (one clock each); parked
+rays leave over the pixel bus at the end of their band.
+
+What is coarser than the cycle rung (the error's sources): readiness and freeing per
+chunk of mbbs instead of per mbb and per beam, so pipelines wait for a whole chunk at the
+first fill and wherever the memory is the bottleneck; and the buffer's capacity counted
+in whole chunks.  Beam skipping (early ray termination, space leaping: VolumePro 1000)
+is the subclass :class:`~models.machines.volumepro.vp1000_transaction.Vp1000Transaction`,
+which supplies each slice's per-beam clocks and the mini-blocks read (``skips``); this
+class refuses a skipping machine.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import simpy
+
+from hwsim.arch import ArchConfig
+from hwsim.engine.fifo import DeadlockError
+from hwsim.errors import NotAvailableError
+from hwsim.golden.positions import SamplePlan
+from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_memory
+from hwsim.scene import Scene
+from models.machines.common.pixel_bus import PixelBus
+from models.machines.common.sections import band_loads, bands_of
+from models.machines.common.slice_order import slice_direction
+from models.machines.common.transaction import TxnTiming, slice_loads
+from models.machines.volumepro.memory import layout
+from models.machines.volumepro.slab_timing import slab_buffers
+from models.units import classify, composite, crop, gradient, interp, shade, skew
+
+if TYPE_CHECKING:
+    from models.machines.volumepro.vp1000_transaction import BeamSkips
+
+__all__ = ["SlabTransaction", "miniblock_layout"]
+
+_PIPELINE_UNITS = (interp, gradient, classify, shade, composite, crop)
+
+
+def miniblock_layout(memory: MemoryConfig, n: int, x, y, z):
+    """Module, bank and word address of voxels ``(x, y, z)`` of an ``n``-cube (``n``
+    even) in ``memory``'s mini-block layout: the cycle model's own
+    (:func:`models.machines.volumepro.memory.layout`), refused for other skews."""
+    if memory.skew not in ("miniblock", "block"):
+        raise NotAvailableError(
+            f"the transaction model reads mini-blocks; skew {memory.skew!r} is not modelled",
+            key="memory.skew",
+            allowed="miniblock, block",
+        )
+    return layout(memory, n, x, y, z)
+
+
+class SlabTransaction:
+    """SimPy model of one VolumePro 500 / EM-Cube frame (shear-warp or shear-image order).
+
+    Parameters
+    ----------
+    scene : Scene
+    arch : ArchConfig
+        A machine with a ``[memory]`` table of mini-block SDRAM modules (sections from
+        ``[overheads] section_width``).
+    plan : SamplePlan
+    groups : int
+        Beam groups per slice (and mbb chunks per slab): the model's granularity.
+    pixel_fifo_depth : int, optional
+        Override of ``[buffers] pixel_fifo_entries``.
+    steady_state : bool
+        Also play a second identical frame back to back and report the cycles between
+        the two frames' ends (``frame.period_cycles``, the cycle rung's rule 9).
+    """
+
+    #: Whether the class models beam skipping (its subclass for VolumePro 1000 does).
+    models_skipping = False
+    #: Rule 6's per-beam clocks and mini-blocks read (set by a skipping subclass).
+    skips: BeamSkips | None = None
+
+    def __init__(
+        self,
+        scene: Scene,
+        arch: ArchConfig,
+        plan: SamplePlan,
+        *,
+        groups: int = 8,
+        pixel_fifo_depth: int | None = None,
+        steady_state: bool = False,
+    ) -> None:
+        self.scene, self.arch, self.plan = scene, arch, plan
+        self.steady_state = steady_state
+        skipping = arch.early_termination or arch.space_leaping
+        if skipping and not self.models_skipping:
+            raise NotAvailableError(
+                f"{arch.name} skips beams (early ray termination, space leaping): its "
+                "model needs each ray's termination step "
+                "(models.machines.volumepro.vp1000_transaction)",
+                key="--arch",
+                allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000",
+            )
+        self.memory = parse_memory(arch.memory, source=arch.source)
+        if self.memory.sdram.clock_ratio != 1.0:
+            raise NotAvailableError(
+                "the transaction model runs the SDRAM at the pipeline clock",
+                source=arch.source,
+                key="memory.clock_ratio",
+                allowed="1.0",
+            )
+        kp = plan.principal_axis
+        a_ax, b_ax = _other_axes(plan)
+        shape = plan.volume.shape
+        self.kp, self.a_ax, self.b_ax = kp, a_ax, b_ax
+        self.n_k, self.n_a, self.n_b = shape[kp], shape[a_ax], shape[b_ax]
+        self.P = arch.pipelines
+        self.C = -(-self.n_b // self.P)
+        self.n_even = max(2, max(shape) + max(shape) % 2)
+        self.n_u = -(-self.n_a // 2)  # mbbs per slab
+        self.n_slabs = -(-self.n_k // 2)
+        self.U = max(1, -(-self.n_u // max(1, int(groups))))  # mbbs per chunk
+        self.bands = bands_of(plan, arch.section_width, self.n_a, a_ax, arch.source)
+        if skipping and len(self.bands) > 1:
+            raise NotAvailableError(
+                "the transaction model does not section a machine that skips beams",
+                source=arch.source,
+                key="overheads.section_width",
+                allowed="0 (no sectioning) with early termination or space leaping",
+            )
+        buffers = slab_buffers(arch, self.C)
+        self.capacity_mbbs = buffers["slab_buffer_entries"] // (4 * self.C)
+        depth = buffers["pixel_fifo_entries"]
+        self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
+        self.forward = slice_direction(plan)
+        self.row_pixels = max(1, plan.shape[1])
+
+    # ------------------------------------------------------------------ geometry
+
+    def _slice_position(self, j: int) -> float:
+        plan = self.plan
+        if plan.kind == "shear-warp":
+            return float(plan.order[j])
+        ss = self.scene.render.supersampling
+        q0 = 0.0 if self.forward else (plan.slice_count - 1) / ss
+        return q0 + (1.0 if self.forward else -1.0) * (j / ss)
+
+    def _window_slabs(self, j: int) -> tuple[int, int]:
+        """Slabs holding voxel slices ``i0 - 1 .. i0 + 2`` of sample slice ``j``."""
+        n = self.n_k
+        p = min(max(self._slice_position(j), 0.0), n - 1.0)
+        i0 = int(min(np.floor(p), max(n - 2, 0)))
+        return max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2
+
+    def _slab_layout(self, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Module, bank and row of every mini-block of ``slab``, ``(n_u, n_b / 2)``: mbb
+        ``u`` (rows ``2u, 2u + 1``), mini-blocks along the beam in read order."""
+        n_mb = -(-self.n_b // 2)
+        coords: list[Any] = [None, None, None]
+        coords[self.kp] = np.full((self.n_u, n_mb), 2 * slab)
+        coords[self.a_ax] = np.repeat(2 * np.arange(self.n_u)[:, None], n_mb, axis=1)
+        coords[self.b_ax] = np.repeat(2 * np.arange(n_mb)[None, :], self.n_u, axis=0)
+        module, bank, address = miniblock_layout(
+            self.memory, self.n_even, coords[2], coords[1], coords[0]
+        )
+        return module, bank, address // self.memory.sdram.columns
+
+    def _schedule(self, n_steps: int):
+        """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
+        order ``(band, j, clocks, last chunk needed)``; and for each chunk the last group
+        that needs it (its buffer slot is freed when that group ends).
+
+        With beam skipping (``self.skips``) a chunk holding no mini-block a live cell
+        needs is not read, a group costs its rows' clocks (rule 6: clock groups of live
+        rays), rows costing nothing need no chunk, and a slice whose every row is
+        skipped keeps one empty group (its overhead and pixels still happen).
+        """
+        U, n_a, sk = self.U, self.n_a, self.skips
+        slab_order = list(range(self.n_slabs))
+        if not self.forward:
+            slab_order.reverse()
+        chunks, index = [], {}
+        for bi, (a0, a1) in enumerate(self.bands):
+            u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
+            for slab in slab_order:
+                for k, u in enumerate(range(u0, u1 + 1, U)):
+                    hi = min(u + U - 1, u1)
+                    if sk is not None and not sk.needed[slab, u : hi + 1].any():
+                        continue  # no mini-block of these mbbs is read
+                    index[bi, slab, k] = len(chunks)
+                    chunks.append((bi, slab, u, hi))
+        groups, needs = [], []
+        for bi, (a0, a1) in enumerate(self.bands):
+            u0 = max(a0 - 1, 0) // 2
+            spans = [(r0, min(r0 + 2 * U, a1)) for r0 in range(a0, a1, 2 * U)]
+            for j in range(n_steps):
+                s_lo, s_hi = self._window_slabs(j)
+                cost = None if sk is None else sk.cost[j]
+                first = len(groups)
+                for r0, r1 in spans:
+                    if cost is None:
+                        clocks, lo, hi = (r1 - r0) * self.C, r0, r1 - 1
+                    else:
+                        live = np.flatnonzero(cost[r0:r1])
+                        if not live.size:
+                            continue
+                        clocks, lo, hi = int(cost[r0:r1].sum()), r0 + live[0], r0 + live[-1]
+                    k_lo = (max(lo - 1, 0) // 2 - u0) // U
+                    k_hi = (min(hi + 2, n_a - 1) // 2 - u0) // U
+                    ids = [
+                        index[bi, s, k]
+                        for s in range(s_lo, s_hi + 1)
+                        for k in range(k_lo, k_hi + 1)
+                        if (bi, s, k) in index
+                    ]
+                    groups.append((bi, j, clocks, max(ids, default=-1)))
+                    needs.append(ids)
+                if len(groups) == first:  # every beam of the slice skipped
+                    groups.append((bi, j, 0, -1))
+                    needs.append([])
+        free_after = np.full(len(chunks), -1, dtype=np.int64)
+        for g, ids in enumerate(needs):
+            free_after[ids] = g  # groups are numbered in processing order
+        return chunks, groups, free_after
+
+    # ------------------------------------------------------------------ frame
+
+    def run(self) -> TxnTiming:
+        """Simulate the frame; return its cycles and the event model's counters."""
+        start = time.perf_counter()
+        samples, finishing = slice_loads(self.plan)
+        n_steps = len(samples)
+        sk = self.skips
+        if sk is not None:
+            samples = sk.live  # samples of live rays: what the lanes work on (rule 6)
+        # Clocks of each slice's beams (the stretch's reference): n_a C, less when skipping.
+        beam_clocks = np.full(n_steps, self.n_a * self.C) if sk is None else sk.cost.sum(axis=1)
+        by_band, parked = band_loads(self.plan, self.bands, self.n_a, finishing)
+        chunks, groups, free_after = self._schedule(n_steps)
+        cap = self.capacity_mbbs // self.U
+        if cap <= 0:
+            raise DeadlockError(
+                f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
+            )
+        stats, bus, ports = self._simulate(
+            chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=1
+        )
+        M = self.memory.modules
+        end = max(stats["pipe_end"], bus.end)
+        latency = skew.LATENCY + self.C + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
+        cycles = end + latency
+        sdram = SdramStats.combine([p.schedule().stats for p in ports])
+        counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
+        counters.update(
+            {
+                "memory.bursts": int(sdram.bursts),
+                # data-bus cycles of one module (the modules share the load evenly)
+                "memory.busy_cycles": int(sdram.data_busy_cycles) // M,
+                "memory.read_bytes": int(sdram.bursts) * 8 * 2,  # 8 16-bit words a burst
+                "memory.mbb_reads": self._mbb_reads(chunks),
+                "memory.stall_cycles": stats["stall"],
+                "memory.buffer_full_cycles": stats["buffer_full"],
+                "memory.slab_buffer_chunks": cap,
+                "pipelines.busy_cycles": -(-int(samples.sum()) // self.P),
+                "pipelines.stall_cycles": stats["stall"] + bus.stall_cycles,
+                "pipelines.stretch_cycles": stats["stretch"],
+                **bus.counters(stats["pipe_end"]),
+                "section.count": len(self.bands),
+                "section.parked_rays": int(parked.sum()),
+                "section.overhead_cycles": stats["section"],
+                "pipeline.latency_cycles": latency,
+                "frame.cycles": cycles,
+                "frame.samples": int(samples.sum()),
+                "transaction.events": stats["events"] + bus.events,
+                "transaction.granularity": f"{self.U} mbbs / {2 * self.U} beams",
+                **self._skip_counters(),
+                "transaction.timing_seconds": time.perf_counter() - start,
+            }
+        )
+        if self.steady_state:  # rule 9: the cycles between two back-to-back frames' ends
+            twice, _, _ = self._simulate(
+                chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=2
+            )
+            counters["frame.period_cycles"] = twice["pipe_ends"][1] - twice["pipe_ends"][0]
+            counters["transaction.timing_seconds"] = time.perf_counter() - start
+        return TxnTiming(int(cycles), counters)
+
+    def _simulate(
+        self, chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, *, frames
+    ):
+        """Run the memory and the pipelines over ``frames`` identical frames back to back
+        (the same controllers, buffer and pixel FIFO carry on); returns the statistics
+        (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
+        SDRAM ports."""
+        sk, n_steps = self.skips, len(samples)
+        nc, ng = len(chunks), len(groups)
+        # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
+        free_after = np.concatenate(
+            [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
+        )
+        env = simpy.Environment()
+        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
+        ready = [env.event() for _ in range(nc * frames)]
+        freed = [env.event() for _ in range(nc * frames)]
+        frees_at: dict[int, list[int]] = {}
+        for c, g in enumerate(free_after.tolist()):
+            frees_at.setdefault(g, []).append(c)
+        for c in frees_at.pop(-1, []):  # no group needs it
+            freed[c].succeed()
+        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
+        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
+        stats["section"] = 0
+        stats["pipe_ends"] = []
+        M = self.memory.modules
+
+        def memory():
+            layout = (-1, -1, None)
+            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks * frames):
+                if layout[:2] != (bi, slab):
+                    layout = (bi, slab, self._slab_layout(slab))
+                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
+                if sk is not None:  # only the mini-blocks a live cell needs
+                    keep = sk.needed[slab, u_lo : u_hi + 1].ravel()
+                    module, bank, row = module[keep], bank[keep], row[keep]
+                if g >= cap and not freed[g - cap].triggered:
+                    waited = env.now
+                    yield freed[g - cap]
+                    stats["buffer_full"] += int(env.now - waited)
+                done = []
+                for k in range(M):
+                    on = module == k
+                    if on.any():
+                        done.append(ports[k].read(bank[on], row[on]))
+                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
+                stats["events"] += len(done) + 1
+
+        def pipelines():
+            single = len(self.bands) == 1
+            for k, (f, (bi, j, clocks, need)) in enumerate(
+                (f, group) for f in range(frames) for group in groups
+            ):
+                need = need + f * nc if need >= 0 else need
+                if bi and j == 0 and (k % ng == 0 or groups[k % ng - 1][0] != bi):
+                    # Section change: overhead, then reload the rays parked by the last band.
+                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
+                    stats["section"] += pre
+                    yield env.timeout(pre)
+                if need >= 0 and not ready[need].triggered:
+                    if need - cap >= 0 and free_after[need - cap] >= k:
+                        raise DeadlockError(
+                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
+                            f"hold the sample window of slice {j}"
+                        )
+                    waited = env.now
+                    yield ready[need]
+                    stats["stall"] += int(env.now - waited)
+                if clocks:
+                    yield env.timeout(clocks)
+                stats["events"] += 2
+                for c in frees_at.get(k, ()):
+                    freed[c].succeed()
+                if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
+                    continue  # more beam groups of this slice
+                # Sections are parallel-only, where a slice never has more samples than
+                # voxels: the perspective stretch applies to the unsectioned frame.
+                stretch = max(0, -(-int(samples[j]) // self.P) - int(beam_clocks[j]))
+                stretch = stretch if single else 0
+                stats["stretch"] += stretch
+                extra = self.arch.slice_overhead_cycles + stretch
+                if extra:
+                    yield env.timeout(extra)
+                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
+                yield from bus.push(leaving)
+                if k % ng == ng - 1:
+                    stats["pipe_ends"].append(int(env.now))
+            stats["pipe_end"] = int(env.now)
+
+        env.process(memory())
+        env.process(pipelines())
+        env.run()
+        if stats["pipe_end"] == 0 and groups:
+            raise DeadlockError("the pipelines never finished: the input buffer is too small")
+        return stats, bus, ports
+
+    def _mbb_reads(self, chunks) -> int:
+        """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
+        mini-block that is read."""
+        if self.skips is None:
+            return sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks)
+        needed = self.skips.needed
+        return sum(int(needed[s, lo : hi + 1].any(axis=1).sum()) for _, s, lo, hi in chunks)
+
+    def _skip_counters(self) -> dict[str, int]:
+        """Rule 6's counters (beams and bursts skipped) when the machine skips."""
+        sk = self.skips
+        if sk is None:
+            return {}
+        processed = int((sk.cost > 0).sum())
+        return {
+            "memory.bursts_skipped": int(sk.needed.size - sk.needed.sum()),
+            "pipeline.beams_processed": processed,
+            "pipeline.beams_skipped": int(sk.cost.size - processed),
+            "pipeline.beam_cycles": int(sk.cost.sum()),
+            "ert.stopped_rays": sk.stopped_rays,
+            "space_leaping.samples_leaped": sk.leaped,
+        }
+
+
+def _other_axes(plan: SamplePlan) -> tuple[int, int]:
+    a_ax, b_ax = (ax for ax in range(3) if ax != plan.principal_axis)
+    return a_ax, b_ax

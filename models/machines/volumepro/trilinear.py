@@ -1,0 +1,111 @@
+"""Trilinear samples across two voxel slices, from the corner planes the ring delivered.
+
+# Ref: architectures.md sections 3 and 9.1 (VolumePro 500 z-supersampling: sample slices
+#      between voxel slices, trilinear interpolation); models/units/interp.py (the lerps,
+#      their order x, y, z, and rounding).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hwsim.golden.positions import Step
+from models.units import interp as interp_unit
+
+if TYPE_CHECKING:
+    from models.machines.volumepro.cycle import SlabMachine
+
+__all__ = ["TrilinearSource"]
+
+
+class TrilinearSource:
+    """Samples of one step, trilinear across the two voxel slices around the sample slice.
+
+    In-slice cells and weights are Cube-4's (:meth:`Cube4Machine.cell`); the principal
+    axis taps are the functional rung's (``i0 = min(floor(q), n - 2)``, weight quantised
+    from ``q - i0``), and the eight corners are combined with ``models.units.interp.lerp``
+    in its order (x, then y, then z), so every sample is the functional rung's bit for bit.
+    """
+
+    def __init__(self, machine: SlabMachine, step: Step) -> None:
+        m = self.m = machine
+        self.pa = step.zyx[:, m.a_ax]
+        self.pb = step.zyx[:, m.b_ax]
+        self.pk = step.zyx[:, m.kp]
+        self._cells = m.cell(self.pa), m.cell(self.pb)
+        self.q = m.nearest_slice(self.pk)
+
+    def subset(self, sel: np.ndarray) -> TrilinearSource:
+        out = object.__new__(TrilinearSource)
+        out.m, out.q = self.m, self.q
+        out.pa, out.pb, out.pk = self.pa[sel], self.pb[sel], self.pk[sel]
+        out._cells = tuple(tuple(x[sel] for x in cell) for cell in self._cells)
+        return out
+
+    def _tri(self, channel: str, cells_a, cells_b, ktaps) -> np.ndarray:
+        m = self.m
+        (ca, fa, _), (cb, fb, _) = cells_a, cells_b
+        i0, i1, w = ktaps
+        idx = (ca + 2) * m.plane_width + (cb + 2)
+        if w == 0 or w == m.weight_one:
+            # lerp(a, b, 0) = a and lerp(a, b, 1.0) = b exactly: one slice's bilinear.
+            c = np.take(m.planes(i0 if w == 0 else i1)[channel], idx, axis=0)
+            return interp_unit.bilinear(c[:, 0], c[:, 1], c[:, 2], c[:, 3], fa, fb, m.dp.interp)
+        c0 = np.take(m.planes(i0)[channel], idx, axis=0)
+        c1 = np.take(m.planes(i1)[channel], idx, axis=0)
+        f = [None, None, None]
+        f[m.kp], f[m.a_ax], f[m.b_ax] = w, fa, fb
+        v = []
+        for corner in range(8):
+            d = ((corner >> 2) & 1, (corner >> 1) & 1, corner & 1)  # (z, y, x)
+            src = c1 if d[m.kp] else c0
+            v.append(src[:, 2 * d[m.a_ax] + d[m.b_ax]])
+        cfg = m.dp.interp
+        fz, fy, fx = f
+        x = [interp_unit.lerp(v[c], v[c + 1], fx, cfg) for c in (0, 2, 4, 6)]
+        y = [interp_unit.lerp(x[0], x[1], fy, cfg), interp_unit.lerp(x[2], x[3], fy, cfg)]
+        return interp_unit.lerp(y[0], y[1], fz, cfg)
+
+    def maybe_visible(self) -> np.ndarray | None:
+        """False where every voxel of a sample's two cells classifies to opacity 0."""
+        m = self.m
+        if not m.skip_transparent:
+            return None
+        (ca, _, _), (cb, _, _) = self._cells
+        idx = (ca + 2) * m.plane_width + (cb + 2)
+        i0, i1, w = m.k_taps(self.pk)
+        slices = [i0] if w == 0 else [i1] if w == m.weight_one else [i0, i1]
+        if m.be.pre_classified:
+            return np.logical_or.reduce([m.planes(s)["amax"][idx] > 0 for s in slices])
+        lo = np.minimum.reduce([m.planes(s)["lo"][idx] for s in slices])
+        hi = np.maximum.reduce([m.planes(s)["hi"][idx] for s in slices])
+        return m.next_visible[lo] <= hi
+
+    def value(self) -> np.ndarray:
+        return self._tri("value", *self._cells, self.m.k_taps(self.pk))
+
+    def channels(self) -> list[np.ndarray]:
+        k = self.m.k_taps(self.pk)
+        return [self._tri(c, *self._cells, k) for c in "rgba"]
+
+    def gradient(self, sel: np.ndarray) -> np.ndarray:
+        m = self.m
+        cells_a, cells_b = (tuple(x[sel] for x in cell) for cell in self._cells)
+        pk = self.pk[sel]
+        k = m.k_taps(pk)
+        g = np.empty((pk.size, 3), dtype=np.int64)
+        if m.voxel_gradients:
+            for col, ch in enumerate(("dx", "dy", "dz")):
+                g[:, col] = self._tri(ch, cells_a, cells_b, k)
+            return g
+        g[:, 2 - m.kp] = self._tri("value", cells_a, cells_b, m.k_taps(pk + 1.0)) - self._tri(
+            "value", cells_a, cells_b, m.k_taps(pk - 1.0)
+        )
+        pa, pb = self.pa[sel], self.pb[sel]
+        up, down = m.cell(pa + 1.0, cells_a), m.cell(pa - 1.0, cells_a)
+        g[:, 2 - m.a_ax] = self._tri("value", up, cells_b, k) - self._tri("value", down, cells_b, k)
+        up, down = m.cell(pb + 1.0, cells_b), m.cell(pb - 1.0, cells_b)
+        g[:, 2 - m.b_ax] = self._tri("value", cells_a, up, k) - self._tri("value", cells_a, down, k)
+        return g

@@ -1,0 +1,239 @@
+"""VolumePro 1000 as a SimPy event model: the slab machine with beam skipping.
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rule 6 (skipping: clock groups of
+#      live rays, mini-blocks of live cells, the sequencer's lagged termination mask);
+#      architectures.md section 4 (VolumePro 1000: early ray termination, shear-image
+#      order, perspective; Wu et al., I3D 2003).
+
+VolumePro 1000 skips work two ways (docs/cycle.md rule 6): a beam costs one clock per
+*clock group* (``P`` consecutive cells) holding a sample of a live ray, and the memory
+reads only the mini-blocks some live cell's trilinear window and gradient neighbours
+touch, deciding with the termination mask of ``ceil(4 x supersampling)`` sample slices
+earlier (it reads up to two slabs ahead).  Space leaping shortens the rays' sample ranges
+past blocks the classification makes empty.
+
+This module supplies what the event model of :mod:`models.machines.volumepro.transaction` needs for
+that, at beam and mini-block granularity (:class:`BeamSkips`):
+
+* which rays are alive at each slice comes from the **functional rung**: its per-ray
+  termination step (:attr:`models.functional.FunctionalResult.stopped`, the step of each
+  ray's last live sample), so no compositing is repeated here;
+* where the live rays are: the plan's sample cells at each slice (positions only; no
+  voxel is read, interpolated or classified);
+* empty space: the leaped plan, built from the volume and the fixed-point LUT with the
+  shared helpers the cycle rung uses (:func:`hwsim.golden.occupancy.block_ranges`,
+  :func:`~hwsim.golden.occupancy.occupancy_from_ranges`,
+  :meth:`models.backend.Backend.transparent_ranges`).
+
+The clock is then :class:`models.machines.volumepro.transaction.SlabTransaction`'s: beam groups and
+chunks of mini-block beams, the shared SDRAM transaction port for the bursts actually
+read.  What is coarser than the cycle rung: readiness and freeing per chunk (as VolumePro
+500), a chunk's buffer slot counted whole even when most of its mini-blocks are skipped,
+and the busiest lane of a perspective slice estimated from the live sample count.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.golden import geometry
+from hwsim.golden.occupancy import occupancy_from_ranges
+from hwsim.golden.positions import SamplePlan, make_plan
+from hwsim.scene import Scene
+from hwsim.transfer import TransferFunction
+from hwsim.volumes.volume import Volume
+from models.backend import Backend
+from models.datapath import Datapath
+from models.machines.common.transaction import ReadsTheFrame, TxnTiming
+from models.machines.volumepro.timing import mini_blocks_read
+from models.machines.volumepro.transaction import SlabTransaction
+
+__all__ = ["BeamSkips", "Vp1000Transaction", "beam_skips", "leaping_plan", "stopping_modes"]
+
+#: Modes whose rays stop on a machine with ERT hardware (opacity threshold, iso's hit).
+stopping_modes = ("composite", "iso")
+
+
+@dataclass
+class BeamSkips:
+    """Rule 6 at beam and mini-block granularity, for one frame.
+
+    ``cost[j, a]``: clocks of beam ``a`` at sample slice ``j`` (clock groups holding a
+    live sample; 0: the beam is skipped); ``needed[s, u, m]``: whether mini-block ``m``
+    of mini-block beam ``u`` of slab ``s`` is read; ``live[j]``: live samples of slice
+    ``j``; ``stopped_rays``: rays that stopped before their last planned sample;
+    ``leaped``: planned samples space leaping removed.
+    """
+
+    cost: np.ndarray
+    needed: np.ndarray
+    live: np.ndarray
+    stopped_rays: int = 0
+    leaped: int = 0
+
+
+def leaping_plan(backend: Backend, plan: SamplePlan) -> SamplePlan:
+    """``plan`` with every ray's first and last samples moved past blocks that cannot hold
+    a visible sample *through this datapath's LUT* (the block's voxel range, and its +1
+    neighbours', gives LUT indices whose entries all have opacity 0: lerps are convex).
+    The cycle rung's rule (docs/cycle.md rule 6), with the same shared helpers."""
+    be = backend
+    occupancy = occupancy_from_ranges(be.occupied_blocks())
+    return make_plan(be.scene, be.volume, plan.kind, occupancy=occupancy)
+
+
+def beam_skips(
+    plan: SamplePlan,
+    pipelines: int,
+    stopped: np.ndarray | None,
+    lag: int,
+    window,
+) -> BeamSkips:
+    """Per-beam clocks and mini-blocks read at every sample slice of ``plan``.
+
+    Parameters
+    ----------
+    plan : SamplePlan
+        A ``shear-image`` plan (leaped when the machine leaps).
+    pipelines : int
+        ``P``: cells per clock group.
+    stopped : ndarray or None
+        Per accumulation ray, the step of its last live sample
+        (:attr:`models.functional.FunctionalResult.stopped`); None: no ray stops.
+    lag : int
+        Sample slices between the termination mask the memory sequencer decides with
+        and the slice being processed (``ceil(4 x supersampling)``).
+    window : callable
+        ``window(j) -> (lo, hi)``: the slabs holding sample slice ``j``'s voxel window.
+    """
+    kp = plan.principal_axis
+    a_ax, b_ax = (ax for ax in range(3) if ax != kp)
+    shape = plan.volume.shape
+    n_a, n_b, P = shape[a_ax], shape[b_ax], pipelines
+    C = -(-n_b // P)
+    n_u, n_mb = -(-n_a // 2), -(-n_b // 2)
+    cost = np.zeros((plan.n_steps, n_a), dtype=np.int64)
+    needed = np.zeros((-(-shape[kp] // 2), n_u, n_mb), dtype=bool)
+    live_count = np.zeros(plan.n_steps, dtype=np.int64)
+    cells = np.zeros((n_a, C * P), dtype=bool)
+    from models import fused_steps  # imports numba: only for the frames that need it
+
+    # Every planned sample's position, step by step (compiled; the plan's own floats).
+    for j, zyx, rays in fused_steps.plan_positions(plan):
+        ra = np.clip(np.floor(zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
+        rb = np.clip(np.floor(zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
+        known = live = None
+        if stopped is not None:
+            last = stopped[rays]
+            live = last >= j  # alive when the slice is processed
+            if j >= lag:  # alive when the sequencer read the slab (a superset)
+                known = last > j - lag
+        cells[:] = False
+        if live is None:
+            cells[ra, rb] = True
+            live_count[j] = ra.size
+        else:
+            cells[ra[live], rb[live]] = True
+            live_count[j] = int(live.sum())
+        cost[j] = cells.reshape(n_a, C, P).any(axis=2).sum(axis=1)
+        if live is not None:
+            cells[ra if known is None else ra[known], rb if known is None else rb[known]] = True
+        lo, hi = window(j)
+        needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
+    stops = 0
+    if stopped is not None and plan.ray_ids.size:
+        stops = int(np.sum(stopped[plan.ray_ids] < plan.j_hi))
+    return BeamSkips(cost, needed, live_count, stops)
+
+
+class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
+    """SimPy model of one VolumePro 1000 frame (beam skipping by early ray termination and
+    space leaping, rule 6), on the slab machine's event model.
+
+    Parameters
+    ----------
+    scene, arch, plan
+        As :class:`~models.machines.volumepro.transaction.SlabTransaction` (``plan`` unleaped: the
+        model leaps it when ``[features] space_leaping`` is on, as the machine does).
+    volume : Volume
+    transfer : TransferFunction
+        Empty space (leaping) and, when ``stopped`` is not given, the functional rung's
+        termination steps.
+    stopped : ndarray, optional
+        :attr:`models.functional.FunctionalResult.stopped` of this frame; computed by
+        rendering the functional rung when needed and absent.
+    datapath : Datapath, optional
+    **options
+        ``groups``, ``pixel_fifo_depth`` (:class:`SlabTransaction`).
+    """
+
+    models_skipping = True
+
+    def __init__(
+        self,
+        scene: Scene,
+        arch: ArchConfig,
+        plan: SamplePlan,
+        *,
+        volume: Volume | None = None,
+        transfer: TransferFunction | None = None,
+        stopped: np.ndarray | None = None,
+        datapath: Datapath | None = None,
+        **options: Any,
+    ) -> None:
+        self._take_frame(arch, volume, transfer, stopped, datapath, "it skips beams")
+        self.planned = plan
+        mode = scene.render.mode
+        self.ert_hardware = arch.early_termination and mode in stopping_modes
+        leaped = plan
+        if arch.space_leaping and mode == "composite":
+            backend = Backend(scene, volume, transfer, arch, plan, self.datapath)
+            leaped = leaping_plan(backend, plan)
+        super().__init__(scene, arch, leaped, **options)
+
+    @property
+    def rays_may_stop(self) -> bool:
+        """Whether a ray of this scene can stop early on this machine (ERT hardware and an
+        opacity threshold below 1, an iso surface, or a stopping depth test)."""
+        scene = self.scene
+        stopping_geometry = (
+            scene.geometry is not None and scene.geometry.depth_test in geometry.STOPPING_TESTS
+        )
+        stops = scene.render.mode == "iso" or scene.render.early_termination < 1.0
+        return self.ert_hardware and (stops or stopping_geometry)
+
+    @property
+    def needs_stops(self) -> bool:
+        """Whether the frame's termination steps are needed and not yet known."""
+        return self.rays_may_stop and self.stopped is None
+
+    def run(self) -> TxnTiming:
+        """Rule 6's per-beam clocks from the termination steps, then the event model."""
+        start = time.perf_counter()
+        stopped = self.stopped
+        if self.needs_stops:
+            from models.functional import render_functional
+
+            stopped = render_functional(
+                self.scene,
+                self.volume,
+                self.transfer,
+                self.arch,
+                self.planned,
+                datapath=self.datapath,
+            ).stopped
+        lag = int(np.ceil(4 * self.scene.render.supersampling))
+        self.skips = beam_skips(
+            self.plan, self.P, stopped if self.rays_may_stop else None, lag, self._window_slabs
+        )
+        self.skips.leaped = self.planned.samples - self.plan.samples
+        skips_seconds = time.perf_counter() - start
+        timing = super().run()
+        timing.counters["transaction.skips_seconds"] = skips_seconds
+        timing.counters["transaction.timing_seconds"] += skips_seconds
+        return timing

@@ -1,0 +1,112 @@
+"""What the rung tests of tests/models share: one scene builder, one way to run two rungs
+on the same plan, and the two comparisons they make (bit-identical images; cycle counts
+within the transaction rung's contract).
+
+Each test module keeps only what is particular to its machine (its arch variants, its
+phantom sizes); the rungs are always called through the same entry points a render uses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from hwsim.arch import ArchConfig
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+from models.cycle import render_cycle
+from models.functional import render_functional
+from models.transaction import render_transaction
+
+#: Issue 5: transaction cycle counts within 2 % of the cycle rung.
+CONTRACT = 0.02
+
+
+def scene_of(
+    az=30,
+    el=20,
+    *,
+    phantom="head",
+    size=28,
+    mode="composite",
+    projection="parallel",
+    preset="ct",
+    zoom=1.2,
+    render=None,
+    **extra,
+) -> Scene:
+    """A square view of a phantom; ``render`` holds further RenderSpec fields, ``extra``
+    further Scene fields (crop, cut planes, a transfer that replaces ``preset``)."""
+    return Scene(
+        volume=VolumeSpec(phantom=phantom),
+        transfer=extra.pop("transfer", TransferSpec(preset=preset)),
+        view=ViewSpec(
+            azimuth=az, elevation=el, width=size, height=size, zoom=zoom, projection=projection
+        ),
+        render=RenderSpec(mode=mode, **(render or {})),
+        **extra,
+    )
+
+
+def phantom_set(head: int, ball: int, lobb: int) -> dict:
+    """The three phantoms the contract tests sweep, at the sizes a machine wants."""
+    return {
+        "head": make_phantom("head", size=head),
+        "ball": make_phantom("ball", size=ball),
+        "marschner-lobb": make_phantom("marschner-lobb", size=lobb),
+    }
+
+
+def fault_scene(mode="composite", lighting=True, *, size=36, **extra) -> Scene:
+    """The view the fault-injection tests break structures under."""
+    return scene_of(35, 20, size=size, mode=mode, render={"lighting": lighting}, **extra)
+
+
+def machine(arch: str | ArchConfig, **changes) -> ArchConfig:
+    """A built-in machine (or ``arch`` itself) with fields replaced; ``buffers`` entries
+    are merged into the machine's own."""
+    base = resolve_arch(arch) if isinstance(arch, str) else arch
+    if "buffers" in changes:
+        changes["buffers"] = {**base.buffers, **changes["buffers"]}
+    return dataclasses.replace(base, **changes) if changes else base
+
+
+def prepared(scene, volume, arch):
+    """(machine, transfer, plan) as a render prepares them."""
+    arch = machine(arch)
+    return arch, resolve_transfer(scene.transfer, volume), make_plan(scene, volume, arch.order)
+
+
+def functional_and_cycle(scene, volume, arch, **kw):
+    """(functional result, cycle result, plan) of one scene on one plan; ``kw`` goes to
+    the cycle rung (faults, trace)."""
+    arch, tf, plan = prepared(scene, volume, arch)
+    fixed = render_functional(scene, volume, tf, arch, plan)
+    return fixed, render_cycle(scene, volume, tf, arch, plan, **kw), plan
+
+
+def cycle_and_transaction(scene, volume, arch):
+    """(cycle result, transaction result) of one scene on one plan."""
+    arch, tf, plan = prepared(scene, volume, arch)
+    exact = render_cycle(scene, volume, tf, arch, plan)
+    return exact, render_transaction(scene, volume, tf, arch, plan)
+
+
+def assert_identical(fixed, cycle, *, samples=True):
+    """The cycle image is the functional image, bit for bit (and so are the sample counts
+    where the machine counts samples the same way)."""
+    assert cycle.image.dtype == fixed.image.dtype and cycle.image.shape == fixed.image.shape
+    assert np.array_equal(cycle.image, fixed.image), "cycle image differs from functional"
+    if samples:
+        assert cycle.samples == fixed.samples
+
+
+def assert_within_contract(exact_cycles: int, approx_cycles: int, contract=CONTRACT):
+    assert abs(approx_cycles - exact_cycles) <= contract * exact_cycles, (
+        exact_cycles,
+        approx_cycles,
+    )
