@@ -48,7 +48,18 @@ from hwsim.arch import ArchConfig
 from hwsim.errors import HwsimError, InputError, NotAvailableError
 from hwsim.scene import Scene, VolumeSpec, load_scene
 
-__all__ = ["TIMING_RUNGS", "FigureRow", "figure_size", "measure_figures", "write_figures"]
+__all__ = [
+    "TIMING_RUNGS",
+    "FigureRow",
+    "PublishedFigure",
+    "figure_machine",
+    "figure_scene",
+    "figure_size",
+    "figure_value",
+    "measure_figures",
+    "published_figures",
+    "write_figures",
+]
 
 #: The rungs that produce a cycle count, cheapest first.
 TIMING_RUNGS = ("functional", "transaction", "cycle", "rtl")
@@ -92,6 +103,34 @@ def figure_size(arch: ArchConfig, key: str) -> int | None:
     return None
 
 
+@dataclass(frozen=True)
+class PublishedFigure:
+    """One row of a machine's ``[published]`` table: the only place a figure is written."""
+
+    key: str
+    value: float
+    size: int  # the scenario side it is quoted at (:func:`figure_size`)
+    tolerance: float | None  # the acceptance band, where the file sets one
+    note: str
+
+
+def published_figures(arch: ArchConfig) -> list[PublishedFigure]:
+    """The numeric figures of ``arch``'s ``[published]`` table, in file order."""
+    published = arch.published
+    tolerance = published.get("tolerance", {}) or {}
+    notes = published.get("notes", {}) or {}
+    out = []
+    for key, value in published.items():
+        size = figure_size(arch, key)
+        if isinstance(value, (int, float)) and not isinstance(value, bool) and size is not None:
+            out.append(
+                PublishedFigure(
+                    key, float(value), size, tolerance.get(key), str(notes.get(key, ""))
+                )
+            )
+    return out
+
+
 def figure_scene(size: int) -> Scene:
     """The dense scenario on a ``size^3`` head phantom (one sample per voxel)."""
     import dataclasses
@@ -105,7 +144,9 @@ def figure_scene(size: int) -> Scene:
     return scene.replace(volume=spec, view=view, name=f"dense-head-{size}")
 
 
-def _simulated(key: str, run, cycles: int | None = None) -> float:
+def figure_value(key: str, run, cycles: int | None = None) -> float:
+    """The figure ``key`` of a render: from its frame cycles, or from ``cycles`` (the
+    back-to-back frame period) when given."""
     seconds = (run.cycles if cycles is None else cycles) / run.clock_hz
     if key.startswith("fps_"):
         return 1.0 / seconds
@@ -114,7 +155,8 @@ def _simulated(key: str, run, cycles: int | None = None) -> float:
     return run.samples / seconds
 
 
-def _widest(arch: ArchConfig) -> ArchConfig:
+def figure_machine(arch: ArchConfig) -> ArchConfig:
+    """``arch`` at its widest voxels, as the papers quote the figures ("256^3 x 16-bit")."""
     import dataclasses
 
     from hwsim.config import flatten_table
@@ -148,27 +190,23 @@ def measure_figures(
         )
     rows: list[FigureRow] = []
     volumes: dict[int, Any] = {}
-    plans = {arch.name: _figure_sizes(arch) for arch in archs}
+    plans = {arch.name: published_figures(arch) for arch in archs}
     total = sum(
         size**3 * len(rungs)
         for arch in archs
-        for size in set(s for _, s in plans[arch.name].values())
+        for size in set(f.size for f in plans[arch.name])
         if size <= min(max_size, max(arch.max_volume))
     )
     done = 0
     for arch in archs:
-        published = arch.published
-        tolerance = published.get("tolerance", {}) or {}
-        notes = published.get("notes", {}) or {}
-        figures = plans[arch.name]
-        machine = _widest(arch)
+        machine = figure_machine(arch)
         for rung in rungs:
             runs: dict[int, Any] = {}
-            for key, (value, size) in figures.items():
+            for fig in plans[arch.name]:
+                key, value, size = fig.key, fig.value, fig.size
                 row = FigureRow(
-                    arch.name, key, value, size, rung, "ok",
-                    tolerance=tolerance.get(key), note=str(notes.get(key, "")),
-                )  # fmt: skip
+                    arch.name, key, value, size, rung, "ok", tolerance=fig.tolerance, note=fig.note
+                )
                 rows.append(row)
                 if size > max_size or size > max(arch.max_volume):
                     row.status = "skipped"
@@ -216,11 +254,11 @@ def measure_figures(
                     row.status = "refused" if isinstance(run, InputError) else "failed"
                     row.note = "; ".join(filter(None, [row.note, str(run)]))
                     continue
-                row.simulated = _simulated(key, run)
+                row.simulated = figure_value(key, run)
                 period = run.counters.get("frame.period_cycles")
                 if period:
                     row.basis, row.single_frame = "frame period", row.simulated
-                    row.simulated = _simulated(key, run, int(period))
+                    row.simulated = figure_value(key, run, int(period))
                     extra = f"{rung}: back-to-back frame period; one frame alone " + (
                         f"{row.single_frame:.4g} ({100 * (row.single_frame / value - 1):+.1f}%)"
                     )
@@ -231,16 +269,6 @@ def measure_figures(
                 if row.tolerance is not None:
                     row.within = bool(abs(row.difference) <= row.tolerance)
     return rows
-
-
-def _figure_sizes(arch: ArchConfig) -> dict[str, tuple[float, int]]:
-    """Each numeric published figure of ``arch`` with the volume size it is quoted at."""
-    figures = {
-        k: (float(v), figure_size(arch, k))
-        for k, v in arch.published.items()
-        if isinstance(v, (int, float)) and not isinstance(v, bool)
-    }
-    return {k: (v, size) for k, (v, size) in figures.items() if size is not None}
 
 
 def machine_facts() -> dict[str, Any]:

@@ -1,7 +1,9 @@
 """The published figures of issue 5, reproduced by the cycle rung's mechanisms.
 
-VolumePro 500 on a dense 256^3 volume: 29.8 fps +-5 %; EM-Cube 256^3 x 16 bit: 30 fps
-+-7 %; VolumePro 1000 brute force: 10^9 samples/s +-5 %.  The numbers come from the
+Every figure with an acceptance band in a built-in arch file's ``[published]`` table
+(VolumePro 500 on a dense 256^3 volume: 30 fps and 500 M samples/s +-5 %; EM-Cube
+256^3 x 16 bit: 30 fps +-7 %; VolumePro 1000 brute force: 10^9 samples/s +-5 %), on
+the scenario ``hwsim figures`` measures it with.  The numbers come from the
 model (pipelines x clock, SDRAM bursts, refresh and row misses, the input buffer, the
 pixel bus, the pipeline latency): nothing is fitted, and the test also checks that the
 cycles are accounted for by those mechanisms.  Published rates are continuous frame
@@ -22,15 +24,22 @@ REPO = Path(__file__).resolve().parents[2]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from benchmarks.published_figures import FIGURES, measure  # noqa: E402
+from benchmarks.published_figures import acceptance_archs, measure  # noqa: E402
 
 pytestmark = [pytest.mark.model, pytest.mark.slow]
 
 
-@pytest.mark.parametrize("arch", list(FIGURES))
+def test_the_acceptance_bands_are_the_volumepro_familys():
+    assert sorted(acceptance_archs()) == ["em-cube", "volumepro1000", "volumepro500"]
+
+
+@pytest.mark.parametrize("arch", acceptance_archs())
 def test_published_figure_from_mechanisms(arch):
     row = measure(arch, 256)
-    assert abs(row["difference"]) <= row["tolerance"], row
+    banded = [f for f in row["figures"] if f["tolerance"] is not None]
+    assert banded, row
+    for fig in banded:
+        assert abs(fig["difference"]) <= fig["tolerance"], fig
     b = row["breakdown"]
     # Every clock of the frame is a beam clock, a memory stall, a pixel-bus stall or drain,
     # or the pipeline latency: no unexplained (fitted) cycles.
