@@ -17,7 +17,11 @@ golden renderer's ``voxel_gradients`` / ``sample_gradients`` times ``2 * spacing
 the world gradient.  ``normals`` returns ``N = -g/|g|`` as SQ1.F, rounded half up by
 exact integer division by ``isqrt(|g|^2)``; ``|g| = 0`` gives ``N = 0`` (never NaN).
 Small vectors are normalised by a left shift first, so the normal error is below
-``2**-(F+1) + 2**-(F+2)`` per component for every non-zero gradient.
+``2**-F`` per component for every non-zero gradient: half a step of quotient rounding
+plus under ``2**-(F+1)`` of magnitude truncation (the normalised integer magnitude is at
+least ``2**(F+1)``; the fraction ``isqrt`` drops is under one).  Property-tested in
+tests/units/test_gradient.py, which found the ``2**-(F+1) + 2**-(F+2)`` once stated here
+exceeded (``g = (0, 222, 32768)``, ``F = 15``).
 """
 
 from __future__ import annotations
@@ -190,8 +194,12 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
     """Unit normals ``-g/|g|`` as SQ1.F raw integers; zero where ``g`` is zero.
 
     Small vectors are first shifted left (a leading-zero normaliser) until their integer
-    magnitude has at least ``F + 2`` bits, so the magnitude's truncation costs under
-    ``2**-(F+2)`` per component.
+    magnitude has at least ``F + 2`` bits (is at least ``2**(F+1)``), so the magnitude's
+    truncation costs under ``2**-(F+1)`` per component.
+
+    Domain: components below ``2**30`` in magnitude (``|g|**2 < 2**62``), which every
+    datapath allows: a difference of two samples of at most 16 voxel bits and 12 fraction
+    bits, or a voxel difference, has at most 30 bits with its sign.
     """
     g = np.asarray(g, dtype=np.int64)
     return np.stack(normal_raw(g[:, 0], g[:, 1], g[:, 2], cfg.normal_frac_bits), axis=1)
@@ -202,8 +210,8 @@ def normals(g: np.ndarray, cfg: GradientConfig) -> np.ndarray:
 
 
 def isqrt_raw(s):
-    """``floor(sqrt(s))`` of non-negative int64 ``s`` (array or scalar), exactly: the float
-    root, then one correction step each way."""
+    """``floor(sqrt(s))`` of int64 ``0 <= s < 2**62`` (array or scalar), exactly: the float
+    root, then one correction step each way (whose squares must fit int64)."""
     r = np.int64(np.floor(np.sqrt(np.float64(s))))
     r = r + ((r + 1) * (r + 1) <= s)
     return r - (r * r > s)

@@ -15,9 +15,10 @@ sample of a slice has the same fractional offsets, so the weights are constant p
 slice by construction (the plan guarantees it).
 
 Error bound against float64 trilinear interpolation of the same voxels, in voxel units:
-``3 * (D * 2**-(W+1) + 2**-(S+1))``, with ``D`` the largest difference between the
-voxels of the cell (each axis: weight error times the local difference plus one
-rounding; lerps are convex, so errors do not grow).  Property-tested.
+``3 * (D * 2**-(W+1) + 2**-(S+1))`` for the nearest roundings, twice that for the
+directed ones (floor, truncate), with ``D`` the largest difference between the voxels of
+the cell (each axis: weight error times the local difference plus one rounding; lerps
+are convex, so errors do not grow).  Property-tested in tests/units/test_interp.py.
 """
 
 from __future__ import annotations
@@ -285,5 +286,11 @@ def bilinear_raw(v00, v01, v10, v11, fa, fb, weight_bits: int, code: int):
 
 def error_bound(max_difference: float, cfg: InterpConfig) -> float:
     """Worst-case |fixed - float| in input units for a cell whose voxels differ by at most
-    ``max_difference``."""
-    return 3 * (max_difference * 2.0 ** -(cfg.weight_bits + 1) + 2.0 ** -(cfg.sample_frac_bits + 1))
+    ``max_difference``: half a step per weight and per lerp for the nearest roundings, a
+    whole step for the directed ones (floor, truncate)."""
+    step = 1.0 if cfg.rounding.startswith("nearest") else 2.0
+    return (
+        3
+        * step
+        * (max_difference * 2.0 ** -(cfg.weight_bits + 1) + 2.0 ** -(cfg.sample_frac_bits + 1))
+    )
