@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import os
 import sys
 import time
@@ -73,6 +74,18 @@ def _scene(source, az, el, projection, image, *, mode="composite", preset="ct", 
     )
 
 
+@functools.cache
+def _real_volumes() -> tuple[tuple[str, Path, Any, str], ...]:
+    """The real CT and MR of ../shared/data that are present, read once:
+    ``(file name, path, volume, transfer preset)``."""
+    out = []
+    for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
+        path = SHARED / fname
+        if path.is_file():
+            out.append((fname, path, read_volume(path), "ct" if fname.startswith("ct") else "mr"))
+    return tuple(out)
+
+
 def cases(quick: bool = False) -> list[dict[str, Any]]:
     """The measured cases: name, volume, scene, architecture."""
     cube4 = resolve_arch("cube4")
@@ -122,12 +135,7 @@ def cases(quick: bool = False) -> list[dict[str, Any]]:
             }
         )
         cube4_p8 = dataclasses.replace(cube4, name="cube4-P8", pipelines=8)
-        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
-            path = SHARED / fname
-            if not path.is_file():
-                continue
-            volume = read_volume(path)
-            preset = "ct" if fname.startswith("ct") else "mr"
+        for fname, path, volume, preset in _real_volumes():
             views = [("parallel", 30, 20, 128), ("parallel", 0, 0, 128)]
             views += [("perspective", -35, 10, 128), ("perspective", -35, 10, 256)]
             for arch in (cube4, cube4_p8):
@@ -185,12 +193,7 @@ def _skipping_cases(quick: bool) -> list[dict[str, Any]]:
                     )
         if quick:
             continue
-        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
-            path = SHARED / fname
-            if not path.is_file():
-                continue
-            volume = read_volume(path)
-            preset = "ct" if fname.startswith("ct") else "mr"
+        for fname, path, volume, preset in _real_volumes():
             for ert, leaping in SKIPPING:
                 arch = dataclasses.replace(base, space_leaping=leaping)
                 for projection, az, el in [("parallel", 30, 20), ("perspective", -35, 10)]:
@@ -256,12 +259,7 @@ def _volumepro_cases(quick: bool) -> list[dict[str, Any]]:
                 }
             )
     if not quick:
-        for fname in ("ct_cranium.nrrd", "mr_brainsmall.nrrd"):
-            path = SHARED / fname
-            if not path.is_file():
-                continue
-            volume = read_volume(path)
-            preset = "ct" if fname.startswith("ct") else "mr"
+        for fname, path, volume, preset in _real_volumes():
             for az, el in [(30, 20), (100, 10)]:
                 out.append(
                     {
@@ -287,34 +285,30 @@ def measure(case: dict[str, Any]) -> dict[str, Any]:
         frame["stopped"] = render_functional(scene, volume, tf, arch, plan).stopped
     txn = transaction_timing(scene, arch, plan, **frame)
     c = txn.counters
-    start = time.perf_counter()
-    try:
-        cycle = render_cycle(scene, volume, tf, arch, plan)
-    except NotAvailableError as exc:  # no cycle rung for this machine in this tree
-        return {
-            "case": case["name"],
-            "arch": arch.name,
-            "pipelines": arch.pipelines,
-            "projection": case["projection"],
-            "volume": list(volume.shape),
-            "cycle_cycles": None,
-            "transaction_cycles": txn.cycles,
-            "error": None,
-            "note": f"not yet compared: {exc.message}",
-            "timing_model_seconds": c["transaction.timing_seconds"],
-        }
-    cycle_seconds = time.perf_counter() - start
-    return {
+    row = {
         "case": case["name"],
         "arch": arch.name,
         "pipelines": arch.pipelines,
         "projection": case["projection"],
         "volume": list(volume.shape),
-        "cycle_cycles": cycle.cycles,
         "transaction_cycles": txn.cycles,
-        "error": (txn.cycles - cycle.cycles) / cycle.cycles,
-        "cycle_seconds": cycle_seconds,
         "timing_model_seconds": c["transaction.timing_seconds"],
+    }
+    start = time.perf_counter()
+    try:
+        cycle = render_cycle(scene, volume, tf, arch, plan)
+    except NotAvailableError as exc:  # no cycle rung for this machine in this tree
+        return {
+            **row,
+            "cycle_cycles": None,
+            "error": None,
+            "note": f"not yet compared: {exc.message}",
+        }
+    return {
+        **row,
+        "cycle_cycles": cycle.cycles,
+        "error": (txn.cycles - cycle.cycles) / cycle.cycles,
+        "cycle_seconds": time.perf_counter() - start,
         "events": c["transaction.events"],
         "stretch_cycles": c.get("pipelines.stretch_cycles"),
         "pipeline_stall_cycles": c.get("pipelines.stall_cycles"),

@@ -286,23 +286,10 @@ class VtkRayCaster:
 
 
 def render_vtk(
-    data_zyx: np.ndarray,
-    spacing_zyx: Sequence[float],
-    tf_points: Sequence[TransferPoint],
-    *,
-    width: int,
-    height: int,
-    azimuth: float,
-    elevation: float,
-    shading: bool,
-    material: tuple[float, float, float, float],
-    sample_distance: float,
+    *args: Any,
     frames: int = 5,
-    light_direction: Sequence[float] = (-0.4, 0.5, 1.0),
-    light_intensity: float = 1.0,
-    zoom: float = 1.0,
-    threads: int | None = None,
     stats: dict[str, Any] | None = None,
+    **options: Any,
 ) -> tuple[np.ndarray, float]:
     """Render ``data_zyx`` with VTK's CPU ray caster offscreen and time it.
 
@@ -311,9 +298,9 @@ def render_vtk(
 
     Parameters
     ----------
-    data_zyx, spacing_zyx, tf_points, width, height, azimuth, elevation, shading, \
-material, sample_distance, light_direction, light_intensity, zoom, threads
-        See :class:`VtkRayCaster`.
+    *args, **options
+        The volume, transfer function, view and lighting: :class:`VtkRayCaster`'s
+        arguments.
     frames : int
         Timed frames after the warm-up; the median is returned.
     stats : dict, optional
@@ -330,22 +317,7 @@ material, sample_distance, light_direction, light_intensity, zoom, threads
     """
     if frames < 1:
         raise ValueError(f"frames must be >= 1, got {frames}")
-    caster = VtkRayCaster(
-        data_zyx,
-        spacing_zyx,
-        tf_points,
-        width=width,
-        height=height,
-        azimuth=azimuth,
-        elevation=elevation,
-        shading=shading,
-        material=material,
-        sample_distance=sample_distance,
-        light_direction=light_direction,
-        light_intensity=light_intensity,
-        zoom=zoom,
-        threads=threads,
-    )
+    caster = VtkRayCaster(*args, **options)
     try:
         first = caster.render()
         times = [caster.render() for _ in range(frames)]

@@ -82,20 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="bit-width trade: PSNR vs golden as each datapath width shrinks",
     )
-    t.add_argument(
-        "--volume",
-        metavar="PATH",
-        action="append",
-        default=[],
-        help="add a volume file to the scene set (repeatable)",
-    )
-    t.add_argument(
-        "--arch",
-        metavar="NAME|FILE.toml",
-        action="append",
-        default=[],
-        help="machines to measure (repeatable; default every built-in, --widths: volumepro500)",
-    )
+    _add_repeatable(t, "--volume", "PATH", "add a volume file to the scene set")
+    _add_repeatable(
+        t, "--arch", "NAME|FILE.toml", "machines to measure (default every built-in, "
+        "--widths: volumepro500)",
+    )  # fmt: skip
     t.add_argument("--rungs", metavar="R,R,...", help="rungs to measure (default: all five)")
     t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
     t.add_argument("--size", metavar="N", type=int, default=64, help="phantom side (voxels)")
@@ -122,12 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", metavar="DIR", required=True)
     rp.add_argument("--quiet", action="store_true")
     f = sub.add_parser("figures", help="published figures of each machine vs every timing rung")
-    f.add_argument(
-        "--arch",
-        metavar="NAME|FILE.toml",
-        action="append",
-        default=[],
-        help="machines (repeatable; default every built-in with [published] figures)",
+    _add_repeatable(
+        f, "--arch", "NAME|FILE.toml", "machines (default every built-in with [published] figures)"
     )
     f.add_argument("--rungs", metavar="R,R,...", help="timing rungs (default: all four)")
     f.add_argument(
@@ -149,6 +136,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_rtl_parser(sub)
     return parser
+
+
+def _add_repeatable(parser: argparse.ArgumentParser, flag: str, metavar: str, what: str) -> None:
+    """An option that may be given many times, collected into a list."""
+    parser.add_argument(
+        flag, metavar=metavar, action="append", default=[], help=f"{what} (repeatable)"
+    )
 
 
 def _add_max_memory(parser: argparse.ArgumentParser) -> None:

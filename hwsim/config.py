@@ -151,6 +151,13 @@ class Table:
             for i, v in enumerate(value)
         )
 
+    def direction(self, name: str, default: Any = _MISSING) -> tuple[float, ...]:
+        """A 3-vector that must not be zero (a light direction, a plane normal)."""
+        value = self.vector(name, 3, default)
+        if not any(value):
+            raise self.error(name, "must not be the zero vector", "any non-zero [x, y, z]")
+        return value
+
     def finish(self) -> None:
         """Refuse keys nobody asked for (typos must not pass silently)."""
         unknown = sorted(set(self.data) - self._seen)

@@ -421,9 +421,7 @@ def _view(t: Table) -> ViewSpec:
 
 def _light(t: Table) -> Light:
     d = Light()
-    direction = t.vector("direction", 3, d.direction)
-    if not any(direction):
-        raise t.error("direction", "must not be the zero vector", "any non-zero [x, y, z]")
+    direction = t.direction("direction", d.direction)
     light = Light(
         direction=direction,
         intensity=t.number("intensity", d.intensity, 0, 100),
@@ -481,9 +479,7 @@ def _crop(t: Table) -> CropSpec:
 
 def _cut_plane(t: Table) -> CutPlane:
     d = CutPlane()
-    normal = t.vector("normal", 3, d.normal)
-    if not any(normal):
-        raise t.error("normal", "must not be the zero vector", "any non-zero [x, y, z]")
+    normal = t.direction("normal", d.normal)
     plane = CutPlane(
         normal=normal,
         offset=t.number("offset", d.offset),

@@ -145,13 +145,8 @@ def module_streams(
         module, bank, address = sk.vp500_miniblock(2 * bx, 2 * by, 2 * bz, n, M, K)
         return _split(memory, module, bank, address)
     if memory.skew == "block":
-        s = bx + by + bz
-        pitch = -(-nb // M) * M
-        linear = 8 * (((bz * nb + by) * pitch + bx) // M)
-        per_bank = -(-int(8 * nb * nb * pitch // M) // K)
-        per_bank = -(-per_bank // dev.columns) * dev.columns
-        bank, address = np.divmod(linear, per_bank)
-        return _split(memory, s % M, bank, address)
+        module, bank, address = sk.block_miniblock(2 * bx, 2 * by, 2 * bz, n, M, K, dev.columns)
+        return _split(memory, module, bank, address)
     raise ValueError(f"unknown skew {memory.skew!r}")
 
 

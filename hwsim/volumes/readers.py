@@ -22,7 +22,7 @@ import numpy as np
 from hwsim.budget import require_fits
 from hwsim.errors import InputError, one_line_warnings
 from hwsim.scene import VolumeSpec
-from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume
+from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume, require_axes
 
 __all__ = ["EXTENSIONS", "load_volume", "read_volume", "hu_units"]
 
@@ -238,13 +238,7 @@ def make_volume(
             key="shape",
             allowed="(z, y, x)",
         )
-    if min(data.shape) == 0:
-        raise InputError(
-            f"axis of length zero in shape {data.shape}",
-            source=source,
-            key="shape",
-            allowed="every axis >= 1",
-        )
+    require_axes(data.shape, source)
     data = to_supported(data, source)
     return Volume(
         data=data,

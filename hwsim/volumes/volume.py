@@ -13,7 +13,7 @@ import numpy as np
 
 from hwsim.errors import InputError
 
-__all__ = ["Volume", "SUPPORTED_DTYPES", "SPACING_RANGE", "MAX_ANISOTROPY"]
+__all__ = ["Volume", "SUPPORTED_DTYPES", "SPACING_RANGE", "MAX_ANISOTROPY", "require_axes"]
 
 #: Voxel spacings a volume may have (world units, millimetres for medical data): wide
 #: enough for microscopy and geology, narrow enough that 1e-300 or 1e300 (a corrupt
@@ -78,13 +78,7 @@ class Volume:
                 key="dtype",
                 allowed=", ".join(str(d) for d in SUPPORTED_DTYPES),
             )
-        if min(data.shape) == 0:
-            raise InputError(
-                f"axis of length zero in shape {data.shape}",
-                source=where,
-                key="shape",
-                allowed="every axis >= 1",
-            )
+        require_axes(data.shape, where)
         if data.dtype.kind == "f" and not np.isfinite(data).all():
             bad = int(np.count_nonzero(~np.isfinite(data)))
             raise InputError(
@@ -135,3 +129,14 @@ class Volume:
     def nbytes(self) -> int:
         """Bytes of voxel data."""
         return int(self.data.nbytes)
+
+
+def require_axes(shape: tuple[int, ...], source: str) -> None:
+    """Refuse a volume with an axis of length zero (errors name ``source``)."""
+    if min(shape) == 0:
+        raise InputError(
+            f"axis of length zero in shape {shape}",
+            source=source,
+            key="shape",
+            allowed="every axis >= 1",
+        )

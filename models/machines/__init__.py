@@ -27,7 +27,16 @@ from typing import Any
 from hwsim.arch import ArchConfig
 from hwsim.errors import NotAvailableError
 
-__all__ = ["FAMILIES", "Machine", "families", "machine_for", "orders", "register", "unregister"]
+__all__ = [
+    "FAMILIES",
+    "Machine",
+    "families",
+    "machine_for",
+    "orders",
+    "register",
+    "single_frames",
+    "unregister",
+]
 
 #: The built-in families, by module that declares each one's :class:`Machine`.
 FAMILIES = (
@@ -35,6 +44,20 @@ FAMILIES = (
     "models.machines.volumepro.machine",
     "models.machines.vizard2.machine",
 )
+
+
+def single_frames(machine_class: type) -> Callable[..., Any]:
+    """The :attr:`Machine.cycle` of a cycle-model class that times single frames only:
+    ``machine_class(backend, plan, faults=, elaborate_all=, trace=).run(progress)``."""
+
+    def cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
+        machine = machine_class(
+            backend, plan, faults=faults, elaborate_all=elaborate_all, trace=trace
+        )
+        return machine.run(progress)
+
+    cycle.__doc__ = f"One frame on {machine_class.__name__} (single frames only)."
+    return cycle
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,7 @@ __all__ = [
     "LATENCY",
     "SkewConfig",
     "beam_is_conflict_free",
+    "block_miniblock",
     "cube4_address",
     "cube4_address_zyx",
     "cube4_module",
@@ -133,6 +134,26 @@ def vp500_miniblock(
     lb = (bz * nb + by) * _pitch(nb, mk) + bx
     o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
     return s % modules, (s // modules) % banks, ((lb // mk) << 3) | o
+
+
+def block_miniblock(
+    x, y, z, n: int, modules: int, banks: int, columns: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The naive contrast to :func:`vp500_miniblock`: the same 2x2x2 mini-blocks and module
+    skew ``(bx + by + bz) mod M``, but no bank skew.  Each module stores its mini-blocks
+    linearly and the bank is the top address bits (a bank holds ``1/K`` of the module,
+    rounded up to whole rows of ``columns`` words): the layout a controller gets without
+    the second skew level.  ``n`` even; returns int64 (module, bank, word in the bank)."""
+    x, y, z = _i64(x, y, z)
+    nb = n // 2
+    bx, by, bz = x >> 1, y >> 1, z >> 1
+    pitch = _pitch(nb, modules)
+    o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
+    linear = 8 * (((bz * nb + by) * pitch + bx) // modules) + o
+    per_bank = -(-int(8 * nb * nb * pitch // modules) // banks)
+    per_bank = -(-per_bank // columns) * columns
+    bank, address = np.divmod(linear, per_bank)
+    return (bx + by + bz) % modules, bank, address
 
 
 def vp500_voxel(

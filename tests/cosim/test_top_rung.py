@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 import pytest
-from test_top_cosim import _require
+from simulators import require
 
 from hwsim.cli import main
 
@@ -40,7 +40,7 @@ def cycle_run(tmp_path_factory):
 
 @pytest.mark.parametrize("sim", ["verilator", "icarus"])
 def test_render_rtl_equals_render_cycle(sim, cycle_run, tmp_path):
-    _require(sim)
+    require(sim)
     argv = ["render", *SCENE, "--fidelity", "rtl", "--arch", "cube4", "--simulator", sim]
     assert main([*argv, "--out", str(tmp_path), "--quiet"]) == 0
     rtl = json.loads((tmp_path / "stats.json").read_text())

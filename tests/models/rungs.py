@@ -9,8 +9,10 @@ phantom sizes); the rungs are always called through the same entry points a rend
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
+import pytest
 
 from hwsim.arch import ArchConfig
 from hwsim.fidelity import resolve_arch
@@ -24,6 +26,20 @@ from models.transaction import render_transaction
 
 #: Issue 5: transaction cycle counts within 2 % of the cycle rung.
 CONTRACT = 0.02
+
+#: The grid the contract tests of the machines that skip work sweep: each phantom, both
+#: projections, with and without early ray termination and space leaping.
+skipping_grid = pytest.mark.parametrize(
+    ("phantom", "projection", "ert", "leaping"),
+    list(
+        itertools.product(
+            ("head", "ball", "marschner-lobb"),
+            ("parallel", "perspective"),
+            (1.0, 0.95),
+            (False, True),
+        )
+    ),
+)
 
 
 def scene_of(
@@ -110,3 +126,35 @@ def assert_within_contract(exact_cycles: int, approx_cycles: int, contract=CONTR
         exact_cycles,
         approx_cycles,
     )
+
+
+#: The real volumes' grid of the skipping machines' slow contract tests: each file, with
+#: neither skip or both, in both projections.
+real_volume_grid = pytest.mark.parametrize(
+    ("name", "ert", "leaping", "projection"),
+    [
+        (name, ert, leaping, projection)
+        for name in ("ct_cranium.nrrd", "mr_brainsmall.nrrd")
+        for ert, leaping in ((1.0, False), (0.95, True))
+        for projection in ("parallel", "perspective")
+    ],
+)
+
+
+def assert_counters_equal(exact, approx, keys) -> None:
+    """The counters the event model must share with the cycle rung exactly."""
+    for key in keys:
+        assert approx.counters[key] == exact.counters[key], key
+
+
+def assert_slice_counters_add_up(cycle, plan, pipelines: int, units) -> None:
+    """A slice machine's frame: no memory conflict, at most P samples a clock, one pixel per
+    ray, and every listed unit of every pipeline busy, stalled or idle on every clock."""
+    c = cycle.counters
+    assert c["memory.conflicts"] == 0
+    assert cycle.samples <= pipelines * cycle.cycles
+    assert c["pixel_bus.pixels"] == plan.ray_ids.size
+    for unit in units:
+        for lane in range(pipelines):
+            parts = [c[f"pipeline[{lane}].{unit}.{k}_cycles"] for k in ("busy", "stall", "idle")]
+            assert sum(parts) == cycle.cycles, (unit, lane, parts)

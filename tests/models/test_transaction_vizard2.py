@@ -64,10 +64,7 @@ def phantoms():
     return rungs.phantom_set(24, 24, 25)
 
 
-@pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
-@pytest.mark.parametrize("projection", ["parallel", "perspective"])
-@pytest.mark.parametrize("ert", [1.0, 0.95])
-@pytest.mark.parametrize("leaping", [False, True])
+@rungs.skipping_grid
 def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
     volume = phantoms[phantom]
     exact, approx = rungs.cycle_and_transaction(
@@ -77,8 +74,7 @@ def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, project
     assert np.array_equal(approx.image, exact.image)  # functional = cycle image
     if ert == 1.0:  # nothing estimated: the machine's rules, exactly
         assert approx.cycles == exact.cycles
-        for key in EXACT:
-            assert approx.counters[key] == exact.counters[key], key
+        rungs.assert_counters_equal(exact, approx, EXACT)
 
 
 @pytest.mark.parametrize("mode", ["mip", "iso"])
@@ -179,9 +175,7 @@ def test_termination_steps_are_read_not_recomputed(phantoms):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
-@pytest.mark.parametrize(("ert", "leaping"), [(1.0, False), (0.95, True)])
-@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+@rungs.real_volume_grid
 def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
     volume = read_volume(shared_data / name)
     scene = scene_of(image=32, ert=ert, projection=projection)

@@ -49,17 +49,13 @@ def phantoms():
     return rungs.phantom_set(40, 40, 41)
 
 
-@pytest.mark.parametrize("phantom", ["head", "ball", "marschner-lobb"])
-@pytest.mark.parametrize("projection", ["parallel", "perspective"])
-@pytest.mark.parametrize("ert", [1.0, 0.95])
-@pytest.mark.parametrize("leaping", [False, True])
+@rungs.skipping_grid
 def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
     volume = phantoms[phantom]
     scene = scene_of(phantom, image=volume.shape[0], ert=ert, projection=projection)
     exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
     rungs.assert_within_contract(exact.cycles, approx.cycles)
-    for key in EXACT:
-        assert approx.counters[key] == exact.counters[key], key
+    rungs.assert_counters_equal(exact, approx, EXACT)
     assert np.array_equal(approx.image, exact.image)  # functional = cycle image
 
 
@@ -169,16 +165,13 @@ def test_what_the_model_refuses(phantoms):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["ct_cranium.nrrd", "mr_brainsmall.nrrd"])
-@pytest.mark.parametrize(("ert", "leaping"), [(1.0, False), (0.95, True)])
-@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+@rungs.real_volume_grid
 def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
     volume = read_volume(shared_data / name)
     scene = scene_of(image=64, ert=ert, projection=projection)
     exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
     rungs.assert_within_contract(exact.cycles, approx.cycles)
-    for key in EXACT:
-        assert approx.counters[key] == exact.counters[key], key
+    rungs.assert_counters_equal(exact, approx, EXACT)
 
 
 def test_embedded_geometry_stops_rays_as_termination_does():
@@ -198,8 +191,7 @@ def test_embedded_geometry_stops_rays_as_termination_does():
     approx = render(scene, fidelity="transaction", arch=arch)
     assert approx.counters["ert.stopped_rays"] > 0
     rungs.assert_within_contract(exact.cycles, approx.cycles)
-    for key in EXACT:
-        assert approx.counters[key] == exact.counters[key], key
+    rungs.assert_counters_equal(exact, approx, EXACT)
     assert np.array_equal(approx.image, exact.image)
 
 

@@ -2,34 +2,19 @@
 
 from __future__ import annotations
 
-import tomllib
-
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scene_text import error_of, parse
 
 from hwsim.errors import InputError
 from hwsim.scene import (
     DEFAULT_SCENE,
     MODES,
-    Scene,
     builtin_scenes,
     load_scene,
     parse_scene,
 )
-
-
-def parse(text: str) -> Scene:
-    return parse_scene(tomllib.loads(text), source="t.toml")
-
-
-def error_of(text: str) -> str:
-    with pytest.raises(InputError) as info:
-        parse(text)
-    message = str(info.value)
-    assert "\n" not in message
-    assert message.startswith("t.toml")
-    return message
 
 
 def test_empty_file_gives_the_documented_defaults():

@@ -4,34 +4,21 @@ file, the key and the allowed range."""
 
 from __future__ import annotations
 
-import tomllib
-
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scene_text import error_of, parse
 
 from hwsim.arch import parse_arch
 from hwsim.cli import main
 from hwsim.errors import InputError
 from hwsim.fidelity import resolve_arch
-from hwsim.scene import Scene, parse_scene
+from hwsim.scene import parse_scene
 
 pytestmark = pytest.mark.golden
 
 LUT = "[[classification.luts]]\npoints = [[0, 0, 0, 0, 0], [1, 1, 1, 1, 1]]\n"
 SMALL = LUT + "entries = 256\n"
-
-
-def parse(text: str) -> Scene:
-    return parse_scene(tomllib.loads(text), source="t.toml")
-
-
-def error_of(text: str) -> str:
-    with pytest.raises(InputError) as info:
-        parse(text)
-    message = str(info.value)
-    assert "\n" not in message and message.startswith("t.toml")
-    return message
 
 
 def test_full_classification_section_parses():

@@ -21,28 +21,25 @@ pytestmark = pytest.mark.model
 F8, F12 = 255, 4095
 
 
+#: Plain-Python integer reference of each non-multiplying opcode (from the docstring).
+REFERENCE = {
+    "a": lambda a, b, full: a,
+    "b": lambda a, b, full: b,
+    "and": lambda a, b, full: a & b,
+    "or": lambda a, b, full: a | b,
+    "xor": lambda a, b, full: a ^ b,
+    "add": lambda a, b, full: min(a + b, full),
+    "sub": lambda a, b, full: max(a - b, 0),
+    "rsub": lambda a, b, full: max(b - a, 0),
+    "min": lambda a, b, full: min(a, b),
+    "max": lambda a, b, full: max(a, b),
+}
+
+
 def ref(op: str, a: int, b: int, full: int) -> int:
-    """Plain-Python integer reference of one opcode (written from the docstring)."""
-    if op == "a":
-        return a
-    if op == "b":
-        return b
-    if op == "and":
-        return a & b
-    if op == "or":
-        return a | b
-    if op == "xor":
-        return a ^ b
-    if op == "add":
-        return min(a + b, full)
-    if op == "sub":
-        return max(a - b, 0)
-    if op == "rsub":
-        return max(b - a, 0)
-    if op == "min":
-        return min(a, b)
-    if op == "max":
-        return max(a, b)
+    """One opcode on plain Python integers; ``mulK``: ``K round(a b / full)``, clamped."""
+    if op in REFERENCE:
+        return REFERENCE[op](a, b, full)
     k = {"mul": 1, "mul2": 2, "mul4": 4, "mul8": 8}[op]
     q, r = divmod(a * b, full)
     p = q + (1 if 2 * r >= full else 0)  # round half up, exact

@@ -15,14 +15,14 @@ from models.units import depth as du
 
 pytestmark = pytest.mark.model
 
-OPS = {
-    "<": operator.lt,
-    "<=": operator.le,
-    "==": operator.eq,
-    ">=": operator.ge,
-    ">": operator.gt,
-    "!=": operator.ne,
-}
+#: The reference comparisons: Python's own operators, by the scene's test names.
+OPS = dict(
+    zip(
+        ("<", "<=", "==", ">=", ">", "!="),
+        (operator.lt, operator.le, operator.eq, operator.ge, operator.gt, operator.ne),
+        strict=True,
+    )
+)
 
 
 def test_depth_quantisation_extremes_and_clamping():

@@ -9,13 +9,14 @@ from typing import Any
 import numpy as np
 
 from hwsim.arch import ArchConfig
-from hwsim.errors import InputError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.golden.positions import SamplePlan
+from hwsim.memory import MemoryConfig
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.datapath import Datapath
 
-__all__ = ["ReadsTheFrame", "TxnTiming", "slice_loads"]
+__all__ = ["ReadsTheFrame", "TxnTiming", "require_pipeline_clock", "slice_loads"]
 
 
 @dataclass
@@ -36,6 +37,20 @@ def slice_loads(plan: SamplePlan) -> tuple[np.ndarray, np.ndarray]:
     samples = np.cumsum(starts - stops)[:n]
     finishing = np.bincount(plan.j_hi, minlength=n)[:n]
     return samples.astype(np.int64), finishing.astype(np.int64)
+
+
+def require_pipeline_clock(memory: MemoryConfig, arch: ArchConfig) -> MemoryConfig:
+    """``memory``, refused unless its SDRAM runs at the pipeline clock: the transaction
+    models count SDRAM commands and pipeline work in one clock (the cycle rung models a
+    ``memory.clock_ratio``)."""
+    if memory.sdram.clock_ratio != 1.0:
+        raise NotAvailableError(
+            "the transaction model runs the SDRAM at the pipeline clock",
+            source=arch.source,
+            key="memory.clock_ratio",
+            allowed="1.0",
+        )
+    return memory
 
 
 class ReadsTheFrame:

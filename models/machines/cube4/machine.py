@@ -7,15 +7,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from models.machines import Machine
+from models.machines import Machine, single_frames
 from models.machines.cube4.cycle import Cube4Machine, Faults
 from models.machines.cube4.transaction import Cube4Transaction
-
-
-def cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
-    """One frame on :class:`Cube4Machine` (single frames only: ``steady_state`` unused)."""
-    machine = Cube4Machine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=trace)
-    return machine.run(progress)
 
 
 def transaction(
@@ -28,7 +22,7 @@ def transaction(
 MACHINE = Machine(
     name="cube4",
     orders=("slice-parallel",),
-    cycle=cycle,
+    cycle=single_frames(Cube4Machine),
     transaction=transaction,
     faults_type=Faults,
     rtl_top="rtl.top",

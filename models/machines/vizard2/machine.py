@@ -7,16 +7,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from models.machines import Machine
+from models.machines import Machine, single_frames
 from models.machines.vizard2.config import VizardFaults
 from models.machines.vizard2.cycle import VizardMachine
 from models.machines.vizard2.transaction import VizardTransaction
-
-
-def cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
-    """One frame on :class:`VizardMachine` (single frames only)."""
-    machine = VizardMachine(backend, plan, faults=faults, elaborate_all=elaborate_all, trace=trace)
-    return machine.run(progress)
 
 
 def transaction(scene, arch, plan, **frame: Any) -> VizardTransaction:
@@ -27,7 +21,7 @@ def transaction(scene, arch, plan, **frame: Any) -> VizardTransaction:
 MACHINE = Machine(
     name="vizard2",
     orders=("ray",),
-    cycle=cycle,
+    cycle=single_frames(VizardMachine),
     transaction=transaction,
     faults_type=VizardFaults,
     package="models.machines.vizard2",

@@ -43,7 +43,6 @@ import numpy as np
 import simpy
 
 from hwsim.arch import ArchConfig
-from hwsim.errors import NotAvailableError
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import SdramTransactionPort
@@ -54,7 +53,7 @@ from models.backend import Backend
 from models.datapath import Datapath
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.results import UNITS
-from models.machines.common.transaction import ReadsTheFrame, TxnTiming
+from models.machines.common.transaction import ReadsTheFrame, TxnTiming, require_pipeline_clock
 from models.machines.vizard2.config import check_frame, memory_of, parse_buffers
 from models.units import interp as interp_unit
 
@@ -151,14 +150,7 @@ class VizardTransaction(ReadsTheFrame):
         self.scene, self.arch, self.planned = scene, arch, plan
         check_frame(arch, plan, self.datapath)
         self.buffers = parse_buffers(arch)
-        self.memory = memory_of(arch)
-        if self.memory.sdram.clock_ratio != 1.0:
-            raise NotAvailableError(
-                "the transaction model runs the SDRAM at the pipeline clock",
-                source=arch.source,
-                key="memory.clock_ratio",
-                allowed="1.0",
-            )
+        self.memory = require_pipeline_clock(memory_of(arch), arch)
         self.P = arch.pipelines
         self.backend = be = Backend(scene, volume, transfer, arch, plan, self.datapath)
         stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"

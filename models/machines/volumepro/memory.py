@@ -46,16 +46,7 @@ def layout(memory: MemoryConfig, n: int, x, y, z) -> tuple[np.ndarray, np.ndarra
     if memory.skew == "miniblock":
         return sk.vp500_miniblock(x, y, z, n, M, K)
     if memory.skew == "block":
-        x, y, z = (np.asarray(v, dtype=np.int64) for v in (x, y, z))
-        nb = n // 2
-        bx, by, bz = x >> 1, y >> 1, z >> 1
-        pitch = -(-nb // M) * M
-        o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
-        linear = 8 * (((bz * nb + by) * pitch + bx) // M) + o
-        per_bank = -(-int(8 * nb * nb * pitch // M) // K)
-        per_bank = -(-per_bank // memory.sdram.columns) * memory.sdram.columns
-        bank, address = np.divmod(linear, per_bank)
-        return (bx + by + bz) % M, bank, address
+        return sk.block_miniblock(x, y, z, n, M, K, memory.sdram.columns)
     raise ValueError(f"the SDRAM front end reads mini-blocks: skew {memory.skew!r} unsupported")
 
 

@@ -52,7 +52,7 @@ from hwsim.scene import Scene
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction
-from models.machines.common.transaction import TxnTiming, slice_loads
+from models.machines.common.transaction import TxnTiming, require_pipeline_clock, slice_loads
 from models.machines.volumepro.memory import layout
 from models.machines.volumepro.slab_timing import slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade, skew
@@ -123,14 +123,7 @@ class SlabTransaction:
                 key="--arch",
                 allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000",
             )
-        self.memory = parse_memory(arch.memory, source=arch.source)
-        if self.memory.sdram.clock_ratio != 1.0:
-            raise NotAvailableError(
-                "the transaction model runs the SDRAM at the pipeline clock",
-                source=arch.source,
-                key="memory.clock_ratio",
-                allowed="1.0",
-            )
+        self.memory = require_pipeline_clock(parse_memory(arch.memory, source=arch.source), arch)
         kp = plan.principal_axis
         a_ax, b_ax = _other_axes(plan)
         shape = plan.volume.shape
