@@ -41,7 +41,6 @@ DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
 
 #: Pipeline units, in order; elaboration keeps only those a scene needs.
-_UNITS = ("interp", "gradient", "classify", "shade", "composite", "crop")
 
 Progress = Callable[[int, int], None]
 
@@ -145,26 +144,20 @@ def machine_rungs(arch: ArchConfig) -> list[str]:
     return rungs + (["rtl"] if machine.rtl_top else [])
 
 
-def elaboration(scene: Scene) -> tuple[list[str], list[str]]:
-    """Which stages a scene needs (design section 3, "model only what a scene requires")."""
-    mode = scene.render.mode
-    modulated = mode == "composite" and scene.transfer.gradient_opacity is not None
-    needs = {
-        "interp": True,
-        "gradient": scene.lit or modulated,
-        "classify": mode == "composite",
-        "shade": scene.lit,
-        "composite": True,
-        "crop": scene.crop is not None or bool(scene.cut_planes),
-    }
-    used = [s for s in _UNITS if needs[s]]
-    # Units only some machines have (VolumePro 1000): listed when a scene uses them,
-    # never as elided (a machine without them cannot elide them).
+def elaboration(scene: Scene, transfer: TransferFunction) -> tuple[list[str], list[str]]:
+    """Which stages a scene needs (design section 3, "model only what a scene requires"):
+    :func:`models.datapath.units_needed`, plus the units only some machines have
+    (multi-LUT combiners, the depth test), listed when a scene uses them and never as
+    elided (a machine without them cannot elide them)."""
+    from models.datapath import units_needed
+
+    needs = units_needed(scene, transfer.modulates)
+    used = [u for u, needed in needs.items() if needed]
     if scene.classification is not None:
         used.insert(used.index("classify") + 1, "combine")
     if scene.geometry is not None:
         used.append("depth")
-    return used, [s for s in _UNITS if not needs[s]]
+    return used, [u for u, needed in needs.items() if not needed]
 
 
 #: Bytes the renderers hold per image pixel (ray state, colour and opacity, positions;
@@ -283,7 +276,7 @@ def render(
         volume = load_volume(scene.volume, scene.base_dir)
     check_work(scene, volume)
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
-    used, elided = elaboration(scene)
+    used, elided = elaboration(scene, transfer)
     cycles = clock = None
     derived: dict[str, Any] = {}
     start = time.perf_counter()

@@ -33,7 +33,7 @@ from hwsim.scene import Scene
 from hwsim.scene_features import VALUE_FIELD, check_machine
 from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
-from models.datapath import Datapath
+from models.datapath import Datapath, units_needed
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
 from models.units import crop as crop_unit
@@ -114,7 +114,7 @@ class Backend:
         self.S = dp.interp.sample_frac_bits
         self.ref = min(volume.spacing)
         composite = self.mode == "composite"
-        self.need_grad = scene.lit or (composite and transfer.modulates)
+        self.need_grad = units_needed(scene, transfer.modulates)["gradient"]
         if composite or self.mode == "iso" or exercise_unused:
             self.lut = classify_unit.build_lut(
                 transfer, self.vmap.to_value, dp.voxel_bits, dp.classify
@@ -369,7 +369,7 @@ class Backend:
         if self.ert < 1.0:
             state.alive[rays] = ~composite_unit.terminated(state.acc[rays], self.ert, dp.composite)
 
-    # ------------------------------------------------------------------ VP1000 features
+    # ----------------------------------- multi-LUT classification, embedded geometry
 
     def _setup_features(self) -> None:
         """Multi-LUT classification and embedded geometry: refused on machines without

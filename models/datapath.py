@@ -24,7 +24,7 @@ from models.units.gradient import GradientConfig
 from models.units.interp import InterpConfig
 from models.units.shade import ShadeConfig
 
-__all__ = ["Datapath", "UNIT_CONFIGS"]
+__all__ = ["DATAPATH_UNITS", "Datapath", "UNIT_CONFIGS", "units_needed"]
 
 UNIT_CONFIGS = {
     "interp": InterpConfig,
@@ -33,6 +33,26 @@ UNIT_CONFIGS = {
     "shade": ShadeConfig,
     "composite": CompositeConfig,
 }
+
+
+#: The datapath units of every machine, in dataflow order.
+DATAPATH_UNITS = ("interp", "gradient", "classify", "shade", "composite", "crop")
+
+
+def units_needed(scene, modulates: bool) -> dict[str, bool]:
+    """Which datapath units ``scene`` uses (design section 3, "model only what a scene
+    requires"): the one rule every rung reports and the cycle models elide by.
+    ``modulates``: its transfer function scales opacity by gradient magnitude.  Iso
+    surfaces use no classification (the hit colour is the scene's ``iso_color``)."""
+    composite = scene.render.mode == "composite"
+    return {
+        "interp": True,
+        "gradient": scene.lit or (composite and modulates),
+        "classify": composite,
+        "shade": scene.lit,
+        "composite": True,
+        "crop": scene.crop is not None or bool(scene.cut_planes),
+    }
 
 
 @dataclass(frozen=True, kw_only=True)

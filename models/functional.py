@@ -15,7 +15,7 @@ Timing is a closed-form estimate: each slice (or ray step) costs
 ``section_overhead_cycles`` per section and the pipeline fill latency once.  On a
 slice-order machine (every order but ``ray``) ``samples`` is at least the slice's voxel
 count: the machine streams the whole slice however few rays the image casts (a machine
-that skips beams no ray reaches, VolumePro 1000, comes in below the estimate).
+that skips beams no ray reaches comes in below the estimate).
 
 The estimate, ``samples`` and ``rays`` count every planned sample; the simulation skips
 blocks whose samples provably cannot change the image (:mod:`models.leap`) and processes
@@ -39,7 +39,7 @@ from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models import fused_steps, leap
 from models.backend import Backend, RayState
-from models.datapath import Datapath
+from models.datapath import Datapath, units_needed
 from models.units import classify as classify_unit
 from models.units import combine as combine_unit
 from models.units import composite as composite_unit
@@ -51,18 +51,24 @@ from models.units import shade as shade_unit
 __all__ = ["FunctionalResult", "NEVER", "TapSource", "render_functional", "pipeline_latency"]
 
 
-def pipeline_latency(scene: Scene) -> int:
-    """Cycles from a voxel read to its sample's composite, for the units the scene uses."""
-    units = [interp_unit, composite_unit]
-    if scene.render.mode == "composite":
-        units.append(classify_unit)
-    if scene.lit:
-        units += [gradient_unit, shade_unit]
+def pipeline_latency(scene: Scene, modulates: bool) -> int:
+    """Cycles from a voxel read to its sample's composite, for the units the scene uses
+    (:func:`models.datapath.units_needed`; ``modulates``: gradient-magnitude opacity),
+    plus the LUT combiners and the depth test where the scene uses them."""
+    needs = units_needed(scene, modulates)
+    timed = {
+        "interp": interp_unit,
+        "gradient": gradient_unit,
+        "classify": classify_unit,
+        "shade": shade_unit,
+        "composite": composite_unit,
+    }
+    latency = sum(unit.LATENCY for name, unit in timed.items() if needs[name])
     if scene.classification is not None:
-        units.append(combine_unit)  # the LUT combiners (VolumePro 1000)
+        latency += combine_unit.LATENCY  # the LUT combiners
     if scene.geometry is not None:
-        units.append(depth_unit)  # the depth test against embedded geometry
-    return int(sum(u.LATENCY for u in units))
+        latency += depth_unit.LATENCY  # the depth test against embedded geometry
+    return int(latency)
 
 
 @dataclass
@@ -213,7 +219,8 @@ class _Functional:
         sections = 0
         if self.arch.section_width and plan.shape[1] > 0:
             sections = -(-plan.shape[1] // self.arch.section_width)
-        cycles += sections * self.arch.section_overhead_cycles + pipeline_latency(be.scene)
+        latency = pipeline_latency(be.scene, be.transfer.modulates)
+        cycles += sections * self.arch.section_overhead_cycles + latency
         image = be.finish(state.acc, state.touched, state.dt_sum)
         clipped = {k: v - before.get(k, 0) for k, v in SATURATIONS.items() if v - before.get(k, 0)}
         counters = {

@@ -13,6 +13,8 @@ from hwsim.numerics.format import (
     round_scaled,
     round_shift,
     round_shift_raw,
+    sq,
+    uq,
 )
 from hwsim.numerics.metrics import (
     EXACT_MATCHES,
@@ -45,5 +47,7 @@ __all__ = [
     "round_scaled",
     "round_shift",
     "round_shift_raw",
+    "sq",
+    "uq",
     "ulp_distance",
 ]

@@ -34,6 +34,8 @@ __all__ = [
     "rescale",
     "mul",
     "SATURATIONS",
+    "sq",
+    "uq",
 ]
 
 ROUNDINGS = ("nearest-up", "nearest-even", "truncate", "floor")
@@ -227,3 +229,13 @@ def mul(
     return out.saturate(
         round_shift(prod, fa.frac_bits + fb.frac_bits - out.frac_bits, out.rounding)
     )
+
+
+def uq(name: str, int_bits: int, frac_bits: int, **rules: str) -> FixedFormat:
+    """The unsigned format ``UQint.frac`` named ``name`` (``rules``: rounding, overflow)."""
+    return FixedFormat(name=name, signed=False, int_bits=int_bits, frac_bits=frac_bits, **rules)
+
+
+def sq(name: str, int_bits: int, frac_bits: int, **rules: str) -> FixedFormat:
+    """The two's-complement format ``SQint.frac`` named ``name``."""
+    return FixedFormat(name=name, signed=True, int_bits=int_bits, frac_bits=frac_bits, **rules)

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.numerics import FixedFormat
+from hwsim.numerics import FixedFormat, uq
 from hwsim.scene_features import FINAL_ONLY, LEAF_OPCODES, OPCODES
 
 __all__ = [
@@ -74,8 +74,8 @@ def formats(color_bits: int = 8, alpha_bits: int = 12) -> tuple[FixedFormat, Fix
     """The stored-value formats the ALUs work on: ``combine.rgb`` and ``combine.alpha``
     (unorm, raw integers ``0 .. 2**n - 1``)."""
     return (
-        FixedFormat(name="combine.rgb", signed=False, int_bits=color_bits, frac_bits=0),
-        FixedFormat(name="combine.alpha", signed=False, int_bits=alpha_bits, frac_bits=0),
+        uq("combine.rgb", color_bits, 0),
+        uq("combine.alpha", alpha_bits, 0),
     )
 
 

@@ -49,6 +49,7 @@ from hwsim.numerics import (
     OverflowError_,
     round_shift,
     round_shift_raw,
+    uq,
 )
 
 __all__ = [
@@ -82,9 +83,9 @@ II = 1
 
 _ALPHA_BITS = 12
 #: Sample opacity / colour entering the compositor (UQ1.12, 4096 = 1.0).
-ALPHA = FixedFormat(name="composite.alpha", signed=False, int_bits=1, frac_bits=_ALPHA_BITS)
+ALPHA = uq("composite.alpha", 1, _ALPHA_BITS)
 #: Accumulator at the default width (UQ1.16); ``CompositeConfig.acc`` gives the configured one.
-ACC = FixedFormat(name="composite.acc", signed=False, int_bits=1, frac_bits=16)
+ACC = uq("composite.acc", 1, 16)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -128,39 +129,29 @@ class CompositeConfig:
     @property
     def acc(self) -> FixedFormat:
         """``composite.acc`` UQ1.F."""
-        return FixedFormat(
-            name="composite.acc", signed=False, int_bits=1, frac_bits=self.acc_frac_bits
-        )
+        return uq("composite.acc", 1, self.acc_frac_bits)
 
     @property
     def ratio(self) -> FixedFormat:
         """``composite.ratio`` UQ4.F: opacity-correction exponent."""
-        return FixedFormat(
-            name="composite.ratio", signed=False, int_bits=4, frac_bits=self.ratio_frac_bits
-        )
+        return uq("composite.ratio", 4, self.ratio_frac_bits)
 
     @property
     def xray_dt(self) -> FixedFormat:
         """``composite.xray_dt`` UQ8.F: X-ray step weight."""
-        return FixedFormat(
-            name="composite.xray_dt", signed=False, int_bits=8, frac_bits=self.xray_frac_bits
-        )
+        return uq("composite.xray_dt", 8, self.xray_frac_bits)
 
     @property
     def xray_acc(self) -> FixedFormat:
         """``composite.xray``: unsigned ``xray_acc_bits`` wide, ``S + xray_frac_bits``
         fraction bits."""
         frac = self.sample_frac_bits + self.xray_frac_bits
-        return FixedFormat(
-            name="composite.xray", signed=False, int_bits=self.xray_acc_bits - frac, frac_bits=frac
-        )
+        return uq("composite.xray", self.xray_acc_bits - frac, frac)
 
     @property
     def out(self) -> FixedFormat:
         """``composite.out``: the unorm pixel as raw integers (0 .. 2**bits - 1)."""
-        return FixedFormat(
-            name="composite.out", signed=False, int_bits=self.output_bits, frac_bits=0
-        )
+        return uq("composite.out", self.output_bits, 0)
 
 
 DEFAULT = CompositeConfig()

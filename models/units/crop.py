@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.numerics import FixedFormat, round_shift
+from hwsim.numerics import FixedFormat, round_shift, sq, uq
 from hwsim.scene import CropSpec, CutPlane
 
 __all__ = [
@@ -90,25 +90,23 @@ class CutConfig:
 
     @property
     def pos(self) -> FixedFormat:
-        return FixedFormat(name="cut.pos", signed=True, int_bits=12, frac_bits=self.pos_frac_bits)
+        return sq("cut.pos", 12, self.pos_frac_bits)
 
     @property
     def normal(self) -> FixedFormat:
-        return FixedFormat(
-            name="cut.normal", signed=True, int_bits=1, frac_bits=self.normal_frac_bits
-        )
+        return sq("cut.normal", 1, self.normal_frac_bits)
 
     @property
     def dist(self) -> FixedFormat:
-        return FixedFormat(name="cut.dist", signed=True, int_bits=12, frac_bits=self.dist_frac_bits)
+        return sq("cut.dist", 12, self.dist_frac_bits)
 
     @property
     def inv(self) -> FixedFormat:
-        return FixedFormat(name="cut.inv", signed=False, int_bits=16, frac_bits=self.inv_frac_bits)
+        return uq("cut.inv", 16, self.inv_frac_bits)
 
 
 #: The opacity factor leaving the unit (UQ1.12, 4096 = 1.0).
-FACTOR = FixedFormat(name="cut.factor", signed=False, int_bits=1, frac_bits=_F12)
+FACTOR = uq("cut.factor", 1, _F12)
 DEFAULT = CutConfig()
 
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from hwsim.golden.geometry import TEST_OPERATORS, GeometryBuffers
-from hwsim.numerics import FixedFormat
+from hwsim.numerics import uq
 from models.units import composite as composite_unit
 from models.units.classify import expand
 
@@ -35,8 +35,8 @@ LATENCY = 1
 II = 1
 DEPTH_BITS = 24
 COLOR_BITS = 12
-DEPTH = FixedFormat(name="depth.z", signed=False, int_bits=DEPTH_BITS, frac_bits=0)
-COLOR = FixedFormat(name="geometry.color", signed=False, int_bits=COLOR_BITS, frac_bits=0)
+DEPTH = uq("depth.z", DEPTH_BITS, 0)
+COLOR = uq("geometry.color", COLOR_BITS, 0)
 FAR = (1 << DEPTH_BITS) - 1
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.numerics import ROUNDING_CODES, FixedFormat, round_scaled, round_shift_raw
+from hwsim.numerics import ROUNDING_CODES, FixedFormat, round_scaled, round_shift_raw, uq
 
 __all__ = [
     "InterpConfig",
@@ -68,13 +68,7 @@ class InterpConfig:
 
     @property
     def weight(self) -> FixedFormat:
-        return FixedFormat(
-            name="interp.weight",
-            signed=False,
-            int_bits=1,
-            frac_bits=self.weight_bits,
-            rounding=self.rounding,
-        )
+        return uq("interp.weight", 1, self.weight_bits, rounding=self.rounding)
 
 
 class InterpTaps:

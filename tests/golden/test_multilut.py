@@ -221,9 +221,11 @@ def test_the_combiners_and_depth_test_are_listed_and_timed_when_used():
     from models.units import combine, depth
 
     sc = load_scene("head-vp1000")
-    used, elided = elaboration(sc)
+    tf = resolve_transfer(sc.transfer, make_phantom("head", size=8))
+    used, elided = elaboration(sc, tf)
     assert used.index("classify") < used.index("combine") < used.index("shade")
     assert "depth" in used and "combine" not in elided and "depth" not in elided
     plain = sc.replace(classification=None, geometry=None)
-    assert "combine" not in elaboration(plain)[0] + elaboration(plain)[1]
-    assert pipeline_latency(sc) == pipeline_latency(plain) + combine.LATENCY + depth.LATENCY
+    assert "combine" not in elaboration(plain, tf)[0] + elaboration(plain, tf)[1]
+    latency = pipeline_latency(sc, tf.modulates)
+    assert latency == pipeline_latency(plain, tf.modulates) + combine.LATENCY + depth.LATENCY

@@ -18,8 +18,8 @@ from hwsim.errors import InputError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.scene import CropSpec, CutPlane, TransferSpec
 from hwsim.volumes import make_phantom
-from models.machines.vizard2.cycle import FEEDBACK, UNITS
-from models.machines.vizard2.memory import BLOCK
+from models.machines.vizard2.config import BLOCK, FEEDBACK
+from models.machines.vizard2.cycle import UNITS
 from models.units import interp as interp_unit
 
 pytestmark = pytest.mark.model

@@ -115,7 +115,7 @@ def test_cycle_estimate_of_a_dense_volume_reproduces_volumepro500_30_fps():
     )
     run = render(scene, fidelity="functional", arch="volumepro500", volume=volume)
     assert run.samples == n**3
-    assert run.cycles == n**3 // 4 + pipeline_latency(scene)
+    assert run.cycles == n**3 // 4 + pipeline_latency(scene, modulates=False)
     fps = run.clock_hz / run.cycles
     assert fps == pytest.approx(125e6 / (n**3 / 4), rel=1e-5)
     assert 29.7 < fps < 29.9
@@ -145,7 +145,7 @@ def test_a_small_image_does_not_shorten_a_slice_order_machine_s_slices():
     run = render(scene, fidelity="functional", arch=arch, volume=volume)
     assert run.samples < n**3 // 4  # 64 rays, far fewer samples than voxels
     per_slice = -(-(n * n) // arch.pipelines) + arch.slice_overhead_cycles
-    assert run.cycles == n * per_slice + pipeline_latency(scene)
+    assert run.cycles == n * per_slice + pipeline_latency(scene, modulates=False)
     cycle = render(scene, fidelity="cycle", arch=arch, volume=volume)
     # VolumePro 1000 skips beams no ray reaches (docs/cycle.md), so the estimate, which
     # streams whole slices, bounds it from above; shrinking slices to the rays used to

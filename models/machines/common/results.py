@@ -19,6 +19,7 @@ from hwsim.arch import ArchConfig
 from hwsim.engine import Counters, DrainFifo
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError
+from models.datapath import units_needed
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
 from models.units import crop as crop_unit
@@ -135,15 +136,7 @@ def elaborate_units(
 ) -> tuple[list[str], list[str]]:
     """The units a scene needs (all of :data:`UNITS` when ``everything``), between the
     machine's front ``structures`` and its pixel bus; and the units elided."""
-    be, mode = backend, backend.mode
-    needs = {
-        "interp": True,
-        "gradient": be.need_grad,
-        "classify": mode in ("composite", "iso"),
-        "shade": be.scene.lit,
-        "composite": True,
-        "crop": be.scene.crop is not None or bool(be.scene.cut_planes),
-    }
+    needs = units_needed(backend.scene, backend.transfer.modulates)
     if everything:
         needs = dict.fromkeys(needs, True)
     units = [*structures] + [u for u in UNITS if needs[u]] + ["pixel_bus"]

@@ -13,8 +13,26 @@ from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig, parse_memory
 from models.datapath import Datapath
+from models.machines.common.results import UNITS
 
-__all__ = ["VizardFaults", "VizardBuffers", "check_frame", "parse_buffers", "memory_of"]
+__all__ = [
+    "BLOCK",
+    "FEEDBACK",
+    "FILL_WRITE",
+    "LOOKUP_LATENCY",
+    "VizardFaults",
+    "VizardBuffers",
+    "check_frame",
+    "parse_buffers",
+    "memory_of",
+]
+
+#: Block edge in voxels (VoxelCache's 4^3 blocks [V]).
+BLOCK = 4
+LOOKUP_LATENCY = 1  # cache tag check [I] (docs/cycle.md rule 3)
+FILL_WRITE = 1  # last beat to line written [I] (rule 2)
+#: Issue of a sample to its opacity at the compositor: lookup + every unit (rule 3).
+FEEDBACK = LOOKUP_LATENCY + sum(u.LATENCY for u in UNITS.values())
 
 
 @dataclass(frozen=True, kw_only=True)

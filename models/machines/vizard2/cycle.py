@@ -52,16 +52,20 @@ from hwsim.golden.positions import SamplePlan, Step
 from hwsim.memory import SdramController
 from models.backend import Backend
 from models.machines.common.results import UNITS, CycleResult, elaborate_units, frame_result
-from models.machines.vizard2.config import VizardFaults, check_frame, memory_of, parse_buffers
-from models.machines.vizard2.memory import BLOCK, BlockCache, CacheFetch, VolumeImage
+from models.machines.vizard2.config import (
+    BLOCK,
+    FEEDBACK,
+    FILL_WRITE,
+    LOOKUP_LATENCY,
+    VizardFaults,
+    check_frame,
+    memory_of,
+    parse_buffers,
+)
+from models.machines.vizard2.memory import BlockCache, CacheFetch, VolumeImage
 from models.units import interp as interp_unit
 
-__all__ = ["VizardMachine", "VizardFaults", "UNITS", "LOOKUP_LATENCY", "FEEDBACK"]
-
-LOOKUP_LATENCY = 1  # cache tag check [I]
-FILL_WRITE = 1  # last beat to line written [I]
-#: Issue of a sample to its opacity at the compositor: lookup + every unit [I].
-FEEDBACK = LOOKUP_LATENCY + sum(u.LATENCY for u in UNITS.values())
+__all__ = ["VizardMachine", "VizardFaults", "UNITS"]
 
 
 class CacheSource:

@@ -30,12 +30,11 @@ import numpy as np
 
 from hwsim.errors import InputError
 from hwsim.memory import MemoryConfig
+from models.machines.vizard2.config import BLOCK
 from models.units import gradient as gradient_unit
 
-__all__ = ["BLOCK", "BlockCache", "CacheFetch", "VolumeImage"]
+__all__ = ["BlockCache", "CacheFetch", "VolumeImage"]
 
-#: Block edge in voxels (VoxelCache's 4^3 blocks [V]).
-BLOCK = 4
 _VOXELS = BLOCK**3
 VALUE_BITS = 16  # one voxel value field [I]
 

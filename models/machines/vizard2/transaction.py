@@ -52,19 +52,19 @@ from hwsim.volumes.volume import Volume
 from models.backend import Backend
 from models.datapath import Datapath
 from models.machines.common.pixel_bus import PixelBus
-from models.machines.common.results import UNITS
 from models.machines.common.transaction import ReadsTheFrame, TxnTiming, require_pipeline_clock
-from models.machines.vizard2.config import check_frame, memory_of, parse_buffers
+from models.machines.vizard2.config import (
+    BLOCK,
+    FEEDBACK,
+    FILL_WRITE,
+    check_frame,
+    memory_of,
+    parse_buffers,
+)
 from models.units import interp as interp_unit
 
-__all__ = ["BLOCK", "FEEDBACK", "BlockLayout", "VizardTransaction"]
+__all__ = ["BlockLayout", "VizardTransaction"]
 
-#: Block edge in voxels (VoxelCache's 4^3 blocks [V]).
-BLOCK = 4
-LOOKUP_LATENCY = 1  # cache tag check [I] (docs/cycle.md rule 3)
-FILL_WRITE = 1  # last beat to line written [I] (rule 2)
-#: Issue of a sample to its opacity at the compositor: lookup + every unit (rule 3).
-FEEDBACK = LOOKUP_LATENCY + sum(u.LATENCY for u in UNITS.values())
 _VALUE_BITS = 16
 
 

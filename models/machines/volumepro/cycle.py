@@ -42,7 +42,7 @@ from models.machines.common.results import UNITS, CycleResult, frame_result, pub
 from models.machines.common.slice_order import SliceFaults, SliceOrderMachine
 from models.machines.common.slices import SliceDatapath, SlicePath
 from models.machines.volumepro.memory import SdramVolume
-from models.machines.volumepro.slab_timing import run_timing, slab_buffers
+from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.timing import (
     SliceRecord,
     frame_period,
@@ -52,7 +52,6 @@ from models.machines.volumepro.timing import (
 )
 from models.machines.volumepro.trilinear import TrilinearSource
 from models.units import classify as classify_unit
-from models.units import skew as skew_unit
 
 __all__ = ["SlabFaults", "SlabMachine", "TrilinearSource"]
 
@@ -438,7 +437,7 @@ class SlabMachine(SliceOrderMachine):
                 stage.account(busy_k, cycles_k, stall_k)
         if self.trace is not None:
             record_trace(self, timing)
-        latency = skew_unit.LATENCY + self.C + 1 + sum(u.LATENCY for u in UNITS.values())
+        latency = pipeline_latency(self.C)
         drain = pixel_fifo.flush()
         cycles = timing.end + latency + drain
         if self.steady_state:

@@ -29,9 +29,17 @@ import numpy as np
 from hwsim.arch import ArchConfig
 from hwsim.engine import Counters, DeadlockError, DrainFifo
 from hwsim.memory import MemoryConfig, SdramController, SdramStats
-from models.machines.common.results import buffer_table
+from models.machines.common.results import UNITS, buffer_table
+from models.units import skew as skew_unit
 
-__all__ = ["SliceWork", "Delivery", "FrameTiming", "run_timing", "slab_buffers"]
+__all__ = ["SliceWork", "Delivery", "FrameTiming", "pipeline_latency", "run_timing", "slab_buffers"]
+
+
+def pipeline_latency(beam_cycles: int) -> int:
+    """A slab pipeline's latency in clocks, the same for every scene (the hardware is
+    fixed, so every unit counts): address and de-skew (``skew.LATENCY``), beam alignment
+    ``C + 1``, and every unit's ``LATENCY`` (docs/cycle.md, the VolumePro family)."""
+    return skew_unit.LATENCY + int(beam_cycles) + 1 + sum(u.LATENCY for u in UNITS.values())
 
 
 @dataclass

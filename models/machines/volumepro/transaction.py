@@ -54,8 +54,8 @@ from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction
 from models.machines.common.transaction import TxnTiming, require_pipeline_clock, slice_loads
 from models.machines.volumepro.memory import layout
-from models.machines.volumepro.slab_timing import slab_buffers
-from models.units import classify, composite, crop, gradient, interp, shade, skew
+from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
+from models.units import classify, composite, crop, gradient, interp, shade
 
 if TYPE_CHECKING:
     from models.machines.volumepro.vp1000_transaction import BeamSkips
@@ -262,7 +262,7 @@ class SlabTransaction:
         )
         M = self.memory.modules
         end = max(stats["pipe_end"], bus.end)
-        latency = skew.LATENCY + self.C + 1 + sum(u.LATENCY for u in _PIPELINE_UNITS)
+        latency = pipeline_latency(self.C)
         cycles = end + latency
         sdram = SdramStats.combine([p.schedule().stats for p in ports])
         counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
