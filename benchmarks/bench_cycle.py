@@ -39,6 +39,7 @@ from hwsim.golden import make_plan
 from hwsim.scene import Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
+from models.frame import frame_of
 
 __all__ = ["run", "main", "RTL_CYCLES_PER_SECOND", "GOAL_SAMPLES_PER_SECOND", "GOAL_RTL_RATIO"]
 
@@ -67,8 +68,9 @@ def peak_rss(n: int, pipelines: int) -> dict[str, Any]:
             f"import sys; sys.path.insert(0, {root!r})",
             "from benchmarks.bench_cycle import _case",
             "from models.cycle import render_cycle",
+            "from models.frame import frame_of",
             f"arch, vol, scene, tf, plan = _case({n}, {pipelines})",
-            "render_cycle(scene, vol, tf, arch, plan)",
+            "render_cycle(frame_of(scene, vol, tf, arch, plan))",
             "print(vol.data.nbytes)",
             "print([l for l in open('/proc/self/status') if l.startswith('VmHWM')][0].split()[1])",
         ]
@@ -94,8 +96,9 @@ def run(sizes: Sequence[int], pipelines: int, repeats: int, memory: bool) -> dic
     cases = []
     for n in sizes:
         arch, volume, scene, tf, plan = _case(n, pipelines)
-        f_s, fixed = median_seconds(repeats, render_functional, scene, volume, tf, arch, plan)
-        c_s, cycle = median_seconds(repeats, render_cycle, scene, volume, tf, arch, plan)
+        frame = frame_of(scene, volume, tf, arch, plan)
+        f_s, fixed = median_seconds(repeats, render_functional, frame)
+        c_s, cycle = median_seconds(repeats, render_cycle, frame)
         cycles_per_s = cycle.cycles / c_s
         cases.append(
             {
@@ -148,10 +151,9 @@ def elision(n: int, pipelines: int, repeats: int) -> dict[str, Any]:
         ("mip", dataclasses.replace(scene, render=dataclasses.replace(scene.render, mode="mip"))),
         ("lit", scene),
     ):
-        lean_s, lean = median_seconds(repeats, render_cycle, sc, volume, tf, arch, plan)
-        full_s, full = median_seconds(
-            repeats, render_cycle, sc, volume, tf, arch, plan, elaborate_all=True
-        )
+        frame = frame_of(sc, volume, tf, arch, plan)
+        lean_s, lean = median_seconds(repeats, render_cycle, frame)
+        full_s, full = median_seconds(repeats, render_cycle, frame, elaborate_all=True)
         out[label] = {
             "elided_units": lean.elided_units,
             "lean_seconds": lean_s,

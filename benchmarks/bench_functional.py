@@ -87,6 +87,7 @@ def _interleaved(
 
 def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[str, Any]:
     """Measure every size; returns the JSON report."""
+    from models.frame import frame_of
     from models.functional import render_functional
 
     arch = resolve_arch(arch_name)
@@ -99,6 +100,7 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
         )
         tf = resolve_transfer(scene.transfer, volume)
         plan = make_plan(scene, volume, arch.order)
+        frame = frame_of(scene, volume, tf, arch, plan)
         load_before = os.getloadavg()
         times, cpu, out, first = _interleaved(
             repeats,
@@ -107,18 +109,9 @@ def run(sizes: Sequence[int], arch_name: str, repeats: int, image: int) -> dict[
                 # render_golden builds its plan inside the call; the functional rung is
                 # handed one: time building it too, for the frame-for-frame ratio.
                 "plan": partial(make_plan, scene, volume, arch.order),
-                "functional": partial(render_functional, scene, volume, tf, arch, plan),
-                "chain": partial(render_functional, scene, volume, tf, arch, plan, compiled=False),
-                "reference": partial(
-                    render_functional,
-                    scene,
-                    volume,
-                    tf,
-                    arch,
-                    plan,
-                    leap_blocks=False,
-                    compiled=False,
-                ),
+                "functional": partial(render_functional, frame),
+                "chain": partial(render_functional, frame, compiled=False),
+                "reference": partial(render_functional, frame, leap_blocks=False, compiled=False),
             },
         )
         load_after = os.getloadavg()

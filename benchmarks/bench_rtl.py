@@ -37,6 +37,7 @@ from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
+from models.frame import frame_of
 from rtl.frame import prepare
 from rtl.rung import run_simulator
 
@@ -59,7 +60,7 @@ def _case(n: int):
 
 def _rtl_frame(simulator, arch, volume, scene, tf, plan):
     t0 = time.perf_counter()
-    program = prepare(scene, volume, tf, arch, plan)
+    program = prepare(frame_of(scene, volume, tf, arch, plan))
     t1 = time.perf_counter()
     result, timing = run_simulator(program, simulator)
     return result, {"prepare_seconds": t1 - t0, **timing}
@@ -70,7 +71,9 @@ def run(sizes: Sequence[int], simulators: Sequence[str], repeats: int) -> dict[s
     cases = []
     for n in sizes:
         arch, volume, scene, tf, plan = _case(n)
-        cycle_s, cyc = median_seconds(repeats, render_cycle, scene, volume, tf, arch, plan)
+        cycle_s, cyc = median_seconds(
+            repeats, render_cycle, frame_of(scene, volume, tf, arch, plan)
+        )
         for sim in simulators:
             rtl_s, (res, timing) = median_seconds(
                 repeats, _rtl_frame, sim, arch, volume, scene, tf, plan

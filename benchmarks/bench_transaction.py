@@ -40,6 +40,7 @@ from hwsim.scene import Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
+from models.frame import frame_of
 from models.transaction import render_transaction
 
 __all__ = ["GOAL", "run", "main"]
@@ -60,11 +61,12 @@ def _case(n: int, projection: str, arch_name: str = "cube4"):
 def measure(n: int, projection: str, repeats: int, arch_name: str = "cube4") -> dict[str, Any]:
     """One size and projection: both rungs timed, the transaction rung split in two."""
     arch, volume, scene, tf, plan = _case(n, projection, arch_name)
-    cycle_s, cycle = median_seconds(repeats, render_cycle, scene, volume, tf, arch, plan)
+    frame = frame_of(scene, volume, tf, arch, plan)
+    cycle_s, cycle = median_seconds(repeats, render_cycle, frame)
     txn_runs = []
 
     def transaction():
-        run = render_transaction(scene, volume, tf, arch, plan)
+        run = render_transaction(frame)
         txn_runs.append(run)
         return run
 

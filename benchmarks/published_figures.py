@@ -51,6 +51,7 @@ from hwsim.golden import make_plan
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import load_volume, make_phantom, read_volume
+from models.frame import frame_of
 
 __all__ = ["acceptance_archs", "measure", "sectioning", "acceleration", "main"]
 
@@ -73,7 +74,7 @@ def _run(arch, scene, volume, **kw):
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
     start = time.perf_counter()
-    result = render_cycle(scene, volume, tf, machine, plan, **kw)
+    result = render_cycle(frame_of(scene, volume, tf, machine, plan), **kw)
     return result, time.perf_counter() - start
 
 

@@ -38,6 +38,7 @@ from hwsim.golden import make_plan
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
+from models.frame import frame_of
 
 CLAIM_SIZE, CLAIM_FPS = 1024, 30.0  # architectures.md 1.1 [V]
 
@@ -54,7 +55,7 @@ def frame(n: int, arch, mode: str = "mip", view=(30, 20)):
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, arch.order)
     start = time.perf_counter()
-    result = render_cycle(scene, volume, tf, arch, plan)
+    result = render_cycle(frame_of(scene, volume, tf, arch, plan))
     return result, time.perf_counter() - start
 
 

@@ -34,11 +34,11 @@ from benchmarks.report_io import write_report
 from hwsim.bench import machine_info
 from hwsim.errors import NotAvailableError
 from hwsim.fidelity import resolve_arch
-from hwsim.golden import make_plan
 from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models.cycle import render_cycle
+from models.frame import frame_of
 from models.functional import render_functional
 from models.transaction import transaction_timing
 
@@ -276,14 +276,13 @@ def _volumepro_cases(quick: bool) -> list[dict[str, Any]]:
 def measure(case: dict[str, Any]) -> dict[str, Any]:
     """Cycle-rung cycles, transaction cycles and the relative error of one case."""
     scene, volume, arch = case["scene"], case["volume"], case["arch"]
-    plan = make_plan(scene, volume, arch.order)
-    tf = resolve_transfer(scene.transfer, volume)
+    frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), arch)
     # Machines that read the frame (beam skipping, block cache) take the functional
     # rung's termination steps, as the transaction rung hands them over.
-    frame: dict[str, Any] = {"volume": volume, "transfer": tf}
+    stopped = None
     if arch.order == "ray" or arch.early_termination or arch.space_leaping:
-        frame["stopped"] = render_functional(scene, volume, tf, arch, plan).stopped
-    txn = transaction_timing(scene, arch, plan, **frame)
+        stopped = render_functional(frame).stopped
+    txn = transaction_timing(frame, stopped=stopped)
     c = txn.counters
     row = {
         "case": case["name"],
@@ -296,7 +295,7 @@ def measure(case: dict[str, Any]) -> dict[str, Any]:
     }
     start = time.perf_counter()
     try:
-        cycle = render_cycle(scene, volume, tf, arch, plan)
+        cycle = render_cycle(frame)
     except NotAvailableError as exc:  # no cycle rung for this machine in this tree
         return {
             **row,

@@ -34,6 +34,7 @@ from hwsim.golden import make_plan
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import read_volume
+from models.frame import frame_of
 
 VARIANTS = {
     "brute force": (False, False),
@@ -57,12 +58,12 @@ def run(volume_path: Path, image: int, cache_sets: Sequence[int]) -> dict[str, A
     )
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, "ray")
-    fixed = render_functional(scene, volume, tf, base, plan)
+    fixed = render_functional(frame_of(scene, volume, tf, base, plan))
     rows = []
     for name, (ert, leap) in VARIANTS.items():
         arch = dataclasses.replace(base, early_termination=ert, space_leaping=leap)
         start = time.perf_counter()
-        result = render_cycle(scene, volume, tf, arch, plan)
+        result = render_cycle(frame_of(scene, volume, tf, arch, plan))
         wall = time.perf_counter() - start
         c = result.counters
         rows.append(

@@ -270,7 +270,7 @@ def render(
         raise InputError(
             f"unknown sampling {sampling!r}", key="--sampling", allowed=", ".join(SAMPLINGS)
         )
-    from hwsim.golden import make_plan, render_golden  # deferred: keeps `hwsim scenes` fast
+    from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
 
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
@@ -283,47 +283,18 @@ def render(
     if fidelity == "golden":
         result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
         counters = {"golden.samples": int(result.samples), "golden.rays": int(result.rays)}
-    elif fidelity == "cycle":
-        from models.cycle import render_cycle
-
-        plan = make_plan(scene, volume, sampling)
-        result = render_cycle(
-            scene,
-            volume,
-            transfer,
-            machine,
-            plan,
-            trace=trace,
-            progress=progress,
-            elaborate_all=elaborate_all,
-            steady_state=steady_state,
-        )
-        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
-        used, elided, derived = result.elaborated_units, result.elided_units, result.derived
-    elif fidelity == "transaction":
-        from models.transaction import render_transaction
-
-        plan = make_plan(scene, volume, sampling)
-        result = render_transaction(
-            scene, volume, transfer, machine, plan, progress=progress, steady_state=steady_state
-        )
-        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
-        derived = result.derived
-    elif fidelity == "rtl":
-        from rtl.rung import render_rtl
-
-        plan = make_plan(scene, volume, sampling)
-        result = render_rtl(
-            scene, volume, transfer, machine, plan, simulator=simulator or "verilator", trace=trace
-        )
-        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
-        used, elided = result.elaborated_units, result.elided_units
     else:
-        from models.functional import render_functional
+        from models.frame import frame_of
 
-        plan = make_plan(scene, volume, sampling)
-        result = render_functional(scene, volume, transfer, machine, plan, progress=progress)
+        frame = frame_of(scene, volume, transfer, machine)
+        result = _render_machine(
+            frame, fidelity, progress, trace, elaborate_all, steady_state, simulator
+        )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
+        if fidelity in ("cycle", "transaction"):
+            derived = result.derived
+        if fidelity in ("cycle", "rtl"):
+            used, elided = result.elaborated_units, result.elided_units
     wall = time.perf_counter() - start
     return RenderRun(
         scene=scene,
@@ -343,3 +314,29 @@ def render(
         counters=counters,
         derived=derived,
     )
+
+
+def _render_machine(frame, fidelity, progress, trace, elaborate_all, steady_state, simulator):
+    """``frame`` at ``fidelity``, one of the machine rungs (imported on use: each pulls in
+    its models)."""
+    if fidelity == "cycle":
+        from models.cycle import render_cycle
+
+        return render_cycle(
+            frame,
+            trace=trace,
+            progress=progress,
+            elaborate_all=elaborate_all,
+            steady_state=steady_state,
+        )
+    if fidelity == "transaction":
+        from models.transaction import render_transaction
+
+        return render_transaction(frame, progress=progress, steady_state=steady_state)
+    if fidelity == "rtl":
+        from rtl.rung import render_rtl
+
+        return render_rtl(frame, simulator=simulator or "verilator", trace=trace)
+    from models.functional import render_functional
+
+    return render_functional(frame, progress=progress)

@@ -24,16 +24,13 @@ from typing import Protocol
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from hwsim.golden import geometry, occupancy
 from hwsim.golden.camera import index_to_world
-from hwsim.golden.positions import SamplePlan, Step
-from hwsim.scene import Scene
+from hwsim.golden.positions import Step
 from hwsim.scene_features import VALUE_FIELD, check_machine
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
-from models.datapath import Datapath, units_needed
+from models.datapath import units_needed
+from models.frame import Frame
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
 from models.units import crop as crop_unit
@@ -89,26 +86,13 @@ def subset_step(step: Step, keep: np.ndarray) -> Step:
 class Backend:
     """Set-up and per-sample stages of one scene on one datapath."""
 
-    def __init__(
-        self,
-        scene: Scene,
-        volume: Volume,
-        transfer: TransferFunction,
-        arch: ArchConfig,
-        plan: SamplePlan,
-        datapath: Datapath,
-        *,
-        exercise_unused: bool = False,
-    ) -> None:
+    def __init__(self, frame: Frame, *, exercise_unused: bool = False) -> None:
+        self.frame = frame
         self.exercise_unused = exercise_unused
-        self.scene, self.volume, self.transfer, self.arch, self.plan = (
-            scene,
-            volume,
-            transfer,
-            arch,
-            plan,
-        )
-        self.dp = dp = datapath
+        scene, volume, transfer, plan = frame.scene, frame.volume, frame.transfer, frame.plan
+        self.scene, self.volume, self.transfer, self.plan = scene, volume, transfer, plan
+        self.arch = frame.arch
+        self.dp = dp = frame.datapath
         self.mode = scene.render.mode
         self.raw, self.vmap = convert_volume(volume, dp.voxel_bits)
         self.S = dp.interp.sample_frac_bits

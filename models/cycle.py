@@ -17,12 +17,8 @@ from pathlib import Path
 from hwsim.arch import ArchConfig
 from hwsim.engine import VcdTrace
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.golden.positions import SamplePlan
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
 from models.backend import Backend
-from models.datapath import Datapath
+from models.frame import Frame
 from models.machines import families, machine_for
 from models.machines.common.results import CycleResult
 
@@ -43,20 +39,15 @@ def steady_state_orders() -> tuple[str, ...]:
 
 
 def render_cycle(
-    scene: Scene,
-    volume: Volume,
-    transfer: TransferFunction,
-    arch: ArchConfig,
-    plan: SamplePlan,
+    frame: Frame,
     *,
     faults: object | None = None,
     elaborate_all: bool = False,
     trace: str | Path | None = None,
-    datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
     steady_state: bool = False,
 ) -> CycleResult:
-    """Render one frame on ``arch``'s modelled hardware.
+    """Render ``frame`` on its architecture's modelled hardware.
 
     Parameters
     ----------
@@ -71,6 +62,7 @@ def render_cycle(
         VolumePro family: also time a second frame back to back and report the cycles
         between the two frames' ends (``frame.period_cycles``: the continuous frame rate).
     """
+    arch = frame.arch
     machine = machine_for(arch, "cycle")
     if steady_state and not machine.steady_state:
         raise InputError(
@@ -80,18 +72,10 @@ def render_cycle(
         )
     if faults is not None and not isinstance(faults, machine.faults_type):
         raise TypeError(f"{arch.name} takes {machine.faults_type.__name__} faults")
-    if datapath is None:
-        datapath = Datapath.for_volume(arch, volume)
-    backend = Backend(scene, volume, transfer, arch, plan, datapath, exercise_unused=elaborate_all)
+    backend = Backend(frame, exercise_unused=elaborate_all)
     vcd = VcdTrace() if trace is not None else None
     result = machine.cycle(
-        backend,
-        plan,
-        faults=faults,
-        elaborate_all=elaborate_all,
-        trace=vcd,
-        progress=progress,
-        steady_state=steady_state,
+        backend, faults=faults, trace=vcd, progress=progress, steady_state=steady_state
     )
     if vcd is not None:
         vcd.write(trace)

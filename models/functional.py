@@ -31,15 +31,13 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.numerics import SATURATIONS
 from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
 from models import fused_steps, leap
 from models.backend import Backend, RayState
-from models.datapath import Datapath, units_needed
+from models.datapath import units_needed
+from models.frame import Frame
 from models.units import classify as classify_unit
 from models.units import combine as combine_unit
 from models.units import composite as composite_unit
@@ -291,18 +289,14 @@ def _chunks(step: Step) -> list[Step]:
 
 
 def render_functional(
-    scene: Scene,
-    volume: Volume,
-    transfer: TransferFunction,
-    arch: ArchConfig,
-    plan: SamplePlan,
+    frame: Frame,
     *,
-    datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
     leap_blocks: bool = True,
     compiled: bool = True,
 ) -> FunctionalResult:
-    """Render with the fixed-point units of ``arch`` at ``plan``'s sample positions.
+    """Render ``frame`` with the fixed-point units of its architecture at its plan's
+    sample positions.
 
     ``leap_blocks`` lets the simulation skip blocks whose samples provably cannot change
     the image (:mod:`models.leap`); image, samples, rays, cycles and saturation counts
@@ -311,7 +305,5 @@ def render_functional(
     (:mod:`models.fused`) instead of the chain of vectorised unit calls; again the same
     bits either way.
     """
-    if datapath is None:
-        datapath = Datapath.for_volume(arch, volume)
-    backend = Backend(scene, volume, transfer, arch, plan, datapath)
+    backend = Backend(frame)
     return _Functional(backend, leap_blocks=leap_blocks, compiled=compiled).run(progress)

@@ -27,11 +27,7 @@ import numpy as np
 from hwsim.arch import ArchConfig
 from hwsim.engine.metrics import derive
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.golden.positions import SamplePlan
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
-from models.datapath import Datapath
+from models.frame import Frame
 from models.functional import render_functional
 from models.machines import families, machine_for
 
@@ -70,14 +66,16 @@ def has_transaction_model(arch: ArchConfig) -> bool:
         return False
 
 
-def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
-    """The event model of ``arch`` for one frame (not yet run).
+def transaction_model(frame: Frame, *, stopped: np.ndarray | None = None, **options: Any):
+    """The event model of ``frame``'s architecture (not yet run).
 
     ``options`` go to the machine's model: ``pixel_fifo_depth`` (every family),
-    ``groups`` and ``steady_state`` (VolumePro family; refused elsewhere), ``volume``,
-    ``transfer``, ``stopped``, ``datapath`` (the models that read the frame: VolumePro
-    1000 and VIZARD II; the others ignore them).
+    ``groups`` and ``steady_state`` (VolumePro family; refused elsewhere).  ``stopped``
+    (:attr:`models.functional.FunctionalResult.stopped` of the frame) saves the models
+    that read the rays' ends (VolumePro 1000, VIZARD II) rendering the functional rung
+    for them; the others do not read it.
     """
+    arch = frame.arch
     machine = machine_for(arch, "transaction")
     if options.get("steady_state") and not machine.steady_state:
         raise InputError(
@@ -88,37 +86,33 @@ def transaction_model(scene: Scene, arch: ArchConfig, plan: SamplePlan, **option
         )
     if not machine.steady_state:
         options.pop("steady_state", None)
-    return machine.transaction(scene, arch, plan, **options)
+    model = machine.transaction(frame, **options)
+    if getattr(model, "READS_THE_FRAME", False):
+        model.stopped = stopped
+    return model
 
 
-def transaction_timing(scene: Scene, arch: ArchConfig, plan: SamplePlan, **options: Any):
-    """Run only the event model of ``arch`` over ``plan`` (no image).
+def transaction_timing(frame: Frame, **options: Any):
+    """Run only the event model of ``frame``'s architecture (no image).
 
-    A machine that skips beams (VolumePro 1000) or caches blocks (VIZARD II) needs
-    ``volume=`` and ``transfer=`` (empty space, blocks) and,
-    when its rays may stop early, renders the functional rung for their termination
-    steps unless ``stopped=`` gives them.
+    A machine whose rays may stop early renders the functional rung for their
+    termination steps unless ``stopped=`` gives them.
 
     Returns
     -------
     models.machines.common.transaction.TxnTiming
         Cycles and counters (:func:`transaction_model` for ``options``).
     """
-    return transaction_model(scene, arch, plan, **options).run()
+    return transaction_model(frame, **options).run()
 
 
 def render_transaction(
-    scene: Scene,
-    volume: Volume,
-    transfer: TransferFunction,
-    arch: ArchConfig,
-    plan: SamplePlan,
+    frame: Frame,
     *,
-    datapath: Datapath | None = None,
     progress: Callable[[int, int], None] | None = None,
     steady_state: bool = False,
 ) -> TransactionResult:
-    """Render one frame: functional image, cycles from ``arch``'s event model.
+    """Render ``frame``: functional image, cycles from its architecture's event model.
 
     The event model is built first, so a machine without one (or a scene it refuses)
     fails before the image is computed; it runs after the image, whose per-ray
@@ -128,19 +122,9 @@ def render_transaction(
     plays a second frame back to back: ``counters["frame.period_cycles"]``, as the cycle
     rung's rule 9.
     """
-    model = transaction_model(
-        scene,
-        arch,
-        plan,
-        volume=volume,
-        transfer=transfer,
-        datapath=datapath,
-        steady_state=steady_state,
-    )
+    model = transaction_model(frame, steady_state=steady_state)
     start = time.perf_counter()
-    image = render_functional(
-        scene, volume, transfer, arch, plan, datapath=datapath, progress=progress
-    )
+    image = render_functional(frame, progress=progress)
     image_seconds = time.perf_counter() - start
     if getattr(model, "READS_THE_FRAME", False):
         model.stopped = image.stopped  # the rays' termination steps (ERT hardware)
@@ -152,8 +136,8 @@ def render_transaction(
         counters,
         cycles=timing.cycles,
         samples=image.samples,
-        pipelines=arch.pipelines,
-        clock_hz=arch.clock_hz,
+        pipelines=frame.arch.pipelines,
+        clock_hz=frame.arch.clock_hz,
     )
     return TransactionResult(
         image=image.image,

@@ -31,6 +31,7 @@ from hwsim.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.backend import Backend
 from models.datapath import Datapath
+from models.frame import Frame
 from models.machines.common.results import UNITS, CycleResult, elaborate_units
 from models.machines.cube4.frame import Cube4Frame
 from models.machines.cube4.timing import cube4_latency
@@ -66,14 +67,27 @@ class FrameProgram:
     """Everything the host writes for one frame, and what it needs to read it back."""
 
     geo: TopGeometry
-    dp: Datapath
     backend: Backend
-    plan: SamplePlan
     loads: list[tuple[int, int, int]]
     registers: dict[str, int]
-    n_rays: int
     elaborated: list[str] = field(default_factory=list)
-    elided: list[str] = field(default_factory=list)
+
+    @property
+    def dp(self) -> Datapath:
+        return self.backend.dp
+
+    @property
+    def plan(self) -> SamplePlan:
+        return self.backend.plan
+
+    @property
+    def n_rays(self) -> int:
+        """Base-plane rays, used or not (the ray table's rows)."""
+        return self.plan.shape[0] * self.plan.shape[1]
+
+    @property
+    def elided(self) -> list[str]:
+        return [u for u in UNITS if u not in self.elaborated]
 
     def load_words(self) -> np.ndarray:
         """The loads packed as :func:`rtl.top_layouts.load_layout` words (Python ints)."""
@@ -138,17 +152,8 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
         raise _refuse("the RTL top has no crop unit", "crop", "no crop box or cut planes")
 
 
-def prepare(
-    scene: Scene,
-    volume: Volume,
-    transfer: TransferFunction,
-    arch: ArchConfig,
-    plan: SamplePlan,
-    *,
-    datapath: Datapath | None = None,
-    max_axis: int = MAX_AXIS,
-) -> FrameProgram:
-    """The loads and registers of one frame of ``scene`` on the RTL top of ``arch``.
+def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
+    """The loads and registers of ``frame`` on the RTL top of its architecture.
 
     Raises
     ------
@@ -158,8 +163,9 @@ def prepare(
         pre-classification, crop, more than ``MAX_LIGHTS`` lights, a shader other than
         per-sample Phong, per-ray weights within a slice.
     """
+    scene, volume, transfer = frame.scene, frame.volume, frame.transfer
+    arch, plan, dp = frame.arch, frame.plan, frame.datapath
     _check_scene(scene, volume, transfer, arch)
-    dp = datapath if datapath is not None else Datapath.for_volume(arch, volume)
     if dp.shade.method != "phong":
         raise _refuse(
             f"the RTL top's shader is per-sample Phong, not {dp.shade.method!r}",
@@ -167,8 +173,8 @@ def prepare(
             "phong",
             arch.source,
         )
-    backend = Backend(scene, volume, transfer, arch, plan, dp)
-    machine = Cube4Frame(backend, plan)  # the machine's refusals and frame geometry
+    backend = Backend(frame)
+    machine = Cube4Frame(backend)  # the machine's refusals and frame geometry
     P = machine.P
     geo = TopGeometry(P, max_axis)
     n_rays = plan.shape[0] * plan.shape[1]
@@ -250,17 +256,9 @@ def prepare(
         "ert_enable": int(mode == "composite" and ert < 1.0),
         "ert_threshold": int(dp.composite.acc.quantize(min(max(ert, 0.0), 1.0))),
     }
-    units = ["memory", "ring", *elaborate_units(backend, False, ())[0][:-1], "pixel_bus"]
+    units = ["memory", "ring", *elaborate_units(backend, ())[0][:-1], "pixel_bus"]
     return FrameProgram(
-        geo=geo,
-        dp=dp,
-        backend=backend,
-        plan=plan,
-        loads=loads,
-        registers=registers,
-        n_rays=n_rays,
-        elaborated=units,
-        elided=[u for u in UNITS if u not in units],
+        geo=geo, backend=backend, loads=loads, registers=registers, elaborated=units
     )
 
 

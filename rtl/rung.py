@@ -24,13 +24,8 @@ import shutil
 import time
 from pathlib import Path
 
-from hwsim.arch import ArchConfig
 from hwsim.errors import NotAvailableError
-from hwsim.golden.positions import SamplePlan
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
-from models.datapath import Datapath
+from models.frame import Frame
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
 from rtl.top_bench import ROM_WORDS
@@ -242,17 +237,9 @@ def _unpack_pixel(lay, word: int) -> dict:
 
 
 def render_rtl(
-    scene: Scene,
-    volume: Volume,
-    transfer: TransferFunction,
-    arch: ArchConfig,
-    plan: SamplePlan,
-    *,
-    simulator: str = "verilator",
-    trace: str | Path | None = None,
-    datapath: Datapath | None = None,
+    frame: Frame, *, simulator: str = "verilator", trace: str | Path | None = None
 ) -> CycleResult:
-    """Render one frame of ``scene`` on the RTL top of ``arch``.
+    """Render ``frame`` on the RTL top of its architecture.
 
     Parameters
     ----------
@@ -262,7 +249,7 @@ def render_rtl(
     trace : path, optional
         Write a VCD of the top there; the frame then runs in Amaranth's simulator.
     """
-    program = prepare(scene, volume, transfer, arch, plan, datapath=datapath)
+    program = prepare(frame)
     if trace is not None:
         from rtl.amaranth_run import run_amaranth
 

@@ -88,6 +88,7 @@ def width_trade(
 ) -> list[dict[str, Any]]:
     """One row per (knob, value, scene): PSNR, RMSE, max abs error, functional seconds."""
     from models.datapath import Datapath
+    from models.frame import frame_of
     from models.functional import render_functional
 
     knobs = WIDTH_KNOBS if knobs is None else knobs
@@ -103,9 +104,8 @@ def width_trade(
             for value in values:
                 dp = Datapath.from_arch(arch, bits, {knob: value})
                 start = time.perf_counter()
-                image = render_functional(
-                    case.scene, case.volume, tf, arch, plan, datapath=dp
-                ).image
+                frame = frame_of(case.scene, case.volume, tf, arch, plan, datapath=dp)
+                image = render_functional(frame).image
                 seconds = time.perf_counter() - start
                 rows.append(
                     {

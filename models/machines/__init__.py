@@ -48,13 +48,10 @@ FAMILIES = (
 
 def single_frames(machine_class: type) -> Callable[..., Any]:
     """The :attr:`Machine.cycle` of a cycle-model class that times single frames only:
-    ``machine_class(backend, plan, faults=, elaborate_all=, trace=).run(progress)``."""
+    ``machine_class(backend, faults=, trace=).run(progress)``."""
 
-    def cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
-        machine = machine_class(
-            backend, plan, faults=faults, elaborate_all=elaborate_all, trace=trace
-        )
-        return machine.run(progress)
+    def cycle(backend, *, faults, trace, progress, steady_state=False):
+        return machine_class(backend, faults=faults, trace=trace).run(progress)
 
     cycle.__doc__ = f"One frame on {machine_class.__name__} (single frames only)."
     return cycle
@@ -71,12 +68,13 @@ class Machine:
     orders : tuple of str
         The processing orders it models.
     cycle : callable or None
-        ``cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state)``
-        runs one frame on the cycle model and returns a
-        :class:`~models.machines.common.results.CycleResult`; ``None``: no cycle model.
+        ``cycle(backend, *, faults, trace, progress, steady_state)`` runs the back end's
+        frame on the cycle model (every unit elaborated when ``backend.exercise_unused``)
+        and returns a :class:`~models.machines.common.results.CycleResult`; ``None``: no
+        cycle model.
     transaction : callable or None
-        ``transaction(scene, arch, plan, **options)`` builds the frame's event model (its
-        ``run()`` gives the timing); ``None``: no transaction model.
+        ``transaction(frame, **options)`` builds the frame's event model (its ``run()``
+        gives the timing); ``None``: no transaction model.
     faults_type : type or None
         The structures the cycle model can break (fault-injection tests).
     steady_state : bool

@@ -19,6 +19,7 @@ from hwsim.scene_features import Box, GeometrySpec, Sphere
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.datapath import Datapath
+from models.frame import frame_of
 
 pytestmark = [pytest.mark.golden, pytest.mark.model]
 
@@ -216,9 +217,7 @@ def test_rays_end_at_the_geometry_for_front_to_back_tests(head, test, stops):
     sc = scene(GeometrySpec(depth_test=test, spheres=(wall,)))
     arch = resolve_arch(ARCH)
     plan = make_plan(sc, head, arch.order)
-    be = Backend(
-        sc, head, resolve_transfer(sc.transfer, head), arch, plan, Datapath.for_volume(arch, head)
-    )
+    be = Backend(frame_of(sc, head, resolve_transfer(sc.transfer, head), arch, plan))
     state = be.new_state(plan.n_rays)
 
     class Source:  # unlit, post-classified: only values are read

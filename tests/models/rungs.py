@@ -21,6 +21,7 @@ from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
+from models.frame import frame_of
 from models.functional import render_functional
 from models.transaction import render_transaction
 
@@ -101,15 +102,15 @@ def functional_and_cycle(scene, volume, arch, **kw):
     """(functional result, cycle result, plan) of one scene on one plan; ``kw`` goes to
     the cycle rung (faults, trace)."""
     arch, tf, plan = prepared(scene, volume, arch)
-    fixed = render_functional(scene, volume, tf, arch, plan)
-    return fixed, render_cycle(scene, volume, tf, arch, plan, **kw), plan
+    fixed = render_functional(frame_of(scene, volume, tf, arch, plan))
+    return fixed, render_cycle(frame_of(scene, volume, tf, arch, plan), **kw), plan
 
 
 def cycle_and_transaction(scene, volume, arch):
     """(cycle result, transaction result) of one scene on one plan."""
     arch, tf, plan = prepared(scene, volume, arch)
-    exact = render_cycle(scene, volume, tf, arch, plan)
-    return exact, render_transaction(scene, volume, tf, arch, plan)
+    exact = render_cycle(frame_of(scene, volume, tf, arch, plan))
+    return exact, render_transaction(frame_of(scene, volume, tf, arch, plan))
 
 
 def assert_identical(fixed, cycle, *, samples=True):

@@ -19,6 +19,7 @@ from hwsim.scene import CropSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
+from models.frame import frame_of
 from models.machines.cube4.cycle import Faults
 
 pytestmark = pytest.mark.model
@@ -120,15 +121,15 @@ def test_buffer_capacities_come_from_the_arch_file_and_are_checked(head, tmp_pat
     small = dataclasses.replace(arch, buffers={**arch.buffers, "slice_fifo_entries": 10})
     narrow = dataclasses.replace(arch, buffers={"beam_fifo_entries": 6})
     with pytest.raises(InputError, match=r"buffers\.beam_fifo_entries.*>= 7"):
-        render_cycle(scene, head, tf, narrow, plan)
+        render_cycle(frame_of(scene, head, tf, narrow, plan))
     with pytest.raises(InputError, match=r"buffers\.slice_fifo_entries.*>= 144"):
-        render_cycle(scene, head, tf, small, plan)
+        render_cycle(frame_of(scene, head, tf, small, plan))
     typo = dataclasses.replace(arch, buffers={"beam_fifo": 3})
     with pytest.raises(InputError, match=r"buffers\.beam_fifo: unknown key"):
-        render_cycle(scene, head, tf, typo, plan)
+        render_cycle(frame_of(scene, head, tf, typo, plan))
     tight = dataclasses.replace(arch, buffers={**arch.buffers, "pixel_fifo_entries": 4})
-    roomy = render_cycle(scene, head, tf, arch, plan)
-    slow = render_cycle(scene, head, tf, tight, plan)
+    roomy = render_cycle(frame_of(scene, head, tf, arch, plan))
+    slow = render_cycle(frame_of(scene, head, tf, tight, plan))
     assert np.array_equal(slow.image, roomy.image) and slow.cycles > roomy.cycles
     assert slow.counters["pixel_bus.fifo_depth"] == 4
     assert roomy.counters["pixel_bus.fifo_depth"] == 600

@@ -19,6 +19,7 @@ from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import read_volume
 from models.cycle import render_cycle
+from models.frame import frame_of
 from models.functional import render_functional
 
 pytestmark = [pytest.mark.model, pytest.mark.slow]
@@ -43,8 +44,8 @@ def scene_of(mode="composite", projection="parallel", ert=1.0, az=30, el=15, siz
 def renders(scene, volume, archs):
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, "ray")
-    fixed = render_functional(scene, volume, tf, archs[0], plan)
-    return fixed, [render_cycle(scene, volume, tf, a, plan) for a in archs]
+    fixed = render_functional(frame_of(scene, volume, tf, archs[0], plan))
+    return fixed, [render_cycle(frame_of(scene, volume, tf, a, plan)) for a in archs]
 
 
 @pytest.mark.parametrize(

@@ -22,6 +22,7 @@ from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 from models.cycle import has_cycle_model, render_cycle
+from models.frame import frame_of
 
 pytestmark = pytest.mark.model
 
@@ -229,7 +230,7 @@ def test_with_memory_never_late_the_rules_have_their_closed_form(head, factor):
     scene = scene_of(0, 0, mode="mip", render={"supersampling": factor})
     tf = resolve_transfer(scene.transfer, head)
     plan = make_plan(scene, head, fast.order)
-    result = render_cycle(scene, head, tf, fast, plan, steady_state=True)
+    result = render_cycle(frame_of(scene, head, tf, fast, plan), steady_state=True)
     c, C = result.counters, -(-21 // 4)
     beams = plan.n_steps * 21 * C
     assert c["frame.period_cycles"] == beams == c["pipeline.beam_cycles"]
@@ -357,9 +358,9 @@ def test_trace_shows_the_sdram_data_buses_and_the_beams(head, tmp_path):
     scene = scene_of(30, 20, mode="mip")
     arch = resolve_arch("volumepro500")
     tf = resolve_transfer(scene.transfer, head)
-    plan = make_plan(scene, head, arch.order)
-    plain = rc(scene, head, tf, arch, plan)
-    traced = rc(scene, head, tf, arch, plan, trace=tmp_path / "w.vcd")
+    frame = frame_of(scene, head, tf, arch)
+    plain = rc(frame)
+    traced = rc(frame, trace=tmp_path / "w.vcd")
     assert np.array_equal(plain.image, traced.image) and plain.cycles == traced.cycles
     text = (tmp_path / "w.vcd").read_text()
     assert "$scope module memory_3 $end" in text and "$scope module pipelines $end" in text

@@ -16,6 +16,7 @@ from hwsim.scene import Light, RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
+from models.frame import frame_of
 from models.functional import render_functional
 
 pytestmark = [pytest.mark.model, pytest.mark.extremes]
@@ -26,7 +27,7 @@ def functional(scene, volume, arch="volumepro500", tf=None):
     tf = tf or resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
     return (
-        render_functional(scene, volume, tf, machine, plan),
+        render_functional(frame_of(scene, volume, tf, machine, plan)),
         render_golden(scene, volume, tf, sampling=machine.order, leap=False),
     )
 

@@ -15,6 +15,7 @@ from hwsim.numerics import psnr
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import load_volume, make_phantom, read_volume
+from models.frame import frame_of
 from models.functional import pipeline_latency, render_functional
 from models.units.interp import InterpConfig, error_bound
 
@@ -27,7 +28,7 @@ def pair(scene: Scene, volume, arch="volumepro500"):
     machine = resolve_arch(arch)
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
-    fixed = render_functional(scene, volume, tf, machine, plan)
+    fixed = render_functional(frame_of(scene, volume, tf, machine, plan))
     # leap=False: the modelled machines visit every position, so sample counts compare.
     golden = render_golden(scene, volume, tf, sampling=machine.order, leap=False)
     return golden, fixed

@@ -28,6 +28,7 @@ from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models import fused, fused_steps
 from models.datapath import Datapath
+from models.frame import frame_of
 from models.functional import render_functional
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
@@ -321,7 +322,7 @@ def _render(arch_name, volume, scene, overrides, **kw):
     plan = make_plan(scene, volume, arch.order)
     bits = volume.bits if volume.data.dtype.kind in "iu" else 0
     dp = Datapath.from_arch(arch, bits, overrides)
-    return render_functional(scene, volume, tf, arch, plan, datapath=dp, **kw)
+    return render_functional(frame_of(scene, volume, tf, arch, plan, datapath=dp), **kw)
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -380,7 +381,7 @@ def test_frames_outside_the_kernels_scope_take_the_unit_chain(arch, scene, overr
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
     dp = Datapath.from_arch(machine, volume.bits, overrides)
-    rung = _Functional(Backend(scene, volume, tf, machine, plan, dp))
+    rung = _Functional(Backend(frame_of(scene, volume, tf, machine, plan, datapath=dp)))
     assert rung.kernel is None
     fast = _render(arch, volume, scene, overrides)
     ref = _render(arch, volume, scene, overrides, compiled=False)

@@ -26,6 +26,7 @@ from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 from models import leap
+from models.frame import frame_of
 from models.functional import render_functional
 from models.units import classify as classify_unit
 from models.units import gradient as gradient_unit
@@ -174,7 +175,7 @@ def _render(scene, volume, arch="volumepro500", **kw):
     machine = resolve_arch(arch)
     tf = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
-    return render_functional(scene, volume, tf, machine, plan, **kw)
+    return render_functional(frame_of(scene, volume, tf, machine, plan), **kw)
 
 
 def assert_same_run(fast, ref):

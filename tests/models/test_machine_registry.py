@@ -30,10 +30,10 @@ perspective = true
 """
 
 
-def _toy_cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
+def _toy_cycle(backend, *, faults, trace, progress, steady_state=False):
     """One clock per sample per pipeline: the simplest machine that is not a copy."""
     be = backend
-    image = render_functional(be.scene, be.volume, be.transfer, be.arch, plan, datapath=be.dp)
+    image = render_functional(be.frame)
     cycles = -(-image.samples // be.arch.pipelines)
     counters = {"toy.samples": image.samples}
     return CycleResult(image.image, image.samples, image.rays, cycles, counters)

@@ -25,6 +25,7 @@ from hwsim.scene import TransferSpec, VolumeSpec, load_scene
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models.cycle import render_cycle
+from models.frame import frame_of
 from models.machines.common.transaction import slice_loads
 from models.machines.cube4.cycle import UNITS
 from models.machines.cube4.transaction import busiest_lanes
@@ -45,8 +46,9 @@ def cycles_of(scene, volume, arch):
     """(cycle-rung cycles, transaction cycles, transaction counters) of one frame."""
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    exact = render_cycle(scene, volume, tf, arch, plan)
-    txn = transaction_timing(scene, arch, plan)
+    frame = frame_of(scene, volume, tf, arch, plan)
+    exact = render_cycle(frame)
+    txn = transaction_timing(frame)
     return exact.cycles, txn.cycles, txn.counters
 
 
@@ -164,7 +166,8 @@ def test_axis_aligned_frame_has_the_cycle_rules_closed_form():
     volume = make_phantom("head", size=n)
     scene = scene_of(az=0, el=0, image=n)
     plan = make_plan(scene, volume, "slice-parallel")
-    timing = transaction_timing(scene, cube4(P), plan)
+    tf = resolve_transfer(scene.transfer, volume)
+    timing = transaction_timing(frame_of(scene, volume, tf, cube4(P), plan))
     C = -(-n // P)
     latency = 1 + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
     assert timing.cycles == (n + 1) * n * C + latency + plan.ray_ids.size
@@ -206,9 +209,9 @@ def test_a_shallow_pixel_fifo_stalls_and_depth_zero_deadlocks(phantoms):
     assert counters["pipelines.stall_cycles"] > 0 and approx > deep[1]
     assert counters["pixel_bus.max_occupancy"] <= 4
     assert abs(error(exact, approx)) <= CONTRACT, (exact, approx)
-    plan = make_plan(oblique, volume, "slice-parallel")
+    frame = frame_of(oblique, volume, resolve_transfer(oblique.transfer, volume), cube4())
     with pytest.raises(DeadlockError, match="pixel_bus.fifo: depth 0"):
-        transaction_timing(oblique, cube4(), plan, pixel_fifo_depth=0)
+        transaction_timing(frame, pixel_fifo_depth=0)
 
 
 def test_counters_describe_the_frame(phantoms):
@@ -247,7 +250,7 @@ def test_cube4_refusals_hold_at_the_transaction_rung(phantoms):
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
     with pytest.raises(InputError, match="render.supersampling"):
-        render_transaction(scene, volume, tf, arch, plan)
+        render_transaction(frame_of(scene, volume, tf, arch, plan))
 
 
 def test_a_volume_the_machine_cannot_buffer_is_refused_as_at_the_cycle_rung():

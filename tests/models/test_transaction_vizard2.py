@@ -17,12 +17,13 @@ import pytest
 import rungs
 
 from hwsim.engine import DeadlockError
-from hwsim.errors import InputError, NotAvailableError
+from hwsim.errors import NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import read_volume
 from models import cycle as cycle_module
+from models.frame import frame_of
 from models.functional import render_functional
 from models.machines.vizard2 import cycle as vizard2_module
 from models.machines.vizard2.memory import VolumeImage
@@ -54,9 +55,8 @@ def machine(leaping=True, **buffers):
 
 
 def timing(scene, volume, arch, **options):
-    plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    return transaction_timing(scene, arch, plan, volume=volume, transfer=tf, **options)
+    return transaction_timing(frame_of(scene, volume, tf, arch), **options)
 
 
 @pytest.fixture(scope="module")
@@ -155,9 +155,6 @@ def test_queue_and_fifo_depths(phantoms):
 
 def test_what_the_model_refuses(phantoms):
     volume, scene = phantoms["head"], scene_of()
-    plan = make_plan(scene, volume, "ray")
-    with pytest.raises(InputError, match="volume and transfer"):
-        transaction_timing(scene, machine(), plan)
     fast_memory = dataclasses.replace(machine(), memory={**machine().memory, "clock_ratio": 2.0})
     with pytest.raises(NotAvailableError, match="memory.clock_ratio"):
         timing(scene, volume, fast_memory)
@@ -169,8 +166,8 @@ def test_termination_steps_are_read_not_recomputed(phantoms):
     volume, arch, scene = phantoms["head"], machine(), scene_of(ert=0.9)
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    stopped = render_functional(scene, volume, tf, arch, plan).stopped
-    given = transaction_timing(scene, arch, plan, volume=volume, transfer=tf, stopped=stopped)
+    stopped = render_functional(frame_of(scene, volume, tf, arch, plan)).stopped
+    given = transaction_timing(frame_of(scene, volume, tf, arch, plan), stopped=stopped)
     assert given.cycles == timing(scene, volume, arch).cycles
 
 

@@ -22,6 +22,7 @@ from hwsim.memory import parse_memory
 from hwsim.scene import TransferSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
+from models.frame import frame_of
 from models.machines.cube4.cycle import UNITS
 from models.transaction import transaction_timing
 
@@ -37,8 +38,8 @@ def scene_of(phantom="head", az=30, el=20, *, image=32, mode="composite", ss=1.0
 
 
 def timing(scene, volume, arch, **options):
-    plan = make_plan(scene, volume, arch.order)
-    return transaction_timing(scene, arch, plan, **options), plan
+    frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), arch)
+    return transaction_timing(frame, **options), frame.plan
 
 
 def cycle_count(scene, volume, arch) -> int:
@@ -46,7 +47,7 @@ def cycle_count(scene, volume, arch) -> int:
 
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    return render_cycle(scene, volume, tf, arch, plan).cycles
+    return render_cycle(frame_of(scene, volume, tf, arch, plan)).cycles
 
 
 @pytest.fixture(scope="module")
@@ -131,10 +132,10 @@ def test_the_slab_model_refuses_beam_skipping_rather_than_ignoring_it(head):
     the plain slab model, asked directly, refuses a machine that skips beams."""
     from models.machines.volumepro.transaction import SlabTransaction
 
-    arch = resolve_arch("volumepro1000")
-    plan = make_plan(scene_of(), head, arch.order)
+    scene, arch = scene_of(), resolve_arch("volumepro1000")
+    frame = frame_of(scene, head, resolve_transfer(scene.transfer, head), arch)
     with pytest.raises(NotAvailableError, match="skips beams"):
-        SlabTransaction(scene_of(), arch, plan)
+        SlabTransaction(frame)
 
 
 def sectioned(width, overhead=0):

@@ -23,6 +23,7 @@ from hwsim.scene import ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models import cycle as cycle_module
+from models.frame import frame_of
 from models.functional import NEVER, render_functional
 from models.machines.volumepro import cycle as volumepro_module
 from models.transaction import render_transaction, transaction_timing
@@ -75,7 +76,7 @@ def test_termination_and_leaping_save_cycles_beams_and_bursts(phantoms):
             arch = machine(leaping)
             scene = scene_of(ert=ert)
             plan = make_plan(scene, volume, arch.order)
-            runs[ert, leaping] = render_transaction(scene, volume, tf, arch, plan)
+            runs[ert, leaping] = render_transaction(frame_of(scene, volume, tf, arch, plan))
     brute, ert, leap, both = runs[1.0, False], runs[0.95, False], runs[1.0, True], runs[0.95, True]
     assert brute.cycles > ert.cycles > both.cycles and brute.cycles > leap.cycles > both.cycles
     for fast in (ert, leap):
@@ -100,19 +101,13 @@ def test_brute_force_skips_only_beams_no_ray_reaches(phantoms):
     scene = scene_of(az=0, el=0, image=n).replace(
         view=ViewSpec(azimuth=0, elevation=0, width=n, height=n, zoom=1.0)
     )
-    plan = make_plan(scene, volume, "shear-image")
     t = transaction_timing(
-        scene,
-        machine(False),
-        plan,
-        volume=volume,
-        transfer=resolve_transfer(scene.transfer, volume),
+        frame_of(scene, volume, resolve_transfer(scene.transfer, volume), machine(False))
     )
     assert t.counters["memory.bursts"] == (n // 2) ** 3
     small = scene.replace(view=ViewSpec(azimuth=0, elevation=0, width=16, height=16, zoom=0.5))
-    plan = make_plan(small, volume, "shear-image")
     tf = resolve_transfer(small.transfer, volume)
-    s = transaction_timing(small, machine(False), plan, volume=volume, transfer=tf)
+    s = transaction_timing(frame_of(small, volume, tf, machine(False)))
     assert s.counters["pipeline.beams_skipped"] > t.counters["pipeline.beams_skipped"]
     assert s.counters["memory.bursts_skipped"] > t.counters["memory.bursts_skipped"] == 0
 
@@ -125,18 +120,19 @@ def test_termination_steps_come_from_the_functional_rung(phantoms):
     scene = scene_of(ert=0.9)
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    fast = render_functional(scene, volume, tf, arch, plan).stopped
-    slow = render_functional(scene, volume, tf, arch, plan, leap_blocks=False).stopped
+    frame = frame_of(scene, volume, tf, arch, plan)
+    fast = render_functional(frame).stopped
+    slow = render_functional(frame, leap_blocks=False).stopped
     assert np.array_equal(fast, slow)
     stopped = fast[plan.ray_ids]
     assert (stopped < NEVER).any() and (
         stopped[stopped < NEVER] >= plan.j_lo[stopped < NEVER]
     ).all()
-    given = transaction_timing(scene, arch, plan, volume=volume, transfer=tf, stopped=fast)
-    own = transaction_timing(scene, arch, plan, volume=volume, transfer=tf)
+    given = transaction_timing(frame, stopped=fast)
+    own = transaction_timing(frame)
     assert given.cycles == own.cycles
     mip = scene.replace(render=dataclasses.replace(scene.render, mode="mip"))
-    assert render_functional(mip, volume, tf, arch, plan).stopped is None
+    assert render_functional(frame_of(mip, volume, tf, arch, plan)).stopped is None
 
 
 def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):
@@ -154,13 +150,10 @@ def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):
 def test_what_the_model_refuses(phantoms):
     volume = phantoms["head"]
     scene = scene_of()
-    plan = make_plan(scene, volume, "shear-image")
-    with pytest.raises(InputError, match="volume and transfer"):
-        transaction_timing(scene, machine(False), plan)
     sectioned = dataclasses.replace(machine(False), section_width=8)
     with pytest.raises(NotAvailableError, match="overheads.section_width"):
         transaction_timing(
-            scene, sectioned, plan, volume=volume, transfer=resolve_transfer(scene.transfer, volume)
+            frame_of(scene, volume, resolve_transfer(scene.transfer, volume), sectioned)
         )
 
 
@@ -205,15 +198,15 @@ def test_back_to_back_frames_give_the_cycle_rungs_period(name, az, el):
     arch = resolve_arch(name)
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
-    exact = cycle_module.render_cycle(scene, volume, tf, arch, plan, steady_state=True)
-    approx = render_transaction(scene, volume, tf, arch, plan, steady_state=True)
+    exact = cycle_module.render_cycle(frame_of(scene, volume, tf, arch, plan), steady_state=True)
+    approx = render_transaction(frame_of(scene, volume, tf, arch, plan), steady_state=True)
     period, reference = (
         approx.counters["frame.period_cycles"],
         exact.counters["frame.period_cycles"],
     )
     assert period < approx.cycles  # the fill and the drain overlap the neighbours
     rungs.assert_within_contract(reference, period)
-    single = render_transaction(scene, volume, tf, arch, plan)
+    single = render_transaction(frame_of(scene, volume, tf, arch, plan))
     assert single.cycles == approx.cycles and "frame.period_cycles" not in single.counters
 
 
@@ -225,4 +218,4 @@ def test_back_to_back_frames_are_refused_where_the_model_times_single_frames(nam
     plan = make_plan(scene, volume, arch.order)
     tf = resolve_transfer(scene.transfer, volume)
     with pytest.raises(InputError, match="steady_state"):
-        render_transaction(scene, volume, tf, arch, plan, steady_state=True)
+        render_transaction(frame_of(scene, volume, tf, arch, plan), steady_state=True)

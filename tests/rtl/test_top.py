@@ -19,6 +19,7 @@ from hwsim.golden import make_plan
 from hwsim.scene import CropSpec, Light
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
+from models.frame import frame_of
 from rtl.amaranth_run import run_amaranth
 from rtl.frame import prepare
 
@@ -37,8 +38,8 @@ def _amaranth_case(arch: str, az: float, el: float, mode: str, size: int, pipeli
     plan = make_plan(scene, volume, machine.order)
     from models.cycle import render_cycle
 
-    reference = render_cycle(scene, volume, tf, machine, plan)
-    return prepare(scene, volume, tf, machine, plan, max_axis=size), reference
+    reference = render_cycle(frame_of(scene, volume, tf, machine, plan))
+    return prepare(frame_of(scene, volume, tf, machine, plan), max_axis=size), reference
 
 
 def test_lit_top_in_amaranth_equals_cycle_rung():
@@ -64,7 +65,7 @@ def _prepare(scene, size=8, arch="cube4"):
     volume = make_phantom("head", size=size)
     machine = resolve_arch(arch)
     tf = resolve_transfer(scene.transfer, volume)
-    return prepare(scene, volume, tf, machine, make_plan(scene, volume, machine.order))
+    return prepare(frame_of(scene, volume, tf, machine, make_plan(scene, volume, machine.order)))
 
 
 @pytest.mark.parametrize(
@@ -150,5 +151,5 @@ def test_top_refuses_a_pixel_fifo_that_never_accepts_a_pixel():
     arch = dataclasses.replace(resolve_arch("cube4"), buffers={"pixel_fifo_entries": 0})
     tf = resolve_transfer(scene.transfer, volume)
     with pytest.raises(InputError) as info:
-        prepare(scene, volume, tf, arch, make_plan(scene, volume, arch.order))
+        prepare(frame_of(scene, volume, tf, arch, make_plan(scene, volume, arch.order)))
     assert info.value.key == "buffers.pixel_fifo_entries"

@@ -12,6 +12,7 @@ from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
+from models.frame import frame_of
 from rtl.frame import prepare
 
 #: (arch, azimuth, elevation, mode, volume size), unlit: both architectures, parallel views
@@ -78,5 +79,5 @@ def case(
         machine = dataclasses.replace(machine, buffers={"pixel_fifo_entries": pixel_fifo})
     transfer = resolve_transfer(scene.transfer, volume)
     plan = make_plan(scene, volume, machine.order)
-    reference = render_cycle(scene, volume, transfer, machine, plan)
-    return prepare(scene, volume, transfer, machine, plan), reference
+    reference = render_cycle(frame_of(scene, volume, transfer, machine, plan))
+    return prepare(frame_of(scene, volume, transfer, machine, plan)), reference

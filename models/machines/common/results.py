@@ -131,13 +131,12 @@ def frame_result(
     )
 
 
-def elaborate_units(
-    backend, everything: bool, structures: tuple[str, ...]
-) -> tuple[list[str], list[str]]:
-    """The units a scene needs (all of :data:`UNITS` when ``everything``), between the
-    machine's front ``structures`` and its pixel bus; and the units elided."""
+def elaborate_units(backend, structures: tuple[str, ...]) -> tuple[list[str], list[str]]:
+    """The units a scene needs (all of :data:`UNITS` when the back end exercises unused
+    units), between the machine's front ``structures`` and its pixel bus; and the units
+    elided."""
     needs = units_needed(backend.scene, backend.transfer.modulates)
-    if everything:
+    if backend.exercise_unused:
         needs = dict.fromkeys(needs, True)
     units = [*structures] + [u for u in UNITS if needs[u]] + ["pixel_bus"]
     return units, [u for u in UNITS if not needs[u]]

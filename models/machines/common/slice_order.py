@@ -71,8 +71,8 @@ class SliceOrderMachine:
         self.plane_width = self.n_b + 3  # cells -2 .. n_b
         self.forward = slice_direction(self.plan)
 
-    def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
-        return elaborate_units(self.be, everything, ("memory", "ring"))
+    def _elaborate(self) -> tuple[list[str], list[str]]:
+        return elaborate_units(self.be, ("memory", "ring"))
 
     def cell(self, p: np.ndarray, like=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell index, quantised weight and float fraction of in-slice positions (the

@@ -9,12 +9,10 @@ from typing import Any
 import numpy as np
 
 from hwsim.arch import ArchConfig
-from hwsim.errors import InputError, NotAvailableError
+from hwsim.errors import NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
-from models.datapath import Datapath
+from models.frame import Frame
 
 __all__ = ["ReadsTheFrame", "TxnTiming", "require_pipeline_clock", "slice_loads"]
 
@@ -54,26 +52,18 @@ def require_pipeline_clock(memory: MemoryConfig, arch: ArchConfig) -> MemoryConf
 
 
 class ReadsTheFrame:
-    """Mixin of the transaction models whose timing depends on the frame's data: they need
-    the volume and transfer function, and ``run()`` takes the rays' termination steps
-    (``stopped``) from the functional image when the caller gives them."""
+    """Mixin of the transaction models whose timing depends on the frame's data (empty
+    space, block caches, the rays' ends): ``run()`` takes the rays' termination steps
+    from ``stopped`` when the caller sets it, else from the functional rung."""
 
     READS_THE_FRAME = True
+    #: :attr:`models.functional.FunctionalResult.stopped` of the frame, when known.
+    stopped: np.ndarray | None = None
 
-    def _take_frame(
-        self,
-        arch: ArchConfig,
-        volume: Volume | None,
-        transfer: TransferFunction | None,
-        stopped: np.ndarray | None,
-        datapath: Datapath | None,
-        why: str,
-    ) -> None:
-        if volume is None or transfer is None:
-            raise InputError(
-                f"{arch.name}'s transaction model needs the volume and transfer function ({why})",
-                key="volume",
-                allowed="transaction_timing(..., volume=, transfer=)",
-            )
-        self.volume, self.transfer, self.stopped = volume, transfer, stopped
-        self.datapath = datapath or Datapath.for_volume(arch, volume)
+    def termination_steps(self, frame: Frame) -> np.ndarray | None:
+        """``stopped``, or the functional rung's termination steps of ``frame``."""
+        if self.stopped is not None:
+            return self.stopped
+        from models.functional import render_functional  # the image rung, run only here
+
+        return render_functional(frame).stopped

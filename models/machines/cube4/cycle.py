@@ -138,23 +138,17 @@ class HardwareSource:
 
 
 class Cube4Machine(Cube4Frame):
-    """P Cube-4 pipelines rendering one frame of ``plan`` for ``backend``'s scene."""
+    """P Cube-4 pipelines rendering one frame of ``backend``'s plan and scene."""
 
     def __init__(
-        self,
-        backend: Backend,
-        plan: SamplePlan,
-        *,
-        faults: Faults | None = None,
-        elaborate_all: bool = False,
-        trace: VcdTrace | None = None,
+        self, backend: Backend, *, faults: Faults | None = None, trace: VcdTrace | None = None
     ) -> None:
         self.faults = faults or Faults()
         self.trace = trace
-        super().__init__(backend, plan)  # refusals, slice geometry, buffer capacities
+        super().__init__(backend)  # refusals, slice geometry, buffer capacities
         P = self.P
         self.counters = Counters()
-        self.elaborated, self.elided = self._elaborate(elaborate_all)
+        self.elaborated, self.elided = self._elaborate()
         self.need_slices = "gradient" in self.elaborated
         self.memory = Cube4Memory(backend.raw, P, self.counters, self.faults.stuck_module)
         self.datapath = SliceDatapath(
@@ -166,7 +160,7 @@ class Cube4Machine(Cube4Frame):
             (self.n_a, self.n_b),
             self.counters,
         )
-        self.elaborate_all = elaborate_all
+        self.elaborate_all = backend.exercise_unused
         if backend.mode == "composite":
             self._next_visible = backend.transparent_ranges()
         self._cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}

@@ -11,7 +11,6 @@ the registers a driver would, so the RTL never imports the cycle model.
 from __future__ import annotations
 
 from hwsim.errors import InputError
-from hwsim.golden.positions import SamplePlan
 from models.backend import Backend
 from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.cube4.timing import cube4_buffers
@@ -23,8 +22,8 @@ class Cube4Frame(SliceOrderMachine):
     """The frame geometry of ``plan`` on ``backend``'s Cube-4 machine (refused with an
     :class:`~hwsim.errors.InputError` where the machine cannot render it)."""
 
-    def __init__(self, backend: Backend, plan: SamplePlan) -> None:
-        self.be, self.plan, self.dp = backend, plan, backend.dp
+    def __init__(self, backend: Backend) -> None:
+        self.be, self.plan, self.dp = backend, backend.plan, backend.dp
         self.arch = arch = backend.arch
         self.P = arch.pipelines
         if backend.scene.render.supersampling != 1.0:

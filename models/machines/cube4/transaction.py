@@ -35,10 +35,9 @@ from typing import Any
 import numpy as np
 import simpy
 
-from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
-from hwsim.scene import Scene
+from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.slice_order import slice_direction
 from models.machines.common.transaction import TxnTiming, slice_loads
@@ -107,14 +106,8 @@ class Cube4Transaction:
         Override of ``[buffers] pixel_fifo_entries`` (studies of a shallow pixel FIFO).
     """
 
-    def __init__(
-        self,
-        scene: Scene,
-        arch: ArchConfig,
-        plan: SamplePlan,
-        *,
-        pixel_fifo_depth: int | None = None,
-    ) -> None:
+    def __init__(self, frame: Frame, *, pixel_fifo_depth: int | None = None) -> None:
+        scene, arch, plan = frame.scene, frame.arch, frame.plan
         if scene.render.supersampling != 1.0:
             raise InputError(
                 "the Cube-4 model samples once per slice",

@@ -97,18 +97,12 @@ class CacheSource:
 
 
 class VizardMachine:
-    """P VIZARD II pipelines rendering one frame of ``plan`` for ``backend``'s scene."""
+    """P VIZARD II pipelines rendering one frame of ``backend``'s plan and scene."""
 
     def __init__(
-        self,
-        backend: Backend,
-        plan: SamplePlan,
-        *,
-        faults: VizardFaults | None = None,
-        elaborate_all: bool = False,
-        trace: VcdTrace | None = None,
+        self, backend: Backend, *, faults: VizardFaults | None = None, trace: VcdTrace | None = None
     ) -> None:
-        self.be, self.dp, self.arch = backend, backend.dp, backend.arch
+        self.be, self.dp, self.arch, plan = backend, backend.dp, backend.arch, backend.plan
         self.trace = trace
         arch = self.arch
         self.faults = faults or VizardFaults()
@@ -117,7 +111,7 @@ class VizardMachine:
         self.buffers = parse_buffers(arch)
         self.memory_cfg = memory_of(arch)
         self.counters = Counters()
-        self.elaborated, self.elided = self._elaborate(elaborate_all)
+        self.elaborated, self.elided = self._elaborate()
         self.image = VolumeImage(
             backend.raw,
             self.memory_cfg,
@@ -141,8 +135,8 @@ class VizardMachine:
 
     # ------------------------------------------------------------------ set-up
 
-    def _elaborate(self, everything: bool) -> tuple[list[str], list[str]]:
-        return elaborate_units(self.be, everything, ("memory", "cache"))
+    def _elaborate(self) -> tuple[list[str], list[str]]:
+        return elaborate_units(self.be, ("memory", "cache"))
 
     def _leaped(self, plan: SamplePlan) -> SamplePlan:
         occupied = self.be.occupied_blocks(BLOCK)

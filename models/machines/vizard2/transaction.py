@@ -42,15 +42,11 @@ from typing import Any
 import numpy as np
 import simpy
 
-from hwsim.arch import ArchConfig
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import SdramTransactionPort
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
 from models.backend import Backend
-from models.datapath import Datapath
+from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.transaction import ReadsTheFrame, TxnTiming, require_pipeline_clock
 from models.machines.vizard2.config import (
@@ -122,37 +118,23 @@ class VizardTransaction(ReadsTheFrame):
 
     Parameters
     ----------
-    scene, arch, plan
-        ``arch`` of order ``ray``; ``plan`` the frame's (unleaped) ``ray`` plan.
-    volume, transfer
-        Empty space (space leaping) and, when ``stopped`` is absent and rays may stop,
-        the functional rung's termination steps.
-    stopped : ndarray, optional
-        :attr:`models.functional.FunctionalResult.stopped` of this frame.
-    datapath : Datapath, optional
+    frame : Frame
+        On an architecture of order ``ray``, with the frame's (unleaped) ``ray`` plan; its
+        volume and transfer function give the empty space (space leaping) and, when
+        ``stopped`` is not set and rays may stop, the functional rung's termination steps.
     pixel_fifo_depth : int, optional
         Override of ``[buffers] pixel_fifo_entries``.
     """
 
-    def __init__(
-        self,
-        scene: Scene,
-        arch: ArchConfig,
-        plan: SamplePlan,
-        *,
-        volume: Volume | None = None,
-        transfer: TransferFunction | None = None,
-        stopped: np.ndarray | None = None,
-        datapath: Datapath | None = None,
-        pixel_fifo_depth: int | None = None,
-    ) -> None:
-        self._take_frame(arch, volume, transfer, stopped, datapath, "cache blocks, space leaping")
+    def __init__(self, frame: Frame, *, pixel_fifo_depth: int | None = None) -> None:
+        scene, arch, plan, volume = frame.scene, frame.arch, frame.plan, frame.volume
+        self.frame, self.volume, self.datapath = frame, volume, frame.datapath
         self.scene, self.arch, self.planned = scene, arch, plan
         check_frame(arch, plan, self.datapath)
         self.buffers = parse_buffers(arch)
         self.memory = require_pipeline_clock(memory_of(arch), arch)
         self.P = arch.pipelines
-        self.backend = be = Backend(scene, volume, transfer, arch, plan, self.datapath)
+        self.backend = be = Backend(frame)
         stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"
         self.ert = arch.early_termination and stops
         self.plan = self._leaped(plan) if arch.space_leaping else plan
@@ -335,19 +317,7 @@ class VizardTransaction(ReadsTheFrame):
     def run(self) -> TxnTiming:
         """Simulate the frame; return its cycles and the event model's counters."""
         start = time.perf_counter()
-        stopped = self.stopped
-        if self.ert and stopped is None:
-            from models.functional import render_functional
-
-            stopped = render_functional(
-                self.scene,
-                self.volume,
-                self.transfer,
-                self.arch,
-                self.planned,
-                datapath=self.datapath,
-            ).stopped
-        stopped = stopped if self.ert else None
+        stopped = self.termination_steps(self.frame) if self.ert else None
         P = self.P
         env = simpy.Environment()
         port = SdramTransactionPort(env, self.memory.sdram)

@@ -35,7 +35,7 @@ import numpy as np
 from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
 from hwsim.errors import InputError
 from hwsim.golden.occupancy import occupancy_from_ranges
-from hwsim.golden.positions import SamplePlan, make_plan
+from hwsim.golden.positions import make_plan
 from hwsim.memory import SdramStats, parse_memory
 from models.backend import Backend, subset_step
 from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
@@ -70,19 +70,17 @@ class SlabFaults(SliceFaults):
 
 
 class SlabMachine(SliceOrderMachine):
-    """P VolumePro-family pipelines fed by SDRAM, rendering one frame of ``plan``."""
+    """P VolumePro-family pipelines fed by SDRAM, rendering one frame of ``backend``'s plan."""
 
     def __init__(
         self,
         backend: Backend,
-        plan: SamplePlan,
         *,
         faults: SlabFaults | None = None,
-        elaborate_all: bool = False,
         trace: VcdTrace | None = None,
         steady_state: bool = False,
     ) -> None:
-        self.be, self.dp = backend, backend.dp
+        self.be, self.dp, plan = backend, backend.dp, backend.plan
         self.steady_state = steady_state
         self.faults = faults or SlabFaults()
         self.arch = arch = backend.arch
@@ -96,8 +94,8 @@ class SlabMachine(SliceOrderMachine):
         self.memory_cfg = parse_memory(arch.memory, source=arch.source)
         self.capacity = self._slab_buffers()
         self.counters = Counters()
-        self.elaborated, self.elided = self._elaborate(elaborate_all)
-        self.elaborate_all = elaborate_all
+        self.elaborated, self.elided = self._elaborate()
+        self.elaborate_all = backend.exercise_unused
         self.voxel_gradients = self.dp.gradient.source == "voxel"
         self.need_value = (
             not backend.pre_classified or backend.need_grad or "gradient" in self.elaborated
@@ -121,7 +119,7 @@ class SlabMachine(SliceOrderMachine):
             self.counters,
         )
         self.weight_one = 1 << self.dp.interp.weight_bits
-        self.skip_transparent = backend.mode == "composite" and not elaborate_all
+        self.skip_transparent = backend.mode == "composite" and not self.elaborate_all
         if backend.mode == "composite":
             self.next_visible = backend.transparent_ranges()
         self._planes: dict[int, dict[str, np.ndarray]] = {}

@@ -8,30 +8,25 @@ from __future__ import annotations
 
 from typing import Any
 
+from models.frame import Frame
 from models.machines import Machine
 from models.machines.volumepro.cycle import SlabFaults, SlabMachine
 from models.machines.volumepro.transaction import SlabTransaction
 from models.machines.volumepro.vp1000_transaction import Vp1000Transaction
 
 
-def cycle(backend, plan, *, faults, elaborate_all, trace, progress, steady_state=False):
+def cycle(backend, *, faults, trace, progress, steady_state=False):
     """One frame (with ``steady_state``, two back to back) on :class:`SlabMachine`."""
-    extra = {"steady_state": True} if steady_state else {}
-    machine = SlabMachine(
-        backend, plan, faults=faults, elaborate_all=elaborate_all, trace=trace, **extra
-    )
+    machine = SlabMachine(backend, faults=faults, trace=trace, steady_state=steady_state)
     return machine.run(progress)
 
 
-def transaction(
-    scene, arch, plan, *, volume=None, transfer=None, stopped=None, datapath=None, **options: Any
-) -> SlabTransaction:
+def transaction(frame: Frame, **options: Any) -> SlabTransaction:
     """The slab machines' event model; machines that skip beams (early ray termination,
     space leaping: VolumePro 1000) read the volume, transfer and the rays' ends."""
-    if arch.early_termination or arch.space_leaping:
-        frame = {"volume": volume, "transfer": transfer, "stopped": stopped, "datapath": datapath}
-        return Vp1000Transaction(scene, arch, plan, **frame, **options)
-    return SlabTransaction(scene, arch, plan, **options)
+    if frame.arch.early_termination or frame.arch.space_leaping:
+        return Vp1000Transaction(frame, **options)
+    return SlabTransaction(frame, **options)
 
 
 MACHINE = Machine(

@@ -43,12 +43,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import simpy
 
-from hwsim.arch import ArchConfig
 from hwsim.engine.fifo import DeadlockError
 from hwsim.errors import NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_memory
-from hwsim.scene import Scene
+from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction
@@ -83,11 +82,9 @@ class SlabTransaction:
 
     Parameters
     ----------
-    scene : Scene
-    arch : ArchConfig
-        A machine with a ``[memory]`` table of mini-block SDRAM modules (sections from
+    frame : Frame
+        On a machine with a ``[memory]`` table of mini-block SDRAM modules (sections from
         ``[overheads] section_width``).
-    plan : SamplePlan
     groups : int
         Beam groups per slice (and mbb chunks per slab): the model's granularity.
     pixel_fifo_depth : int, optional
@@ -104,15 +101,14 @@ class SlabTransaction:
 
     def __init__(
         self,
-        scene: Scene,
-        arch: ArchConfig,
-        plan: SamplePlan,
+        frame: Frame,
         *,
         groups: int = 8,
         pixel_fifo_depth: int | None = None,
         steady_state: bool = False,
     ) -> None:
-        self.scene, self.arch, self.plan = scene, arch, plan
+        self.scene, self.arch, self.plan = frame.scene, frame.arch, frame.plan
+        arch, plan = frame.arch, frame.plan
         self.steady_state = steady_state
         skipping = arch.early_termination or arch.space_leaping
         if skipping and not self.models_skipping:

@@ -35,20 +35,16 @@ and the busiest lane of a perspective slice estimated from the live sample count
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
 from hwsim.golden import geometry
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, make_plan
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
-from hwsim.volumes.volume import Volume
 from models.backend import Backend
-from models.datapath import Datapath
+from models.frame import Frame
 from models.machines.common.transaction import ReadsTheFrame, TxnTiming
 from models.machines.volumepro.timing import mini_blocks_read
 from models.machines.volumepro.transaction import SlabTransaction
@@ -157,44 +153,24 @@ class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
 
     Parameters
     ----------
-    scene, arch, plan
-        As :class:`~models.machines.volumepro.transaction.SlabTransaction` (``plan`` unleaped: the
-        model leaps it when ``[features] space_leaping`` is on, as the machine does).
-    volume : Volume
-    transfer : TransferFunction
-        Empty space (leaping) and, when ``stopped`` is not given, the functional rung's
-        termination steps.
-    stopped : ndarray, optional
-        :attr:`models.functional.FunctionalResult.stopped` of this frame; computed by
-        rendering the functional rung when needed and absent.
-    datapath : Datapath, optional
+    frame : Frame
+        Its plan unleaped: the model leaps it when ``[features] space_leaping`` is on, as
+        the machine does; its volume and transfer function give the empty space and, when
+        ``stopped`` is not set, the functional rung's termination steps.
     **options
         ``groups``, ``pixel_fifo_depth`` (:class:`SlabTransaction`).
     """
 
     models_skipping = True
 
-    def __init__(
-        self,
-        scene: Scene,
-        arch: ArchConfig,
-        plan: SamplePlan,
-        *,
-        volume: Volume | None = None,
-        transfer: TransferFunction | None = None,
-        stopped: np.ndarray | None = None,
-        datapath: Datapath | None = None,
-        **options: Any,
-    ) -> None:
-        self._take_frame(arch, volume, transfer, stopped, datapath, "it skips beams")
-        self.planned = plan
-        mode = scene.render.mode
+    def __init__(self, frame: Frame, **options: Any) -> None:
+        self.unleaped = frame
+        arch, mode = frame.arch, frame.scene.render.mode
         self.ert_hardware = arch.early_termination and mode in stopping_modes
-        leaped = plan
+        leaped = frame
         if arch.space_leaping and mode == "composite":
-            backend = Backend(scene, volume, transfer, arch, plan, self.datapath)
-            leaped = leaping_plan(backend, plan)
-        super().__init__(scene, arch, leaped, **options)
+            leaped = replace(frame, plan=leaping_plan(Backend(frame), frame.plan))
+        super().__init__(leaped, **options)
 
     @property
     def rays_may_stop(self) -> bool:
@@ -207,31 +183,13 @@ class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
         stops = scene.render.mode == "iso" or scene.render.early_termination < 1.0
         return self.ert_hardware and (stops or stopping_geometry)
 
-    @property
-    def needs_stops(self) -> bool:
-        """Whether the frame's termination steps are needed and not yet known."""
-        return self.rays_may_stop and self.stopped is None
-
     def run(self) -> TxnTiming:
         """Rule 6's per-beam clocks from the termination steps, then the event model."""
         start = time.perf_counter()
-        stopped = self.stopped
-        if self.needs_stops:
-            from models.functional import render_functional
-
-            stopped = render_functional(
-                self.scene,
-                self.volume,
-                self.transfer,
-                self.arch,
-                self.planned,
-                datapath=self.datapath,
-            ).stopped
+        stopped = self.termination_steps(self.unleaped) if self.rays_may_stop else None
         lag = int(np.ceil(4 * self.scene.render.supersampling))
-        self.skips = beam_skips(
-            self.plan, self.P, stopped if self.rays_may_stop else None, lag, self._window_slabs
-        )
-        self.skips.leaped = self.planned.samples - self.plan.samples
+        self.skips = beam_skips(self.plan, self.P, stopped, lag, self._window_slabs)
+        self.skips.leaped = self.unleaped.plan.samples - self.plan.samples
         skips_seconds = time.perf_counter() - start
         timing = super().run()
         timing.counters["transaction.skips_seconds"] = skips_seconds
