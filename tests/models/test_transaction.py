@@ -263,3 +263,23 @@ def test_a_volume_the_machine_cannot_buffer_is_refused_as_at_the_cycle_rung():
     for rung in ("cycle", "transaction"):
         with pytest.raises(InputError, match="buffers.beam_fifo_entries"):
             render(scene, fidelity=rung, arch="cube4-teramac")
+
+
+@pytest.mark.parametrize(
+    ("changes", "key"),
+    [
+        ({"formats": {"gradient.source": "voxel"}}, "formats.gradient.source"),
+        ({}, "render.supersampling"),
+    ],
+    ids=["voxel-gradients", "supersampling"],
+)
+def test_cycle_and_transaction_rungs_refuse_the_same_cube4_frames(phantoms, changes, key):
+    """One copy of what no Cube-4 renders: neither rung accepts a frame the other refuses."""
+    volume = phantoms["head"]
+    render = {"supersampling": 2.0} if key == "render.supersampling" else {}
+    scene = scene_of(render=render)
+    arch = cube4(**changes)
+    frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), arch)
+    for rung in (render_cycle, transaction_timing):
+        with pytest.raises(InputError, match=key.replace(".", r"\.")):
+            rung(frame)

@@ -10,6 +10,7 @@ family live in its package, e.g. :mod:`models.machines.cube4.timing`).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,6 +32,7 @@ __all__ = [
     "UNITS",
     "CycleResult",
     "buffer_table",
+    "check_buffer_keys",
     "publish_pixel_bus",
     "frame_result",
     "elaborate_units",
@@ -61,15 +63,28 @@ class CycleResult:
     derived: dict[str, Any] = field(default_factory=dict)
 
 
+def check_buffer_keys(arch: ArchConfig, known: Iterable[str]) -> None:
+    """Refuse a ``[buffers]`` key the machine does not have, naming the file and key."""
+    known = list(known)
+    unknown = sorted(set(arch.buffers) - set(known))
+    if unknown:
+        raise InputError(
+            "unknown key",
+            source=arch.source,
+            key=f"buffers.{unknown[0]}",
+            allowed=", ".join(known),
+        )
+
+
 def buffer_table(
     arch: ArchConfig, defaults: dict[str, int], needs: dict[str, int]
 ) -> dict[str, int]:
     """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
     refused naming the file and key) and checked against what this volume ``needs``."""
-    table = dict(arch.buffers)
+    check_buffer_keys(arch, defaults)
     out = {}
     for key, default in defaults.items():
-        value = table.pop(key, default)
+        value = arch.buffers.get(key, default)
         if not isinstance(value, int) or isinstance(value, bool) or value < 0:
             raise InputError(
                 f"invalid {value!r}",
@@ -78,13 +93,6 @@ def buffer_table(
                 allowed="an integer >= 0",
             )
         out[key] = value
-    if table:
-        raise InputError(
-            "unknown key",
-            source=arch.source,
-            key=f"buffers.{sorted(table)[0]}",
-            allowed=", ".join(defaults),
-        )
     for key, need in needs.items():
         if out[key] < need:
             raise InputError(

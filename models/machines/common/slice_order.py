@@ -16,8 +16,9 @@ import numpy as np
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from models.machines.common.results import elaborate_units
+from models.machines.common.slices import SliceDatapath, SlicePath
 
-__all__ = ["SliceFaults", "SliceOrderMachine", "slice_direction"]
+__all__ = ["SliceFaults", "SliceOrderMachine", "slice_direction", "slice_position"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,6 +58,16 @@ def slice_direction(plan: SamplePlan) -> bool:
     return bool(signs[0] > 0)
 
 
+def slice_position(plan: SamplePlan, j: int, forward: bool) -> float:
+    """Principal-axis position of sample slice ``j`` of ``plan`` processed in the
+    ``forward`` (:func:`slice_direction`) order: the plan's own formula."""
+    if plan.kind == "shear-warp":
+        return float(plan.order[j])
+    ss = plan.scene.render.supersampling
+    q0 = 0.0 if forward else (plan.slice_count - 1) / ss
+    return q0 + (1.0 if forward else -1.0) * (j / ss)
+
+
 class SliceOrderMachine:
     """Base of the slice-order cycle machines: set by :meth:`_slice_geometry`, the
     principal axis ``kp``, in-slice axes ``a_ax`` (beams) and ``b_ax`` (along a beam), the
@@ -73,6 +84,16 @@ class SliceOrderMachine:
 
     def _elaborate(self) -> tuple[list[str], list[str]]:
         return elaborate_units(self.be, ("memory", "ring"))
+
+    def _slice_datapath(self) -> SliceDatapath:
+        """The ring, beam FIFOs and slice buffers of the ``P`` pipelines, with the links
+        ``self.faults`` breaks (set ``faults``, ``counters`` and the geometry first)."""
+        path = SlicePath(
+            pipelines=self.P,
+            beam_fifo_adjust=self.faults.beam_fifo_adjust,
+            dropped_link=self.faults.dropped_link,
+        )
+        return SliceDatapath(path, (self.n_a, self.n_b), self.counters)
 
     def cell(self, p: np.ndarray, like=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell index, quantised weight and float fraction of in-slice positions (the

@@ -44,7 +44,6 @@ from models.machines.common.results import (
     publish_pixel_bus,
 )
 from models.machines.common.slice_order import SliceFaults
-from models.machines.common.slices import SliceDatapath, SlicePath
 from models.machines.cube4.frame import Cube4Frame
 from models.machines.cube4.memory import Cube4Memory
 from models.machines.cube4.timing import cube4_lanes, cube4_latency
@@ -151,15 +150,7 @@ class Cube4Machine(Cube4Frame):
         self.elaborated, self.elided = self._elaborate()
         self.need_slices = "gradient" in self.elaborated
         self.memory = Cube4Memory(backend.raw, P, self.counters, self.faults.stuck_module)
-        self.datapath = SliceDatapath(
-            SlicePath(
-                pipelines=P,
-                beam_fifo_adjust=self.faults.beam_fifo_adjust,
-                dropped_link=self.faults.dropped_link,
-            ),
-            (self.n_a, self.n_b),
-            self.counters,
-        )
+        self.datapath = self._slice_datapath()
         self.elaborate_all = backend.exercise_unused
         if backend.mode == "composite":
             self._next_visible = backend.transparent_ranges()

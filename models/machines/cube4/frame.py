@@ -12,10 +12,31 @@ from __future__ import annotations
 
 from hwsim.errors import InputError
 from models.backend import Backend
+from models.frame import Frame
 from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.cube4.timing import cube4_buffers
 
-__all__ = ["Cube4Frame"]
+__all__ = ["Cube4Frame", "check_cube4_frame"]
+
+
+def check_cube4_frame(frame: Frame) -> None:
+    """Refuse what no Cube-4 renders (every rung of the family asks here): more or fewer
+    than one sample per slice, gradients from voxels instead of samples."""
+    arch = frame.arch
+    if frame.scene.render.supersampling != 1.0:
+        raise InputError(
+            "the Cube-4 model samples once per slice",
+            source=arch.source,
+            key="render.supersampling",
+            allowed="1",
+        )
+    if frame.datapath.gradient.source != "sample":
+        raise InputError(
+            "Cube-4 estimates gradients from samples",
+            source=arch.source,
+            key="formats.gradient.source",
+            allowed="sample",
+        )
 
 
 class Cube4Frame(SliceOrderMachine):
@@ -26,20 +47,7 @@ class Cube4Frame(SliceOrderMachine):
         self.be, self.plan, self.dp = backend, backend.plan, backend.dp
         self.arch = arch = backend.arch
         self.P = arch.pipelines
-        if backend.scene.render.supersampling != 1.0:
-            raise InputError(
-                "the Cube-4 model samples once per slice",
-                source=arch.source,
-                key="render.supersampling",
-                allowed="1",
-            )
-        if backend.dp.gradient.source != "sample":
-            raise InputError(
-                "Cube-4 estimates gradients from samples",
-                source=arch.source,
-                key="formats.gradient.source",
-                allowed="sample",
-            )
+        check_cube4_frame(backend.frame)
         self._slice_geometry(backend.volume.shape)
         self.capacity = cube4_buffers(arch, self.C, self.T)
 

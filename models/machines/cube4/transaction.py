@@ -35,12 +35,12 @@ from typing import Any
 import numpy as np
 import simpy
 
-from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.slice_order import slice_direction
 from models.machines.common.transaction import TxnTiming, slice_loads
+from models.machines.cube4.frame import check_cube4_frame
 from models.machines.cube4.timing import cube4_buffers, cube4_lanes, cube4_latency
 
 __all__ = ["Cube4Geometry", "Cube4Transaction", "busiest_lanes"]
@@ -107,14 +107,8 @@ class Cube4Transaction:
     """
 
     def __init__(self, frame: Frame, *, pixel_fifo_depth: int | None = None) -> None:
-        scene, arch, plan = frame.scene, frame.arch, frame.plan
-        if scene.render.supersampling != 1.0:
-            raise InputError(
-                "the Cube-4 model samples once per slice",
-                source=arch.source,
-                key="render.supersampling",
-                allowed="1",
-            )
+        arch, plan = frame.arch, frame.plan
+        check_cube4_frame(frame)  # the cycle rung's refusals, one copy
         self.plan = plan
         kp = plan.principal_axis
         a_ax, b_ax = (ax for ax in range(3) if ax != kp)

@@ -13,7 +13,7 @@ from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig, parse_memory
 from models.datapath import Datapath
-from models.machines.common.results import UNITS
+from models.machines.common.results import UNITS, check_buffer_keys
 
 __all__ = [
     "BLOCK",
@@ -100,15 +100,8 @@ def check_frame(arch: ArchConfig, plan: SamplePlan, datapath: Datapath) -> None:
 
 def parse_buffers(arch: ArchConfig) -> VizardBuffers:
     """Validate ``arch.buffers`` (missing keys: the defaults above)."""
+    check_buffer_keys(arch, _DEFAULTS)
     table = {**_DEFAULTS, **arch.buffers}
-    unknown = sorted(set(table) - set(_DEFAULTS))
-    if unknown:
-        raise InputError(
-            "unknown key",
-            source=arch.source,
-            key=f"buffers.{unknown[0]}",
-            allowed=", ".join(_DEFAULTS),
-        )
 
     def ints(key: str, count: int, lo: int) -> list[int]:
         value = table[key]

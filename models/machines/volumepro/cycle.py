@@ -39,8 +39,7 @@ from hwsim.golden.positions import make_plan
 from hwsim.memory import SdramStats, parse_memory
 from models.backend import Backend, subset_step
 from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
-from models.machines.common.slice_order import SliceFaults, SliceOrderMachine
-from models.machines.common.slices import SliceDatapath, SlicePath
+from models.machines.common.slice_order import SliceFaults, SliceOrderMachine, slice_position
 from models.machines.volumepro.memory import SdramVolume
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.timing import (
@@ -109,15 +108,7 @@ class SlabMachine(SliceOrderMachine):
             stuck_bank=self.faults.stuck_bank,
             source=arch.source,
         )
-        self.datapath = SliceDatapath(
-            SlicePath(
-                pipelines=P,
-                beam_fifo_adjust=self.faults.beam_fifo_adjust,
-                dropped_link=self.faults.dropped_link,
-            ),
-            (self.n_a, self.n_b),
-            self.counters,
-        )
+        self.datapath = self._slice_datapath()
         self.weight_one = 1 << self.dp.interp.weight_bits
         self.skip_transparent = backend.mode == "composite" and not self.elaborate_all
         if backend.mode == "composite":
@@ -159,13 +150,8 @@ class SlabMachine(SliceOrderMachine):
         return int(min(max(np.floor(p + 0.5), 0), self.n_kp - 1))
 
     def slice_position(self, j: int) -> float:
-        """Principal-axis position of sample slice ``j`` (the plan's formula)."""
-        plan = self.plan
-        if plan.kind == "shear-warp":
-            return float(plan.order[j])
-        ss = plan.scene.render.supersampling
-        q0 = 0.0 if self.forward else (plan.slice_count - 1) / ss
-        return q0 + (1.0 if self.forward else -1.0) * (j / ss)
+        """Principal-axis position of sample slice ``j``."""
+        return slice_position(self.plan, j, self.forward)
 
     def window(self, j: int) -> tuple[int, int]:
         """Voxel slices the beams of sample slice ``j`` read: ``i0 - 1 .. i0 + 2``."""

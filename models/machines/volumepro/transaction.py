@@ -50,7 +50,7 @@ from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_m
 from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.sections import band_loads, bands_of
-from models.machines.common.slice_order import slice_direction
+from models.machines.common.slice_order import slice_direction, slice_position
 from models.machines.common.transaction import TxnTiming, require_pipeline_clock, slice_loads
 from models.machines.volumepro.memory import layout
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
@@ -148,18 +148,10 @@ class SlabTransaction:
 
     # ------------------------------------------------------------------ geometry
 
-    def _slice_position(self, j: int) -> float:
-        plan = self.plan
-        if plan.kind == "shear-warp":
-            return float(plan.order[j])
-        ss = self.scene.render.supersampling
-        q0 = 0.0 if self.forward else (plan.slice_count - 1) / ss
-        return q0 + (1.0 if self.forward else -1.0) * (j / ss)
-
     def _window_slabs(self, j: int) -> tuple[int, int]:
         """Slabs holding voxel slices ``i0 - 1 .. i0 + 2`` of sample slice ``j``."""
         n = self.n_k
-        p = min(max(self._slice_position(j), 0.0), n - 1.0)
+        p = min(max(slice_position(self.plan, j, self.forward), 0.0), n - 1.0)
         i0 = int(min(np.floor(p), max(n - 2, 0)))
         return max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2
 
