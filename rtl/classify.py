@@ -20,13 +20,20 @@ being written reads the old value.
 from __future__ import annotations
 
 from amaranth import Module, Mux, Signal, unsigned
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In
 
 from models.units import classify as model
 from models.units.classify import ClassifyConfig
-from rtl.common import StallingPipeline, bit_length, divide_by_constant, round_shift
+from rtl.common import (
+    StallingPipeline,
+    bit_length,
+    divide_by_constant,
+    load_port,
+    round_shift,
+    unit_ports,
+)
 
 __all__ = ["Classify", "LATENCY", "II", "input_layout", "output_layout", "load_layout"]
 
@@ -104,15 +111,14 @@ class Classify(wiring.Component):
         cfg = cfg if cfg is not None else ClassifyConfig()
         self.cfg, self.voxel_bits, self.sample_frac_bits = cfg, voxel_bits, sample_frac_bits
         self.sample_bits = voxel_bits + sample_frac_bits
-        super().__init__(
-            {
-                "i": In(stream.Signature(input_layout(self.sample_bits))),
-                "o": Out(stream.Signature(output_layout())),
-                "load": In(stream.Signature(load_layout(cfg), always_ready=True)),
-                "gm_scale": In(32),
-                "modulate": In(1),
-            }
+        ports = unit_ports(
+            input_layout(self.sample_bits),
+            output_layout(),
+            load=load_port(load_layout(cfg)),
+            gm_scale=In(32),
+            modulate=In(1),
         )
+        super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()

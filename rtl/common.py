@@ -16,9 +16,12 @@ from __future__ import annotations
 from amaranth import Cat, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.hdl import Value
 from amaranth.lib import stream
+from amaranth.lib.wiring import In, Out
 
 __all__ = [
     "StallingPipeline",
+    "load_port",
+    "unit_ports",
     "round_shift",
     "isqrt",
     "divide_bounded",
@@ -26,6 +29,17 @@ __all__ = [
     "clamp",
     "bit_length",
 ]
+
+
+def unit_ports(in_layout, out_layout, **ports) -> dict:
+    """The signature members of a pipelined unit: stream ``i`` of ``in_layout`` in, stream
+    ``o`` of ``out_layout`` out, and ``ports`` (statics, load ports) as given."""
+    return {"i": In(stream.Signature(in_layout)), "o": Out(stream.Signature(out_layout)), **ports}
+
+
+def load_port(layout) -> In:
+    """A table-load port: a stream the unit always accepts (no back-pressure)."""
+    return In(stream.Signature(layout, always_ready=True))
 
 
 def bit_length(n: int) -> int:

@@ -23,13 +23,13 @@ Accumulators entering must lie in ``[0, 1]`` (``2**F``): the unit's own outputs 
 from __future__ import annotations
 
 from amaranth import Module, Mux, Signal, unsigned
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In
 
 from models.units import composite as model
 from models.units.composite import CompositeConfig
-from rtl.common import StallingPipeline, round_shift
+from rtl.common import StallingPipeline, load_port, round_shift, unit_ports
 
 __all__ = ["Composite", "LATENCY", "II", "input_layout", "output_layout", "load_layout"]
 
@@ -97,15 +97,14 @@ class Composite(wiring.Component):
     def __init__(self, cfg: CompositeConfig | None = None, sample_bits: int = 16):
         cfg = cfg if cfg is not None else CompositeConfig()
         self.cfg, self.sample_bits = cfg, sample_bits
-        super().__init__(
-            {
-                "i": In(stream.Signature(input_layout(cfg, sample_bits))),
-                "o": Out(stream.Signature(output_layout(cfg, sample_bits))),
-                "load": In(stream.Signature(load_layout(), always_ready=True)),
-                "ert_threshold": In(cfg.acc_frac_bits + 1),
-                "ert_enable": In(1),
-            }
+        ports = unit_ports(
+            input_layout(cfg, sample_bits),
+            output_layout(cfg, sample_bits),
+            load=load_port(load_layout()),
+            ert_threshold=In(cfg.acc_frac_bits + 1),
+            ert_enable=In(1),
         )
+        super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()

@@ -23,12 +23,12 @@ clock rate; a faster clock would pipeline them over ``~(B + S + F) / 4`` more st
 from __future__ import annotations
 
 from amaranth import Module, Mux, Signal, signed, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In
 
 from models.units import gradient as model
 from models.units.gradient import GradientConfig
-from rtl.common import StallingPipeline, divide_bounded, isqrt, round_shift
+from rtl.common import StallingPipeline, divide_bounded, isqrt, round_shift, unit_ports
 
 __all__ = ["Gradient", "LATENCY", "II", "input_layout", "output_layout", "RATIO_BITS"]
 
@@ -88,13 +88,9 @@ class Gradient(wiring.Component):
     def __init__(self, cfg: GradientConfig | None = None, sample_bits: int = 16):
         cfg = cfg if cfg is not None else GradientConfig()
         self.cfg, self.sample_bits = cfg, sample_bits
-        super().__init__(
-            {
-                "i": In(stream.Signature(input_layout(cfg, sample_bits))),
-                "o": Out(stream.Signature(output_layout(cfg, sample_bits))),
-                "ratio": In(data.ArrayLayout(unsigned(RATIO_BITS + 1), 3)),
-            }
-        )
+        ratio = In(data.ArrayLayout(unsigned(RATIO_BITS + 1), 3))
+        ports = unit_ports(input_layout(cfg, sample_bits), output_layout(cfg, sample_bits))
+        super().__init__({**ports, "ratio": ratio})
 
     def elaborate(self, platform):
         m = Module()

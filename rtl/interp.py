@@ -11,12 +11,11 @@ bits), four x lerps, two y lerps, one z lerp.  ``lerp(a, b, f) = a + round((b - 
 from __future__ import annotations
 
 from amaranth import Module, signed, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data, wiring
 
 from models.units import interp as model
 from models.units.interp import InterpConfig
-from rtl.common import StallingPipeline, round_shift
+from rtl.common import StallingPipeline, round_shift, unit_ports
 
 __all__ = ["Interp", "LATENCY", "II", "input_layout", "output_layout"]
 
@@ -61,12 +60,10 @@ class Interp(wiring.Component):
     ):
         cfg = cfg if cfg is not None else InterpConfig()
         self.cfg, self.voxel_bits, self.signed_input = cfg, voxel_bits, signed_input
-        super().__init__(
-            {
-                "i": In(stream.Signature(input_layout(cfg, voxel_bits, signed_input))),
-                "o": Out(stream.Signature(output_layout(cfg, voxel_bits, signed_input))),
-            }
+        layouts = (
+            layout(cfg, voxel_bits, signed_input) for layout in (input_layout, output_layout)
         )
+        super().__init__(unit_ports(*layouts))
 
     def elaborate(self, platform):
         m = Module()

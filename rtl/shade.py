@@ -30,13 +30,20 @@ for the light sum of ``I kd`` up to 256).
 from __future__ import annotations
 
 from amaranth import Module, Mux, Signal, signed, unsigned
-from amaranth.lib import data, stream, wiring
+from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
-from amaranth.lib.wiring import In, Out
+from amaranth.lib.wiring import In
 
 from models.units import shade as model
 from models.units.shade import ShadeConfig
-from rtl.common import StallingPipeline, bit_length, divide_bounded, round_shift
+from rtl.common import (
+    StallingPipeline,
+    bit_length,
+    divide_bounded,
+    load_port,
+    round_shift,
+    unit_ports,
+)
 
 __all__ = ["Shade", "LATENCY", "II", "input_layout", "output_layout", "load_layout", "MAP_BITS"]
 
@@ -113,12 +120,9 @@ class Shade(wiring.Component):
             self._MustUse__silence = True  # never elaborated: no "created but never used"
             raise ValueError("rtl.shade: lights >= 1")
         self.cfg, self.lights = cfg, lights
-        members = {
-            "i": In(stream.Signature(input_layout(cfg))),
-            "o": Out(stream.Signature(output_layout())),
-            "load": In(stream.Signature(load_layout(cfg), always_ready=True)),
-            "ka": In(COEF_BITS),
-        }
+        members = unit_ports(
+            input_layout(cfg), output_layout(), load=load_port(load_layout(cfg)), ka=In(COEF_BITS)
+        )
         if cfg.method == "phong":
             vector = data.ArrayLayout(signed(cfg.normal_frac_bits + 2), 3)
             members.update(

@@ -13,12 +13,12 @@ reciprocal multiply, and the row pitches are computed from ``n`` the same way.
 from __future__ import annotations
 
 from amaranth import Module, Signal, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data, wiring
+from amaranth.lib.wiring import In
 
 from models.units import skew as model
 from models.units.skew import SkewConfig
-from rtl.common import StallingPipeline, bit_length, divide_by_constant
+from rtl.common import StallingPipeline, bit_length, divide_by_constant, unit_ports
 
 __all__ = ["Skew", "LATENCY", "II", "input_layout", "output_layout", "address_bits"]
 
@@ -79,13 +79,8 @@ class Skew(wiring.Component):
     def __init__(self, cfg: SkewConfig | None = None):
         cfg = cfg if cfg is not None else SkewConfig()
         self.cfg = cfg
-        super().__init__(
-            {
-                "i": In(stream.Signature(input_layout(cfg))),
-                "o": Out(stream.Signature(output_layout(cfg))),
-                "n": In(bit_length(cfg.max_size)),
-            }
-        )
+        ports = unit_ports(input_layout(cfg), output_layout(cfg), n=In(bit_length(cfg.max_size)))
+        super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()

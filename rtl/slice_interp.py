@@ -26,12 +26,11 @@ Stages (``LATENCY = 4`` = the trilinear interpolator's, ``II = 1``): input regis
 from __future__ import annotations
 
 from amaranth import Module, signed, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data, wiring
 
 from models.units import interp as model
 from models.units.interp import InterpConfig
-from rtl.common import StallingPipeline, round_shift
+from rtl.common import StallingPipeline, round_shift, unit_ports
 
 __all__ = ["SliceInterp", "LATENCY", "II", "input_layout", "output_layout"]
 
@@ -78,12 +77,7 @@ class SliceInterp(wiring.Component):
     def __init__(self, cfg: InterpConfig | None = None, voxel_bits: int = 12):
         cfg = cfg if cfg is not None else InterpConfig()
         self.cfg, self.voxel_bits = cfg, voxel_bits
-        super().__init__(
-            {
-                "i": In(stream.Signature(input_layout(cfg, voxel_bits))),
-                "o": Out(stream.Signature(output_layout(cfg, voxel_bits))),
-            }
-        )
+        super().__init__(unit_ports(input_layout(cfg, voxel_bits), output_layout(cfg, voxel_bits)))
 
     def elaborate(self, platform):
         m = Module()

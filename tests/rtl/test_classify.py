@@ -5,15 +5,9 @@ import pytest
 from amaranth_bench import run_case
 from unit_cases import make_case
 
-from models.units import classify as model
 from models.units.classify import ClassifyConfig
-from rtl import classify
 
 pytestmark = pytest.mark.rtl
-
-
-def test_latency_and_interval_are_the_models():
-    assert (classify.LATENCY, classify.II) == (model.LATENCY, model.II)
 
 
 @pytest.mark.parametrize(

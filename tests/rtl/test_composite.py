@@ -5,15 +5,9 @@ import pytest
 from amaranth_bench import run_case
 from unit_cases import make_case
 
-from models.units import composite as model
 from models.units.composite import CompositeConfig
-from rtl import composite
 
 pytestmark = pytest.mark.rtl
-
-
-def test_latency_and_interval_are_the_models():
-    assert (composite.LATENCY, composite.II) == (model.LATENCY, model.II)
 
 
 @pytest.mark.parametrize(

@@ -6,15 +6,9 @@ import pytest
 from amaranth_bench import run_case
 from unit_cases import make_case
 
-from models.units import gradient as model
 from models.units.gradient import GradientConfig
-from rtl import gradient
 
 pytestmark = pytest.mark.rtl
-
-
-def test_latency_and_interval_are_the_models():
-    assert (gradient.LATENCY, gradient.II) == (model.LATENCY, model.II)
 
 
 @pytest.mark.parametrize(

@@ -4,15 +4,10 @@ import pytest
 from amaranth_bench import run_case
 from unit_cases import make_case
 
-from models.units import shade as model
 from models.units.shade import ShadeConfig
 from rtl import shade
 
 pytestmark = pytest.mark.rtl
-
-
-def test_latency_and_interval_are_the_models():
-    assert (shade.LATENCY, shade.II) == (model.LATENCY, model.II)
 
 
 @pytest.mark.parametrize(

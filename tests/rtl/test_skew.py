@@ -4,15 +4,9 @@ import pytest
 from amaranth_bench import run_case
 from unit_cases import make_case
 
-from models.units import skew as model
 from models.units.skew import SkewConfig
-from rtl import skew
 
 pytestmark = pytest.mark.rtl
-
-
-def test_latency_and_interval_are_the_models():
-    assert (skew.LATENCY, skew.II) == (model.LATENCY, model.II)
 
 
 @pytest.mark.parametrize(

@@ -11,6 +11,7 @@ import sqlite3
 
 import numpy as np
 import pytest
+from cli_errors import one_line_error
 
 import hwsim.fidelity
 from hwsim import budget
@@ -19,14 +20,6 @@ from hwsim.cli import main
 pytestmark = pytest.mark.system
 
 BALL = ["--phantom", "ball:size=8", "--image", "8"]
-
-
-def _error_line(capsys, *fragments: str) -> str:
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("hwsim: error: "), err
-    for fragment in fragments:
-        assert fragment in err, err
-    return err
 
 
 def _scene(tmp_path, body: str):
@@ -66,7 +59,7 @@ def tables(tmp_path):
 def test_transfer_tables(tmp_path, tables, capsys, name, fragment):
     scene = _scene(tmp_path, f'[volume]\nphantom = "ball"\n[transfer]\ntable = "{tables / name}"\n')
     assert main(["render", scene, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "transfer.table", str(tables / name), fragment)
+    one_line_error(capsys, "transfer.table", str(tables / name), fragment)
 
 
 @pytest.mark.parametrize(
@@ -82,7 +75,7 @@ def test_a_bit_width_that_is_not_an_integer(tmp_path, capsys, value, fragment):
     )
     argv = ["render", "--fidelity", "functional", "--arch", str(arch), *BALL]
     assert main([*argv, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, str(arch), "formats.interp.weight_bits", fragment)
+    one_line_error(capsys, str(arch), "formats.interp.weight_bits", fragment)
 
 
 @pytest.mark.parametrize(
@@ -94,25 +87,25 @@ def test_empty_and_malformed_flags_are_refused_not_ignored(tmp_path, capsys, fla
     if flag != "--volume":
         argv += ["--phantom", "ball:size=8"]
     assert main(argv) == 2
-    _error_line(capsys, flag)
+    one_line_error(capsys, flag)
 
 
 def test_raw_keys_on_a_phantom(tmp_path, capsys):
     scene = _scene(tmp_path, '[volume]\nphantom = "ball"\nshape = [8, 8, 8]\n')
     assert main(["render", scene, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "volume.shape", "not a phantom")
+    one_line_error(capsys, "volume.shape", "not a phantom")
 
 
 def test_deeply_nested_toml(tmp_path, capsys):
     scene = _scene(tmp_path, "x = " + "[" * 50_000 + "]" * 50_000 + "\n")
     assert main(["render", scene, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "nested too deeply")
+    one_line_error(capsys, "nested too deeply")
 
 
 def test_anisotropic_spacing_is_refused_before_a_runaway_render(tmp_path, capsys):
     scene = _scene(tmp_path, '[volume]\nphantom = "ball"\nspacing = [1e-6, 1, 1]\n')
     assert main(["render", scene, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "spacing", "anisotropic")
+    one_line_error(capsys, "spacing", "anisotropic")
 
 
 def _tripwire(monkeypatch):
@@ -126,21 +119,21 @@ def test_sample_budget_refuses_before_rendering(tmp_path, capsys, monkeypatch):
     _tripwire(monkeypatch)
     monkeypatch.setenv(budget.SAMPLE_ENV_VAR, "100")
     assert main(["render", *BALL, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "render.sample_spacing", "samples", "HWSIM_MAX_SAMPLES")
+    one_line_error(capsys, "render.sample_spacing", "samples", "HWSIM_MAX_SAMPLES")
 
 
 def test_memory_budget_refuses_a_large_image_before_rendering(tmp_path, capsys, monkeypatch):
     _tripwire(monkeypatch)
     argv = ["render", "--phantom", "ball:size=8", "--image", "2048", "--max-memory", "64M"]
     assert main([*argv, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "2048x2048 frame", "memory budget")
+    one_line_error(capsys, "2048x2048 frame", "memory budget")
     budget.set_memory_budget(None)
 
 
 def test_image_side_limit(tmp_path, capsys):
     argv = ["render", "--phantom", "ball:size=8", "--image", "4097"]
     assert main([*argv, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    _error_line(capsys, "--image", f"1 .. {hwsim.scene.MAX_IMAGE}")
+    one_line_error(capsys, "--image", f"1 .. {hwsim.scene.MAX_IMAGE}")
 
 
 @pytest.fixture
@@ -153,7 +146,7 @@ def sweep_file(tmp_path):
 def test_scheduler_without_a_port(tmp_path, capsys, sweep_file):
     argv = ["sweep", sweep_file, "--scheduler", "127.0.0.1", "--db", str(tmp_path / "r.db")]
     assert main([*argv, "--quiet"]) == 2
-    _error_line(capsys, "--scheduler", "no port")
+    one_line_error(capsys, "--scheduler", "no port")
 
 
 @pytest.fixture
@@ -181,7 +174,7 @@ def test_another_applications_database_is_never_modified(
     else:
         argv = ["report", str(foreign_db), "--out", str(tmp_path / "r"), "--quiet"]
     assert main(argv) == 2
-    _error_line(capsys, str(foreign_db), "not an hwsim results database", "people")
+    one_line_error(capsys, str(foreign_db), "not an hwsim results database", "people")
     assert _digest(foreign_db) == before
     assert sorted(p.name for p in tmp_path.glob("address-book*")) == ["address-book.sqlite"]
 
@@ -190,7 +183,7 @@ def test_a_text_file_as_database(tmp_path, capsys, sweep_file):
     path = tmp_path / "notes.db"
     path.write_text("not SQLite at all, just some notes\n" * 100)
     assert main(["sweep", sweep_file, "--db", str(path), "--quiet"]) == 2
-    _error_line(capsys, "not an SQLite database")
+    one_line_error(capsys, "not an SQLite database")
 
 
 def test_report_on_a_folder_that_is_not_a_run(tmp_path, capsys):
@@ -198,4 +191,4 @@ def test_report_on_a_folder_that_is_not_a_run(tmp_path, capsys):
     (tmp_path / "holiday" / "photo.txt").write_text("x")
     argv = ["report", str(tmp_path / "holiday"), "--out", str(tmp_path / "r"), "--quiet"]
     assert main(argv) == 2
-    _error_line(capsys, "holiday", "not a run folder")
+    one_line_error(capsys, "holiday", "not a run folder")

@@ -7,6 +7,7 @@ the scene is rendered; the renderers are replaced by a tripwire to prove no work
 from __future__ import annotations
 
 import pytest
+from cli_errors import one_line_error
 
 import hwsim.fidelity
 from hwsim.cli import main
@@ -30,14 +31,6 @@ def blocker(tmp_path):
     path = tmp_path / "blocker"
     path.write_text("not a folder")
     return path
-
-
-def _one_line_error(capsys, *fragments: str) -> str:
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("hwsim: error: "), err
-    for fragment in fragments:
-        assert fragment in err, err
-    return err
 
 
 def test_trace_inside_an_out_folder_that_does_not_exist_yet(tmp_path):
@@ -65,7 +58,7 @@ def test_unwritable_render_outputs_are_refused_before_rendering(
     argv = ["render", "--phantom", "ball:size=8", "--out", str(tmp_path / "ok"), "--quiet"]
     argv += [flag, str(tmp_path / child)]
     assert main(argv) == 2
-    _one_line_error(capsys, flag, message)
+    one_line_error(capsys, flag, message)
 
 
 @pytest.mark.parametrize(
@@ -83,16 +76,16 @@ def test_unwritable_render_outputs_are_refused_before_rendering(
 def test_every_command_checks_its_out_folder_first(tmp_path, blocker, capsys, no_work, argv):
     argv = [a.format(b=blocker, tmp=tmp_path) for a in argv]
     assert main(argv) == 2
-    _one_line_error(capsys, "--out", str(blocker))
+    one_line_error(capsys, "--out", str(blocker))
 
 
 def test_sweep_checks_db_and_out_before_starting_workers(tmp_path, blocker, capsys):
     sweep = tmp_path / "s.toml"
     sweep.write_text('[sweep]\narch = ["cube4"]\nfidelity = ["functional"]\nphantom = ["ball"]\n')
     assert main(["sweep", str(sweep), "--db", str(blocker / "runs.db"), "--quiet"]) == 2
-    _one_line_error(capsys, "--db", str(blocker))
+    one_line_error(capsys, "--db", str(blocker))
     assert main(["sweep", str(sweep), "--out", str(blocker / "o"), "--quiet"]) == 2
-    _one_line_error(capsys, "--out")
+    one_line_error(capsys, "--out")
     assert not (tmp_path / "runs.db").exists()
 
 
