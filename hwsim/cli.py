@@ -104,12 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_max_memory(w)
     w.add_argument("--quiet", action="store_true")
     rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
-    rp.add_argument(
-        "runs",
-        metavar="RUN_DIR",
-        nargs="+",
-        help="render, sweep --out or trade folders, or a sweep's runs.db",
-    )
+    runs_help = "render, sweep --out or trade folders, or a sweep's runs.db"
+    rp.add_argument("runs", metavar="RUN_DIR", nargs="+", help=runs_help)
     rp.add_argument("--out", metavar="DIR", required=True)
     rp.add_argument("--quiet", action="store_true")
     f = sub.add_parser("figures", help="published figures of each machine vs every timing rung")

@@ -278,13 +278,8 @@ class SdramTransactionPort:
 
     Every burst of a batch is queued at the call's ``env.now`` (rounded up to a whole
     memory cycle); :class:`~hwsim.memory.SdramController` gives the exact cycles, so the
-    timing is the cycle form's for those arrival cycles.
-
-    Parameters
-    ----------
-    env : simpy.Environment
-        Time unit: one memory clock.
-    cfg : SdramConfig
+    timing is the cycle form's for those arrival cycles.  ``env`` and ``cfg`` as
+    :class:`SdramEventModel` (one memory clock per time unit).
     """
 
     def __init__(self, env: simpy.Environment, cfg: SdramConfig) -> None:

@@ -114,11 +114,21 @@ def publish_pixel_bus(counters: Counters, fifo: DrainFifo, drain: int) -> None:
 
 
 def frame_result(
-    machine, image: np.ndarray, state, cycles: int, derive_samples: int | None = None
+    machine,
+    image: np.ndarray,
+    state,
+    cycles: int,
+    *,
+    latency: int,
+    derive_samples: int | None = None,
 ) -> CycleResult:
     """A frame's :class:`CycleResult` from a machine (``counters``, ``P``, ``arch``,
-    ``elaborated``, ``elided``) and its back end's final state; derived metrics per
-    ``derive_samples`` samples (default: the composited samples)."""
+    ``elaborated``, ``elided``) and its back end's final state, with the counters every
+    machine publishes (``pipeline.latency_cycles``, ``frame.cycles``, ``frame.samples``);
+    derived metrics per ``derive_samples`` samples (default: the composited samples)."""
+    machine.counters.set("pipeline.latency_cycles", latency)
+    machine.counters.set("frame.cycles", cycles)
+    machine.counters.set("frame.samples", state.samples)
     raw = machine.counters.as_dict()
     derived = derive(
         raw,

@@ -311,12 +311,9 @@ class Cube4Machine(Cube4Frame):
         self.memory.publish()
         self.memory_out.publish()
         publish_pixel_bus(c, pixel_fifo, drain)
-        c.set("pipeline.latency_cycles", latency)
-        c.set("frame.cycles", cycles)
-        c.set("frame.samples", state.samples)
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
-        return frame_result(self, image, state, cycles)
+        return frame_result(self, image, state, cycles, latency=latency)
 
     def _lanes(self, source: HardwareSource) -> np.ndarray:
         """Pipeline evaluating each sample (:func:`~models.machines.cube4.timing.cube4_lanes`)."""

@@ -339,12 +339,11 @@ class VizardMachine:
         c.set("pixel_bus.busy_cycles", pixel_fifo.busy_cycles)
         c.set("pixel_bus.max_occupancy", pixel_fifo.max_occupancy)
         c.set("pixel_bus.drain_cycles", drain)
-        c.set("pipeline.latency_cycles", FEEDBACK)
-        c.set("frame.cycles", cycles)
         c.set("frame.issued_samples", self.issued)
         c.set("ert.speculative_samples", self.speculative)
-        c.set("frame.samples", state.samples)
         c.set("frame.planned_samples", self.full_plan.samples)
         c.set("frame.leaped_samples", self.full_plan.samples - self.plan.samples)
         image = self.be.finish(bus.acc, bus.touched, bus.dt_sum)
-        return frame_result(self, image, state, cycles, derive_samples=self.issued)
+        return frame_result(
+            self, image, state, cycles, latency=FEEDBACK, derive_samples=self.issued
+        )
