@@ -17,10 +17,20 @@ from models.units import interp as model
 from models.units.interp import InterpConfig
 from rtl.common import StallingPipeline, round_shift, unit_ports
 
-__all__ = ["Interp", "LATENCY", "II", "input_layout", "output_layout"]
+__all__ = ["Interp", "LATENCY", "II", "input_layout", "lerp", "output_layout", "sample_shape"]
 
 LATENCY = model.LATENCY
 II = model.II
+
+
+def sample_shape(cfg: InterpConfig, voxel_bits: int):
+    """Signed width of voxels promoted by ``S`` and of every lerp between them."""
+    return signed(voxel_bits + cfg.sample_frac_bits + 1)
+
+
+def lerp(a, b, f, cfg: InterpConfig):
+    """``a + (b - a) f`` for a ``W``-bit weight ``f``, rounded as the model's lerp."""
+    return a + round_shift((b - a) * f, cfg.weight_bits, cfg.rounding)
 
 
 def input_layout(cfg: InterpConfig, voxel_bits: int, signed_input: bool = False):
@@ -67,27 +77,22 @@ class Interp(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        cfg = self.cfg
+        cfg, s = self.cfg, self.cfg.sample_frac_bits
         pipe = StallingPipeline(m, self.i, self.o, LATENCY)
-        s, w = cfg.sample_frac_bits, cfg.weight_bits
-        wide = signed(self.voxel_bits + s + 1)
-        payload = self.i.payload
+        wide, payload = sample_shape(cfg, self.voxel_bits), self.i.payload
         v = [pipe.register(payload.voxels[c] << s, name=f"v{c}", shape=wide) for c in range(8)]
         fz, fy, fx = (pipe.register(payload.frac[k], name=f"f{k}") for k in range(3))
-
-        def lerp(a, b, f):
-            return a + round_shift((b - a) * f, w, cfg.rounding)
-
         # The fractions travel with their samples, one register per stage.
         x = [
-            pipe.register(lerp(v[c], v[c + 1], fx), name=f"x{c}", shape=wide) for c in (0, 2, 4, 6)
+            pipe.register(lerp(v[c], v[c + 1], fx, cfg), name=f"x{c}", shape=wide)
+            for c in (0, 2, 4, 6)
         ]
         fy2, fz2 = pipe.register(fy, name="fy2"), pipe.register(fz, name="fz2")
         y = [
-            pipe.register(lerp(x[0], x[1], fy2), name="y0", shape=wide),
-            pipe.register(lerp(x[2], x[3], fy2), name="y1", shape=wide),
+            pipe.register(lerp(x[0], x[1], fy2, cfg), name="y0", shape=wide),
+            pipe.register(lerp(x[2], x[3], fy2, cfg), name="y1", shape=wide),
         ]
         fz3 = pipe.register(fz2, name="fz3")
-        z = pipe.register(lerp(y[0], y[1], fz3), name="z", shape=wide)
+        z = pipe.register(lerp(y[0], y[1], fz3, cfg), name="z", shape=wide)
         m.d.comb += self.o.payload.sample.eq(z)
         return m

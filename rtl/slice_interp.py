@@ -25,12 +25,13 @@ Stages (``LATENCY = 4`` = the trilinear interpolator's, ``II = 1``): input regis
 
 from __future__ import annotations
 
-from amaranth import Module, signed, unsigned
+from amaranth import Module, unsigned
 from amaranth.lib import data, wiring
 
 from models.units import interp as model
 from models.units.interp import InterpConfig
-from rtl.common import StallingPipeline, round_shift, unit_ports
+from rtl.common import StallingPipeline, unit_ports
+from rtl.interp import lerp, sample_shape
 
 __all__ = ["SliceInterp", "LATENCY", "II", "input_layout", "output_layout"]
 
@@ -64,15 +65,8 @@ def output_layout(cfg: InterpConfig, voxel_bits: int):
 
 
 class SliceInterp(wiring.Component):
-    """Bilinear samples of one cell on three slices, and the current slice's edge lerps.
-
-    Parameters
-    ----------
-    cfg : InterpConfig
-        Weight bits ``W``, sample fraction bits ``S``, rounding.
-    voxel_bits : int
-        ``B``.
-    """
+    """Bilinear samples of one cell on three slices, and the current slice's edge lerps;
+    ``cfg`` and ``voxel_bits`` (``B``) as :class:`rtl.interp.Interp`'s."""
 
     def __init__(self, cfg: InterpConfig | None = None, voxel_bits: int = 12):
         cfg = cfg if cfg is not None else InterpConfig()
@@ -81,14 +75,9 @@ class SliceInterp(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        cfg = self.cfg
+        cfg, s = self.cfg, self.cfg.sample_frac_bits
         pipe = StallingPipeline(m, self.i, self.o, LATENCY)
-        s, w = cfg.sample_frac_bits, cfg.weight_bits
-        wide = signed(self.voxel_bits + s + 1)
-        payload = self.i.payload
-
-        def lerp(a, b, f):
-            return a + round_shift((b - a) * f, w, cfg.rounding)
+        wide, payload = sample_shape(cfg, self.voxel_bits), self.i.payload
 
         v = [
             [
@@ -101,18 +90,20 @@ class SliceInterp(wiring.Component):
         wb1 = pipe.register(payload.wb, name="wb1")
         rows = [
             [
-                pipe.register(lerp(v[k][2 * i], v[k][2 * i + 1], wb1), name=f"r{k}_{i}", shape=wide)
+                pipe.register(
+                    lerp(v[k][2 * i], v[k][2 * i + 1], wb1, cfg), name=f"r{k}_{i}", shape=wide
+                )
                 for i in range(2)
             ]
             for k in range(3)
         ]
         cols = [
-            pipe.register(lerp(v[1][j], v[1][2 + j], wa1), name=f"c{j}", shape=wide)
+            pipe.register(lerp(v[1][j], v[1][2 + j], wa1, cfg), name=f"c{j}", shape=wide)
             for j in range(2)
         ]
         wa2 = pipe.register(wa1, name="wa2")
         samples = [
-            pipe.register(lerp(rows[k][0], rows[k][1], wa2), name=f"s{k}", shape=wide)
+            pipe.register(lerp(rows[k][0], rows[k][1], wa2, cfg), name=f"s{k}", shape=wide)
             for k in range(3)
         ]
         rows3 = [pipe.register(rows[1][i], name=f"row3_{i}", shape=wide) for i in range(2)]
