@@ -18,11 +18,20 @@ from typing import Any
 
 from hwsim.config import Table, read_toml
 
-__all__ = ["ArchConfig", "parse_arch", "load_arch_file", "ORDERS", "SCHEMA"]
+__all__ = ["ArchConfig", "FEATURE_CHOICES", "parse_arch", "load_arch_file", "ORDERS", "SCHEMA"]
 
 SCHEMA = 1
 #: Processing orders, named by the sample positions they produce (hwsim.golden plans).
 ORDERS = ("shear-warp", "slice-parallel", "shear-image", "ray")
+#: The declared feature lists of ``[features]`` and what each may hold (the scene's
+#: ``render.mode``, ``transfer.order``, ``render.interpolation``; gradients estimated at
+#: interpolated samples or at voxels and then interpolated).
+FEATURE_CHOICES = {
+    "modes": ("composite", "mip", "minip", "xray", "iso"),
+    "classification": ("post", "pre"),
+    "interpolation": ("trilinear", "nearest", "cubic"),
+    "gradients": ("sample", "voxel"),
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -58,6 +67,17 @@ class ArchConfig:
         Classification LUTs merged by combiners (1: a single LUT; VolumePro 1000: 4).
     embedded_geometry : bool
         Whether opaque geometry can be embedded through image + depth buffers.
+    modes, classification, interpolation, gradients : tuple of str
+        The declared feature lists (:data:`FEATURE_CHOICES`): compositing modes,
+        classification orders, interpolation filters, gradient sources the machine had.
+    crop : bool
+        Whether the machine crops to axis slabs (VolumePro's box cropping).
+    feature_sources : dict
+        ``[features.sources]``: where each declared feature comes from, tagged ``[V]``,
+        ``[R]``, ``[I]`` or ``[?]`` as the published figures are.
+    extend : bool
+        ``[features] extend = true``: render scenes outside the declared set as what-ifs
+        (``stats.json`` lists them in ``extensions``) instead of refusing them.
     formats, memory, buffers : dict
         Raw tables for the unit formats, the memory system and on-chip buffer capacities
         (the models layer owns their meaning and validates them).
@@ -81,9 +101,16 @@ class ArchConfig:
     early_termination: bool = False
     space_leaping: bool = False
     supersampling: tuple[float, float] = (1.0, 1.0)
-    cut_planes: int = 4
+    cut_planes: int = 0
     classification_luts: int = 1
     embedded_geometry: bool = False
+    modes: tuple[str, ...] = ("composite",)
+    classification: tuple[str, ...] = ("post",)
+    interpolation: tuple[str, ...] = ("trilinear",)
+    gradients: tuple[str, ...] = ("sample", "voxel")
+    crop: bool = False
+    feature_sources: dict[str, str] = field(default_factory=dict)
+    extend: bool = False
     formats: dict[str, Any] = field(default_factory=dict)
     memory: dict[str, Any] = field(default_factory=dict)
     buffers: dict[str, Any] = field(default_factory=dict)
@@ -114,6 +141,45 @@ def _family(pipeline: Table) -> str:
     if family and not re.fullmatch(r"[a-z][a-z0-9_]*", family):
         raise pipeline.error("family", f"invalid name {family!r}", "a Python package name")
     return family
+
+
+#: Every key of ``[features]`` that declares something the machine had (``sources`` may
+#: cite each; ``extend`` is the user's opt-in, not a feature).
+_FEATURE_KEYS = (
+    "perspective",
+    "early_termination",
+    "space_leaping",
+    "supersampling",
+    "cut_planes",
+    "classification_luts",
+    "embedded_geometry",
+    *FEATURE_CHOICES,
+    "crop",
+    "sections",
+    "voxel_bits",
+    "max_volume",
+)
+
+
+def _declared(features: Table, name: str, default: tuple[str, ...]) -> tuple[str, ...]:
+    """A declared feature list: a non-empty list of :data:`FEATURE_CHOICES` values."""
+    allowed = FEATURE_CHOICES[name]
+    value = features.raw(name, list(default))
+    if not isinstance(value, list) or not value or any(v not in allowed for v in value):
+        raise features.error(name, f"invalid {value!r}", f"a list of {', '.join(allowed)}")
+    return tuple(value)
+
+
+def _sources(features: Table) -> dict[str, str]:
+    """``[features.sources]``: one tagged string per declared feature."""
+    table = features.table("sources")
+    out = {}
+    for key in list(table.data):
+        if key not in _FEATURE_KEYS:
+            raise table.error(key, "unknown feature", ", ".join(_FEATURE_KEYS))
+        out[key] = table.string(key)
+    table.finish()
+    return out
 
 
 def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
@@ -147,9 +213,16 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         early_termination=features.boolean("early_termination", False),
         space_leaping=features.boolean("space_leaping", False),
         supersampling=ss,  # type: ignore[arg-type]
-        cut_planes=features.integer("cut_planes", 4, 0, 64),
+        cut_planes=features.integer("cut_planes", 0, 0, 64),
         classification_luts=features.integer("classification_luts", 1, 1, 4),
         embedded_geometry=features.boolean("embedded_geometry", False),
+        modes=_declared(features, "modes", ("composite",)),
+        classification=_declared(features, "classification", ("post",)),
+        interpolation=_declared(features, "interpolation", ("trilinear",)),
+        gradients=_declared(features, "gradients", ("sample", "voxel")),
+        crop=features.boolean("crop", False),
+        feature_sources=_sources(features),
+        extend=features.boolean("extend", False),
         formats=dict(top.raw("formats", {})),
         memory=dict(top.raw("memory", {})),
         buffers=dict(top.raw("buffers", {})),

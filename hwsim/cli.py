@@ -68,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="rtl rung: HDL simulator (default verilator)",
     )
     r.add_argument(
+        "--extend",
+        action="store_true",
+        help="render features the machine never had as a what-if (stats.json: extensions)",
+    )
+    r.add_argument(
         "--out", metavar="DIR", help=f"output folder (default {DEFAULT_RENDER_OUT}, replaced)"
     )
     _add_max_memory(r)
@@ -75,12 +80,22 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
-    sub.add_parser("archs", help="list built-in architectures")
+    a = sub.add_parser("archs", help="list built-in architectures")
+    a.add_argument(
+        "--features",
+        action="store_true",
+        help="each machine's declared features and their sources",
+    )
     t = sub.add_parser("trade", help="measure the fidelity ladder (speed vs error), or --widths")
     t.add_argument(
         "--widths",
         action="store_true",
         help="bit-width trade: PSNR vs golden as each datapath width shrinks",
+    )
+    t.add_argument(
+        "--extend",
+        action="store_true",
+        help="measure scenes outside a machine's features as what-ifs (else: unsupported rows)",
     )
     _add_repeatable(t, "--volume", "PATH", "add a volume file to the scene set")
     _add_repeatable(
@@ -171,6 +186,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except HwsimError as exc:
         print(f"hwsim: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # stdout closed early (`hwsim archs --features | head`)
+        sys.stdout = open(os.devnull, "w")
+        return 0
     except KeyboardInterrupt:
         print("hwsim: interrupted", file=sys.stderr)
         return 130
@@ -209,9 +227,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
             progress=progress,
             trace=args.trace,
             simulator=args.simulator,
+            extend=args.extend,
         )
     paths = write_render(run, out_dir)
     if not args.quiet:
+        for e in run.extensions:
+            print(f"  what-if: {e['asked']} ({e['feature']}; {run.arch} has {e['machine']})")
         vol = run.volume
         print(
             f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
@@ -254,6 +275,14 @@ def _cmd_phantoms(args: argparse.Namespace) -> int:
 def _cmd_archs(args: argparse.Namespace) -> int:
     from hwsim.fidelity import builtin_archs, machine_rungs
 
+    if args.features:
+        from hwsim.machine_features import feature_rows
+
+        for name, arch in builtin_archs().items():
+            print(name)
+            for feature, has, source in feature_rows(arch):
+                print(f"  {feature:<20} {has:<34} {source}")
+        return 0
     print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
     for name, arch in builtin_archs().items():
         rungs = " ".join(machine_rungs(arch))

@@ -9,6 +9,7 @@ the registry, ``models.machines``, has it at that rung) raises
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,8 +21,8 @@ import numpy as np
 from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.budget import SAMPLE_ENV_VAR, require_fits, sample_budget
 from hwsim.errors import InputError, NotAvailableError
+from hwsim.machine_features import require_machine
 from hwsim.scene import Scene
-from hwsim.scene_features import check_machine
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.volume import Volume
@@ -65,6 +66,8 @@ class RenderRun:
     elided_units: list[str] = field(default_factory=list)
     counters: dict[str, Any] = field(default_factory=dict)
     derived: dict[str, Any] = field(default_factory=dict)
+    #: What the scene asked outside the machine's declared features (a what-if render).
+    extensions: list[dict[str, str]] = field(default_factory=list)
 
 
 def builtin_archs() -> dict[str, ArchConfig]:
@@ -94,30 +97,29 @@ def resolve_arch(name_or_path: str) -> ArchConfig:
     return archs[name_or_path]
 
 
-def check_scene_fits(scene: Scene, arch: ArchConfig) -> None:
-    """Refuse what the machine cannot render, as the machine did."""
-    check_machine(scene, arch)  # classification LUTs, embedded geometry
-    if scene.view.projection == "perspective" and not arch.perspective:
+def gradient_source(arch: ArchConfig) -> str:
+    """Where ``arch``'s datapath estimates gradients (``[formats] gradient.source``)."""
+    from models.datapath import Datapath
+
+    return Datapath.from_arch(arch, 0).gradient.source
+
+
+def check_scene_fits(scene: Scene, arch: ArchConfig, *, extend: bool = False) -> list:
+    """Refuse what the machine cannot render, as the machine did; return the what-if
+    extensions ``extend`` lets through (:func:`hwsim.machine_features.require_machine`)."""
+    return require_machine(scene, arch, gradient_source(arch), extend=extend)
+
+
+def check_volume_fits(volume: Volume, arch: ArchConfig) -> None:
+    """Refuse a volume larger than the machine renders in one pass (every rung alike)."""
+    if any(n > m for n, m in zip(volume.shape, arch.max_volume, strict=True)):
+        shape = " x ".join(map(str, volume.shape))
+        largest = " x ".join(map(str, arch.max_volume))
         raise InputError(
-            f"{arch.name} renders parallel projection only",
+            f"{arch.name} renders volumes up to {largest} (z, y, x) in one pass, not {shape}",
             source=arch.source,
-            key="view.projection",
-            allowed="parallel",
-        )
-    if len(scene.cut_planes) > arch.cut_planes:
-        raise InputError(
-            f"{arch.name} applies {arch.cut_planes} cut plane(s) at most",
-            source=arch.source,
-            key="cut_planes",
-            allowed=f"0 .. {arch.cut_planes}",
-        )
-    lo, hi = arch.supersampling
-    if not lo <= scene.render.supersampling <= hi:
-        raise InputError(
-            f"{arch.name} supersamples by {lo:g} .. {hi:g} only",
-            source=arch.source,
-            key="render.supersampling",
-            allowed=f"{lo:g} .. {hi:g}",
+            key="limits.max_volume",
+            allowed=f"<= {largest}",
         )
 
 
@@ -200,6 +202,7 @@ def render(
     elaborate_all: bool = False,
     steady_state: bool = False,
     simulator: str | None = None,
+    extend: bool = False,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -230,6 +233,9 @@ def render(
         back to back (``frame.period_cycles`` in the counters: the continuous frame rate).
     simulator : str, optional
         ``rtl`` rung only: ``verilator`` (the default) or ``icarus``.
+    extend : bool
+        Render a scene outside the machine's declared features as a what-if (listed in
+        ``extensions``) instead of refusing it (:mod:`hwsim.machine_features`).
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -257,8 +263,12 @@ def render(
         machine: ArchConfig | None = arch
     else:
         machine = resolve_arch(arch) if arch is not None else None
+    extensions = []
     if machine is not None:
-        check_scene_fits(scene, machine)
+        extensions = check_scene_fits(scene, machine, extend=extend)
+        if scene.render.gradient is None:  # golden follows the machine's algorithm too
+            gradient = gradient_source(machine)
+            scene = scene.replace(render=dataclasses.replace(scene.render, gradient=gradient))
         if sampling not in ("ray", machine.order):
             raise InputError(
                 f"{machine.name} samples in {machine.order} order",
@@ -275,10 +285,16 @@ def render(
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
     check_work(scene, volume)
+    if machine is not None:
+        check_volume_fits(volume, machine)
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene, transfer)
     cycles = clock = None
     derived: dict[str, Any] = {}
+    if fidelity == "golden" and machine is not None:  # the machine's refusals hold here too
+        from models.frame import frame_of
+
+        check_family(frame_of(scene, volume, transfer, machine))
     start = time.perf_counter()
     if fidelity == "golden":
         result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
@@ -313,12 +329,27 @@ def render(
         elided_units=elided,
         counters=counters,
         derived=derived,
+        extensions=[e.describe() for e in extensions],
     )
+
+
+def check_family(frame) -> None:
+    """The refusals of the family modelling ``frame``'s machine (``Machine.check_frame``):
+    asked before every rung, so a scene its models cannot render is refused at all."""
+    from models.machines import machine_for
+
+    try:
+        family = machine_for(frame.arch)
+    except NotAvailableError:
+        return  # no family models this order: the rungs say so themselves
+    if family.check_frame is not None:
+        family.check_frame(frame)
 
 
 def _render_machine(frame, fidelity, progress, trace, elaborate_all, steady_state, simulator):
     """``frame`` at ``fidelity``, one of the machine rungs (imported on use: each pulls in
-    its models)."""
+    its models), after the family's own refusals (the same for every rung)."""
+    check_family(frame)
     if fidelity == "cycle":
         from models.cycle import render_cycle
 

@@ -72,6 +72,7 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "elided_units": run.elided_units,
         "counters": run.counters,
         "derived": run.derived,
+        "extensions": run.extensions,  # features outside the machine (a what-if render)
         "host": {
             "python": platform.python_version(),
             "numpy": np.__version__,

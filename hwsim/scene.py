@@ -151,14 +151,16 @@ class RenderSpec:
 
     ``sample_spacing`` is in units of the smallest voxel spacing; ``supersampling``
     divides it (VolumePro's z-supersampling); ``early_termination`` stops a ray once its
-    accumulated opacity reaches it (1.0 = off).  ``iso_value`` ``None`` means the middle
+    accumulated opacity reaches it (1.0 = off).  ``gradient`` ``None`` means the
+    machine's gradient source (its ``[formats] gradient.source``), or ``voxel`` for the
+    ideal renderer without one.  ``iso_value`` ``None`` means the middle
     of the volume's value range.
     """
 
     mode: str = "composite"
     lighting: bool = True
     interpolation: str = "trilinear"
-    gradient: str = "voxel"
+    gradient: str | None = None
     sample_spacing: float = 1.0
     supersampling: float = 1.0
     early_termination: float = 1.0
@@ -449,7 +451,7 @@ def _render(t: Table) -> RenderSpec:
         mode=t.choice("mode", MODES, d.mode),
         lighting=t.boolean("lighting", d.lighting),
         interpolation=t.choice("interpolation", INTERPOLATIONS, d.interpolation),
-        gradient=t.choice("gradient", GRADIENT_SOURCES, d.gradient),
+        gradient=t.choice("gradient", GRADIENT_SOURCES) if t.has("gradient") else None,
         sample_spacing=t.number("sample_spacing", d.sample_spacing, 0.0625, 16),
         supersampling=t.number("supersampling", d.supersampling, 0.125, 16),
         early_termination=t.number("early_termination", d.early_termination, 0, 1, lo_open=True),

@@ -187,7 +187,11 @@ class Backend:
             factor = crop_unit.cut_factor(
                 index_to_world(step.zyx, self.volume),
                 self.scene.cut_planes,
-                crop_unit.CutConfig(max_planes=max(1, self.arch.cut_planes)),
+                # The machine's plane count; a what-if beyond it (hwsim.machine_features)
+                # gets a unit as wide as the scene asks.
+                crop_unit.CutConfig(
+                    max_planes=max(1, self.arch.cut_planes, len(self.scene.cut_planes))
+                ),
             )
             keep = factor > 0 if keep is None else keep & (factor > 0)
         if self.depth is not None:

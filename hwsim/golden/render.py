@@ -97,7 +97,7 @@ class _Renderer:
         composite = self.mode == "composite"
         self.need_grad = scene.lit or (composite and transfer.modulates)
         self.rows = None  # (N, 4) value and voxel gradient, interleaved
-        if self.need_grad and scene.render.gradient == "voxel":
+        if self.need_grad and scene.render.gradient in ("voxel", None):
             self.rows = _derived(volume, "rows", lambda: interleave(volume.data, volume.spacing))
             self.flat = self.rows[:, 0]
         else:

@@ -27,7 +27,7 @@ def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
     rungs = [r.strip() for r in args.rungs.split(",")] if args.rungs else None
     cases = ladder_cases(args.volume, args.image, args.size)
     with progress_bar(args.quiet, "trade") as progress:
-        rows = ladder_trade(cases, args.arch or None, rungs, progress=progress)
+        rows = ladder_trade(cases, args.arch or None, rungs, progress=progress, extend=args.extend)
     paths = write_ladder_trade(rows, args.out)
     if not args.quiet:
         print(format_ladder(rows))

@@ -121,8 +121,13 @@ def ladder_trade(
     archs: Sequence[str] | None = None,
     rungs: Sequence[str] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    *,
+    extend: bool = False,
 ) -> list[dict[str, Any]]:
-    """Measure every (scene, architecture, rung); one row each (see the module doc)."""
+    """Measure every (scene, architecture, rung); one row each (see the module doc).
+
+    A scene outside a machine's declared features is an ``unsupported`` row naming the
+    feature, or with ``extend`` a what-if row whose ``extensions`` name the features."""
     from hwsim.fidelity import FIDELITIES, builtin_archs, render
 
     arch_names = list(archs) if archs else list(builtin_archs())
@@ -156,7 +161,9 @@ def ladder_trade(
             pending: list[dict[str, Any]] = []
             for rung in rung_names:
                 try:
-                    runs[rung] = render(case.scene, fidelity=rung, arch=arch, volume=case.volume)
+                    runs[rung] = render(
+                        case.scene, fidelity=rung, arch=arch, volume=case.volume, extend=extend
+                    )
                 except NotAvailableError as exc:  # the rung does not model this machine yet
                     pending.append(_empty(case, arch, rung, "not available", note=exc.message))
                     tick()
@@ -171,7 +178,12 @@ def ladder_trade(
             full = None
             if cycle is not None:  # measured elision: the same frame with every unit
                 full = render(
-                    case.scene, fidelity="cycle", arch=arch, volume=case.volume, elaborate_all=True
+                    case.scene,
+                    fidelity="cycle",
+                    arch=arch,
+                    volume=case.volume,
+                    elaborate_all=True,
+                    extend=extend,
                 )
             for rung, run in runs.items():
                 row = _row(case, arch, run, status="ok")
@@ -230,6 +242,7 @@ _COLUMNS = (
     "elision_saving",
     "elision_speedup",
     "elision_exact",
+    "extensions",
     "note",
 )
 
@@ -257,8 +270,11 @@ def _row(case: TradeCase, arch: str, run: Any, *, status: str, note: str = "") -
         elided_units=list(run.elided_units),
         # Share of the pipeline's per-sample unit evaluations the scene does not need.
         elision_saving=len(run.elided_units) / all_units if all_units else 0.0,
+        extensions=[e["feature"] for e in run.extensions],
         note=note,
     )
+    if run.extensions and not note:
+        row["note"] = "what-if: " + ", ".join(e["asked"] for e in run.extensions)
     return row
 
 

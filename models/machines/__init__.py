@@ -79,6 +79,10 @@ class Machine:
         The structures the cycle model can break (fault-injection tests).
     steady_state : bool
         Whether the cycle and transaction models time back-to-back frames.
+    check_frame : callable or None
+        ``check_frame(frame)`` refuses (:class:`~hwsim.errors.InputError`, key named)
+        what the family's models cannot render; asked before every machine rung
+        (functional, transaction, cycle, rtl), so they refuse alike.
     rtl_top : str or None
         The module of the family's RTL top, where one exists.
     package : str
@@ -91,6 +95,7 @@ class Machine:
     transaction: Callable[..., Any] | None
     faults_type: type | None = None
     steady_state: bool = False
+    check_frame: Callable[..., None] | None = None
     rtl_top: str | None = None
     package: str = field(default="")
 

@@ -71,9 +71,11 @@ def test_a_machine_refuses_more_cut_planes_than_it_has():
     from hwsim.scene import CutPlane
 
     two = Scene(cut_planes=(CutPlane(), CutPlane(normal=(1.0, 0.0, 0.0))))
-    with pytest.raises(InputError, match=r"volumepro500 applies 1 cut plane\(s\) at most"):
+    with pytest.raises(InputError, match=r"volumepro500 has no 2 cut plane\(s\) \(cut_planes: 1"):
         check_scene_fits(two, resolve_arch("volumepro500"))
     check_scene_fits(two, resolve_arch("volumepro1000"))  # up to 4 [V]
+    what_if = check_scene_fits(two, resolve_arch("volumepro500"), extend=True)
+    assert [e.feature for e in what_if] == ["cut_planes"]
 
 
 def test_a_bad_memory_table_is_refused_when_the_file_loads(tmp_path):

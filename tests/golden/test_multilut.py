@@ -200,7 +200,9 @@ def test_cycle_rung_shares_the_features_bit_for_bit(order):
     from hwsim.fidelity import resolve_arch
 
     data = read_toml(resolve_arch("cube4").source)
-    data.setdefault("features", {}).update(classification_luts=4, embedded_geometry=True)
+    data.setdefault("features", {}).update(
+        classification_luts=4, embedded_geometry=True, classification=["post", "pre"]
+    )
     arch = parse_arch(data, source="cube4-vp.toml", name="cube4-vp")
     sc = load_scene("head-vp1000")
     sc = sc.replace(

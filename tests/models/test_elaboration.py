@@ -44,7 +44,7 @@ def test_every_rung_elaborates_the_same_datapath_units(head, arch, mode, lit, tr
     scene = scene_of(30, 20, size=12, mode=mode, render={"lighting": lit}, **extra)
     reports = {}
     for rung in ("golden", "functional", "transaction", "cycle"):
-        run = render(scene, fidelity=rung, arch=arch, volume=head)
+        run = render(scene, fidelity=rung, arch=arch, volume=head, extend=True)
         datapath = [u for u in run.elaborated_units if u in DATAPATH_UNITS]
         reports[rung] = (datapath, sorted(run.elided_units))
     assert len(set(map(repr, reports.values()))) == 1, reports

@@ -65,9 +65,9 @@ def phantoms():
 @pytest.mark.parametrize("projection", ["parallel", "perspective"])
 def test_image_is_the_functional_image_and_bit_identical_to_cycle(phantoms, mode, projection):
     volume, scene = phantoms["head"], scene_of(mode=mode, projection=projection)
-    txn = render(scene, fidelity="transaction", arch="cube4", volume=volume)
-    fixed = render(scene, fidelity="functional", arch="cube4", volume=volume)
-    cycle = render(scene, fidelity="cycle", arch="cube4", volume=volume)
+    txn = render(scene, fidelity="transaction", arch="cube4", volume=volume, extend=True)
+    fixed = render(scene, fidelity="functional", arch="cube4", volume=volume, extend=True)
+    cycle = render(scene, fidelity="cycle", arch="cube4", volume=volume, extend=True)
     assert np.array_equal(txn.image, fixed.image) and np.array_equal(txn.image, cycle.image)
     assert txn.samples == cycle.samples and txn.rays == cycle.rays
     assert txn.fidelity == "transaction" and txn.clock_hz == cycle.clock_hz
@@ -254,15 +254,23 @@ def test_cube4_refusals_hold_at_the_transaction_rung(phantoms):
 
 
 def test_a_volume_the_machine_cannot_buffer_is_refused_as_at_the_cycle_rung():
-    """One buffer check for both rungs: Teramac's beam FIFO holds 128-voxel beams."""
+    """One buffer check for both rungs: a Teramac whose beam FIFO holds 128-voxel beams
+    (33 entries at P = 4), asked for 136-voxel beams within its max_volume."""
     from hwsim.errors import InputError
     from hwsim.fidelity import render
     from hwsim.scene import VolumeSpec, load_scene
 
+    teramac = resolve_arch("cube4-teramac")
+    arch = dataclasses.replace(
+        teramac, max_volume=(256, 256, 256), buffers={"beam_fifo_entries": 33}
+    )
     scene = load_scene("head").replace(volume=VolumeSpec(phantom="ball", params=(("size", 136),)))
     for rung in ("cycle", "transaction"):
         with pytest.raises(InputError, match="buffers.beam_fifo_entries"):
-            render(scene, fidelity=rung, arch="cube4-teramac")
+            render(scene, fidelity=rung, arch=arch)
+    for rung in ("functional", "cycle", "transaction"):  # over limits.max_volume: every rung
+        with pytest.raises(InputError, match="limits.max_volume"):
+            render(scene, fidelity=rung, arch=teramac)
 
 
 @pytest.mark.parametrize(

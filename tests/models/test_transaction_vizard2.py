@@ -17,17 +17,16 @@ import pytest
 import rungs
 
 from hwsim.engine import DeadlockError
-from hwsim.errors import NotAvailableError
+from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import read_volume
 from models import cycle as cycle_module
+from models.cycle import render_cycle
 from models.frame import frame_of
 from models.functional import render_functional
 from models.machines.vizard2 import cycle as vizard2_module
-from models.machines.vizard2.memory import VolumeImage
-from models.machines.vizard2.transaction import BlockLayout
 from models.transaction import transaction_timing
 
 pytestmark = pytest.mark.model
@@ -113,19 +112,16 @@ def test_termination_and_leaping_issue_fewer_samples(phantoms):
     assert both.counters["frame.leaped_samples"] > 0 == ert.counters["frame.leaped_samples"]
 
 
-def test_block_layout_is_the_memory_image_s(phantoms):
-    """The model's burst addresses are the cycle rung's memory image's (layout drift
-    would move row hits and misses silently)."""
+def test_both_rungs_refuse_a_volume_the_memory_cannot_hold(phantoms):
+    """One memory image and one capacity check (BlockLayout): a volume and gradient table
+    over the SDRAM's pages is refused by the cycle and the transaction rung alike."""
     arch = machine()
-    memory = vizard2_module.memory_of(arch)
-    volume = phantoms["marschner-lobb"]
-    raw = np.zeros(volume.shape, dtype=np.int64)
-    for gradients in (False, True):
-        image = VolumeImage(raw, memory, voxel_bits=12, gradients=gradients)
-        layout = BlockLayout.of(volume.shape, memory.sdram, 12, gradients)
-        blocks = np.arange(image.blocks)
-        for mine, theirs in zip(layout.bursts(blocks), image.bursts(blocks), strict=True):
-            assert np.array_equal(mine, theirs)
+    small = dataclasses.replace(arch, memory={**arch.memory, "rows": 1, "banks": 1})
+    volume, scene = phantoms["head"], scene_of()
+    frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), small)
+    for rung in (render_cycle, transaction_timing):
+        with pytest.raises(InputError, match="memory.rows"):
+            rung(frame)
 
 
 def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):

@@ -48,7 +48,19 @@ def cases():
 
 @pytest.fixture(scope="module")
 def rows(cases):
-    return ladder_trade(cases, ARCHS)
+    return ladder_trade(cases, ARCHS, extend=True)  # the ball's X-ray: a what-if but on VP1000
+
+
+def test_a_scene_outside_a_machine_is_unsupported_or_a_marked_what_if(cases, rows):
+    ball = [c for c in cases if c.label == "ball"]
+    strict = ladder_trade(ball, ["cube4"], ["golden", "functional"])
+    for row in strict:
+        if row["arch"] == "cube4":
+            assert row["status"] == "unsupported" and "cube4 has no xray" in row["note"]
+    what_if = pick(rows, "ball", "cube4", "functional")
+    assert what_if["status"] == "ok" and what_if["extensions"] == ["modes"]
+    assert what_if["note"] == "what-if: xray"
+    assert pick(rows, "head", "cube4", "functional")["extensions"] == []
 
 
 def pick(rows, scene, arch, rung):

@@ -21,8 +21,15 @@ __all__ = ["Cube4Frame", "check_cube4_frame"]
 
 def check_cube4_frame(frame: Frame) -> None:
     """Refuse what no Cube-4 renders (every rung of the family asks here): more or fewer
-    than one sample per slice, gradients from voxels instead of samples."""
+    than one sample per slice, gradients from voxels instead of samples, sections."""
     arch = frame.arch
+    if arch.section_width:
+        raise InputError(
+            "Cube-4 renders the whole slice: the model has no sections",
+            source=arch.source,
+            key="overheads.section_width",
+            allowed="0",
+        )
     if frame.scene.render.supersampling != 1.0:
         raise InputError(
             "the Cube-4 model samples once per slice",

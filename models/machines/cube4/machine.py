@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from models.machines import Machine, single_frames
 from models.machines.cube4.cycle import Cube4Machine, Faults
+from models.machines.cube4.frame import check_cube4_frame
 from models.machines.cube4.transaction import Cube4Transaction
 
 MACHINE = Machine(
@@ -15,6 +16,7 @@ MACHINE = Machine(
     cycle=single_frames(Cube4Machine),
     transaction=Cube4Transaction,  # reads neither the volume nor the rays' ends
     faults_type=Faults,
+    check_frame=check_cube4_frame,
     rtl_top="rtl.top",
     package="models.machines.cube4",
 )

@@ -10,9 +10,8 @@ from dataclasses import dataclass
 
 from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
-from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig, parse_memory
-from models.datapath import Datapath
+from models.frame import Frame
 from models.machines.common.results import UNITS, check_buffer_keys
 
 __all__ = [
@@ -79,9 +78,18 @@ _DEFAULTS = {
 }
 
 
-def check_frame(arch: ArchConfig, plan: SamplePlan, datapath: Datapath) -> None:
-    """Refuse what VIZARD II cannot render: plans that are not cast from the image plane,
-    and gradients other than its table of pre-computed voxel gradients."""
+def check_frame(frame: Frame) -> None:
+    """Refuse what VIZARD II cannot render (every rung of the machine asks here): plans
+    that are not cast from the image plane, gradients other than its table of
+    pre-computed voxel gradients, sections."""
+    arch, plan, datapath = frame.arch, frame.plan, frame.datapath
+    if arch.section_width:
+        raise InputError(
+            "VIZARD II renders the whole slice: the model has no sections",
+            source=arch.source,
+            key="overheads.section_width",
+            allowed="0",
+        )
     if plan.kind != "ray":
         raise InputError(
             "VIZARD II casts rays from the image plane",

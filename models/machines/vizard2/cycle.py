@@ -107,7 +107,7 @@ class VizardMachine:
         arch = self.arch
         self.faults = faults or VizardFaults()
         self.P = arch.pipelines
-        check_frame(arch, plan, self.dp)
+        check_frame(backend.frame)
         self.buffers = parse_buffers(arch)
         self.memory_cfg = memory_of(arch)
         self.counters = Counters()

@@ -6,7 +6,7 @@
 from __future__ import annotations
 
 from models.machines import Machine, single_frames
-from models.machines.vizard2.config import VizardFaults
+from models.machines.vizard2.config import VizardFaults, check_frame
 from models.machines.vizard2.cycle import VizardMachine
 from models.machines.vizard2.transaction import VizardTransaction
 
@@ -16,5 +16,6 @@ MACHINE = Machine(
     cycle=single_frames(VizardMachine),
     transaction=VizardTransaction,  # reads the volume (the block cache's misses)
     faults_type=VizardFaults,
+    check_frame=check_frame,
     package="models.machines.vizard2",
 )

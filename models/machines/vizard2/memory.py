@@ -33,10 +33,86 @@ from hwsim.memory import MemoryConfig
 from models.machines.vizard2.config import BLOCK
 from models.units import gradient as gradient_unit
 
-__all__ = ["BlockCache", "CacheFetch", "VolumeImage"]
+__all__ = ["BlockCache", "BlockLayout", "CacheFetch", "VolumeImage"]
 
 _VOXELS = BLOCK**3
 VALUE_BITS = 16  # one voxel value field [I]
+
+
+@dataclass(frozen=True)
+class BlockLayout:
+    """Where a 4^3 block's fill lives in SDRAM (the memory image above): blocks one after
+    another, a value region of 16-bit voxels, then the gradient table (``gradient_bits``
+    per difference, three per voxel) from the next page boundary.  One copy for the cycle
+    rung's memory image and the transaction rung's bursts."""
+
+    nb: tuple[int, int, int]
+    blocks: int
+    burst_length: int
+    columns: int
+    banks: int
+    gradient_bits: int
+    value_words: int
+    gradient_words: int
+    gradient_base: int
+    value_bursts: int
+    gradient_bursts: int
+
+    @classmethod
+    def of(
+        cls, shape, sdram, voxel_bits: int, gradients: bool, source: str = "<built-in>"
+    ) -> BlockLayout:
+        """The layout of a ``shape`` volume; refused (key named) where its words do not
+        hold whole voxels or the volume and gradient table do not fit the memory."""
+        if sdram.word_bits % VALUE_BITS:
+            raise InputError(
+                f"{sdram.word_bits}-bit words do not hold whole {VALUE_BITS}-bit voxels",
+                source=source,
+                key="memory.word_bits",
+                allowed=f"a multiple of {VALUE_BITS}",
+            )
+        nb = tuple(-(-n // BLOCK) for n in shape)
+        blocks = int(np.prod(nb))
+        # Central differences of voxel_bits-bit voxels span +-2 (2^bits - 1): that many
+        # bits plus a sign, rounded up to whole bytes [I].
+        gradient_bits = -(-((2 << voxel_bits).bit_length() + 1) // 8) * 8
+        value_words = _VOXELS // (sdram.word_bits // VALUE_BITS)
+        gradient_words = -(-_VOXELS * 3 * gradient_bits // sdram.word_bits)
+        page = sdram.columns
+        gradient_base = -(-blocks * value_words // page) * page
+        pages = -(-(gradient_base + blocks * gradient_words) // page)
+        if pages > sdram.banks * sdram.rows:
+            raise InputError(
+                f"the volume and its gradient table need {pages} pages of {page} words; "
+                f"the memory has {sdram.banks * sdram.rows}",
+                source=source,
+                key="memory.rows",
+                allowed=f">= {-(-pages // sdram.banks)}",
+            )
+        return cls(
+            nb,  # type: ignore[arg-type]
+            blocks,
+            sdram.burst_length,
+            page,
+            sdram.banks,
+            gradient_bits,
+            value_words,
+            gradient_words,
+            gradient_base,
+            -(-value_words // sdram.burst_length),
+            -(-gradient_words // sdram.burst_length) if gradients else 0,
+        )
+
+    def bursts(self, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bank and row of every READ burst filling ``blocks``, in order."""
+        starts = [
+            blocks[:, None] * self.value_words + np.arange(self.value_bursts) * self.burst_length
+        ]
+        if self.gradient_bursts:
+            base = self.gradient_base + blocks[:, None] * self.gradient_words
+            starts.append(base + np.arange(self.gradient_bursts) * self.burst_length)
+        page = np.concatenate(starts, axis=1).ravel() // self.columns
+        return page % self.banks, page // self.banks
 
 
 @dataclass(frozen=True)
@@ -100,40 +176,16 @@ class VolumeImage:
         source: str = "<built-in>",
     ) -> None:
         self.sd = sd = memory.sdram
-        if sd.word_bits % VALUE_BITS:
-            raise InputError(
-                f"{sd.word_bits}-bit words do not hold whole {VALUE_BITS}-bit voxels",
-                source=source,
-                key="memory.word_bits",
-                allowed=f"a multiple of {VALUE_BITS}",
-            )
-        self.shape = raw.shape
-        self.nb = tuple(-(-n // BLOCK) for n in raw.shape)
-        self.blocks = int(np.prod(self.nb))
+        self.layout = lay = BlockLayout.of(raw.shape, sd, voxel_bits, gradients, source)
+        self.shape, self.nb, self.blocks = raw.shape, lay.nb, lay.blocks
+        self.value_words, self.gradient_words = lay.value_words, lay.gradient_words
+        self.gradient_base = lay.gradient_base
         self.values = _to_blocks(raw, self.nb)
-        # Central differences of voxel_bits-bit voxels span +-2 (2^bits - 1): that many
-        # bits plus a sign, rounded up to whole bytes [I].
-        self.gradient_bits = -(-((2 << voxel_bits).bit_length() + 1) // 8) * 8
         self.gradients = None
         if gradients:
             diffs = gradient_unit.voxel_differences(raw)
             self.gradients = [_to_blocks(d.reshape(raw.shape), self.nb) for d in diffs]
         per_word = sd.word_bits // VALUE_BITS
-        self.value_words = _VOXELS // per_word
-        self.gradient_words = -(-_VOXELS * 3 * self.gradient_bits // sd.word_bits)
-        page = sd.columns
-        self.gradient_base = -(-self.blocks * self.value_words // page) * page
-        top = self.gradient_base + self.blocks * self.gradient_words
-        if -(-top // page) > sd.banks * sd.rows:
-            raise InputError(
-                f"the volume and its gradient table need {-(-top // page)} pages of "
-                f"{page} words; the memory has {sd.banks * sd.rows}",
-                source=source,
-                key="memory.rows",
-                allowed=f">= {-(-top // page // sd.banks)}",
-            )
-        self.value_bursts = -(-self.value_words // sd.burst_length)
-        self.gradient_bursts = -(-self.gradient_words // sd.burst_length) if gradients else 0
         if stuck_word is not None:
             address, value = stuck_word
             block, word = divmod(int(address), self.value_words)
@@ -155,16 +207,7 @@ class VolumeImage:
 
     def bursts(self, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Bank and row of every READ burst that fills ``blocks``, in order."""
-        sd = self.sd
-        starts = [
-            blocks[:, None] * self.value_words + np.arange(self.value_bursts) * sd.burst_length
-        ]
-        if self.gradient_bursts:
-            base = self.gradient_base + blocks[:, None] * self.gradient_words
-            starts.append(base + np.arange(self.gradient_bursts) * sd.burst_length)
-        address = np.concatenate(starts, axis=1).ravel()
-        page = address // sd.columns
-        return page % sd.banks, page // sd.banks
+        return self.layout.bursts(blocks)
 
 
 class BlockCache:

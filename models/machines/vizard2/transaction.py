@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -57,60 +56,10 @@ from models.machines.vizard2.config import (
     memory_of,
     parse_buffers,
 )
+from models.machines.vizard2.memory import BlockLayout
 from models.units import interp as interp_unit
 
-__all__ = ["BlockLayout", "VizardTransaction"]
-
-_VALUE_BITS = 16
-
-
-@dataclass(frozen=True)
-class BlockLayout:
-    """Where a 4^3 block's fill lives in SDRAM (docs/cycle.md, VIZARD II "memory image"):
-    blocks one after another, a value region of 16-bit voxels, then the gradient table
-    (``gradient_bits`` per difference, three per voxel) from the next page boundary."""
-
-    nb: tuple[int, int, int]
-    burst_length: int
-    columns: int
-    banks: int
-    value_words: int
-    gradient_words: int
-    gradient_base: int
-    value_bursts: int
-    gradient_bursts: int
-
-    @classmethod
-    def of(cls, shape, sdram, voxel_bits: int, gradients: bool) -> BlockLayout:
-        nb = tuple(-(-n // BLOCK) for n in shape)
-        voxels = BLOCK**3
-        gradient_bits = -(-((2 << voxel_bits).bit_length() + 1) // 8) * 8
-        value_words = voxels // (sdram.word_bits // _VALUE_BITS)
-        gradient_words = -(-voxels * 3 * gradient_bits // sdram.word_bits)
-        blocks = int(np.prod(nb))
-        gradient_base = -(-blocks * value_words // sdram.columns) * sdram.columns
-        return cls(
-            nb,
-            sdram.burst_length,
-            sdram.columns,
-            sdram.banks,
-            value_words,
-            gradient_words,
-            gradient_base,
-            -(-value_words // sdram.burst_length),
-            -(-gradient_words // sdram.burst_length) if gradients else 0,
-        )
-
-    def bursts(self, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Bank and row of every READ burst filling ``blocks``, in order."""
-        starts = [
-            blocks[:, None] * self.value_words + np.arange(self.value_bursts) * self.burst_length
-        ]
-        if self.gradient_bursts:
-            base = self.gradient_base + blocks[:, None] * self.gradient_words
-            starts.append(base + np.arange(self.gradient_bursts) * self.burst_length)
-        page = np.concatenate(starts, axis=1).ravel() // self.columns
-        return page % self.banks, page // self.banks
+__all__ = ["VizardTransaction"]
 
 
 class VizardTransaction(ReadsTheFrame):
@@ -130,7 +79,7 @@ class VizardTransaction(ReadsTheFrame):
         scene, arch, plan, volume = frame.scene, frame.arch, frame.plan, frame.volume
         self.frame, self.volume, self.datapath = frame, volume, frame.datapath
         self.scene, self.arch, self.planned = scene, arch, plan
-        check_frame(arch, plan, self.datapath)
+        check_frame(frame)
         self.buffers = parse_buffers(arch)
         self.memory = require_pipeline_clock(memory_of(arch), arch)
         self.P = arch.pipelines
@@ -138,8 +87,8 @@ class VizardTransaction(ReadsTheFrame):
         stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"
         self.ert = arch.early_termination and stops
         self.plan = self._leaped(plan) if arch.space_leaping else plan
-        self.layout = BlockLayout.of(
-            volume.shape, self.memory.sdram, self.datapath.voxel_bits, be.need_grad
+        self.layout = BlockLayout.of(  # the cycle rung's memory image and capacity check
+            volume.shape, self.memory.sdram, self.datapath.voxel_bits, be.need_grad, arch.source
         )
         depth = self.buffers.pixel_fifo_entries
         self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
