@@ -31,6 +31,7 @@ FEATURE_CHOICES = {
     "classification": ("post", "pre"),
     "interpolation": ("trilinear", "nearest", "cubic"),
     "gradients": ("sample", "voxel"),
+    "shading": ("phong", "reflectance-map"),
 }
 
 
@@ -67,9 +68,10 @@ class ArchConfig:
         Classification LUTs merged by combiners (1: a single LUT; VolumePro 1000: 4).
     embedded_geometry : bool
         Whether opaque geometry can be embedded through image + depth buffers.
-    modes, classification, interpolation, gradients : tuple of str
+    modes, classification, interpolation, gradients, shading : tuple of str
         The declared feature lists (:data:`FEATURE_CHOICES`): compositing modes,
-        classification orders, interpolation filters, gradient sources the machine had.
+        classification orders, interpolation filters, gradient sources and shading
+        methods (per-sample Phong, reflectance maps) the machine had.
     crop : bool
         Whether the machine crops to axis slabs (VolumePro's box cropping).
     feature_sources : dict
@@ -108,6 +110,7 @@ class ArchConfig:
     classification: tuple[str, ...] = ("post",)
     interpolation: tuple[str, ...] = ("trilinear",)
     gradients: tuple[str, ...] = ("sample", "voxel")
+    shading: tuple[str, ...] = ("phong",)
     crop: bool = False
     feature_sources: dict[str, str] = field(default_factory=dict)
     extend: bool = False
@@ -220,6 +223,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         classification=_declared(features, "classification", ("post",)),
         interpolation=_declared(features, "interpolation", ("trilinear",)),
         gradients=_declared(features, "gradients", ("sample", "voxel")),
+        shading=_declared(features, "shading", ("phong",)),
         crop=features.boolean("crop", False),
         feature_sources=_sources(features),
         extend=features.boolean("extend", False),

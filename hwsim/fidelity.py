@@ -21,7 +21,7 @@ import numpy as np
 from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.budget import SAMPLE_ENV_VAR, require_fits, sample_budget
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.machine_features import require_machine
+from hwsim.machine_features import Algorithms, require_machine
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
@@ -68,6 +68,8 @@ class RenderRun:
     derived: dict[str, Any] = field(default_factory=dict)
     #: What the scene asked outside the machine's declared features (a what-if render).
     extensions: list[dict[str, str]] = field(default_factory=list)
+    #: How samples were shaded (Phong, or the machine's reflectance maps); None: unlit.
+    shading: str | None = None
 
 
 def builtin_archs() -> dict[str, ArchConfig]:
@@ -97,17 +99,18 @@ def resolve_arch(name_or_path: str) -> ArchConfig:
     return archs[name_or_path]
 
 
-def gradient_source(arch: ArchConfig) -> str:
-    """Where ``arch``'s datapath estimates gradients (``[formats] gradient.source``)."""
+def algorithms(arch: ArchConfig) -> Algorithms:
+    """The algorithm choices of ``arch``'s datapath (gradient source, shading method)."""
     from models.datapath import Datapath
 
-    return Datapath.from_arch(arch, 0).gradient.source
+    dp = Datapath.from_arch(arch, 0)
+    return Algorithms(dp.gradient.source, dp.shade.method, dp.shade.map_size)
 
 
 def check_scene_fits(scene: Scene, arch: ArchConfig, *, extend: bool = False) -> list:
     """Refuse what the machine cannot render, as the machine did; return the what-if
     extensions ``extend`` lets through (:func:`hwsim.machine_features.require_machine`)."""
-    return require_machine(scene, arch, gradient_source(arch), extend=extend)
+    return require_machine(scene, arch, algorithms(arch), extend=extend)
 
 
 def check_volume_fits(volume: Volume, arch: ArchConfig) -> None:
@@ -264,10 +267,14 @@ def render(
     else:
         machine = resolve_arch(arch) if arch is not None else None
     extensions = []
+    chosen = Algorithms(
+        "voxel" if scene.render.gradient is None else scene.render.gradient, "phong", 0
+    )
     if machine is not None:
         extensions = check_scene_fits(scene, machine, extend=extend)
+        chosen = algorithms(machine)
         if scene.render.gradient is None:  # golden follows the machine's algorithm too
-            gradient = gradient_source(machine)
+            gradient = chosen.gradient
             scene = scene.replace(render=dataclasses.replace(scene.render, gradient=gradient))
         if sampling not in ("ray", machine.order):
             raise InputError(
@@ -297,7 +304,10 @@ def render(
         check_family(frame_of(scene, volume, transfer, machine))
     start = time.perf_counter()
     if fidelity == "golden":
-        result = render_golden(scene, volume, transfer, sampling=sampling, progress=progress)
+        maps = chosen.map_size if chosen.shading == "reflectance-map" else None
+        result = render_golden(
+            scene, volume, transfer, sampling=sampling, progress=progress, reflectance_map=maps
+        )
         counters = {"golden.samples": int(result.samples), "golden.rays": int(result.rays)}
     else:
         from models.frame import frame_of
@@ -330,6 +340,7 @@ def render(
         counters=counters,
         derived=derived,
         extensions=[e.describe() for e in extensions],
+        shading=chosen.describe_shading() if scene.lit else None,
     )
 
 

@@ -30,6 +30,7 @@ from hwsim.scene import Scene
 from hwsim.scene_features import check_machine
 
 __all__ = [
+    "Algorithms",
     "Extension",
     "feature_rows",
     "features_markdown",
@@ -64,18 +65,38 @@ def _source(arch: ArchConfig, feature: str) -> str:
     return arch.feature_sources.get(feature, "[?] not declared in the arch file")
 
 
-def scene_extensions(scene: Scene, arch: ArchConfig, gradient_source: str) -> list[Extension]:
+@dataclass(frozen=True)
+class Algorithms:
+    """The algorithm choices of a machine's datapath (its ``[formats]``): where gradients
+    are estimated (``gradient.source``), how samples are shaded (``shade.method``) and the
+    reflectance maps' cells per cube-map face edge (``shade.map_size``)."""
+
+    gradient: str
+    shading: str
+    map_size: int
+
+    def describe_shading(self) -> str:
+        """The shading method as stats.json names it."""
+        if self.shading == "reflectance-map":
+            return f"reflectance-map ({self.map_size}x{self.map_size} cells per cube face)"
+        return self.shading
+
+
+def scene_extensions(scene: Scene, arch: ArchConfig, algorithms: Algorithms) -> list[Extension]:
     """What ``scene`` asks of ``arch`` outside its declared features (empty: inside).
 
-    ``gradient_source`` is where the datapath estimates gradients (its ``[formats]``
-    ``gradient.source``); it counts only where the scene needs gradients.
+    ``algorithms`` are the datapath's choices; the gradient source counts where the scene
+    needs gradients, the shading method where it is lit.
     """
+    gradient_source = algorithms.gradient
     render = scene.render
     found = [_listed(arch, "modes", "render.mode", render.mode)]
     if render.mode == "composite":
         found.append(_listed(arch, "classification", "transfer.order", scene.transfer.order))
     if scene.lit or scene.transfer.gradient_opacity is not None:
         found.append(_listed(arch, "gradients", "formats.gradient.source", gradient_source))
+    if scene.lit:
+        found.append(_listed(arch, "shading", "formats.shade.method", algorithms.shading))
     if scene.crop is not None and not arch.crop:
         found.append(Extension("crop", "crop", "a crop box", "none", _source(arch, "crop")))
     if len(scene.cut_planes) > arch.cut_planes:
@@ -91,7 +112,7 @@ def scene_extensions(scene: Scene, arch: ArchConfig, gradient_source: str) -> li
     return [e for e in found if e is not None]
 
 
-def require_machine(scene: Scene, arch: ArchConfig, gradient_source: str, *, extend: bool):
+def require_machine(scene: Scene, arch: ArchConfig, algorithms: Algorithms, *, extend: bool):
     """Refuse ``scene`` where ``arch`` cannot render it; return its what-if extensions.
 
     Raises
@@ -125,6 +146,7 @@ def require_machine(scene: Scene, arch: ArchConfig, gradient_source: str, *, ext
             key="render.interpolation",
             allowed=", ".join(arch.interpolation),
         )
+    gradient_source = algorithms.gradient
     if scene.render.gradient not in (None, gradient_source):
         raise InputError(
             f"{arch.name} estimates gradients at the {gradient_source} positions",
@@ -133,7 +155,7 @@ def require_machine(scene: Scene, arch: ArchConfig, gradient_source: str, *, ext
             allowed=f"{gradient_source} (or omit it; [formats] gradient.source in an arch "
             "file models another machine)",
         )
-    extensions = scene_extensions(scene, arch, gradient_source)
+    extensions = scene_extensions(scene, arch, algorithms)
     if extensions and not (extend or arch.extend):
         e = extensions[0]
         raise InputError(
@@ -158,6 +180,7 @@ def feature_rows(arch: ArchConfig) -> list[tuple[str, str, str]]:
         "classification": ", ".join(arch.classification),
         "interpolation": ", ".join(arch.interpolation),
         "gradients": ", ".join(arch.gradients),
+        "shading": ", ".join(arch.shading),
         "perspective": "parallel, perspective" if arch.perspective else "parallel",
         "supersampling": span(*arch.supersampling),
         "crop": "yes" if arch.crop else "no",

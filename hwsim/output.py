@@ -73,6 +73,7 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "counters": run.counters,
         "derived": run.derived,
         "extensions": run.extensions,  # features outside the machine (a what-if render)
+        "shading": run.shading,
         "host": {
             "python": platform.python_version(),
             "numpy": np.__version__,

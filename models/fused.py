@@ -30,10 +30,11 @@ Integer scalars are int64; the vectorised chain's int32 lerps are exact
 (:func:`~models.units.interp.promote`), so both compute the same integers.
 
 **Scope.**  Post-classified composite through one LUT, steps whose samples share one
-``dt`` (parallel views) and frames with one shader (or none), Phong (not reflectance
-maps), gradients from samples or voxels, any crop, cut planes, modulation and early
-termination.  Anything else (pre-classification, multi-LUT classification, embedded
-geometry, perspective steps, reflectance maps, the elision check) takes the vectorised
+``dt`` (parallel views) and frames with one shader (or none), Phong or reflectance maps
+(:func:`~models.units.shade.cell_index_raw`), gradients from samples or voxels, any
+crop, cut planes, modulation and early termination.  Anything else (pre-classification,
+multi-LUT classification, embedded geometry, perspective steps, the elision check) takes
+the vectorised
 chain: :func:`eligible` and :meth:`CompositeKernel.table` say which.
 
 The compiled code is cached on disk (``cache=True``).  numba keys a cached kernel by the
@@ -80,6 +81,7 @@ _UNIT_FUNCTIONS = (
     gradient_unit.floor_div_raw,
     gradient_unit.bit_length_raw,
     shade_unit.light_terms_raw,
+    shade_unit.cell_index_raw,
     shade_unit.specular_raw,
     shade_unit.shade_raw,
     composite_unit.ftb_weight_raw,
@@ -95,7 +97,7 @@ UNITS_HASH = hashlib.sha256(
 
 #: Kernel inputs ``grad_p`` (int64 flags and constants), by position.
 _NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
-_GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS = range(5, 10)
+_GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS, _MAP_SIZE = range(5, 11)
 
 
 def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
@@ -116,8 +118,8 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
 
     def kernel(
         vox, dxyz, shape, strides, offsets, zyx, rays, factor, rgb12, alpha12,
-        grad_p, ratio, gm_table, light, half, intensity, spec, table, acc, ert_thr, alive, sat,
-        config,
+        grad_p, ratio, gm_table, light, half, intensity, spec, maps, table, acc, ert_thr, alive,
+        sat, config,
     ):  # fmt: skip
         if len(units_hash) == 0:  # never: keeps the hash in the cache key
             return
@@ -196,7 +198,11 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
             diffuse = np.zeros(m, np.int64)
             specular = np.zeros(m, np.int64)
             kd, ks, ka = grad_p[_KD], grad_p[_KS], grad_p[_KA]
-            for k in range(light.shape[0]):
+            r_map = grad_p[_MAP_SIZE]
+            for j in range(m if r_map > 0 else 0):  # reflectance maps: one lookup each
+                ci = shade_unit.cell_index_raw(g[0, j], g[1, j], g[2, j], r_map)
+                diffuse[j], specular[j] = maps[0, ci], maps[1, ci]
+            for k in range(light.shape[0] if r_map == 0 else 0):
                 lx, ly, lz, i_k = light[k, 0], light[k, 1], light[k, 2], intensity[k]
                 hx, hy, hz = half[k, 0], half[k, 1], half[k, 2]
                 for j in range(m):
@@ -325,8 +331,8 @@ def eligible(backend) -> bool:
         return False
     if be.multilut is not None or be.depth is not None:
         return False
-    # One shader for the frame (parallel views), Phong rather than reflectance maps.
-    return not be.scene.lit or (be.shader is not None and be.shader.maps is None)
+    # One shader for the frame (parallel views): Phong or reflectance maps.
+    return not be.scene.lit or be.shader is not None
 
 
 class CompositeKernel:
@@ -407,9 +413,13 @@ class CompositeKernel:
                 sh.ka if sh else 0,
                 sh.kd if sh else 0,
                 sh.ks if sh else 0,
+                dp.shade.map_size if sh is not None and sh.maps is not None else 0,
             ],
             dtype=np.int64,
         )
+        self.maps = np.zeros((2, 1), np.int64)
+        if sh is not None and sh.maps is not None:
+            self.maps = np.ascontiguousarray(np.vstack(sh.maps), dtype=np.int64)
         self.gm_table = (
             np.asarray(be.gm_table, dtype=np.int64) if modulates else np.zeros(1, np.int64)
         )
@@ -470,6 +480,7 @@ class CompositeKernel:
             self.half,
             self.intensity,
             self.spec,
+            self.maps,
             table,
             state.acc,
             self.ert_thr,

@@ -84,9 +84,15 @@ def occupancy_for(scene: Scene, volume: Volume, transfer: TransferFunction):
 
 class _Renderer:
     def __init__(
-        self, scene: Scene, volume: Volume, transfer: TransferFunction, plan: SamplePlan
+        self,
+        scene: Scene,
+        volume: Volume,
+        transfer: TransferFunction,
+        plan: SamplePlan,
+        reflectance_map: int | None = None,
     ) -> None:
         self.scene, self.volume, self.transfer, self.plan = scene, volume, transfer, plan
+        self.reflectance_map = reflectance_map
         self.mode = scene.render.mode
         self.kind = scene.render.interpolation
         self.ref = min(volume.spacing)
@@ -267,7 +273,7 @@ class _Renderer:
                 a = a * self.transfer.gradient_factor(magnitude(g))
             if self.scene.lit:
                 view = _view(step, vis)
-                rgb = phong(rgb, g, self.lights, view, self.scene.material)
+                rgb = phong(rgb, g, self.lights, view, self.scene.material, self.reflectance_map)
         dt = step.dt if np.isscalar(step.dt) else step.dt[vis]
         a = 1.0 - (1.0 - a) ** (dt / self.ref)
         weight = (1.0 - acc[rays, 3]) * a
@@ -285,7 +291,8 @@ class _Renderer:
         rgb = np.broadcast_to(np.asarray(self.scene.render.iso_color), (rays.size, 3))
         if self.scene.lit:
             g = self.sample_gradient(step.zyx[hit]) if self.rows is None else g[hit]
-            rgb = phong(rgb, g, self.lights, _view(step, hit), self.scene.material)
+            view = _view(step, hit)
+            rgb = phong(rgb, g, self.lights, view, self.scene.material, self.reflectance_map)
         acc[rays, :3] = rgb
         acc[rays, 3] = 1.0
         alive[rays] = False
@@ -311,6 +318,7 @@ def render_golden(
     sampling: str = "ray",
     progress: Callable[[int, int], None] | None = None,
     leap: bool = True,
+    reflectance_map: int | None = None,
 ) -> GoldenResult:
     """Render ``scene`` on ``volume`` in float64.
 
@@ -329,6 +337,9 @@ def render_golden(
     leap : bool
         Leap over blocks that cannot be visible (composite, iso; never changes the
         image, only ``samples`` and speed).  False plans every sample in the box.
+    reflectance_map : int, optional
+        Shade as a machine's reflectance maps do: Phong at the centre of each normal's
+        cell in a cube map of this many cells per face edge (VolumePro 500).
 
     Returns
     -------
@@ -345,4 +356,4 @@ def render_golden(
         )
     occupancy = occupancy_for(scene, volume, transfer) if leap else None
     plan = make_plan(scene, volume, sampling, occupancy=occupancy)
-    return _Renderer(scene, volume, transfer, plan).run(progress)
+    return _Renderer(scene, volume, transfer, plan, reflectance_map).run(progress)

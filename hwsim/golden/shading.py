@@ -7,6 +7,12 @@ The surface normal is ``N = -g / |g|`` (gradients point toward denser material, 
 out of it).  A zero gradient gives ``N = 0``: ambient light only, never NaN.  Colour is
 ``clip(ka c + sum_l I_l (kd max(N.L, 0) c + ks max(N.H, 0)^n), 0, 1)`` with
 ``H = normalize(L + V)`` and white specular light.
+
+Reflectance maps (VolumePro 500) are the same model at fewer normals: each normal is
+replaced by the centre of its cell in a cube map of ``size x size`` cells per face (the
+face of its largest component; the other two, divided by it, cut into ``size`` equal
+steps), and Phong is evaluated there.  Golden at that machine's positions shades so, so
+its error against the fixed-point maps is numerical only.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import numpy as np
 
 from hwsim.scene import CropSpec, CutPlane, Material
 
-__all__ = ["magnitude", "normals", "phong", "crop_keep", "cut_factor"]
+__all__ = ["magnitude", "normals", "cube_map_normals", "phong", "crop_keep", "cut_factor"]
 
 _TINY = 1e-12
 
@@ -30,6 +36,26 @@ def normals(g: np.ndarray) -> np.ndarray:
     mag = magnitude(g)
     scale = np.divide(-1.0, mag, out=np.zeros_like(mag), where=mag > _TINY)
     return g * scale[:, None]
+
+
+def cube_map_normals(n: np.ndarray, size: int) -> np.ndarray:
+    """Unit normals ``(n, 3)`` moved to the centre of their cube-map cell (``size`` cells
+    per face edge); zero normals stay zero."""
+    a = np.abs(n)
+    axis = np.argmax(a, axis=1)
+    rows = np.arange(n.shape[0])
+    major = a[rows, axis]
+    others = np.array([[1, 2], [0, 2], [0, 1]])[axis]
+    out = np.zeros_like(n)
+    out[rows, axis] = np.sign(n[rows, axis])
+    safe = np.where(major > _TINY, major, 1.0)
+    for k in (0, 1):
+        u = n[rows, others[:, k]] / safe  # in [-1, 1] on the face
+        cell = np.clip(np.floor((u + 1.0) * 0.5 * size), 0, size - 1)
+        out[rows, others[:, k]] = (cell + 0.5) / size * 2.0 - 1.0
+    out = _unit(out)
+    out[major <= _TINY] = 0.0
+    return out
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -47,14 +73,18 @@ def phong(
     lights: list[tuple[np.ndarray, float]],
     toward_viewer: np.ndarray,
     material: Material,
+    reflectance_map: int | None = None,
 ) -> np.ndarray:
     """Shade colours ``rgb (n, 3)`` with gradients ``g (n, 3)`` (world xyz).
 
     ``lights`` are (unit direction toward the light, intensity) pairs in world space;
     ``toward_viewer`` is ``(3,)`` (parallel: one half vector per light) or ``(n, 3)``
-    unit vectors.  Returns float64 ``(n, 3)`` clipped to ``[0, 1]``.
+    unit vectors; ``reflectance_map`` (cells per cube-map face edge) shades at the cell
+    centres (:func:`cube_map_normals`).  Returns float64 ``(n, 3)`` clipped to ``[0, 1]``.
     """
     n = normals(g)
+    if reflectance_map is not None:
+        n = cube_map_normals(n, reflectance_map)
     out = material.ambient * rgb
     for direction, intensity in lights:
         ndl = np.maximum(n @ direction, 0.0)

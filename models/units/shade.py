@@ -31,6 +31,7 @@ __all__ = [
     "setup",
     "shade",
     "light_terms_raw",
+    "cell_index_raw",
     "shade_raw",
     "LATENCY",
     "II",
@@ -131,20 +132,10 @@ def _cell_normals(r: int) -> np.ndarray:
 
 
 def _cell_index(normals: np.ndarray, r: int) -> np.ndarray:
-    """Cube-map cell of each SQ1.F normal; the zero normal maps to the last entry."""
-    a = np.abs(normals)
-    axis = np.argmax(a, axis=1)
-    rows = np.arange(normals.shape[0])
-    major = a[rows, axis]
-    sign = normals[rows, axis] < 0
-    others = np.array([[1, 2], [0, 2], [0, 1]])[axis]
-    u = normals[rows, others[:, 0]]
-    w = normals[rows, others[:, 1]]
-    safe = np.maximum(major, 1)
-    iu = np.clip(((u + safe) * r) // (2 * safe), 0, r - 1)
-    iw = np.clip(((w + safe) * r) // (2 * safe), 0, r - 1)
-    idx = ((axis * 2 + sign) * r + iu) * r + iw
-    return np.where(major == 0, 6 * r * r, idx)
+    """Cube-map cell of each SQ1.F normal ``(n, 3)``; the zero normal maps to the last
+    entry."""
+    n = np.asarray(normals, dtype=np.int64)
+    return cell_index_raw(n[:, 0], n[:, 1], n[:, 2], r)
 
 
 def _lighting_terms(sh: Shader, normals: np.ndarray, half: np.ndarray):
@@ -189,6 +180,27 @@ def light_terms_raw(nx, ny, nz, lx, ly, lz, hx, hy, hz, intensity, kd, entries: 
     ndh = np.minimum(np.maximum(ndh, 0), ONE)
     diffuse = round_shift_raw(intensity * kd * np.minimum(ndl, ONE), 2 * _COEF, 1)
     return diffuse, round_shift_raw(ndh * entries, 12, 1)
+
+
+def cell_index_raw(nx, ny, nz, r: int):
+    """Cube-map cell of SQ1.F normals (int64 arrays or scalars): the face of the largest
+    ``|component|`` (x before y before z on ties) and its sign, then the other two
+    components divided by it, cut into ``r`` steps each; the zero normal maps to the last
+    entry, ``6 r^2``."""
+    ax, ay, az = np.abs(nx), np.abs(ny), np.abs(nz)
+    sx = (ax >= ay) * (ax >= az) * 1  # one-hot face axis, as integers
+    sy = (1 - sx) * (ay >= az)
+    sz = 1 - sx - sy
+    major = ax * sx + ay * sy + az * sz
+    sign = ((nx * sx + ny * sy + nz * sz) < 0) * 1
+    u = ny * sx + nx * (sy + sz)  # the other axes in order: x: (y, z), y: (x, z), z: (x, y)
+    w = nz * (sx + sy) + ny * sz
+    safe = np.maximum(major, 1)
+    iu = np.minimum(np.maximum(((u + safe) * r) // (2 * safe), 0), r - 1)
+    iw = np.minimum(np.maximum(((w + safe) * r) // (2 * safe), 0), r - 1)
+    idx = (((sy + 2 * sz) * 2 + sign) * r + iu) * r + iw
+    zero = (major == 0) * 1
+    return idx * (1 - zero) + 6 * r * r * zero
 
 
 def specular_raw(intensity, ks, spec_value):

@@ -366,11 +366,10 @@ def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
     "arch, scene, overrides",
     [
         ("volumepro500", _scene(transfer=TransferSpec(preset="ct", order="pre")), {}),
-        ("volumepro500", _scene(), {"shade.method": "reflectance-map"}),
         ("volumepro500", _scene("mip"), {}),
         ("volumepro500", _scene("iso", render={"iso_value": 200.0}), {}),
     ],
-    ids=["pre-classified", "reflectance-map", "mip", "iso"],
+    ids=["pre-classified", "mip", "iso"],
 )
 def test_frames_outside_the_kernels_scope_take_the_unit_chain(arch, scene, overrides, volumes):
     from models.backend import Backend

@@ -148,3 +148,22 @@ def test_config_out_of_range_is_refused():
         su.ShadeConfig(method="gouraud")
     with pytest.raises(ValueError, match="map_size 2..1024"):
         su.ShadeConfig(map_size=1)
+
+
+def test_golden_reflectance_maps_shade_at_the_units_cell_centres(rng):
+    """The golden renderer's float64 reflectance maps (hwsim.golden.shading) pick the cell
+    the unit picks for the same normal, up to the SQ1.F quantisation of normals that sit
+    on a cell edge: then a neighbouring cell, never farther."""
+    from hwsim.golden.shading import cube_map_normals
+
+    size, f = 64, 10
+    n = rng.normal(size=(20000, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    golden = cube_map_normals(n, size)
+    q = np.floor(n * (1 << f) + 0.5).astype(np.int64)
+    centres = su._cell_normals(size)[su._cell_index(q, size)]
+    angle = np.arccos(np.clip(np.sum(golden * centres, axis=1), -1, 1))
+    same = np.abs(golden - centres).max(axis=1) < 1e-12
+    assert same.mean() > 0.97
+    assert angle.max() <= 2.5 * np.sqrt(2) / size  # a neighbouring cell at most
+    assert np.array_equal(cube_map_normals(np.zeros((2, 3)), size), np.zeros((2, 3)))
