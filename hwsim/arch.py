@@ -74,6 +74,8 @@ class ArchConfig:
         methods (per-sample Phong, reflectance maps) the machine had.
     crop : bool
         Whether the machine crops to axis slabs (VolumePro's box cropping).
+    gradient_illumination : bool
+        Whether gradient magnitude can scale diffuse and specular light (VolumePro 500).
     feature_sources : dict
         ``[features.sources]``: where each declared feature comes from, tagged ``[V]``,
         ``[R]``, ``[I]`` or ``[?]`` as the published figures are.
@@ -112,6 +114,7 @@ class ArchConfig:
     gradients: tuple[str, ...] = ("sample", "voxel")
     shading: tuple[str, ...] = ("phong",)
     crop: bool = False
+    gradient_illumination: bool = False
     feature_sources: dict[str, str] = field(default_factory=dict)
     extend: bool = False
     formats: dict[str, Any] = field(default_factory=dict)
@@ -158,6 +161,7 @@ _FEATURE_KEYS = (
     "embedded_geometry",
     *FEATURE_CHOICES,
     "crop",
+    "gradient_illumination",
     "sections",
     "voxel_bits",
     "max_volume",
@@ -225,6 +229,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         gradients=_declared(features, "gradients", ("sample", "voxel")),
         shading=_declared(features, "shading", ("phong",)),
         crop=features.boolean("crop", False),
+        gradient_illumination=features.boolean("gradient_illumination", False),
         feature_sources=_sources(features),
         extend=features.boolean("extend", False),
         formats=dict(top.raw("formats", {})),

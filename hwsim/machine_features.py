@@ -97,6 +97,15 @@ def scene_extensions(scene: Scene, arch: ArchConfig, algorithms: Algorithms) -> 
         found.append(_listed(arch, "gradients", "formats.gradient.source", gradient_source))
     if scene.lit:
         found.append(_listed(arch, "shading", "formats.shade.method", algorithms.shading))
+    modulated = scene.transfer.gradient_illumination is not None
+    if render.mode == "composite" and scene.lit and modulated and not arch.gradient_illumination:
+        source = _source(arch, "gradient_illumination")
+        asked = "gradient-magnitude illumination modulation"
+        found.append(
+            Extension(
+                "gradient_illumination", "transfer.gradient_illumination", asked, "none", source
+            )
+        )
     if scene.crop is not None and not arch.crop:
         found.append(Extension("crop", "crop", "a crop box", "none", _source(arch, "crop")))
     if len(scene.cut_planes) > arch.cut_planes:
@@ -184,6 +193,7 @@ def feature_rows(arch: ArchConfig) -> list[tuple[str, str, str]]:
         "perspective": "parallel, perspective" if arch.perspective else "parallel",
         "supersampling": span(*arch.supersampling),
         "crop": "yes" if arch.crop else "no",
+        "gradient_illumination": "yes" if arch.gradient_illumination else "no",
         "cut_planes": str(arch.cut_planes),
         "early_termination": "yes" if arch.early_termination else "no",
         "space_leaping": "yes" if arch.space_leaping else "no",

@@ -95,7 +95,9 @@ class TransferSpec:
     ``(N, 4)`` in 0..1 spread evenly over ``table_range``), or a ``preset``.  Opacity is
     defined per unit sample distance (one smallest-voxel spacing) and corrected for
     other spacings.  ``gradient_opacity`` rows are ``[|grad| in value units per world
-    unit, factor 0..1]``.
+    unit, factor 0..1]``; ``gradient_illumination`` rows the same, scaling a lit sample's
+    diffuse and specular light (VolumePro 500's gradient-magnitude illumination
+    modulation).
     """
 
     preset: str | None = "auto"
@@ -104,6 +106,7 @@ class TransferSpec:
     table_range: tuple[float, float] | None = None
     gradient_opacity: tuple[tuple[float, float], ...] | None = None
     order: str = "post"
+    gradient_illumination: tuple[tuple[float, float], ...] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -307,6 +310,19 @@ def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "s
     return scene
 
 
+def _magnitude_rows(t: Table, key: str) -> tuple[tuple[float, float], ...] | None:
+    """``[|gradient|, factor]`` rows: magnitudes >= 0 ascending, factors 0..1."""
+    if not t.has(key):
+        return None
+    rows = check_points(t.raw(key), t.source, t.key(key), 2)
+    for i, row in enumerate(rows):
+        if row[0] < 0 or (i and row[0] < rows[i - 1][0]):
+            raise t.error(f"{key}[{i}][0]", "magnitudes must be >= 0 and ascending")
+        if not 0.0 <= row[1] <= 1.0:
+            raise t.error(f"{key}[{i}][1]", f"{row[1]:g} is out of range", "0 .. 1")
+    return tuple(tuple(r) for r in rows)  # type: ignore[misc]
+
+
 def _classification(top: Table) -> ClassificationSpec | None:
     """``[classification]`` (multi-LUT); it replaces ``[transfer]``'s RGBA function."""
     if not top.has("classification"):
@@ -317,7 +333,7 @@ def _classification(top: Table) -> ClassificationSpec | None:
             raise top.error(
                 f"transfer.{key}",
                 "[classification] LUTs replace the transfer function",
-                "transfer.gradient_opacity and transfer.order only",
+                "transfer.gradient_opacity, gradient_illumination and order only",
             )
     return parse_classification(top.table("classification"), _transfer)
 
@@ -384,22 +400,14 @@ def _transfer(t: Table) -> TransferSpec:
     table_range = t.vector("table_range", 2) if t.has("table_range") else None
     if table_range is not None and not table_range[1] > table_range[0]:
         raise t.error("table_range", "upper end must exceed lower end", "[lo, hi] with hi > lo")
-    grad = None
-    if t.has("gradient_opacity"):
-        rows = check_points(t.raw("gradient_opacity"), t.source, t.key("gradient_opacity"), 2)
-        for i, row in enumerate(rows):
-            if row[0] < 0 or (i and row[0] < rows[i - 1][0]):
-                raise t.error(f"gradient_opacity[{i}][0]", "magnitudes must be >= 0 and ascending")
-            if not 0.0 <= row[1] <= 1.0:
-                raise t.error(f"gradient_opacity[{i}][1]", f"{row[1]:g} is out of range", "0 .. 1")
-        grad = tuple(tuple(r) for r in rows)
     spec = TransferSpec(
         preset=t.choice("preset", TF_PRESETS, "auto") if not (points or t.has("table")) else None,
         points=points,  # type: ignore[arg-type]
         table=t.string("table") if t.has("table") else None,
         table_range=table_range,  # type: ignore[arg-type]
-        gradient_opacity=grad,  # type: ignore[arg-type]
+        gradient_opacity=_magnitude_rows(t, "gradient_opacity"),  # type: ignore[arg-type]
         order=t.choice("order", CLASSIFICATION_ORDERS, "post"),
+        gradient_illumination=_magnitude_rows(t, "gradient_illumination"),  # type: ignore[arg-type]
     )
     t.finish()
     return spec

@@ -34,6 +34,9 @@ class TransferFunction:
     gradient_points : ndarray, shape (G, 2), optional
         ``(|gradient|, factor)`` rows; opacity is multiplied by the piecewise-linear
         factor.  ``|gradient|`` is in value units per world unit.
+    illumination_points : ndarray, shape (G, 2), optional
+        ``(|gradient|, factor)`` rows scaling the diffuse and specular light of a sample
+        (VolumePro 500's gradient-magnitude illumination modulation).
     order : {"post", "pre"}
         Classify after interpolation (post) or classify voxels, then interpolate (pre).
     """
@@ -42,6 +45,7 @@ class TransferFunction:
     rgba: np.ndarray
     gradient_points: np.ndarray | None = None
     order: str = "post"
+    illumination_points: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         values = np.asarray(self.values, dtype=np.float64)
@@ -54,10 +58,9 @@ class TransferFunction:
             raise ValueError("transfer RGBA must lie in [0, 1]")
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "rgba", rgba)
-        if self.gradient_points is not None:
-            object.__setattr__(
-                self, "gradient_points", np.asarray(self.gradient_points, dtype=np.float64)
-            )
+        for name in ("gradient_points", "illumination_points"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.float64))
 
     @property
     def modulates(self) -> bool:
@@ -76,13 +79,18 @@ class TransferFunction:
         """Opacity channel only (cheaper than :meth:`classify`)."""
         return np.interp(np.asarray(v, dtype=np.float64), self.values, self.rgba[:, 3])
 
+    @property
+    def modulates_illumination(self) -> bool:
+        """Whether diffuse and specular light depend on gradient magnitude."""
+        return self.illumination_points is not None
+
     def gradient_factor(self, gmag: np.ndarray) -> np.ndarray:
         """Opacity factor for gradient magnitudes ``gmag``; ones without modulation."""
-        gmag = np.asarray(gmag, dtype=np.float64)
-        if self.gradient_points is None:
-            return np.ones_like(gmag)
-        g = self.gradient_points
-        return np.interp(gmag, g[:, 0], g[:, 1])
+        return _factor(self.gradient_points, gmag)
+
+    def illumination_factor(self, gmag: np.ndarray) -> np.ndarray:
+        """Diffuse and specular factor for gradient magnitudes ``gmag``; ones without."""
+        return _factor(self.illumination_points, gmag)
 
     def visible_range(self) -> tuple[float, float] | None:
         """Smallest interval of values outside which opacity is zero (None: never visible)."""
@@ -161,11 +169,19 @@ def preset_points(name: str, volume: Volume) -> np.ndarray:
     )
 
 
+def _factor(points: np.ndarray | None, gmag: np.ndarray) -> np.ndarray:
+    gmag = np.asarray(gmag, dtype=np.float64)
+    if points is None:
+        return np.ones_like(gmag)
+    return np.interp(gmag, points[:, 0], points[:, 1])
+
+
 def resolve_transfer(
     spec: TransferSpec, volume: Volume, base_dir: Path | None = None
 ) -> TransferFunction:
     """Build the :class:`TransferFunction` a scene's ``[transfer]`` table describes."""
     grad = np.asarray(spec.gradient_opacity) if spec.gradient_opacity else None
+    illum = np.asarray(spec.gradient_illumination) if spec.gradient_illumination else None
     if spec.points is not None:
         pts = np.asarray(spec.points, dtype=np.float64)
     elif spec.table is not None:
@@ -173,7 +189,11 @@ def resolve_transfer(
     else:
         pts = preset_points(spec.preset or "auto", volume)
     return TransferFunction(
-        values=pts[:, 0], rgba=pts[:, 1:], gradient_points=grad, order=spec.order
+        values=pts[:, 0],
+        rgba=pts[:, 1:],
+        gradient_points=grad,
+        order=spec.order,
+        illumination_points=illum,
     )
 
 

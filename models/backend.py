@@ -104,11 +104,16 @@ class Backend:
                 transfer, self.vmap.to_value, dp.voxel_bits, dp.classify
             )
         self.pre_classified = composite and transfer.order == "pre"
-        if self.need_grad and transfer.modulates:
+        self.illum_table = None
+        if self.need_grad and (transfer.modulates or transfer.modulates_illumination):
             # Largest |gradient| the data can have, in value units per world unit.
             span = float(self.raw.max() - self.raw.min()) * self.vmap.scale
             self.gm_max = np.sqrt(3.0) * span / self.ref
             self.gm_table = classify_unit.build_gm_table(transfer, self.gm_max, dp.classify)
+            if transfer.modulates_illumination and scene.lit:
+                self.illum_table = classify_unit.build_gm_table(
+                    transfer, self.gm_max, dp.classify, illumination=True
+                )
             # An integer magnitude m stands for m * scale / (2 * 2**S * min spacing).
             per_unit = self.vmap.scale / (2.0 * (1 << self.S) * self.ref)
             self.gm_scale = classify_unit.gm_scale(per_unit, self.gm_max, dp.classify)
@@ -265,14 +270,14 @@ class Backend:
     def _to_world(self, g: np.ndarray) -> np.ndarray:
         return gradient_unit.to_world(g, self.volume.spacing, self.S, self.dp.gradient)
 
-    def _shade(self, rgb: np.ndarray, g: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    def _shade(self, rgb: np.ndarray, g: np.ndarray, rays: np.ndarray, illum=None) -> np.ndarray:
         normals = gradient_unit.normals(g, self.dp.gradient)
-        if self.shader is not None:
-            return shade_unit.shade(self.shader, rgb, normals)
-        shader = shade_unit.setup(
-            self.lights, self.plan.toward_viewer(rays), self.material, self.dp.shade
-        )
-        return shade_unit.shade(shader, rgb, normals)
+        shader = self.shader
+        if shader is None:
+            shader = shade_unit.setup(
+                self.lights, self.plan.toward_viewer(rays), self.material, self.dp.shade
+            )
+        return shade_unit.shade(shader, rgb, normals, illum)
 
     def occupied_blocks(self, block: int = occupancy.BLOCK) -> np.ndarray | None:
         """Blocks of ``block^3`` voxels that can give a visible sample, for space leaping:
@@ -344,13 +349,17 @@ class Backend:
             rgb = np.take(rgb, sel, axis=0)
         if self.need_grad:
             g = self._to_world(src.gradient(sel))
-            if self.transfer.modulates:
+            index = illum = None
+            if self.transfer.modulates or self.illum_table is not None:
                 index = classify_unit.gm_index(
                     gradient_unit.magnitude(g), self.gm_scale, dp.classify
                 )
+            if self.transfer.modulates:
                 alpha = classify_unit.modulate(alpha, index, self.gm_table)
+            if self.illum_table is not None:
+                illum = self.illum_table[index]
             if self.scene.lit:
-                rgb = self._shade(rgb, g, rays)
+                rgb = self._shade(rgb, g, rays, illum)
         dt = step.dt if np.isscalar(step.dt) else step.dt[sel]
         alpha = composite_unit.correct_opacity(alpha, np.asarray(dt) / self.ref, dp.composite)
         composite_unit.front_to_back(state.acc, rays, rgb, alpha, dp.composite)

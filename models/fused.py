@@ -329,7 +329,7 @@ def eligible(backend) -> bool:
     be = backend
     if be.mode != "composite" or be.pre_classified or be.exercise_unused:
         return False
-    if be.multilut is not None or be.depth is not None:
+    if be.multilut is not None or be.depth is not None or be.illum_table is not None:
         return False
     # One shader for the frame (parallel views): Phong or reflectance maps.
     return not be.scene.lit or be.shader is not None

@@ -273,7 +273,12 @@ class _Renderer:
                 a = a * self.transfer.gradient_factor(magnitude(g))
             if self.scene.lit:
                 view = _view(step, vis)
-                rgb = phong(rgb, g, self.lights, view, self.scene.material, self.reflectance_map)
+                illum = None
+                if self.transfer.modulates_illumination:
+                    illum = self.transfer.illumination_factor(magnitude(g))
+                rgb = phong(
+                    rgb, g, self.lights, view, self.scene.material, self.reflectance_map, illum
+                )
         dt = step.dt if np.isscalar(step.dt) else step.dt[vis]
         a = 1.0 - (1.0 - a) ** (dt / self.ref)
         weight = (1.0 - acc[rays, 3]) * a

@@ -74,13 +74,16 @@ def phong(
     toward_viewer: np.ndarray,
     material: Material,
     reflectance_map: int | None = None,
+    modulation: np.ndarray | None = None,
 ) -> np.ndarray:
     """Shade colours ``rgb (n, 3)`` with gradients ``g (n, 3)`` (world xyz).
 
     ``lights`` are (unit direction toward the light, intensity) pairs in world space;
     ``toward_viewer`` is ``(3,)`` (parallel: one half vector per light) or ``(n, 3)``
     unit vectors; ``reflectance_map`` (cells per cube-map face edge) shades at the cell
-    centres (:func:`cube_map_normals`).  Returns float64 ``(n, 3)`` clipped to ``[0, 1]``.
+    centres (:func:`cube_map_normals`); ``modulation`` ``(n,)`` scales each sample's
+    diffuse and specular light (gradient-magnitude illumination modulation).  Returns
+    float64 ``(n, 3)`` clipped to ``[0, 1]``.
     """
     n = normals(g)
     if reflectance_map is not None:
@@ -94,7 +97,8 @@ def phong(
         else:
             ndh = n[:, 0] * h[:, 0] + n[:, 1] * h[:, 1] + n[:, 2] * h[:, 2]
         spec = material.specular * np.maximum(ndh, 0.0) ** material.shininess
-        out += intensity * (material.diffuse * ndl[:, None] * rgb + spec[:, None])
+        light = intensity * (material.diffuse * ndl[:, None] * rgb + spec[:, None])
+        out += light if modulation is None else modulation[:, None] * light
     return np.clip(out, 0.0, 1.0, out=out)
 
 

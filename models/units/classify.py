@@ -128,11 +128,15 @@ def classify_voxels(
     return [lut.rgb12[i, 0], lut.rgb12[i, 1], lut.rgb12[i, 2], lut.alpha12[i]]
 
 
-def build_gm_table(tf: TransferFunction, max_magnitude: float, cfg: ClassifyConfig) -> np.ndarray:
+def build_gm_table(
+    tf: TransferFunction, max_magnitude: float, cfg: ClassifyConfig, *, illumination=False
+) -> np.ndarray:
     """Opacity factors (UQ1.12) at ``gm_entries`` magnitudes from 0 to ``max_magnitude``
-    (value units per world unit)."""
+    (value units per world unit); with ``illumination``, the diffuse and specular light
+    factors of the same magnitudes (the second table, indexed alike)."""
     mags = np.linspace(0.0, max_magnitude, cfg.gm_entries)
-    return np.floor(tf.gradient_factor(mags) * ONE + 0.5).astype(np.int64)
+    factor = tf.illumination_factor if illumination else tf.gradient_factor
+    return np.floor(factor(mags) * ONE + 0.5).astype(np.int64)
 
 
 def gm_scale(units_per_magnitude: float, max_magnitude: float, cfg: ClassifyConfig) -> int:

@@ -156,13 +156,22 @@ def _lighting_terms(sh: Shader, normals: np.ndarray, half: np.ndarray):
     return diffuse, specular
 
 
-def shade(sh: Shader, rgb: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """Shade UQ1.12 colours ``(n, 3)`` with SQ1.F normals ``(n, 3)``: UQ1.12 ``(n, 3)``."""
+def shade(
+    sh: Shader, rgb: np.ndarray, normals: np.ndarray, illumination: np.ndarray | None = None
+) -> np.ndarray:
+    """Shade UQ1.12 colours ``(n, 3)`` with SQ1.F normals ``(n, 3)``: UQ1.12 ``(n, 3)``.
+
+    ``illumination`` ``(n,)`` UQ1.12 scales each sample's diffuse and specular terms
+    (gradient-magnitude illumination modulation, rounded half up)."""
     if sh.maps is not None:
         i = _cell_index(normals, sh.cfg.map_size)
         diffuse, specular = sh.maps[0][i], sh.maps[1][i]
     else:
         diffuse, specular = _lighting_terms(sh, normals, sh.half)
+    if illumination is not None:
+        illumination = np.asarray(illumination, dtype=np.int64)
+        diffuse = round_shift_raw(diffuse * illumination, 12, 1)
+        specular = round_shift_raw(specular * illumination, 12, 1)
     return shade_raw(sh.ka, np.asarray(rgb, dtype=np.int64), diffuse[:, None], specular[:, None])
 
 

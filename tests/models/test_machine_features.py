@@ -15,6 +15,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hwsim.cli import main
@@ -27,6 +28,8 @@ from hwsim.volumes import make_phantom
 pytestmark = pytest.mark.model
 
 RUNGS = ("golden", "functional", "transaction", "cycle")
+#: Gradient-magnitude illumination modulation: dim the light of flat regions.
+GMIM = ((0.0, 0.2), (200.0, 1.0))
 SIZE = 12
 
 
@@ -52,6 +55,9 @@ VARIANTS = {
     "ert": _render_changes(early_termination=0.9),
     "perspective": lambda s: s.replace(view=dataclasses.replace(s.view, projection="perspective")),
     "supersampling-2": _render_changes(supersampling=2.0),
+    "gradient-illumination": lambda s: s.replace(
+        transfer=dataclasses.replace(s.transfer, gradient_illumination=GMIM)
+    ),
 }
 
 
@@ -107,6 +113,7 @@ def _assert_rtl_refuses(scene, volume, arch):
         ("volumepro500", "two-cut-planes", "cut_planes"),
         ("volumepro500", "gradient-voxel", "render.gradient"),
         ("volumepro1000", "nearest", "render.interpolation"),
+        ("volumepro1000", "gradient-illumination", "transfer.gradient_illumination"),
     ],
 )
 def test_what_a_machine_never_had_is_refused_naming_the_feature(head, name, variant, key):
@@ -120,7 +127,14 @@ def test_the_published_feature_sets_render(head):
     """What each machine had renders without --extend (a refusal here would be a wrong
     declaration, not a safe one)."""
     had = {
-        "volumepro500": ["mode-mip", "mode-minip", "crop", "one-cut-plane", "supersampling-2"],
+        "volumepro500": [
+            "mode-mip",
+            "mode-minip",
+            "crop",
+            "one-cut-plane",
+            "supersampling-2",
+            "gradient-illumination",
+        ],
         "volumepro1000": ["mode-xray", "mode-iso", "pre-classified", "two-cut-planes", "ert"],
         "vizard2": ["mode-mip", "ert", "perspective", "supersampling-2"],
         "cube4": ["mode-mip", "perspective", "gradient-sample"],
@@ -189,3 +203,21 @@ def test_the_docs_feature_table_is_the_arch_files():
     docs = (Path(__file__).parents[2] / "docs" / "architectures.md").read_text()
     table = docs.split("<!-- features:begin -->\n")[1].split("<!-- features:end -->")[0]
     assert table == features_markdown(builtin_archs())
+
+
+def test_gradient_illumination_modulation_on_volumepro_500(head):
+    """VolumePro 500's GMIM: the same table index as opacity modulation scales diffuse and
+    specular light; golden applies the same factor in float64, every rung the same bits,
+    and the image differs from the unmodulated one."""
+    from hwsim.numerics import psnr
+
+    scene = VARIANTS["gradient-illumination"](_base())
+    runs = {r: render(scene, fidelity=r, arch="volumepro500", volume=head) for r in RUNGS}
+    plain = render(_base(), fidelity="functional", arch="volumepro500", volume=head)
+    assert not np.array_equal(runs["functional"].image, plain.image)
+    for rung in ("transaction", "cycle"):
+        assert np.array_equal(runs[rung].image, runs["functional"].image)
+    modulated = psnr(runs["golden"].image, runs["functional"].image)
+    unmodulated_golden = render(_base(), fidelity="golden", arch="volumepro500", volume=head)
+    assert modulated > 40.0
+    assert modulated > psnr(unmodulated_golden.image, runs["functional"].image)

@@ -167,3 +167,23 @@ def test_golden_reflectance_maps_shade_at_the_units_cell_centres(rng):
     assert same.mean() > 0.97
     assert angle.max() <= 2.5 * np.sqrt(2) / size  # a neighbouring cell at most
     assert np.array_equal(cube_map_normals(np.zeros((2, 3)), size), np.zeros((2, 3)))
+
+
+@pytest.mark.parametrize("method", ["phong", "reflectance-map"])
+def test_illumination_modulation_scales_the_light_not_the_ambient(rng, method):
+    """GMIM: a factor of one changes nothing, zero leaves ambient light only, and a factor
+    in between scales diffuse plus specular within two roundings per term."""
+    cfg = su.ShadeConfig(method=method, map_size=32)
+    normals, colours, lights = case(rng, 3000, 2)
+    material = (0.2, 0.6, 0.4, 16.0)
+    sh = su.setup(lights, unit(np.array([0.2, -0.3, 1.0])), material, cfg)
+    q = np.floor(normals * (1 << cfg.normal_frac_bits) + 0.5).astype(np.int64)
+    plain = su.shade(sh, colours, q)
+    assert np.array_equal(su.shade(sh, colours, q, np.full(3000, ONE)), plain)
+    ambient = su.shade_raw(sh.ka, colours, 0, 0)
+    assert np.array_equal(su.shade(sh, colours, q, np.zeros(3000, np.int64)), ambient)
+    f = rng.integers(0, ONE + 1, 3000)
+    half = su.shade(sh, colours, q, f)
+    expect = np.clip(ambient + (plain - ambient) * (f[:, None] / ONE), 0, ONE)
+    lit = plain < ONE  # where the unmodulated colour saturated, the light term is unknown
+    assert np.abs(half - expect)[lit].max() <= 3
