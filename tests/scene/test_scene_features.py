@@ -116,7 +116,11 @@ BAD = [
         "classification.luts[0].points[0][4]",
         "0 .. 1",
     ),
-    ("[transfer]\npreset = 'ct'\n" + LUT, "transfer.preset", "transfer.gradient_opacity, gradient_illumination and"),
+    (
+        "[transfer]\npreset = 'ct'\n" + LUT,
+        "transfer.preset",
+        "transfer.gradient_opacity, gradient_illumination and",
+    ),
     (G, "geometry.spheres", "[[geometry.spheres]]"),
     (G + "depth_test = '<>'\n" + BALL + "radius=1", "geometry.depth_test", "<, <=, ==, >=, >, !="),
     (G + BALL + "radius=0", "geometry.spheres[0].radius", "> 0"),
