@@ -20,7 +20,19 @@ import numpy as np
 from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 
-__all__ = ["bands_of", "band_loads"]
+__all__ = ["bands_of", "band_loads", "refuse_sections"]
+
+
+def refuse_sections(arch, machine: str) -> None:
+    """Refuse ``[overheads] section_width`` on a machine whose model has no sections
+    (Cube-4, VIZARD II): every rung asks, so none charges what the others ignore."""
+    if arch.section_width:
+        raise InputError(
+            f"{machine} renders the whole slice: the model has no sections",
+            source=arch.source,
+            key="overheads.section_width",
+            allowed="0",
+        )
 
 
 def bands_of(plan: SamplePlan, width: int, n_a: int, a_ax: int, source: str) -> list[tuple]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 from hwsim.errors import InputError
 from models.backend import Backend
 from models.frame import Frame
+from models.machines.common.sections import refuse_sections
 from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.cube4.timing import cube4_buffers
 
@@ -23,13 +24,7 @@ def check_cube4_frame(frame: Frame) -> None:
     """Refuse what no Cube-4 renders (every rung of the family asks here): more or fewer
     than one sample per slice, gradients from voxels instead of samples, sections."""
     arch = frame.arch
-    if arch.section_width:
-        raise InputError(
-            "Cube-4 renders the whole slice: the model has no sections",
-            source=arch.source,
-            key="overheads.section_width",
-            allowed="0",
-        )
+    refuse_sections(arch, "Cube-4")
     if frame.scene.render.supersampling != 1.0:
         raise InputError(
             "the Cube-4 model samples once per slice",

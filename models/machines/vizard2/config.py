@@ -13,6 +13,7 @@ from hwsim.errors import InputError
 from hwsim.memory import MemoryConfig, parse_memory
 from models.frame import Frame
 from models.machines.common.results import UNITS, check_buffer_keys
+from models.machines.common.sections import refuse_sections
 
 __all__ = [
     "BLOCK",
@@ -83,13 +84,7 @@ def check_frame(frame: Frame) -> None:
     that are not cast from the image plane, gradients other than its table of
     pre-computed voxel gradients, sections."""
     arch, plan, datapath = frame.arch, frame.plan, frame.datapath
-    if arch.section_width:
-        raise InputError(
-            "VIZARD II renders the whole slice: the model has no sections",
-            source=arch.source,
-            key="overheads.section_width",
-            allowed="0",
-        )
+    refuse_sections(arch, "VIZARD II")
     if plan.kind != "ray":
         raise InputError(
             "VIZARD II casts rays from the image plane",
