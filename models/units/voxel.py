@@ -42,14 +42,27 @@ class VoxelMap:
 
 
 def convert_volume(volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
-    """The volume as raw ``int64`` voxels ``(z, y, x)`` in ``[0, 2**bits - 1]`` and its map."""
-    return convert_values(volume.data, volume, bits)
+    """The volume as raw voxels ``(z, y, x)`` in ``[0, 2**bits - 1]`` and its map: uint16
+    for ``bits <= 16`` (a quarter of int64's bytes; every reader promotes what it reads),
+    int64 above; converted a slice at a time, so no whole-volume temporary is made."""
+    data = volume.data
+    if data.ndim == 0 or data.shape[0] <= 1:
+        raw, vmap = convert_values(data, volume, bits)
+        return raw.astype(_raw_dtype(bits)), vmap
+    out = np.empty(data.shape, dtype=_raw_dtype(bits))
+    for z in range(data.shape[0]):
+        out[z], vmap = convert_values(data[z], volume, bits)
+    return out, vmap
+
+
+def _raw_dtype(bits: int) -> type:
+    return np.uint16 if bits <= 16 else np.int64
 
 
 def convert_values(values: np.ndarray, volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
-    """Raw voxels of any array of ``volume``'s values (the volume's rule, chosen by its
-    dtype and value range, applied elementwise; e.g. block minima and maxima).  Every rule
-    is non-decreasing in the value."""
+    """Raw int64 voxels of any array of ``volume``'s values (the volume's rule, chosen by
+    its dtype and value range, applied elementwise; e.g. block minima and maxima).  Every
+    rule is non-decreasing in the value."""
     data = volume.data
     top = (1 << bits) - 1
     lo, hi = volume.value_range

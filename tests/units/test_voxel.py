@@ -80,3 +80,14 @@ def test_integers_wider_than_the_voxel_take_the_linear_map():
     arr = np.array([[[-20000, 100, 20000]]], dtype=np.int16)  # a span of 40000 > 4095
     raw, vmap = vu.convert_volume(volume_of(arr), 12)
     assert list(raw.ravel()) == [0, 2058, 4095] and vmap.scale == pytest.approx(40000 / 4095)
+
+
+@settings(max_examples=100, deadline=None)
+@given(BITS, hnp.arrays(np.int16, (4, 3, 5), elements=st.integers(-32768, 32767)))
+def test_the_volume_is_converted_slice_by_slice_to_uint16_by_the_same_rule(bits, arr):
+    """Memory: the machine's raw voxels are uint16 (not an int64 copy of the volume),
+    converted a slice at a time; the values are the whole-array rule's."""
+    volume = volume_of(arr)
+    raw, vmap = vu.convert_volume(volume, bits)
+    whole, whole_map = vu.convert_values(arr, volume, bits)
+    assert raw.dtype == np.uint16 and np.array_equal(raw, whole) and vmap == whole_map

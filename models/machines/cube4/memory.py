@@ -74,9 +74,13 @@ class Cube4Memory:
         """
         nz, ny, nx = raw.shape
         rows, width = nz * ny, -(-nx // P)  # width: groups of P per padded row
-        padded = np.zeros((rows, width * P), dtype=np.uint16)  # voxels <= 16 bits
-        padded[:, :nx] = raw.reshape(rows, nx)
-        by_lane = np.ascontiguousarray(padded.reshape(rows, width, P).transpose(2, 0, 1))
+        if nx == width * P and raw.dtype == np.uint16 and raw.flags.c_contiguous:
+            padded = raw.reshape(rows, nx)  # a view: no copy of the volume
+        else:
+            padded = np.zeros((rows, width * P), dtype=np.uint16)  # voxels <= 16 bits
+            padded[:, :nx] = raw.reshape(rows, nx)
+        # Lane views of the rows; each module gathers only the rows it takes.
+        by_lane = padded.reshape(rows, width, P).transpose(2, 0, 1)
         z, y = np.divmod(np.arange(rows), ny)
         residue = (y + z) % P
         modules = np.empty((P, max(rows * width, 1)), dtype=np.uint16)
