@@ -73,6 +73,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="render features the machine never had as a what-if (stats.json: extensions)",
     )
     r.add_argument(
+        "--frames",
+        type=int,
+        default=1,
+        metavar="N",
+        help="a turntable of N frames: frames/*.png, turntable.gif, per-frame wall times",
+    )
+    r.add_argument(
+        "--turn",
+        type=float,
+        metavar="DEG",
+        help="azimuth step between turntable frames (default 360 / N)",
+    )
+    r.add_argument(
         "--out", metavar="DIR", help=f"output folder (default {DEFAULT_RENDER_OUT}, replaced)"
     )
     _add_max_memory(r)
@@ -218,17 +231,18 @@ def _cmd_render(args: argparse.Namespace) -> int:
     output_folder(out_dir)  # every output checked before the work starts
     if args.trace:
         output_file(args.trace, "--trace")
+    options = {
+        "fidelity": args.fidelity,
+        "arch": args.arch,
+        "sampling": args.sampling,
+        "trace": args.trace,
+        "simulator": args.simulator,
+        "extend": args.extend,
+    }
+    if args.frames != 1 or args.turn is not None:
+        return _turntable(scene, args, out_dir, options)
     with _progress_bar(args.quiet, "render") as progress:
-        run = render(
-            scene,
-            fidelity=args.fidelity,
-            arch=args.arch,
-            sampling=args.sampling,
-            progress=progress,
-            trace=args.trace,
-            simulator=args.simulator,
-            extend=args.extend,
-        )
+        run = render(scene, progress=progress, **options)
     paths = write_render(run, out_dir)
     if not args.quiet:
         for e in run.extensions:
@@ -269,6 +283,26 @@ def _cmd_phantoms(args: argparse.Namespace) -> int:
 
     for name, info in PHANTOMS.items():
         print(f"{name:<16} {info}")
+    return 0
+
+
+def _turntable(scene, args: argparse.Namespace, out_dir: str, options: dict) -> int:
+    """``hwsim render --frames N [--turn DEG]``: a turntable (hwsim.turntable)."""
+    from hwsim.turntable import render_turntable, turntable_stats, write_turntable
+
+    turn = args.turn if args.turn is not None else 360.0 / max(args.frames, 1)
+    with _progress_bar(args.quiet, "frames") as progress:
+        runs = render_turntable(scene, args.frames, turn, progress=progress, **options)
+    paths = write_turntable(runs, out_dir, turn)
+    if not args.quiet:
+        stats = turntable_stats(runs, turn)
+        print(
+            f"{scene.name}: {len(runs)} frames, {turn:g} degrees apart, "
+            f"{runs[0].fidelity}/{runs[0].sampling}: first frame "
+            f"{runs[0].wall_seconds:.2f} s, then {stats['median_frame_wall_seconds']:.3f} s "
+            "per frame (median)"
+        )
+        print(f"  wrote {paths['gif']} and {len(runs)} frames in {paths['frames']}")
     return 0
 
 

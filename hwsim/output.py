@@ -87,17 +87,19 @@ def stats_plain(run: RenderRun) -> dict[str, Any]:
     return json.loads(json.dumps(stats_dict(run), default=_json_default))
 
 
-def image_to_rgb8(image: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+def image_to_rgb8(
+    image: np.ndarray, window: tuple[float, float] | None = None
+) -> tuple[np.ndarray, dict[str, Any]]:
     """An 8-bit picture of a render and how it was made.
 
     RGBA images (premultiplied) are shown over black; scalar images (mip, minip, xray)
-    are windowed linearly from their minimum to their maximum.
+    are windowed linearly from their minimum to their maximum, or over ``window``.
     """
     if image.ndim == 3:
         rgb = np.clip(image[..., :3], 0.0, 1.0)
         return np.round(rgb * 255.0).astype(np.uint8), {"display": "rgb over black"}
-    lo, hi = float(image.min()), float(image.max())
-    scaled = (image - lo) / (hi - lo) if hi > lo else np.zeros_like(image)
+    lo, hi = window if window is not None else (float(image.min()), float(image.max()))
+    scaled = np.clip((image - lo) / (hi - lo), 0.0, 1.0) if hi > lo else np.zeros_like(image)
     grey = np.round(scaled * 255.0).astype(np.uint8)
     return np.repeat(grey[..., None], 3, axis=2), {"display": "grey", "window": [lo, hi]}
 
@@ -108,8 +110,11 @@ def _atomic_write(path: Path, write) -> None:
     os.replace(tmp, path)
 
 
-def write_render(run: RenderRun, out_dir: str | Path) -> dict[str, Path]:
-    """Write ``image.npy``, ``image.png`` and ``stats.json`` into ``out_dir``."""
+def write_render(
+    run: RenderRun, out_dir: str | Path, extra: dict[str, Any] | None = None
+) -> dict[str, Path]:
+    """Write ``image.npy``, ``image.png`` and ``stats.json`` (plus ``extra`` blocks, e.g.
+    a turntable's) into ``out_dir``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -128,6 +133,7 @@ def write_render(run: RenderRun, out_dir: str | Path) -> dict[str, Path]:
         _atomic_write(paths["png"], lambda p: mpimage.imsave(p, rgb, format="png"))
         stats = stats_dict(run)
         stats["image"].update(display)
+        stats.update(extra or {})
         text = json.dumps(stats, indent=2, default=_json_default)
         _atomic_write(paths["stats"], lambda p: p.write_text(text + "\n"))
         from hwsim.output_csvs import write_csvs
