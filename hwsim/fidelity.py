@@ -21,7 +21,7 @@ import numpy as np
 from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.budget import SAMPLE_ENV_VAR, require_fits, sample_budget
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.machine_features import Algorithms, require_machine
+from hwsim.machine_features import IDEAL, Algorithms, require_machine
 from hwsim.scene import Scene
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
@@ -267,9 +267,7 @@ def render(
     else:
         machine = resolve_arch(arch) if arch is not None else None
     extensions = []
-    chosen = Algorithms(
-        "voxel" if scene.render.gradient is None else scene.render.gradient, "phong", 0
-    )
+    chosen = IDEAL  # the ideal renderer's shading (its gradients: the scene's, or voxel)
     if machine is not None:
         extensions = check_scene_fits(scene, machine, extend=extend)
         chosen = algorithms(machine)

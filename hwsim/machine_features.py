@@ -32,6 +32,7 @@ from hwsim.scene_features import check_machine
 __all__ = [
     "Algorithms",
     "Extension",
+    "IDEAL",
     "feature_rows",
     "features_markdown",
     "require_machine",
@@ -80,6 +81,10 @@ class Algorithms:
         if self.shading == "reflectance-map":
             return f"reflectance-map ({self.map_size}x{self.map_size} cells per cube face)"
         return self.shading
+
+
+#: The ideal golden renderer's choices: voxel gradients, per-sample Phong.
+IDEAL = Algorithms("voxel", "phong", 0)
 
 
 def scene_extensions(scene: Scene, arch: ArchConfig, algorithms: Algorithms) -> list[Extension]:
