@@ -100,19 +100,25 @@ class SdramVolume:
         self.reads = np.zeros(self.M, dtype=np.int64)
 
     def _load(self, raw: np.ndarray) -> np.ndarray:
-        """The host's write: ``words[module, bank, address]``, one z-plane at a time."""
+        """The host's write: ``words[module, bank, address]``, one z-plane at a time.
+
+        Each plane's addresses are computed, written and dropped (keeping them all was
+        24 bytes a voxel); the word array grows by doubling as the addresses climb and
+        is cut to the highest address written."""
         nz, ny, nx = self.shape
         y, x = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
-        planes = []
+        words = np.zeros((self.M, self.K, 1 << 12), dtype=np.uint16)
         size = 0
         for z in range(nz):
             m, b, a = layout(self.memory, self.n, x, y, np.full_like(x, z))
-            planes.append((m.ravel(), b.ravel(), a.ravel()))
-            size = max(size, int(a.max()) + 1)
-        words = np.zeros((self.M, self.K, size), dtype=np.uint16)
-        for z, (m, b, a) in enumerate(planes):
-            words[m, b, a] = raw[z].ravel()
-        return words
+            top = int(a.max()) + 1
+            if top > words.shape[2]:
+                grown = np.zeros((self.M, self.K, max(top, 2 * words.shape[2])), np.uint16)
+                grown[:, :, : words.shape[2]] = words
+                words = grown
+            words[m.ravel(), b.ravel(), a.ravel()] = raw[z].ravel()
+            size = max(size, top)
+        return np.ascontiguousarray(words[:, :, :size])
 
     def schedule(self, kp: int, q: int) -> SliceSchedule:
         """Where each pipeline's voxel of slice ``q`` comes from, clock by clock."""
