@@ -32,6 +32,7 @@ FEATURE_CHOICES = {
     "interpolation": ("trilinear", "nearest", "cubic"),
     "gradients": ("sample", "voxel"),
     "shading": ("phong", "reflectance-map"),
+    "blend_orders": ("front-to-back", "back-to-front"),
 }
 
 
@@ -68,10 +69,11 @@ class ArchConfig:
         Classification LUTs merged by combiners (1: a single LUT; VolumePro 1000: 4).
     embedded_geometry : bool
         Whether opaque geometry can be embedded through image + depth buffers.
-    modes, classification, interpolation, gradients, shading : tuple of str
+    modes, classification, interpolation, gradients, shading, blend_orders : tuple of str
         The declared feature lists (:data:`FEATURE_CHOICES`): compositing modes,
-        classification orders, interpolation filters, gradient sources and shading
-        methods (per-sample Phong, reflectance maps) the machine had.
+        classification orders, interpolation filters, gradient sources, shading
+        methods (per-sample Phong, reflectance maps) and compositing orders (front to
+        back, back to front) the machine had.
     crop : bool
         Whether the machine crops to axis slabs (VolumePro's box cropping).
     gradient_illumination : bool
@@ -113,6 +115,7 @@ class ArchConfig:
     interpolation: tuple[str, ...] = ("trilinear",)
     gradients: tuple[str, ...] = ("sample", "voxel")
     shading: tuple[str, ...] = ("phong",)
+    blend_orders: tuple[str, ...] = ("front-to-back",)
     crop: bool = False
     gradient_illumination: bool = False
     feature_sources: dict[str, str] = field(default_factory=dict)
@@ -228,6 +231,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         interpolation=_declared(features, "interpolation", ("trilinear",)),
         gradients=_declared(features, "gradients", ("sample", "voxel")),
         shading=_declared(features, "shading", ("phong",)),
+        blend_orders=_declared(features, "blend_orders", ("front-to-back",)),
         crop=features.boolean("crop", False),
         gradient_illumination=features.boolean("gradient_illumination", False),
         feature_sources=_sources(features),

@@ -98,6 +98,7 @@ def scene_extensions(scene: Scene, arch: ArchConfig, algorithms: Algorithms) -> 
     found = [_listed(arch, "modes", "render.mode", render.mode)]
     if render.mode == "composite":
         found.append(_listed(arch, "classification", "transfer.order", scene.transfer.order))
+        found.append(_listed(arch, "blend_orders", "render.blend_order", render.blend_order))
     if scene.lit or scene.transfer.gradient_opacity is not None:
         found.append(_listed(arch, "gradients", "formats.gradient.source", gradient_source))
     if scene.lit:
@@ -195,6 +196,7 @@ def feature_rows(arch: ArchConfig) -> list[tuple[str, str, str]]:
         "interpolation": ", ".join(arch.interpolation),
         "gradients": ", ".join(arch.gradients),
         "shading": ", ".join(arch.shading),
+        "blend_orders": ", ".join(arch.blend_orders),
         "perspective": "parallel, perspective" if arch.perspective else "parallel",
         "supersampling": span(*arch.supersampling),
         "crop": "yes" if arch.crop else "no",

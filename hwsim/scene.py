@@ -27,6 +27,7 @@ from hwsim.scene_features import (
 
 __all__ = [
     "MODES",
+    "BLEND_ORDERS",
     "PROJECTIONS",
     "INTERPOLATIONS",
     "GRADIENT_SOURCES",
@@ -50,6 +51,8 @@ __all__ = [
 
 SCHEMA = 1
 MODES = ("composite", "mip", "minip", "xray", "iso")
+#: Compositing orders (VLI's kVLIBlendFTB / kVLIBlendBTF): the order samples are blended.
+BLEND_ORDERS = ("front-to-back", "back-to-front")
 PROJECTIONS = ("parallel", "perspective")
 INTERPOLATIONS = ("trilinear", "nearest", "cubic")
 GRADIENT_SOURCES = ("voxel", "sample")
@@ -154,7 +157,10 @@ class RenderSpec:
 
     ``sample_spacing`` is in units of the smallest voxel spacing; ``supersampling``
     divides it (VolumePro's z-supersampling); ``early_termination`` stops a ray once its
-    accumulated opacity reaches it (1.0 = off).  ``gradient`` ``None`` means the
+    accumulated opacity reaches it (1.0 = off).  ``blend_order`` is the compositing
+    order of ``composite`` mode: ``back-to-front`` walks every ray from its far end (the
+    machine's slices in reverse) and blends ``C = a c + (1 - a) C``; it cannot terminate
+    rays early.  ``gradient`` ``None`` means the
     machine's gradient source (its ``[formats] gradient.source``), or ``voxel`` for the
     ideal renderer without one.  ``iso_value`` ``None`` means the middle
     of the volume's value range.
@@ -167,6 +173,7 @@ class RenderSpec:
     sample_spacing: float = 1.0
     supersampling: float = 1.0
     early_termination: float = 1.0
+    blend_order: str = "front-to-back"
     iso_value: float | None = None
     iso_color: tuple[float, float, float] = (0.9, 0.85, 0.75)
 
@@ -465,7 +472,21 @@ def _render(t: Table) -> RenderSpec:
         early_termination=t.number("early_termination", d.early_termination, 0, 1, lo_open=True),
         iso_value=t.number("iso_value") if t.has("iso_value") else None,
         iso_color=t.vector("iso_color", 3, d.iso_color, 0, 1),  # type: ignore[arg-type]
+        blend_order=t.choice("blend_order", BLEND_ORDERS, d.blend_order),
     )
+    if spec.blend_order != d.blend_order:
+        if spec.mode != "composite":
+            raise t.error(
+                "blend_order",
+                f"{spec.mode} has no blending order",
+                'mode = "composite" (or omit blend_order)',
+            )
+        if spec.early_termination < 1.0:
+            raise t.error(
+                "early_termination",
+                f"{spec.early_termination:g}: a back-to-front ray ends at its front",
+                "1 (off) with blend_order = back-to-front",
+            )
     t.finish()
     return spec
 

@@ -201,7 +201,8 @@ class Backend:
             keep = factor > 0 if keep is None else keep & (factor > 0)
         if self.depth is not None:
             passed = self._depth_test(step)
-            if self.scene.geometry.depth_test in geometry.STOPPING_TESTS:  # type: ignore[union-attr]
+            stopping = self.scene.geometry.depth_test in geometry.STOPPING_TESTS  # type: ignore[union-attr]
+            if stopping and not self.plan.back_to_front:  # a far-first ray meets it last
                 self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
         if keep is not None:
@@ -362,6 +363,9 @@ class Backend:
                 rgb = self._shade(rgb, g, rays, illum)
         dt = step.dt if np.isscalar(step.dt) else step.dt[sel]
         alpha = composite_unit.correct_opacity(alpha, np.asarray(dt) / self.ref, dp.composite)
+        if self.plan.back_to_front:  # scene.py refuses early termination with it
+            composite_unit.back_to_front(state.acc, rays, rgb, alpha, dp.composite)
+            return
         composite_unit.front_to_back(state.acc, rays, rgb, alpha, dp.composite)
         if self.ert < 1.0:
             state.alive[rays] = ~composite_unit.terminated(state.acc[rays], self.ert, dp.composite)

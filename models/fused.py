@@ -329,6 +329,8 @@ def eligible(backend) -> bool:
     be = backend
     if be.mode != "composite" or be.pre_classified or be.exercise_unused:
         return False
+    if be.plan.back_to_front:  # the kernel blends front to back
+        return False
     if be.multilut is not None or be.depth is not None or be.illum_table is not None:
         return False
     # One shader for the frame (parallel views): Phong or reflectance maps.

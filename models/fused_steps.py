@@ -71,7 +71,7 @@ _SHEAR_WARP, _SHEAR_IMAGE, _RAY = 0, 1, 2
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _step(
-    j, kind, q_of_step, offsets, ss, k_min, dt, axes, ray_ids, ray_cols, j_lo, j_hi, join,
+    j, kind, q_of_step, offsets, ss, k_first, k_dir, dt, axes, ray_ids, ray_cols, j_lo, j_hi, join,
     cursor, slots, terms, alive, distance, block_shift, vol_hi, zyx, rays,
 ):  # fmt: skip
     """Step ``j``'s kept samples into ``zyx`` and ``rays``; returns how many.
@@ -93,7 +93,7 @@ def _step(
     kp, a_ax, b_ax = axes[0], axes[1], axes[2]
     off_a, off_b = offsets[j, 0], offsets[j, 1]
     j_ss = np.float64(j) / ss
-    t_ray = np.float64(k_min + j) * dt
+    t_ray = np.float64(k_first + k_dir * j) * dt
     p = np.empty(3)  # one sample's z, y, x
     kept = 0
     m = 0
@@ -204,7 +204,8 @@ class _Walker:
             plan.order if sheared else np.zeros(1),
             plan.offsets if sheared else np.zeros((plan.n_steps, 2)),
             float(plan.scene.render.supersampling),
-            int(getattr(plan, "k_min", 0)),
+            int(getattr(plan, "k_first", 0)),
+            int(getattr(plan, "k_dir", 1)),
             self.dt,
             np.array(_axes(plan), dtype=np.int64),
             plan.ray_ids,

@@ -148,6 +148,10 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
         )
     if mode == "composite" and transfer.order == "pre":
         raise _refuse("the RTL top post-classifies", "transfer.order", "post")
+    if scene.render.blend_order != "front-to-back":
+        raise _refuse(
+            "the RTL top's compositor blends front to back", "render.blend_order", "front-to-back"
+        )
     if scene.crop is not None or scene.cut_planes:
         raise _refuse("the RTL top has no crop unit", "crop", "no crop box or cut planes")
 

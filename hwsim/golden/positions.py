@@ -71,6 +71,9 @@ class SamplePlan:
         self.dirs = cam.directions[..., ::-1] / np.asarray(volume.spacing)  # index per world
         self.principal_axis: int | None = None
         self.leap_block: int | None = None
+        render = scene.render
+        #: Samples walked from each ray's far end (VLI's back-to-front blending).
+        self.back_to_front = render.mode == "composite" and render.blend_order == "back-to-front"
         self._per_ray = ["ray_ids", "j_lo", "j_hi"]
         if kind == "ray":
             self.shape = (cam.height, cam.width)
@@ -85,6 +88,8 @@ class SamplePlan:
                 self._setup_shear_image()
             else:
                 self._setup_shear_warp()
+        if self.back_to_front:
+            self._reverse()
         if cam.perspective and kind != "shear-warp":
             self._view = -cam.directions[self.ray_ids]
             self._per_ray.append("_view")
@@ -123,6 +128,8 @@ class SamplePlan:
             k_hi = np.ceil(t_out / dt - 1e-9) - 1
         hit = np.flatnonzero(np.isfinite(k_lo) & np.isfinite(k_hi) & (k_lo <= k_hi))
         self.k_min = int(k_lo[hit].min()) if hit.size else 0
+        #: Step ``j`` is at ``t = (k_first + k_dir j) dt``.
+        self.k_first, self.k_dir = self.k_min, 1
         self.ray_ids = hit
         self.j_lo = k_lo[hit].astype(np.int64) - self.k_min
         self.j_hi = k_hi[hit].astype(np.int64) - self.k_min
@@ -179,6 +186,22 @@ class SamplePlan:
         self.ray_ids = np.arange(self.shape[0] * self.shape[1])
         self._set_ranges(*linear_range(self._position_all(0), self._delta, self.lo, self.hi))
 
+    def _reverse(self) -> None:
+        """Walk every ray from its far end: step ``j`` becomes the front-to-back plan's
+        step ``n_steps - 1 - j``, at the same position (shear-warp keeps its base plane,
+        the front slice)."""
+        last = self.n_steps - 1
+        self.j_lo, self.j_hi = last - self.j_hi, last - self.j_lo
+        self._delta = -self._delta
+        if self.kind == "ray":
+            self.k_first, self.k_dir = self.k_min + last, -1
+        elif self.kind == "shear-image":
+            self._sign = -self._sign
+            self._q0 = np.where(self._sign > 0, 0.0, last / self.scene.render.supersampling)
+        else:
+            self.order = self.order[::-1].copy()
+            self.offsets = self.offsets[::-1].copy()
+
     def _set_ranges(self, j_lo: np.ndarray, j_hi: np.ndarray) -> None:
         j_lo, j_hi = np.maximum(j_lo, 0.0), np.minimum(j_hi, self.n_steps - 1.0)
         ok = j_lo <= j_hi
@@ -188,7 +211,7 @@ class SamplePlan:
     def position(self, j: int | np.ndarray, sel: np.ndarray) -> np.ndarray:
         """Index positions ``(len(sel), 3)`` of plan rays ``sel`` at step(s) ``j``."""
         if self.kind == "ray":
-            t = (self.k_min + j) * self._dt
+            t = (self.k_first + self.k_dir * j) * self._dt
             d = self._d if self._d.ndim == 1 else self._d[sel]
             return self._o[sel] + (t * d if np.isscalar(t) else t[:, None] * d)
         kp = self.principal_axis
@@ -261,7 +284,8 @@ class SamplePlan:
         self._keep(self.j_lo <= self.j_hi)
 
     def steps(self, alive: np.ndarray | None = None) -> Iterator[Step]:
-        """Front-to-back steps, one per ``j`` in ``range(n_steps)`` (possibly empty).
+        """The steps in blending order (front to back, or back to front where
+        :attr:`back_to_front`), one per ``j`` in ``range(n_steps)`` (possibly empty).
 
         ``alive`` (optional, bool per accumulation ray) is read at every step: rays set
         False stop being yielded (early termination).  Deterministic.
@@ -312,6 +336,8 @@ class SamplePlan:
             "samples": self.samples,
             "leap_block": self.leap_block,
         }
+        if self.back_to_front:
+            out["blend_order"] = "back-to-front"
         if self.principal_axis is not None:
             out["principal_axis"] = "zyx"[self.principal_axis]
         return out

@@ -169,7 +169,7 @@ class _Renderer:
                 geo.sample_depth(step.zyx, self.plan.camera, self.volume, self.distance),
                 self.geometry.depth[step.rays],
             )
-            if test in geo.STOPPING_TESTS:
+            if test in geo.STOPPING_TESTS and not self.plan.back_to_front:
                 self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
         if keep is not None:
@@ -281,6 +281,10 @@ class _Renderer:
                 )
         dt = step.dt if np.isscalar(step.dt) else step.dt[vis]
         a = 1.0 - (1.0 - a) ** (dt / self.ref)
+        if self.plan.back_to_front:  # samples farthest first: C = a c + (1 - a) C
+            acc[rays, :3] = a[:, None] * rgb + (1.0 - a)[:, None] * acc[rays, :3]
+            acc[rays, 3] = a + (1.0 - a) * acc[rays, 3]
+            return
         weight = (1.0 - acc[rays, 3]) * a
         acc[rays, :3] += weight[:, None] * rgb
         acc[rays, 3] += weight

@@ -53,6 +53,7 @@ VARIANTS = {
     "one-cut-plane": lambda s: s.replace(cut_planes=(CutPlane(thickness=3.0),)),
     "two-cut-planes": lambda s: s.replace(cut_planes=(CutPlane(), CutPlane(normal=(1.0, 0, 0)))),
     "ert": _render_changes(early_termination=0.9),
+    "back-to-front": _render_changes(blend_order="back-to-front"),
     "perspective": lambda s: s.replace(view=dataclasses.replace(s.view, projection="perspective")),
     "supersampling-2": _render_changes(supersampling=2.0),
     "gradient-illumination": lambda s: s.replace(
@@ -106,6 +107,7 @@ def _assert_rtl_refuses(scene, volume, arch):
         ("cube4", "crop", "crop"),
         ("cube4", "one-cut-plane", "cut_planes"),
         ("cube4", "ert", "render.early_termination"),
+        ("cube4", "back-to-front", "render.blend_order"),
         ("em-cube", "mode-minip", "render.mode"),
         ("vizard2", "mode-iso", "render.mode"),
         ("vizard2", "crop", "crop"),
