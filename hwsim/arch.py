@@ -78,6 +78,8 @@ class ArchConfig:
         Whether the machine crops to axis slabs (VolumePro's box cropping).
     gradient_illumination : bool
         Whether gradient magnitude can scale diffuse and specular light (VolumePro 500).
+    cursor : bool
+        Whether the hardware draws a 3-D cursor into the samples (VolumePro 500).
     feature_sources : dict
         ``[features.sources]``: where each declared feature comes from, tagged ``[V]``,
         ``[R]``, ``[I]`` or ``[?]`` as the published figures are.
@@ -118,6 +120,7 @@ class ArchConfig:
     blend_orders: tuple[str, ...] = ("front-to-back",)
     crop: bool = False
     gradient_illumination: bool = False
+    cursor: bool = False
     feature_sources: dict[str, str] = field(default_factory=dict)
     extend: bool = False
     formats: dict[str, Any] = field(default_factory=dict)
@@ -165,6 +168,7 @@ _FEATURE_KEYS = (
     *FEATURE_CHOICES,
     "crop",
     "gradient_illumination",
+    "cursor",
     "sections",
     "voxel_bits",
     "max_volume",
@@ -234,6 +238,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         blend_orders=_declared(features, "blend_orders", ("front-to-back",)),
         crop=features.boolean("crop", False),
         gradient_illumination=features.boolean("gradient_illumination", False),
+        cursor=features.boolean("cursor", False),
         feature_sources=_sources(features),
         extend=features.boolean("extend", False),
         formats=dict(top.raw("formats", {})),

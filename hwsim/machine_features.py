@@ -112,8 +112,10 @@ def scene_extensions(scene: Scene, arch: ArchConfig, algorithms: Algorithms) -> 
                 "gradient_illumination", "transfer.gradient_illumination", asked, "none", source
             )
         )
+    if scene.cursor is not None and not arch.cursor:
+        found.append(Extension("cursor", "cursor", "3-D cursor", "none", _source(arch, "cursor")))
     if scene.crop is not None and not arch.crop:
-        found.append(Extension("crop", "crop", "a crop box", "none", _source(arch, "crop")))
+        found.append(Extension("crop", "crop", "crop box", "none", _source(arch, "crop")))
     if len(scene.cut_planes) > arch.cut_planes:
         asked = f"{len(scene.cut_planes)} cut plane(s)"
         has = f"{arch.cut_planes} at most"
@@ -161,6 +163,13 @@ def require_machine(scene: Scene, arch: ArchConfig, algorithms: Algorithms, *, e
             key="render.interpolation",
             allowed=", ".join(arch.interpolation),
         )
+    if scene.cursor is not None and arch.space_leaping:
+        raise InputError(
+            f"{arch.name} leaps empty space: its leaps would skip the cursor's samples",
+            source=arch.source,
+            key="cursor",
+            allowed="no [cursor] on a machine with space_leaping",
+        )
     gradient_source = algorithms.gradient
     if scene.render.gradient not in (None, gradient_source):
         raise InputError(
@@ -201,6 +210,7 @@ def feature_rows(arch: ArchConfig) -> list[tuple[str, str, str]]:
         "supersampling": span(*arch.supersampling),
         "crop": "yes" if arch.crop else "no",
         "gradient_illumination": "yes" if arch.gradient_illumination else "no",
+        "cursor": "yes" if arch.cursor else "no",
         "cut_planes": str(arch.cut_planes),
         "early_termination": "yes" if arch.early_termination else "no",
         "space_leaping": "yes" if arch.space_leaping else "no",

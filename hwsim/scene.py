@@ -18,6 +18,7 @@ from typing import Any
 
 from hwsim.config import Table, check_points, read_toml
 from hwsim.errors import InputError
+from hwsim.scene_cursor import CursorSpec, parse_cursor
 from hwsim.scene_features import (
     ClassificationSpec,
     GeometrySpec,
@@ -235,6 +236,7 @@ class Scene:
     cut_planes: tuple[CutPlane, ...] = ()
     classification: ClassificationSpec | None = None
     geometry: GeometrySpec | None = None
+    cursor: CursorSpec | None = None
 
     @property
     def base_dir(self) -> Path:
@@ -312,6 +314,7 @@ def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "s
         cut_planes=tuple(_cut_plane(t) for t in top.tables("cut_planes")),
         classification=_classification(top),
         geometry=parse_geometry(top.table("geometry")) if top.has("geometry") else None,
+        cursor=parse_cursor(top.table("cursor")) if top.has("cursor") else None,
     )
     top.finish()
     return scene

@@ -278,8 +278,13 @@ def parse_geometry(t: Table) -> GeometrySpec:
 
 
 def check_features(scene) -> None:
-    """Refuse feature use the render mode cannot honour (both need composite mode)."""
-    for key, spec in (("classification", scene.classification), ("geometry", scene.geometry)):
+    """Refuse feature use the render mode cannot honour (all need composite mode)."""
+    sections = (
+        ("classification", scene.classification),
+        ("geometry", scene.geometry),
+        ("cursor", scene.cursor),
+    )
+    for key, spec in sections:
         if spec is not None and scene.render.mode != "composite":
             raise InputError(
                 f"[{key}] needs composite mode, not {scene.render.mode!r}",

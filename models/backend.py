@@ -37,6 +37,7 @@ from models.units import crop as crop_unit
 from models.units import depth as depth_unit
 from models.units import gradient as gradient_unit
 from models.units import shade as shade_unit
+from models.units.cursor import CursorTable
 from models.units.multilut import MultiLut
 from models.units.voxel import convert_volume
 
@@ -104,6 +105,8 @@ class Backend:
                 transfer, self.vmap.to_value, dp.voxel_bits, dp.classify
             )
         self.pre_classified = composite and transfer.order == "pre"
+        #: VolumePro 500's 3-D cursor, drawn over the samples on it (composite only).
+        self.cursor = CursorTable(scene.cursor) if scene.cursor is not None else None
         self.illum_table = None
         if self.need_grad and (transfer.modulates or transfer.modulates_illumination):
             # Largest |gradient| the data can have, in value units per world unit.
@@ -205,6 +208,8 @@ class Backend:
             if stopping and not self.plan.back_to_front:  # a far-first ray meets it last
                 self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
+        if keep is not None and self.cursor is not None and self.cursor.cursor.disable_crop:
+            keep |= self.cursor.parts(step.zyx) >= 0  # drawn where the volume is cut away
         if keep is not None:
             step = subset_step(step, keep)
             factor = factor[keep] if factor is not None else None
@@ -312,11 +317,15 @@ class Backend:
 
     def _composite(self, step: Step, src: SampleSource, factor, state: RayState) -> None:
         dp = self.dp
+        part = self.cursor.parts(step.zyx) if self.cursor is not None else None
         maybe = getattr(src, "maybe_visible", None)
         if maybe is not None:
             # The source knows samples that are provably transparent (all their voxels
-            # classify to opacity 0): skip simulating them, they change nothing.
+            # classify to opacity 0): skip simulating them, they change nothing (unless
+            # the cursor is drawn over them).
             keep = maybe()
+            if keep is not None and part is not None:
+                keep = keep | (part >= 0)
             if keep is not None and not keep.all():
                 sel = np.flatnonzero(keep)
                 if not sel.size:
@@ -324,6 +333,7 @@ class Backend:
                 state.extra["skipped"] = state.extra.get("skipped", 0) + step.rays.size - sel.size
                 step = subset_step(step, keep)
                 factor = factor[sel] if factor is not None else None
+                part = part[sel] if part is not None else None
                 src = src.subset(sel)
         fused = getattr(src, "composite_fused", None)
         if fused is not None and fused(step, factor, state):
@@ -339,7 +349,7 @@ class Backend:
                 rgb, alpha = classify_unit.classify(s, self.lut, dp.voxel_bits, self.S, dp.classify)
         if factor is not None:
             alpha = classify_unit.scale_alpha_raw(alpha, factor)
-        vis = alpha > 0
+        vis = alpha > 0 if part is None else (alpha > 0) | (part >= 0)
         if not vis.any():
             return
         sel = np.flatnonzero(vis)
@@ -361,6 +371,8 @@ class Backend:
                 illum = self.illum_table[index]
             if self.scene.lit:
                 rgb = self._shade(rgb, g, rays, illum)
+        if part is not None:
+            rgb, alpha = self.cursor.blend(rgb, alpha, part[sel])  # type: ignore[union-attr]
         dt = step.dt if np.isscalar(step.dt) else step.dt[sel]
         alpha = composite_unit.correct_opacity(alpha, np.asarray(dt) / self.ref, dp.composite)
         if self.plan.back_to_front:  # scene.py refuses early termination with it

@@ -329,7 +329,7 @@ def eligible(backend) -> bool:
     be = backend
     if be.mode != "composite" or be.pre_classified or be.exercise_unused:
         return False
-    if be.plan.back_to_front:  # the kernel blends front to back
+    if be.plan.back_to_front or be.cursor is not None:  # blends front to back, no cursor
         return False
     if be.multilut is not None or be.depth is not None or be.illum_table is not None:
         return False

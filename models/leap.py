@@ -72,6 +72,8 @@ def invisible_blocks(backend: Backend) -> occ.Occupancy | None:
     be = backend
     if be.mode not in ("composite", "iso") or be.exercise_unused:
         return None
+    if be.scene.cursor is not None:
+        return None  # the cursor is drawn over transparent samples too
     if be.scene.geometry is not None:
         # The depth test ends and drops samples in Backend.process, which the recount
         # of visited samples (:func:`visits`) does not replay: simulate every sample.

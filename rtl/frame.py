@@ -148,6 +148,8 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
         )
     if mode == "composite" and transfer.order == "pre":
         raise _refuse("the RTL top post-classifies", "transfer.order", "post")
+    if scene.cursor is not None:
+        raise _refuse("the RTL top has no cursor unit", "cursor", "no [cursor]")
     if scene.render.blend_order != "front-to-back":
         raise _refuse(
             "the RTL top's compositor blends front to back", "render.blend_order", "front-to-back"

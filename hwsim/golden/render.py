@@ -29,6 +29,7 @@ from hwsim.golden import geometry as geo
 from hwsim.golden import occupancy as occ
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.classification import FloatClassifier
+from hwsim.golden.cursor import blend_cursor, cursor_parts
 from hwsim.golden.positions import SamplePlan, Step, make_plan
 from hwsim.golden.sampling import interleave, sample, sample_gradients, taps, trilinear_rows
 from hwsim.golden.shading import crop_keep, cut_factor, magnitude, phong
@@ -72,6 +73,8 @@ def occupancy_for(scene: Scene, volume: Volume, transfer: TransferFunction):
         return None
     if scene.classification is not None:
         return None  # combined opacity: no per-block bound from one function; no leaping
+    if scene.cursor is not None:
+        return None  # the cursor is drawn over transparent samples too
     lo, hi = _derived(volume, "blocks", lambda: occ.block_ranges(volume.data))
     if mode == "iso":
         v_lo, v_hi = volume.value_range
@@ -172,6 +175,9 @@ class _Renderer:
             if test in geo.STOPPING_TESTS and not self.plan.back_to_front:
                 self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
+        cursor = self.scene.cursor
+        if keep is not None and cursor is not None and cursor.disable_crop:
+            keep |= cursor_parts(step.zyx, cursor) >= 0  # drawn where the volume is cut
         if keep is not None:
             step = _subset(step, keep)
             factor = factor[keep] if factor is not None else None
@@ -254,7 +260,9 @@ class _Renderer:
             a = self.transfer.opacity(v)
         if factor is not None:
             a = a * factor
-        vis = np.flatnonzero(a > 0)
+        cursor = self.scene.cursor
+        part = cursor_parts(zyx, cursor) if cursor is not None else None
+        vis = np.flatnonzero(a > 0 if part is None else (a > 0) | (part >= 0))
         if vis.size == 0:
             return
         rays, a, zyx = step.rays[vis], a[vis], zyx[vis]
@@ -279,6 +287,8 @@ class _Renderer:
                 rgb = phong(
                     rgb, g, self.lights, view, self.scene.material, self.reflectance_map, illum
                 )
+        if part is not None:
+            rgb, a = blend_cursor(rgb, a, part[vis], cursor)  # type: ignore[arg-type]
         dt = step.dt if np.isscalar(step.dt) else step.dt[vis]
         a = 1.0 - (1.0 - a) ** (dt / self.ref)
         if self.plan.back_to_front:  # samples farthest first: C = a c + (1 - a) C

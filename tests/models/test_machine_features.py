@@ -22,6 +22,7 @@ from hwsim.cli import main
 from hwsim.errors import InputError
 from hwsim.fidelity import builtin_archs, check_family, check_scene_fits, render, resolve_arch
 from hwsim.scene import CropSpec, CutPlane, Scene, VolumeSpec, load_scene
+from hwsim.scene_cursor import CursorSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 
@@ -54,6 +55,7 @@ VARIANTS = {
     "two-cut-planes": lambda s: s.replace(cut_planes=(CutPlane(), CutPlane(normal=(1.0, 0, 0)))),
     "ert": _render_changes(early_termination=0.9),
     "back-to-front": _render_changes(blend_order="back-to-front"),
+    "cursor": lambda s: s.replace(cursor=CursorSpec(position=(6.0, 6.0, 6.0), width=3)),
     "perspective": lambda s: s.replace(view=dataclasses.replace(s.view, projection="perspective")),
     "supersampling-2": _render_changes(supersampling=2.0),
     "gradient-illumination": lambda s: s.replace(
@@ -108,6 +110,7 @@ def _assert_rtl_refuses(scene, volume, arch):
         ("cube4", "one-cut-plane", "cut_planes"),
         ("cube4", "ert", "render.early_termination"),
         ("cube4", "back-to-front", "render.blend_order"),
+        ("volumepro1000", "cursor", "cursor"),
         ("em-cube", "mode-minip", "render.mode"),
         ("vizard2", "mode-iso", "render.mode"),
         ("vizard2", "crop", "crop"),

@@ -194,12 +194,14 @@ def test_the_documented_feature_examples_parse():
     text = (Path(__file__).resolve().parents[2] / "docs" / "scenes.md").read_text()
     (classification,) = re.findall(r"```toml classification\n(.*?)```", text, flags=re.S)
     (geometry,) = re.findall(r"```toml geometry\n(.*?)```", text, flags=re.S)
-    scene = parse(classification + geometry)
+    (cursor,) = re.findall(r"```toml cursor\n(.*?)```", text, flags=re.S)
+    scene = parse(classification + geometry + cursor)
     c = scene.classification
     assert [f.name for f in c.fields] == ["density", "tag"]
     assert [lut.field for lut in c.luts] == ["density", "value", "tag"]
     assert c.final.ops == ("mul_b_alpha", "mul_b_alpha")
     assert scene.geometry.depth_test == "<" and len(scene.geometry.boxes) == 1
+    assert scene.cursor.width == 3 and scene.cursor.y.opacity == 0.6
 
 
 FEATURE_VALUES = st.one_of(
