@@ -80,6 +80,9 @@ class ArchConfig:
         Whether gradient magnitude can scale diffuse and specular light (VolumePro 500).
     cursor : bool
         Whether the hardware draws a 3-D cursor into the samples (VolumePro 500).
+    supervolumes : bool
+        Whether the machine's software renders volumes over ``max_volume`` in bricks and
+        blends them on the host (VolumePro 500's "supervolumes").
     feature_sources : dict
         ``[features.sources]``: where each declared feature comes from, tagged ``[V]``,
         ``[R]``, ``[I]`` or ``[?]`` as the published figures are.
@@ -92,6 +95,9 @@ class ArchConfig:
     slice_overhead_cycles, section_width, section_overhead_cycles : int
         Closed-form timing overheads: cycles lost per slice, the width of a section in
         base-plane pixels (0: no sectioning) and cycles lost per section.
+    host_bus_bytes_per_second : float
+        The board's bus to the host (0: not modelled): a supervolume's brick images
+        travel over it to be blended.
     published : dict
         Headline figures to compare against (samples/s, fps at a size), with sources.
     """
@@ -121,6 +127,7 @@ class ArchConfig:
     crop: bool = False
     gradient_illumination: bool = False
     cursor: bool = False
+    supervolumes: bool = False
     feature_sources: dict[str, str] = field(default_factory=dict)
     extend: bool = False
     formats: dict[str, Any] = field(default_factory=dict)
@@ -130,6 +137,7 @@ class ArchConfig:
     slice_overhead_cycles: int = 0
     section_width: int = 0
     section_overhead_cycles: int = 0
+    host_bus_bytes_per_second: float = 0.0
 
     @property
     def peak_samples_per_second(self) -> float:
@@ -169,6 +177,7 @@ _FEATURE_KEYS = (
     "crop",
     "gradient_illumination",
     "cursor",
+    "supervolumes",
     "sections",
     "voxel_bits",
     "max_volume",
@@ -239,6 +248,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         crop=features.boolean("crop", False),
         gradient_illumination=features.boolean("gradient_illumination", False),
         cursor=features.boolean("cursor", False),
+        supervolumes=features.boolean("supervolumes", False),
         feature_sources=_sources(features),
         extend=features.boolean("extend", False),
         formats=dict(top.raw("formats", {})),
@@ -248,6 +258,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         slice_overhead_cycles=overheads.integer("slice_cycles", 0, 0, 1 << 20),
         section_width=overheads.integer("section_width", 0, 0, 1 << 16),
         section_overhead_cycles=overheads.integer("section_cycles", 0, 0, 1 << 24),
+        host_bus_bytes_per_second=overheads.number("host_bus_bytes_per_second", 0.0, 0, 1e12),
     )
     for t in (p, limits, features, overheads):
         t.finish()

@@ -21,8 +21,9 @@ import numpy as np
 from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.budget import SAMPLE_ENV_VAR, require_fits, sample_budget
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.machine_features import IDEAL, Algorithms, require_machine
+from hwsim.machine_features import IDEAL, Algorithms, Extension, require_machine
 from hwsim.scene import Scene
+from hwsim.supervolume import oversize, refuse_supervolume, render_bricks
 from hwsim.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.volume import Volume
@@ -124,6 +125,13 @@ def check_volume_fits(volume: Volume, arch: ArchConfig) -> None:
             key="limits.max_volume",
             allowed=f"<= {largest}",
         )
+
+
+def _supervolume_extension(volume: Volume, arch: ArchConfig) -> Extension:
+    """A volume over ``max_volume`` rendered in bricks on a machine without supervolumes."""
+    shape = " x ".join(map(str, volume.shape))
+    source = arch.feature_sources.get("supervolumes", "[?] not declared in the arch file")
+    return Extension("supervolumes", "limits.max_volume", f"a {shape} supervolume", "none", source)
 
 
 def times_back_to_back(arch: ArchConfig) -> bool:
@@ -290,8 +298,22 @@ def render(
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
     check_work(scene, volume)
-    if machine is not None:
-        check_volume_fits(volume, machine)
+    bricked = False
+    if machine is not None and oversize(volume, machine):
+        if not (machine.supervolumes or extend):
+            check_volume_fits(volume, machine)  # refuses, naming limits.max_volume
+        if not machine.supervolumes:
+            extensions.append(_supervolume_extension(volume, machine))
+        if fidelity != "golden":  # golden renders the whole volume at the machine's positions
+            refuse_supervolume(
+                scene,
+                machine,
+                fidelity,
+                trace=trace,
+                steady_state=steady_state,
+                elaborate_all=elaborate_all,
+            )
+            bricked = True
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene, transfer)
     cycles = clock = None
@@ -310,12 +332,19 @@ def render(
     else:
         from models.frame import frame_of
 
-        frame = frame_of(scene, volume, transfer, machine)
-        result = _render_machine(
-            frame, fidelity, progress, trace, elaborate_all, steady_state, simulator
-        )
+        if bricked:
+
+            def one_brick(frame):
+                return _render_machine(frame, fidelity, None, None, False, False, None)
+
+            result = render_bricks(scene, volume, transfer, machine, one_brick, frame_of, progress)
+        else:
+            frame = frame_of(scene, volume, transfer, machine)
+            result = _render_machine(
+                frame, fidelity, progress, trace, elaborate_all, steady_state, simulator
+            )
         cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
-        if fidelity in ("cycle", "transaction"):
+        if fidelity in ("cycle", "transaction") or bricked:
             derived = result.derived
         if fidelity in ("cycle", "rtl"):
             used, elided = result.elaborated_units, result.elided_units

@@ -211,6 +211,7 @@ def feature_rows(arch: ArchConfig) -> list[tuple[str, str, str]]:
         "crop": "yes" if arch.crop else "no",
         "gradient_illumination": "yes" if arch.gradient_illumination else "no",
         "cursor": "yes" if arch.cursor else "no",
+        "supervolumes": "yes" if arch.supervolumes else "no",
         "cut_planes": str(arch.cut_planes),
         "early_termination": "yes" if arch.early_termination else "no",
         "space_leaping": "yes" if arch.space_leaping else "no",

@@ -40,6 +40,9 @@ STATS_SCHEMA = 1
 def stats_dict(run: RenderRun) -> dict[str, Any]:
     """The ``stats.json`` content of a render (design section 9)."""
     frame_seconds = run.cycles / run.clock_hz if run.cycles is not None and run.clock_hz else None
+    if frame_seconds is not None and "supervolume" in run.derived:
+        # The bricks' frames plus the host's read back of their pixels (hwsim.supervolume).
+        frame_seconds += run.derived["supervolume"]["host_seconds"]
     sps = run.samples / frame_seconds if frame_seconds else None
     vol = run.volume
     return {

@@ -39,7 +39,7 @@ from models.units import gradient as gradient_unit
 from models.units import shade as shade_unit
 from models.units.cursor import CursorTable
 from models.units.multilut import MultiLut
-from models.units.voxel import convert_volume
+from models.units.voxel import convert_values, convert_volume
 
 __all__ = ["Backend", "RayState", "SampleSource", "subset_step", "ONE"]
 
@@ -110,7 +110,10 @@ class Backend:
         self.illum_table = None
         if self.need_grad and (transfer.modulates or transfer.modulates_illumination):
             # Largest |gradient| the data can have, in value units per world unit.
-            span = float(self.raw.max() - self.raw.min()) * self.vmap.scale
+            # The converted value range (conversion is monotone: the raw extremes of the
+            # whole volume; a brick of a supervolume shares them).
+            raw_lo, raw_hi = convert_values(np.array(volume.value_range), volume, dp.voxel_bits)[0]
+            span = float(raw_hi - raw_lo) * self.vmap.scale
             self.gm_max = np.sqrt(3.0) * span / self.ref
             self.gm_table = classify_unit.build_gm_table(transfer, self.gm_max, dp.classify)
             if transfer.modulates_illumination and scene.lit:

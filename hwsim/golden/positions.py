@@ -230,6 +230,15 @@ class SamplePlan:
         pos[:, b_ax] = ids % self.shape[1] + self.base_origin[1] + off[..., 1]
         return pos
 
+    def principal_position(self, j: int, forward: bool) -> float:
+        """Principal-axis position of slice step ``j`` of a slice plan whose slices are
+        processed in increasing index order when ``forward``."""
+        if self.kind == "shear-warp":
+            return float(self.order[j])
+        ss = self.scene.render.supersampling
+        q0 = 0.0 if forward else (self.slice_count - 1) / ss
+        return q0 + (1.0 if forward else -1.0) * (j / ss)
+
     def _position_all(self, j: int) -> np.ndarray:
         return self.position(np.full(self.ray_ids.size, j), np.arange(self.ray_ids.size))
 

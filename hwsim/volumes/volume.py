@@ -122,8 +122,27 @@ class Volume:
 
     @property
     def value_range(self) -> tuple[float, float]:
-        """Smallest and largest voxel value actually present."""
+        """Smallest and largest voxel value actually present, or, for a brick of a larger
+        volume (``meta["value_range"]``, :meth:`brick`), the whole volume's: so every brick
+        converts, classifies and scales gradients as the whole volume does."""
+        if "value_range" in self.meta:
+            lo, hi = self.meta["value_range"]
+            return float(lo), float(hi)
         return float(self.data.min()), float(self.data.max())
+
+    def brick(self, lo: tuple[int, int, int], hi: tuple[int, int, int], label: str) -> Volume:
+        """Voxels ``lo .. hi - 1`` (z, y, x) as a volume of their own (a contiguous copy)
+        that keeps this volume's spacing, units, bits and value range."""
+        part = self.data[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+        return Volume(
+            data=np.ascontiguousarray(part),
+            spacing=self.spacing,
+            name=f"{self.name} {label}",
+            source=f"{self.source or self.name} {label}",
+            units=self.units,
+            bits=self.bits,
+            meta={**self.meta, "value_range": self.value_range},
+        )
 
     @property
     def nbytes(self) -> int:

@@ -61,11 +61,7 @@ def slice_direction(plan: SamplePlan) -> bool:
 def slice_position(plan: SamplePlan, j: int, forward: bool) -> float:
     """Principal-axis position of sample slice ``j`` of ``plan`` processed in the
     ``forward`` (:func:`slice_direction`) order: the plan's own formula."""
-    if plan.kind == "shear-warp":
-        return float(plan.order[j])
-    ss = plan.scene.render.supersampling
-    q0 = 0.0 if forward else (plan.slice_count - 1) / ss
-    return q0 + (1.0 if forward else -1.0) * (j / ss)
+    return plan.principal_position(j, forward)
 
 
 class SliceOrderMachine:
