@@ -146,8 +146,10 @@ def figure_scene(size: int) -> Scene:
 
 def figure_value(key: str, run, cycles: int | None = None) -> float:
     """The figure ``key`` of a render: from its frame cycles, or from ``cycles`` (the
-    back-to-back frame period) when given."""
+    back-to-back frame period) when given; a supervolume's frame adds the host's read
+    back of its bricks (``derived.supervolume.host_seconds``)."""
     seconds = (run.cycles if cycles is None else cycles) / run.clock_hz
+    seconds += run.derived.get("supervolume", {}).get("host_seconds", 0.0)
     if key.startswith("fps_"):
         return 1.0 / seconds
     if key.startswith("seconds_"):
@@ -195,7 +197,7 @@ def measure_figures(
         size**3 * len(rungs)
         for arch in archs
         for size in set(f.size for f in plans[arch.name])
-        if size <= min(max_size, max(arch.max_volume))
+        if size <= max_size and (arch.supervolumes or size <= max(arch.max_volume))
     )
     done = 0
     for arch in archs:
@@ -208,7 +210,7 @@ def measure_figures(
                     arch.name, key, value, size, rung, "ok", tolerance=fig.tolerance, note=fig.note
                 )
                 rows.append(row)
-                if size > max_size or size > max(arch.max_volume):
+                if size > max_size or (size > max(arch.max_volume) and not arch.supervolumes):
                     row.status = "skipped"
                     why = (
                         f"{size}^3 > --max-size {max_size}"
@@ -235,8 +237,10 @@ def measure_figures(
                             fidelity=rung,
                             arch=machine,
                             volume=volumes[size],
+                            # A supervolume's bricks are timed one frame each.
                             steady_state=rung in ("cycle", "transaction")
-                            and times_back_to_back(arch),
+                            and times_back_to_back(arch)
+                            and size <= max(arch.max_volume),
                             progress=advance,
                         )
                     except NotAvailableError:
