@@ -54,7 +54,9 @@ class ArchConfig:
     clock_hz : float
         Pipeline clock.
     voxel_bits : tuple of int
-        Voxel widths the machine accepts (e.g. ``(8, 12)`` for VolumePro 500).
+        Voxel widths the machine accepts (e.g. ``(8, 12)`` for VolumePro 500); 32: voxels
+        that are containers of up to four fields of 4..16 bits (VolumePro 1000), read by
+        the value path through one field (``[classification] value_field``).
     max_volume : tuple of int
         Largest volume ``(z, y, x)`` rendered in one pass.
     perspective : bool
@@ -140,6 +142,12 @@ class ArchConfig:
     host_bus_bytes_per_second: float = 0.0
 
     @property
+    def value_bits(self) -> tuple[int, ...]:
+        """The value path's voxel widths: ``voxel_bits`` without 32 (a 32-bit voxel is a
+        container of fields, its value path one field of at most 16 bits)."""
+        return tuple(b for b in self.voxel_bits if b <= 16) or (16,)
+
+    @property
     def peak_samples_per_second(self) -> float:
         """Pipelines x clock: one sample per pipeline per clock."""
         return self.pipelines * self.clock_hz
@@ -216,8 +224,8 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     features = top.table("features")
     overheads = top.table("overheads")
     bits = limits.raw("voxel_bits", [8, 12, 16])
-    if not isinstance(bits, list) or not bits or any(b not in (8, 12, 16) for b in bits):
-        raise limits.error("voxel_bits", f"invalid {bits!r}", "a list of 8, 12, 16")
+    if not isinstance(bits, list) or not bits or any(b not in (8, 12, 16, 32) for b in bits):
+        raise limits.error("voxel_bits", f"invalid {bits!r}", "a list of 8, 12, 16, 32")
     max_volume = tuple(int(v) for v in limits.vector("max_volume", 3, [256] * 3, 1, 1 << 16))
     ss = features.vector("supersampling", 2, [1.0, 1.0], 0.125, 16)
     if ss[1] < ss[0]:

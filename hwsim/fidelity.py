@@ -127,6 +127,52 @@ def check_volume_fits(volume: Volume, arch: ArchConfig) -> None:
         )
 
 
+def value_path_volume(scene: Scene, volume: Volume, machine: ArchConfig | None) -> Volume:
+    """The volume every rung's value path reads: ``volume``, or the field that
+    ``[classification] value_field`` names (VLI's gradient source) as a volume of its own
+    that keeps the whole voxels for the other fields (:meth:`Volume.field`).
+
+    Raises
+    ------
+    InputError
+        32-bit voxels on a machine without them, or without a value field (they are
+        containers of fields); a value field of data that is not unsigned integers or
+        beyond the stored bits.
+    """
+    spec = scene.classification
+    name = spec.value_field if spec is not None else None
+    if name is not None:
+        f = spec.field(name)  # type: ignore[union-attr]
+        if volume.data.dtype.kind != "u" or f.lsb + f.bits > volume.bits:  # type: ignore[union-attr]
+            raise InputError(
+                f"value field {name!r} (bits {f.lsb}..{f.lsb + f.bits - 1}) is not a bit "  # type: ignore[union-attr]
+                f"range of the {volume.data.dtype} voxels of {volume.bits} bits",
+                source=scene.source,
+                key="classification.value_field",
+                allowed="a field of unsigned integer voxels",
+            )
+        volume = volume.field(f.lsb, f.bits, name)  # type: ignore[union-attr]
+    container = int(volume.meta.get("container_bits", 0)) or volume.bits
+    if machine is not None and container > 16:
+        if 32 not in machine.voxel_bits:
+            raise InputError(
+                f"{machine.name} stores voxels of at most {max(machine.value_bits)} bits, "
+                f"not {container}",
+                source=machine.source,
+                key="limits.voxel_bits",
+                allowed=", ".join(map(str, machine.voxel_bits)),
+            )
+        if name is None:
+            raise InputError(
+                f"{container}-bit voxels are containers of fields: name the one the value "
+                "path reads",
+                source=scene.source,
+                key="classification.value_field",
+                allowed="a declared [[classification.fields]] name",
+            )
+    return volume
+
+
 def _supervolume_extension(volume: Volume, arch: ArchConfig) -> Extension:
     """A volume over ``max_volume`` rendered in bricks on a machine without supervolumes."""
     shape = " x ".join(map(str, volume.shape))
@@ -297,6 +343,7 @@ def render(
 
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
+    volume = value_path_volume(scene, volume, machine)
     check_work(scene, volume)
     bricked = False
     if machine is not None and oversize(volume, machine):

@@ -163,7 +163,7 @@ def figure_machine(arch: ArchConfig) -> ArchConfig:
 
     from hwsim.config import flatten_table
 
-    formats = {**flatten_table(arch.formats), "voxel.bits": max(arch.voxel_bits)}
+    formats = {**flatten_table(arch.formats), "voxel.bits": max(arch.value_bits)}
     return dataclasses.replace(arch, formats=formats)
 
 

@@ -61,6 +61,8 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
             "bits": vol.bits,
             "units": vol.units,
             "value_range": list(vol.value_range),
+            # A field's volume (value_field): the width of the whole voxels it came from.
+            "container_bits": vol.meta.get("container_bits"),
         },
         "image": {"shape": list(run.image.shape), "dtype": str(run.image.dtype)},
         "samples": run.samples,

@@ -110,6 +110,9 @@ class ClassificationSpec:
     ``final(leaf0, leaf1)``."""
 
     fields: tuple[VoxelField, ...] = ()
+    #: The declared field the value path reads (samples, gradients), as VLI's
+    #: SetGradientSource names one: required for 32-bit voxels; None: the whole voxel.
+    value_field: str | None = None
     luts: tuple[LutSpec, ...] = ()
     leaf0: AluSpec = AluSpec()
     leaf1: AluSpec = AluSpec()
@@ -192,6 +195,7 @@ def parse_classification(t: Table, parse_transfer) -> ClassificationSpec:
     if len(fields) > MAX_FIELDS:
         raise t.error("fields", f"{len(fields)} fields", f"1 .. {MAX_FIELDS}")
     names = [VALUE_FIELD] + [f.name for f in fields]
+    value_field = t.choice("value_field", names[1:]) if t.has("value_field") else None
     luts = []
     for lt in t.tables("luts"):
         field = lt.choice("field", names, VALUE_FIELD)
@@ -232,7 +236,9 @@ def parse_classification(t: Table, parse_transfer) -> ClassificationSpec:
             alus[name] = AluSpec()
     c.finish()
     t.finish()
-    return ClassificationSpec(fields=tuple(fields), luts=tuple(luts), **alus)
+    return ClassificationSpec(
+        fields=tuple(fields), value_field=value_field, luts=tuple(luts), **alus
+    )
 
 
 def _sphere(t: Table) -> Sphere:

@@ -76,8 +76,8 @@ class Datapath:
         widest.  ``overrides`` (``{"interp.weight_bits": 6}``) win over the file, for
         bit-width sweeps.
         """
-        fitting = [b for b in sorted(arch.voxel_bits) if data_bits and b >= data_bits]
-        voxel_bits = fitting[0] if fitting else max(arch.voxel_bits)
+        fitting = [b for b in sorted(arch.value_bits) if data_bits and b >= data_bits]
+        voxel_bits = fitting[0] if fitting else max(arch.value_bits)
         table = {**flatten_table(arch.formats), **(overrides or {})}
         units: dict[str, dict[str, Any]] = {name: {} for name in UNIT_CONFIGS}
         for key, value in table.items():

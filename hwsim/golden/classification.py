@@ -29,8 +29,9 @@ _PRODUCTS = {"mul": 1.0, "mul2": 2.0, "mul4": 4.0, "mul8": 8.0}
 
 
 def field_values(volume: Volume, lsb: int, bits: int) -> np.ndarray:
-    """Raveled ``(volume >> lsb) & (2**bits - 1)`` of unsigned integer data, float64."""
-    data = np.asarray(volume.data)
+    """Raveled ``(volume >> lsb) & (2**bits - 1)`` of unsigned integer data (the whole
+    voxels of a field's volume, ``meta["container"]``), float64."""
+    data = np.asarray(volume.meta.get("container", volume.data))
     raw = (data.astype(np.int64) >> lsb) & ((1 << bits) - 1)
     return raw.astype(np.float64).ravel()
 

@@ -170,10 +170,15 @@ def to_supported(data: np.ndarray, source: str) -> np.ndarray:
 
     Big-endian becomes native; ``bool`` becomes ``uint8``; ``float16`` becomes
     ``float32``; wider integers become ``uint16``/``int16`` when every value fits (an
-    unsigned source prefers ``uint16``, a signed one ``int16``).  Anything else raises.
+    unsigned source prefers ``uint16``, a signed one ``int16``); ``uint32`` data that does
+    not fit stays ``uint32`` (32-bit voxels: containers of fields, VolumePro 1000).
+    Anything else raises.
     """
     dt = data.dtype
-    if dt.kind == "b":
+    wide_unsigned = dt.kind == "u" and dt.itemsize == 4
+    if wide_unsigned and data.size and int(data.max()) <= np.iinfo(np.uint16).max:
+        data = data.astype(np.uint16)  # a scalar that fits: the 16-bit formats
+    elif dt.kind == "b":
         data = data.astype(np.uint8)
     elif dt.kind in "iuf" and dt.newbyteorder("=") in SUPPORTED_DTYPES:
         data = data.astype(dt.newbyteorder("="), copy=False)

@@ -25,12 +25,14 @@ SPACING_RANGE = (1e-6, 1e6)
 MAX_ANISOTROPY = 1000.0
 
 #: Voxel types a volume may hold.  Integer data keeps its type; ``bits`` says how many of
-#: its bits are significant (8, 12 or 16 for the hardware's voxel formats).
+#: its bits are significant (8, 12 or 16 for the hardware's voxel formats; 32 for uint32
+#: containers of fields).
 SUPPORTED_DTYPES = (
     np.dtype(np.uint8),
     np.dtype(np.int8),
     np.dtype(np.uint16),
     np.dtype(np.int16),
+    np.dtype(np.uint32),  # 32-bit voxels: containers of fields (VolumePro 1000)
     np.dtype(np.float32),
     np.dtype(np.float64),
 )
@@ -55,7 +57,8 @@ class Volume:
     units : str
         Units of the voxel values, e.g. ``"HU"`` for CT; empty when unknown.
     bits : int
-        Significant bits of integer data (8, 12 or 16); 0 for float data.
+        Significant bits of integer data (8, 12, 16, or 32 for field containers); 0 for
+        float data.
     """
 
     data: np.ndarray
@@ -130,10 +133,31 @@ class Volume:
             return float(lo), float(hi)
         return float(self.data.min()), float(self.data.max())
 
+    def field(self, lsb: int, bits: int, name: str) -> Volume:
+        """Bits ``lsb .. lsb + bits - 1`` of every (unsigned integer) voxel as a volume of
+        ``bits``-bit voxels (uint16), for a machine's value path; ``meta`` keeps the
+        whole voxels (``container``) and their width (``container_bits``), from which the
+        other fields are read."""
+        part = np.empty(self.data.shape, dtype=np.uint16)
+        for z in range(self.data.shape[0]):  # a slice at a time: no whole int64 copy
+            part[z] = (self.data[z].astype(np.int64) >> lsb) & ((1 << bits) - 1)
+        return Volume(
+            data=part,
+            spacing=self.spacing,
+            name=f"{self.name}.{name}",
+            source=f"{self.source or self.name} field {name!r}",
+            bits=bits,
+            meta={**self.meta, "container": self.data, "container_bits": self.bits},
+        )
+
     def brick(self, lo: tuple[int, int, int], hi: tuple[int, int, int], label: str) -> Volume:
         """Voxels ``lo .. hi - 1`` (z, y, x) as a volume of their own (a contiguous copy)
         that keeps this volume's spacing, units, bits and value range."""
-        part = self.data[lo[0] : hi[0], lo[1] : hi[1], lo[2] : hi[2]]
+        box = (slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(lo[2], hi[2]))
+        part = self.data[box]
+        meta = {**self.meta, "value_range": self.value_range}
+        if "container" in meta:  # a field's volume: its whole voxels, the same brick
+            meta["container"] = np.ascontiguousarray(meta["container"][box])
         return Volume(
             data=np.ascontiguousarray(part),
             spacing=self.spacing,
@@ -141,7 +165,7 @@ class Volume:
             source=f"{self.source or self.name} {label}",
             units=self.units,
             bits=self.bits,
-            meta={**self.meta, "value_range": self.value_range},
+            meta=meta,
         )
 
     @property

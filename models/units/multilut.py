@@ -65,10 +65,24 @@ class MultiLut:
         self.spec, self.cfg, self.voxel_bits = spec, cfg, voxel_bits
         self.fields: dict[str, tuple[int, int]] = {}  # name -> (lsb in raw voxel, bits)
         data = volume.data
+        #: The whole voxels of a field's volume (``Volume.field``: 32-bit containers):
+        #: the declared fields are read from them, unshifted.
+        self.container = volume.meta.get("container")
         stored = volume.bits if data.dtype.kind == "u" and volume.bits <= voxel_bits else 0
         shift = voxel_bits - volume.bits
         if stored and tuple(to_value(np.array([0.0, 1.0]))) != (0.0, 2.0**-shift):
             stored = 0  # not stored as is (left-shifted): fields would not be bit ranges
+        if self.container is not None:
+            if scene.transfer.order == "pre":
+                raise InputError(
+                    "pre-classification classifies the value path's voxels; the other "
+                    "fields of a field container are post-classified",
+                    source=scene.source,
+                    key="transfer.order",
+                    allowed="post",
+                )
+            data = self.container
+            stored, shift = int(volume.meta["container_bits"]), 0
         for i, f in enumerate(spec.fields):
             if not any(lut.field == f.name for lut in spec.luts):
                 continue
@@ -81,7 +95,7 @@ class MultiLut:
                     key=f"classification.fields[{i}]",
                     allowed=f"unsigned integer data, lsb + bits <= {stored or 'its bits'}",
                 )
-            self.fields[f.name] = (f.lsb + voxel_bits - volume.bits, f.bits)
+            self.fields[f.name] = (f.lsb + shift, f.bits)
         self.luts, self.lut_cfgs, self.lut_bits = [], [], []
         for lut in spec.luts:
             tf = resolve_transfer(lut.transfer, volume, scene.base_dir)  # type: ignore[arg-type]
@@ -96,8 +110,9 @@ class MultiLut:
 
     def field_raw(self, raw: np.ndarray) -> dict[str, np.ndarray]:
         """Raveled int64 values of every declared field the LUTs read, from raw machine
-        voxels (any shape)."""
-        r = np.asarray(raw, dtype=np.int64).ravel()
+        voxels (any shape), or from the whole voxels of a field container."""
+        source = raw if self.container is None else self.container
+        r = np.asarray(source, dtype=np.int64).ravel()
         return {n: (r >> lsb) & ((1 << b) - 1) for n, (lsb, b) in self.fields.items()}
 
     def classify(

@@ -53,6 +53,8 @@ def test_npy_round_trip_keeps_axis_order_type_and_default_spacing(tmp_path, asym
         (np.arange(60, dtype=">f8").reshape(SHAPE), np.float64),
         ((np.arange(60) % 2).astype(bool).reshape(SHAPE), np.uint8),
         (np.arange(60, dtype=np.uint32).reshape(SHAPE) * 1000, np.uint16),  # max 59000 fits
+        # 32-bit voxels that need them: containers of fields (VolumePro 1000)
+        (np.arange(60, dtype=">u4").reshape(SHAPE) << 20, np.uint32),
         (np.arange(60, dtype=np.int64).reshape(SHAPE) - 30, np.int16),
         (np.arange(60, dtype=np.float16).reshape(SHAPE), np.float32),
     ],
@@ -74,7 +76,7 @@ def test_units_rule_only_marks_signed_data_reaching_air(tmp_path, asym):
 @pytest.mark.parametrize(
     ("array", "needle"),
     [
-        (np.arange(60, dtype=np.uint32).reshape(SHAPE) * 10**6, "do not fit"),
+        (np.arange(60, dtype=np.int32).reshape(SHAPE) * 10**6, "do not fit"),
         (np.zeros(SHAPE, dtype=np.complex64), "not supported"),
         (np.zeros((4, 5), dtype=np.uint8), "3-D"),
         (np.zeros((1, 4, 5, 2), dtype=np.uint8), "3-D"),

@@ -40,7 +40,7 @@ from hwsim.memory import SdramStats, parse_memory
 from models.backend import Backend, subset_step
 from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
 from models.machines.common.slice_order import SliceFaults, SliceOrderMachine, slice_position
-from models.machines.volumepro.memory import SdramVolume
+from models.machines.volumepro.memory import SdramVolume, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.timing import (
     SliceRecord,
@@ -107,6 +107,7 @@ class SlabMachine(SliceOrderMachine):
             stuck_module=self.faults.stuck_module,
             stuck_bank=self.faults.stuck_bank,
             source=arch.source,
+            words_per_voxel=words_per_voxel(backend.volume, self.memory_cfg),
         )
         self.datapath = self._slice_datapath()
         self.weight_one = 1 << self.dp.interp.weight_bits

@@ -36,7 +36,36 @@ from hwsim.memory import MemoryConfig
 from models.machines.common.slices import SliceSchedule, slice_schedule
 from models.units import skew as sk
 
-__all__ = ["SdramVolume", "layout"]
+__all__ = ["SdramVolume", "layout", "mini_block_bursts", "words_per_voxel"]
+
+
+def words_per_voxel(volume, memory: MemoryConfig) -> int:
+    """SDRAM words one voxel of ``volume`` occupies: two 16-bit words for a 32-bit voxel
+    (VolumePro 1000's field containers, ``meta["container_bits"]``), else one."""
+    bits = int(volume.meta.get("container_bits", 0)) or 1
+    return max(1, -(-bits // memory.sdram.word_bits))
+
+
+def mini_block_bursts(
+    memory: MemoryConfig, module: np.ndarray, bank: np.ndarray, address: np.ndarray, words: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(module, bank, row)`` of every burst of the mini-blocks at word ``address`` (8
+    words each in the one-word layout), ``words`` bursts per mini-block read back to back
+    along the last axis: with 32-bit voxels a mini-block is two bursts of its 16 words,
+    at word ``16 i`` and ``16 i + 8`` of the same row [I: the published sources give the
+    voxel widths, not their SDRAM layout]."""
+    if words == 1:
+        return module, bank, address // memory.sdram.columns
+    block = (address >> 3) * (8 * words)
+    halves = block[..., None] + 8 * np.arange(words)
+    rep = (*module.shape, words)
+    out = np.broadcast_to(module[..., None], rep), np.broadcast_to(bank[..., None], rep)
+    shape = (*module.shape[:-1], module.shape[-1] * words)
+    return (
+        out[0].reshape(shape),
+        out[1].reshape(shape),
+        (halves // memory.sdram.columns).reshape(shape),
+    )
 
 
 def layout(memory: MemoryConfig, n: int, x, y, z) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -80,14 +109,18 @@ class SdramVolume:
         stuck_module: tuple[int, int] | None = None,
         stuck_bank: tuple[int, int, int] | None = None,
         source: str | None = None,
+        words_per_voxel: int = 1,
     ) -> None:
         self.shape = tuple(int(v) for v in raw.shape)
+        self.words_per_voxel = int(words_per_voxel)
         self.memory, self.P, self.counters = memory, int(pipelines), counters
         self.M, self.K = memory.modules, memory.sdram.banks
         self.n = max(2, max(self.shape) + max(self.shape) % 2)
         self.stuck_module, self.stuck_bank = stuck_module, stuck_bank
         self.words = self._load(raw)
-        rows = -(-self.words.shape[2] // memory.sdram.columns)
+        # The value words held here; the device holds every word of every voxel.
+        stored = self.words.shape[2] * self.words_per_voxel
+        rows = -(-stored // memory.sdram.columns)
         if rows > memory.sdram.rows:
             raise InputError(
                 f"the volume needs {rows} SDRAM rows per bank, the device has {memory.sdram.rows}",
@@ -95,7 +128,7 @@ class SdramVolume:
                 key="memory.rows",
                 allowed=f">= {rows} (or a smaller volume)",
             )
-        counters.set("memory.words_per_bank", self.words.shape[2])
+        counters.set("memory.words_per_bank", stored)
         self._schedules: dict = {}  # the de-skew network's output order (Cube-4's)
         self.reads = np.zeros(self.M, dtype=np.int64)
 
@@ -161,7 +194,8 @@ class SdramVolume:
     def slab_bursts(self, kp: int, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bursts of slab ``slab`` (voxel slices ``2 slab``, ``2 slab + 1`` along ``kp``):
         ``(module, bank, row)`` arrays ``(n_u, n_mb)`` of its mini-block beams ``u``
-        (rows ``2u, 2u + 1`` of axis ``a``) and mini-blocks along the beam."""
+        (rows ``2u, 2u + 1`` of axis ``a``) and their bursts along the beam (one per
+        mini-block; two with 32-bit voxels, :func:`mini_block_bursts`)."""
         axes = [ax for ax in range(3) if ax != kp]
         n_u = -(-self.shape[axes[0]] // 2)
         n_mb = -(-self.shape[axes[1]] // 2)
@@ -170,10 +204,11 @@ class SdramVolume:
         coords[axes[0]] = 2 * np.arange(n_u)[:, None] + 0 * coords[kp]
         coords[axes[1]] = 2 * np.arange(n_mb)[None, :] + 0 * coords[kp]
         module, bank, address = layout(self.memory, self.n, coords[2], coords[1], coords[0])
-        return module, bank, address // self.memory.sdram.columns
+        return mini_block_bursts(self.memory, module, bank, address, self.words_per_voxel)
 
     def publish(self) -> None:
-        """Per-module words delivered (2 bytes each)."""
-        self.counters.add_lanes("memory.module[{}].words_read", self.reads)
-        self.counters.add_lanes("memory.module[{}].read_bytes", 2 * self.reads)
+        """Per-module words delivered (2 bytes each; a 32-bit voxel is two)."""
+        words = self.words_per_voxel * self.reads
+        self.counters.add_lanes("memory.module[{}].words_read", words)
+        self.counters.add_lanes("memory.module[{}].read_bytes", 2 * words)
         self.reads[:] = 0

@@ -52,9 +52,10 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
             if not us.size:
                 continue
             module, bank, row = m.memory.slab_bursts(m.kp, slab)
+            per_block = m.memory.words_per_voxel  # bursts per mini-block
             for u in us.tolist():
                 index[si, slab, u] = len(deliveries)
-                keep = needed[si, slab, u]
+                keep = np.repeat(needed[si, slab, u], per_block)
                 bursts = []
                 for k in range(M):
                     sel = (module[u] == k) & keep

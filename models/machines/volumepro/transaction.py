@@ -52,7 +52,7 @@ from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction, slice_position
 from models.machines.common.transaction import TxnTiming, require_pipeline_clock, slice_loads
-from models.machines.volumepro.memory import layout
+from models.machines.volumepro.memory import layout, mini_block_bursts, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade
 
@@ -120,6 +120,7 @@ class SlabTransaction:
                 allowed="cube4, cube4-teramac, volumepro500, em-cube, volumepro1000",
             )
         self.memory = require_pipeline_clock(parse_memory(arch.memory, source=arch.source), arch)
+        self.words_per_voxel = words_per_voxel(frame.volume, self.memory)
         kp = plan.principal_axis
         a_ax, b_ax = _other_axes(plan)
         shape = plan.volume.shape
@@ -166,7 +167,7 @@ class SlabTransaction:
         module, bank, address = miniblock_layout(
             self.memory, self.n_even, coords[2], coords[1], coords[0]
         )
-        return module, bank, address // self.memory.sdram.columns
+        return mini_block_bursts(self.memory, module, bank, address, self.words_per_voxel)
 
     def _schedule(self, n_steps: int):
         """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
@@ -323,7 +324,8 @@ class SlabTransaction:
                     layout = (bi, slab, self._slab_layout(slab))
                 module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
                 if sk is not None:  # only the mini-blocks a live cell needs
-                    keep = sk.needed[slab, u_lo : u_hi + 1].ravel()
+                    needed = sk.needed[slab, u_lo : u_hi + 1]
+                    keep = np.repeat(needed, self.words_per_voxel, axis=-1).ravel()
                     module, bank, row = module[keep], bank[keep], row[keep]
                 if g >= cap and not freed[g - cap].triggered:
                     waited = env.now
