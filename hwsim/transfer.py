@@ -9,6 +9,8 @@ classify with the same function.
 
 from __future__ import annotations
 
+import weakref
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -111,6 +113,22 @@ class TransferFunction:
         return self.classify(np.linspace(lo, hi, entries))
 
 
+#: Per-volume percentiles of the ``mr`` preset (a volume's data is read-only).
+_PERCENTILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _percentiles(volume: Volume, lo: float, hi: float) -> tuple[float, float]:
+    """The 40th and 99.5th percentile of the voxels above ``lo`` (kept per volume: a
+    turntable or a sweep resolves the preset once per frame)."""
+    cached = _PERCENTILES.get(volume)
+    if cached is None or cached[0] != (lo, hi):
+        data = volume.data
+        nonzero = data[data > lo]
+        pair = np.percentile(nonzero, [40, 99.5]) if nonzero.size else (lo, hi)
+        cached = _PERCENTILES[volume] = ((lo, hi), (pair[0], pair[1]))
+    return cached[1]
+
+
 def preset_points(name: str, volume: Volume) -> np.ndarray:
     """Control points ``(K, 5)`` of a named preset, fitted to ``volume`` where needed.
 
@@ -138,9 +156,7 @@ def preset_points(name: str, volume: Volume) -> np.ndarray:
             ]
         )
     if name == "mr":
-        data = volume.data
-        nonzero = data[data > lo]
-        p40, p995 = np.percentile(nonzero, [40, 99.5]) if nonzero.size else (lo, hi)
+        p40, p995 = _percentiles(volume, lo, hi)
         p995 = max(float(p995), float(p40) + 1e-6 * (hi - lo) + 1e-12)
         mid = 0.5 * (p40 + p995)
         return np.array(

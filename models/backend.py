@@ -39,7 +39,7 @@ from models.units import gradient as gradient_unit
 from models.units import shade as shade_unit
 from models.units.cursor import CursorTable
 from models.units.multilut import MultiLut
-from models.units.voxel import convert_values, convert_volume
+from models.units.voxel import convert_values, converted_volume
 
 __all__ = ["Backend", "RayState", "SampleSource", "subset_step", "ONE"]
 
@@ -95,7 +95,7 @@ class Backend:
         self.arch = frame.arch
         self.dp = dp = frame.datapath
         self.mode = scene.render.mode
-        self.raw, self.vmap = convert_volume(volume, dp.voxel_bits)
+        self.raw, self.vmap = converted_volume(volume, dp.voxel_bits)
         self.S = dp.interp.sample_frac_bits
         self.ref = min(volume.spacing)
         composite = self.mode == "composite"

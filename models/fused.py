@@ -47,12 +47,15 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import os
 import weakref
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
 from numba.extending import register_jitable
 
+from hwsim.errors import InputError
 from hwsim.numerics import ROUNDING_CODES, SATURATIONS, round_scaled, round_shift_raw
 from models.datapath import Datapath
 from models.units import classify as classify_unit
@@ -61,7 +64,7 @@ from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
 from models.units import shade as shade_unit
 
-__all__ = ["UNITS_HASH", "CompositeKernel", "eligible"]
+__all__ = ["THREADS_ENV_VAR", "UNITS_HASH", "CompositeKernel", "eligible", "frame_threads"]
 
 #: The unit functions the kernel calls: registered with numba so compiled code may call
 #: them (all take and return scalars only: array arguments would cost a reference-count
@@ -91,6 +94,9 @@ for _fn in _UNIT_FUNCTIONS:
     register_jitable(_fn)
 
 #: Hash of the called unit functions' source (part of the compiled kernel's cache key).
+#: Environment variable: threads per frame (:func:`frame_threads`).
+THREADS_ENV_VAR = "HWSIM_THREADS"
+
 UNITS_HASH = hashlib.sha256(
     "".join(inspect.getsource(fn) for fn in _UNIT_FUNCTIONS).encode()
 ).hexdigest()
@@ -323,6 +329,36 @@ def _kernel_for(config: tuple[int, ...] | None):
     return kernel
 
 
+#: A step is cut into runs for several threads only above this many samples per thread:
+#: below it, handing a run to a thread costs about what it saves.
+_SAMPLES_PER_THREAD = 2048
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+
+
+def frame_threads() -> int:
+    """Threads one frame's compiled composite stage uses: ``HWSIM_THREADS``, else every
+    core this process may run on (sweeps start their workers with one each)."""
+    text = os.environ.get(THREADS_ENV_VAR)
+    if not text:
+        return max(1, len(os.sched_getaffinity(0)))
+    try:
+        threads = int(text)
+    except ValueError:
+        threads = 0
+    if not 1 <= threads <= 256:
+        raise InputError(
+            f"{text!r} is not a thread count", key=THREADS_ENV_VAR, allowed="1 .. 256"
+        )
+    return threads
+
+
+def _pool(threads: int) -> ThreadPoolExecutor:
+    pool = _POOLS.get(threads)
+    if pool is None:
+        pool = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="hwsim-frame")
+    return pool
+
+
 def eligible(backend) -> bool:
     """Whether :class:`CompositeKernel` can run ``backend``'s composite stage (see Scope;
     a step whose samples differ in length still takes the chain, :meth:`~CompositeKernel.table`)."""
@@ -461,8 +497,40 @@ class CompositeKernel:
 
     def run(self, step, factor, state, table: np.ndarray) -> None:
         """Composite the samples of ``step`` (after masks) into ``state``, with the
-        opacity-correction ROM ``table`` (:meth:`table`)."""
+        opacity-correction ROM ``table`` (:meth:`table`).
+
+        A step's rays are distinct, so its samples touch disjoint accumulators: with
+        :func:`frame_threads` above one, large steps are cut into that many runs of
+        samples composited at once, on this thread and the pool's (the kernel releases
+        the GIL),
+        each counting its own saturations; the result is the same bits in any case."""
         be = self.backend
+        zyx = np.ascontiguousarray(step.zyx, dtype=np.float64)
+        rays = np.asarray(step.rays, dtype=np.int64)
+        factor = self._no_factor if factor is None else np.asarray(factor, dtype=np.int64)
+        n, threads = rays.size, frame_threads()
+        parts = min(threads, n // _SAMPLES_PER_THREAD)
+        if parts <= 1:
+            sat = self._run_part(zyx, rays, factor, state, table)
+        else:
+            # Interleaved runs (sample k goes to run k mod parts): neighbouring samples
+            # cost alike (transparent ones next to each other), so the runs balance.
+            def part(k: int):
+                cut = slice(k, None, parts)
+                f = np.ascontiguousarray(factor[cut]) if factor.size else factor
+                return (np.ascontiguousarray(zyx[cut]), np.ascontiguousarray(rays[cut]), f)
+
+            pool = _pool(threads)
+            runs = [pool.submit(self._run_part, *part(k), state, table) for k in range(1, parts)]
+            sat = self._run_part(*part(0), state, table)  # this thread takes run 0
+            sat = sat + sum(r.result() for r in runs)
+        if sat[0]:
+            SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
+        if sat[1]:
+            SATURATIONS[be.dp.composite.acc.name] += int(sat[1])
+
+    def _run_part(self, zyx, rays, factor, state, table) -> np.ndarray:
+        """One run of samples through the kernel; returns its saturation counts."""
         sat = np.zeros(2, dtype=np.int64)
         self.kernel(
             self.vox,
@@ -470,9 +538,9 @@ class CompositeKernel:
             self.shape,
             self.strides,
             self.offsets,
-            np.ascontiguousarray(step.zyx, dtype=np.float64),
-            np.asarray(step.rays, dtype=np.int64),
-            self._no_factor if factor is None else np.asarray(factor, dtype=np.int64),
+            zyx,
+            rays,
+            factor,
             self.rgb12,
             self.alpha12,
             self.grad_p,
@@ -490,7 +558,4 @@ class CompositeKernel:
             sat,
             self.config,
         )
-        if sat[0]:
-            SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
-        if sat[1]:
-            SATURATIONS[be.dp.composite.acc.name] += int(sat[1])
+        return sat

@@ -7,6 +7,8 @@ axes, in the same ``(z, y, x)`` order (millimetres for medical data, 1.0 for pha
 
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -131,6 +133,11 @@ class Volume:
         if "value_range" in self.meta:
             lo, hi = self.meta["value_range"]
             return float(lo), float(hi)
+        return self._data_range
+
+    @functools.cached_property
+    def _data_range(self) -> tuple[float, float]:
+        """The data's extremes, read once (the data is read-only)."""
         return float(self.data.min()), float(self.data.max())
 
     def field(self, lsb: int, bits: int, name: str) -> Volume:

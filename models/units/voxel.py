@@ -17,13 +17,15 @@ half a raw step.  Nothing wraps.
 
 from __future__ import annotations
 
+import weakref
+
 from dataclasses import dataclass
 
 import numpy as np
 
 from hwsim.volumes.volume import Volume
 
-__all__ = ["VoxelMap", "convert_volume", "convert_values", "LATENCY", "II"]
+__all__ = ["VoxelMap", "convert_volume", "converted_volume", "convert_values", "LATENCY", "II"]
 
 LATENCY = 0  # host-side conversion, no pipeline stage
 II = 1
@@ -39,6 +41,21 @@ class VoxelMap:
 
     def to_value(self, raw: np.ndarray) -> np.ndarray:
         return self.offset + self.scale * np.asarray(raw, dtype=np.float64)
+
+
+#: Per-volume machine voxels, by width: successive frames of one volume (a turntable, a
+#: sweep's design points) convert it once.  Read-only; dropped with the volume.
+_CONVERTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def converted_volume(volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
+    """:func:`convert_volume`, kept per volume and width (the array is read-only)."""
+    per_width = _CONVERTED.setdefault(volume, {})
+    if bits not in per_width:
+        raw, vmap = convert_volume(volume, bits)
+        raw.flags.writeable = False
+        per_width[bits] = (raw, vmap)
+    return per_width[bits]
 
 
 def convert_volume(volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
