@@ -10,7 +10,6 @@ classify with the same function.
 from __future__ import annotations
 
 import weakref
-
 from dataclasses import dataclass
 from pathlib import Path
 

@@ -346,9 +346,7 @@ def frame_threads() -> int:
     except ValueError:
         threads = 0
     if not 1 <= threads <= 256:
-        raise InputError(
-            f"{text!r} is not a thread count", key=THREADS_ENV_VAR, allowed="1 .. 256"
-        )
+        raise InputError(f"{text!r} is not a thread count", key=THREADS_ENV_VAR, allowed="1 .. 256")
     return threads
 
 

@@ -8,7 +8,6 @@ axes, in the same ``(z, y, x)`` order (millimetres for medical data, 1.0 for pha
 from __future__ import annotations
 
 import functools
-
 from dataclasses import dataclass, field
 
 import numpy as np

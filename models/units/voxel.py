@@ -18,7 +18,6 @@ half a raw step.  Nothing wraps.
 from __future__ import annotations
 
 import weakref
-
 from dataclasses import dataclass
 
 import numpy as np
