@@ -73,6 +73,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="render features the machine never had as a what-if (stats.json: extensions)",
     )
     r.add_argument(
+        "--timing-only",
+        action="store_true",
+        help="transaction rung: time the frame without its image (stats.json only)",
+    )
+    r.add_argument(
         "--frames",
         type=int,
         default=1,
@@ -238,8 +243,15 @@ def _cmd_render(args: argparse.Namespace) -> int:
         "trace": args.trace,
         "simulator": args.simulator,
         "extend": args.extend,
+        "timing_only": args.timing_only,
     }
     if args.frames != 1 or args.turn is not None:
+        if args.timing_only:
+            raise InputError(
+                "a turntable writes its frames' images",
+                key="--timing-only",
+                allowed="one frame (no --frames or --turn)",
+            )
         return _turntable(scene, args, out_dir, options)
     with _progress_bar(args.quiet, "render") as progress:
         run = render(scene, progress=progress, **options)
@@ -248,10 +260,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
         for e in run.extensions:
             print(f"  what-if: {e['asked']} ({e['feature']}; {run.arch} has {e['machine']})")
         vol = run.volume
+        image = "timed without its image"
+        if run.image is not None:
+            image = f"image {run.image.shape[1]}x{run.image.shape[0]}"
         print(
             f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
-            f"{scene.render.mode}, {run.fidelity}/{run.sampling}, "
-            f"image {run.image.shape[1]}x{run.image.shape[0]}"
+            f"{scene.render.mode}, {run.fidelity}/{run.sampling}, {image}"
         )
         print(
             f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
@@ -265,7 +279,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
                 f"{run.samples / run.cycles:.2f} samples/cycle"
             )
         note = " (no --out given: replaced the previous render there)" if replacing else ""
-        print(f"  wrote {paths['png']}, {paths['npy'].name}, {paths['stats'].name}{note}")
+        names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
+        print(f"  wrote {', '.join([*names, str(paths['stats'].name)])}{note}")
     return 0
 
 

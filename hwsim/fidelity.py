@@ -57,7 +57,7 @@ class RenderRun:
     fidelity: str
     arch: str | None
     sampling: str
-    image: np.ndarray
+    image: np.ndarray | None  # None: timed without its image (--timing-only)
     samples: int
     rays: int
     wall_seconds: float
@@ -260,6 +260,7 @@ def render(
     steady_state: bool = False,
     simulator: str | None = None,
     extend: bool = False,
+    timing_only: bool = False,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -293,6 +294,9 @@ def render(
     extend : bool
         Render a scene outside the machine's declared features as a what-if (listed in
         ``extensions``) instead of refusing it (:mod:`hwsim.machine_features`).
+    timing_only : bool
+        ``transaction`` rung only: time the frame without its image (``image`` is None;
+        :func:`models.transaction.timing_only`).
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -303,6 +307,12 @@ def render(
             "only the cycle and transaction rungs time back-to-back frames",
             key="steady_state",
             allowed="cycle, transaction",
+        )
+    if timing_only and fidelity != "transaction":
+        raise InputError(
+            "only the transaction rung times a frame without its image",
+            key="--timing-only",
+            allowed="--fidelity transaction",
         )
     if elaborate_all and fidelity != "cycle":
         raise InputError("only the cycle rung elaborates units", key="elaborate_all")
@@ -379,7 +389,19 @@ def render(
     else:
         from models.frame import frame_of
 
-        if bricked:
+        if timing_only and bricked:
+            raise InputError(
+                "a supervolume's host blend needs its bricks' images",
+                key="--timing-only",
+                allowed=f"a volume of at most {' x '.join(map(str, machine.max_volume))}",  # type: ignore[union-attr]
+            )
+        if timing_only:
+            from models.transaction import timing_only as time_frame
+
+            frame = frame_of(scene, volume, transfer, machine)
+            check_family(frame)
+            result = time_frame(frame, steady_state=steady_state)
+        elif bricked:
 
             def one_brick(frame):
                 return _render_machine(frame, fidelity, None, None, False, False, None)

@@ -64,7 +64,9 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
             # A field's volume (value_field): the width of the whole voxels it came from.
             "container_bits": vol.meta.get("container_bits"),
         },
-        "image": {"shape": list(run.image.shape), "dtype": str(run.image.dtype)},
+        "image": None
+        if run.image is None
+        else {"shape": list(run.image.shape), "dtype": str(run.image.dtype)},
         "samples": run.samples,
         "rays": run.rays,
         "cycles": run.cycles,
@@ -119,7 +121,8 @@ def write_render(
     run: RenderRun, out_dir: str | Path, extra: dict[str, Any] | None = None
 ) -> dict[str, Path]:
     """Write ``image.npy``, ``image.png`` and ``stats.json`` (plus ``extra`` blocks, e.g.
-    a turntable's) into ``out_dir``."""
+    a turntable's) into ``out_dir``; ``stats.json`` alone for a frame timed without its
+    image."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -128,16 +131,19 @@ def write_render(
     out = output_folder(out_dir)
     paths = {"npy": out / "image.npy", "png": out / "image.png", "stats": out / "stats.json"}
     try:
-
-        def save_npy(p: Path) -> None:
-            with open(p, "wb") as fh:
-                np.save(fh, run.image, allow_pickle=False)
-
-        _atomic_write(paths["npy"], save_npy)
-        rgb, display = image_to_rgb8(run.image)
-        _atomic_write(paths["png"], lambda p: mpimage.imsave(p, rgb, format="png"))
         stats = stats_dict(run)
-        stats["image"].update(display)
+        if run.image is None:  # timed without its image: stats only
+            del paths["npy"], paths["png"]
+        else:
+
+            def save_npy(p: Path) -> None:
+                with open(p, "wb") as fh:
+                    np.save(fh, run.image, allow_pickle=False)
+
+            _atomic_write(paths["npy"], save_npy)
+            rgb, display = image_to_rgb8(run.image)
+            _atomic_write(paths["png"], lambda p: mpimage.imsave(p, rgb, format="png"))
+            stats["image"].update(display)
         stats.update(extra or {})
         text = json.dumps(stats, indent=2, default=_json_default)
         _atomic_write(paths["stats"], lambda p: p.write_text(text + "\n"))

@@ -17,6 +17,7 @@ Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -38,14 +39,17 @@ __all__ = [
     "render_transaction",
     "transaction_model",
     "transaction_timing",
+    "termination_pass",
+    "timing_only",
 ]
 
 
 @dataclass
 class TransactionResult:
-    """Image (the functional rung's), samples, the event model's cycles and counters."""
+    """Image (the functional rung's; None timing only), samples, the event model's cycles
+    and counters."""
 
-    image: np.ndarray
+    image: np.ndarray | None
     samples: int
     rays: int
     cycles: int
@@ -104,6 +108,48 @@ def transaction_timing(frame: Frame, **options: Any):
         Cycles and counters (:func:`transaction_model` for ``options``).
     """
     return transaction_model(frame, **options).run()
+
+
+def termination_pass(frame: Frame):
+    """The functional rung on ``frame`` unlit: what an event model that reads the rays'
+    ends (early ray termination, iso hits) needs, without gradients or shading (neither
+    changes a sample's opacity; gradient-magnitude opacity modulation still computes its
+    gradients).  Returns the :class:`~models.functional.FunctionalResult`."""
+    scene = frame.scene
+    if scene.lit:
+        unlit = scene.replace(render=dataclasses.replace(scene.render, lighting=False))
+        frame = dataclasses.replace(frame, scene=unlit)
+    return render_functional(frame)
+
+
+def timing_only(frame: Frame, *, steady_state: bool = False) -> TransactionResult:
+    """The transaction rung without the image (``--timing-only``, sweeps): the event model
+    alone, fed the rays' ends by :func:`termination_pass` where it reads them.  ``samples``
+    is the model's own count (``frame.samples``; else the plan's), ``rays`` the plan's."""
+    model = transaction_model(frame, steady_state=steady_state)
+    start = time.perf_counter()
+    if getattr(model, "READS_THE_FRAME", False):
+        model.stopped = termination_pass(frame).stopped
+    pass_seconds = time.perf_counter() - start
+    timing = model.run()
+    counters = dict(timing.counters)
+    counters["transaction.termination_seconds"] = pass_seconds
+    samples = int(counters.get("frame.samples", frame.plan.samples))
+    derived = derive(
+        counters,
+        cycles=timing.cycles,
+        samples=samples,
+        pipelines=frame.arch.pipelines,
+        clock_hz=frame.arch.clock_hz,
+    )
+    return TransactionResult(
+        image=None,
+        samples=samples,
+        rays=int(frame.plan.ray_ids.size),
+        cycles=timing.cycles,
+        counters=counters,
+        derived=derived,
+    )
 
 
 def render_transaction(

@@ -101,14 +101,16 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
     try:
         scene, arch, fidelity, overrides = build_run(run)
         row.update(scene=scene.name, volume=scene.volume.describe(), mode=scene.render.mode)
-        result = render(scene, fidelity=fidelity, arch=arch)
+        result = render(
+            scene, fidelity=fidelity, arch=arch, timing_only=p.get("timing_only", False)
+        )
         stats = stats_plain(result)
         row.update(
             status="ok",
             arch=result.arch,
             fidelity=result.fidelity,
             stats=stats,
-            image_sha256=image_digest(result.image),
+            image_sha256=None if result.image is None else image_digest(result.image),
             **{
                 k: stats[k]
                 for k in (

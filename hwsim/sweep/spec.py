@@ -56,6 +56,7 @@ PARAMETERS = (
     "image",
     "pipelines",
     "clock_hz",
+    "timing_only",
 )
 _ARCH_OVERRIDES = ("pipelines", "clock_hz")
 
@@ -235,6 +236,8 @@ def run_key(run: RunSpec) -> str:
         "fidelity": fidelity,
         "code": code_version(),
     }
+    if run.values.get("timing_only"):  # a timed frame without its image is another run
+        payload["timing_only"] = True
     text = json.dumps(payload, sort_keys=True, default=str, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -275,6 +278,9 @@ def _check(name: str, value: Any, source: str, key: str, base: str) -> Any:
             raise InputError(
                 f"unknown architecture {value!r}", source=source, key=key, allowed=allowed
             )
+    elif name == "timing_only":
+        if not isinstance(value, bool):
+            raise InputError(f"must be true or false, got {value!r}", source=source, key=key)
     elif name == "fidelity":
         if value not in FIDELITIES:
             raise InputError(
