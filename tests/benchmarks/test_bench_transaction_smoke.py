@@ -27,6 +27,10 @@ def test_bench_transaction_reports_both_rungs_and_the_event_model_apart():
     assert case["cycle_error"] == pytest.approx(
         case["transaction_cycles"] / case["cycle_cycles"] - 1
     )
+    assert case["timing_only_cycles_equal"] is True and case["timing_only_seconds"] > 0
+    assert case["timing_only_vs_cycle"] == pytest.approx(
+        case["cycle_seconds"] / case["timing_only_seconds"]
+    )
 
 
 def test_error_table_measures_a_case_and_says_when_it_cannot_compare():
