@@ -127,13 +127,10 @@ def timing_only(frame: Frame, *, steady_state: bool = False) -> TransactionResul
     alone, fed the rays' ends by :func:`termination_pass` where it reads them.  ``samples``
     is the model's own count (``frame.samples``; else the plan's), ``rays`` the plan's."""
     model = transaction_model(frame, steady_state=steady_state)
-    start = time.perf_counter()
     if getattr(model, "READS_THE_FRAME", False):
-        model.stopped = termination_pass(frame).stopped
-    pass_seconds = time.perf_counter() - start
+        model.ends = termination_pass  # run only if the model asks (its rays may stop)
     timing = model.run()
     counters = dict(timing.counters)
-    counters["transaction.termination_seconds"] = pass_seconds
     samples = int(counters.get("frame.samples", frame.plan.samples))
     derived = derive(
         counters,

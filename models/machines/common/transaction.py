@@ -3,6 +3,7 @@ the frame a model that reads the volume (empty space, block caches, rays' ends) 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -59,11 +60,17 @@ class ReadsTheFrame:
     READS_THE_FRAME = True
     #: :attr:`models.functional.FunctionalResult.stopped` of the frame, when known.
     stopped: np.ndarray | None = None
+    #: How to find them when asked and not known (default: the functional rung; timing
+    #: only: an unlit pass, :func:`models.transaction.termination_pass`).
+    ends: Callable[[Frame], Any] | None = None
 
     def termination_steps(self, frame: Frame) -> np.ndarray | None:
-        """``stopped``, or the functional rung's termination steps of ``frame``."""
+        """``stopped``, or the termination steps of ``frame`` found by ``ends`` (asked
+        only by a model whose rays may stop: early termination, iso hits)."""
         if self.stopped is not None:
             return self.stopped
+        if self.ends is not None:
+            return self.ends(frame).stopped
         from models.functional import render_functional  # the image rung, run only here
 
         return render_functional(frame).stopped
