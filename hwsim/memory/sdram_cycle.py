@@ -259,16 +259,20 @@ class SdramController:
         """Cycle after the last data beat of request ``index``."""
         return int(self._out[0, index]) + self.cfg.cas_latency + self.cfg.burst_cycles
 
-    def issue_many(self, bank, row, earliest=None) -> None:
-        """Schedule a batch of requests (arrays as in :func:`schedule_bursts`)."""
+    def issue_many(self, bank, row, earliest=None, *, at: int | None = None) -> None:
+        """Schedule a batch of requests (arrays as in :func:`schedule_bursts`); ``at``
+        instead of ``earliest``: every request may issue from that one cycle."""
         n = int(np.asarray(bank).size)
         banks = _checked("bank", bank, n, 0, self.cfg.banks - 1)
         rows = _checked("row", row, n, 0, self.cfg.rows - 1)
-        arrive = (
-            np.zeros(n, dtype=np.int64)
-            if earliest is None
-            else _checked("earliest", earliest, n, 0, None)
-        )
+        if at is not None:
+            if at < 0:
+                raise ValueError(f"earliest out of range 0 .. inf: {at}")
+            arrive = np.full(n, at, dtype=np.int64)
+        elif earliest is None:
+            arrive = np.zeros(n, dtype=np.int64)
+        else:
+            arrive = _checked("earliest", earliest, n, 0, None)
         self._run(banks, rows, arrive)
 
     def schedule(self) -> BurstSchedule:

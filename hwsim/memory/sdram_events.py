@@ -299,7 +299,7 @@ class SdramTransactionPort:
         first = len(ctl)
         now = -(-self.env.now // 1)
         count = len(bank)
-        ctl.issue_many(bank, row, [int(now)] * count)
+        ctl.issue_many(bank, row, at=int(now))
         if count == 0:
             return self.env.timeout(0, value=(first, first - 1))
         end = ctl.data_end(first + count - 1)
