@@ -89,14 +89,15 @@ _UNIT_FUNCTIONS = (
     shade_unit.shade_raw,
     composite_unit.ftb_weight_raw,
     composite_unit.ftb_colour_raw,
+    composite_unit.btf_raw,
 )
 for _fn in _UNIT_FUNCTIONS:
     register_jitable(_fn)
 
-#: Hash of the called unit functions' source (part of the compiled kernel's cache key).
 #: Environment variable: threads per frame (:func:`frame_threads`).
 THREADS_ENV_VAR = "HWSIM_THREADS"
 
+#: Hash of the called unit functions' source (part of the compiled kernel's cache key).
 UNITS_HASH = hashlib.sha256(
     "".join(inspect.getsource(fn) for fn in _UNIT_FUNCTIONS).encode()
 ).hexdigest()
@@ -104,6 +105,8 @@ UNITS_HASH = hashlib.sha256(
 #: Kernel inputs ``grad_p`` (int64 flags and constants), by position.
 _NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
 _GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS, _MAP_SIZE = range(5, 11)
+#: Back-to-front blending: the accumulator's fraction bits above 12 (-1: front to back).
+_BTF_UP = 11
 
 
 def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
@@ -223,6 +226,7 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
                     rgba[c3, j] = shade_unit.shade_raw(ka, rgba[c3, j], diffuse[j], specular[j])
         # Pass 3: composite.alpha saturation (counted), the opacity-correction ROM, the
         # blend (each ray at most once per call, so the order is free), termination.
+        btf_up = grad_p[_BTF_UP]
         for j in range(m):
             alpha = rgba[3, j]
             if alpha < 0 or alpha > 4096:
@@ -230,11 +234,18 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
                 alpha = min(max(alpha, 0), 4096)
             alpha = table[alpha]
             ray = vis_rays[j]
-            aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
-            r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, rgba[0, j], acc_code)
-            gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, rgba[1, j], acc_code)
-            b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, rgba[2, j], acc_code)
-            for c4, v in enumerate((r, gr, b, acc[ray, 3] + aw)):
+            if btf_up >= 0:  # back to front: C = a c + (1 - a) C, one rounding each
+                r = composite_unit.btf_raw(acc[ray, 0], rgba[0, j], alpha, btf_up, acc_code)
+                gr = composite_unit.btf_raw(acc[ray, 1], rgba[1, j], alpha, btf_up, acc_code)
+                b = composite_unit.btf_raw(acc[ray, 2], rgba[2, j], alpha, btf_up, acc_code)
+                a_new = composite_unit.btf_raw(acc[ray, 3], 4096, alpha, btf_up, acc_code)
+            else:
+                aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
+                r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, rgba[0, j], acc_code)
+                gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, rgba[1, j], acc_code)
+                b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, rgba[2, j], acc_code)
+                a_new = acc[ray, 3] + aw
+            for c4, v in enumerate((r, gr, b, a_new)):
                 if v < 0 or v > one:  # composite.acc saturation (counted)
                     sat[1] += 1
                     v = min(max(v, 0), one)
@@ -363,7 +374,7 @@ def eligible(backend) -> bool:
     be = backend
     if be.mode != "composite" or be.pre_classified or be.exercise_unused:
         return False
-    if be.plan.back_to_front or be.cursor is not None:  # blends front to back, no cursor
+    if be.cursor is not None:  # the kernel draws no cursor
         return False
     if be.multilut is not None or be.depth is not None or be.illum_table is not None:
         return False
@@ -450,6 +461,7 @@ class CompositeKernel:
                 sh.kd if sh else 0,
                 sh.ks if sh else 0,
                 dp.shade.map_size if sh is not None and sh.maps is not None else 0,
+                dp.composite.acc_frac_bits - 12 if be.plan.back_to_front else -1,
             ],
             dtype=np.int64,
         )

@@ -59,6 +59,7 @@ __all__ = [
     "LATENCY",
     "CompositeConfig",
     "back_to_front",
+    "btf_raw",
     "correct_opacity",
     "correction_table",
     "front_to_back",
@@ -321,12 +322,21 @@ def back_to_front(
     rgb, a = _check_unit_inputs(rgb, alpha)
     fmt = cfg.acc
     up = fmt.frac_bits - _ALPHA_BITS
-    one_a = 1 << _ALPHA_BITS
     rays = np.asarray(rays, dtype=np.int64)
     cur = acc[rays]
-    src = np.concatenate([rgb, np.full((a.size, 1), one_a, dtype=np.int64)], axis=1)
-    num = ((a[:, None] * src) << up) + (one_a - a)[:, None] * cur
-    acc[rays] = _saturate_unit(round_shift(num, _ALPHA_BITS, fmt.rounding), fmt)
+    src = np.concatenate([rgb, np.full((a.size, 1), 1 << _ALPHA_BITS, dtype=np.int64)], axis=1)
+    blended = btf_raw(cur, src, a[:, None], up, ROUNDING_CODES[fmt.rounding])
+    acc[rays] = _saturate_unit(blended, fmt)
+
+
+def btf_raw(acc, src, alpha, up: int, code: int):
+    """One channel of :func:`back_to_front`: ``round((a s 2**up + (1 - a) C) / 2**12)``
+    of a sample's channel ``s`` (UQ1.12 colour, or 4096 for opacity) over the accumulator
+    ``C`` (UQ1.``12 + up``), int64 arrays or scalars; ``code`` the rounding's
+    :data:`~hwsim.numerics.ROUNDING_CODES` entry."""
+    return round_shift_raw(
+        ((alpha * src) << up) + ((1 << _ALPHA_BITS) - alpha) * acc, _ALPHA_BITS, code
+    )
 
 
 def terminated(acc: np.ndarray, threshold: float, cfg: CompositeConfig = DEFAULT) -> np.ndarray:

@@ -128,3 +128,19 @@ def test_the_rtl_top_refuses_back_to_front_even_as_a_what_if(head):
     with pytest.raises(InputError) as info:
         prepare(frame)
     assert info.value.key == "render.blend_order"
+
+
+@pytest.mark.parametrize("name", ["volumepro500", "volumepro1000"])
+def test_the_compiled_kernel_blends_back_to_front_as_the_unit_chain(name):
+    from models import fused
+    from models.backend import Backend
+    from models.functional import render_functional
+
+    volume = make_phantom("head", size=48)
+    scene = rungs.scene_of(35, 25, size=64, render=BTF)
+    frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), resolve_arch(name))
+    assert fused.eligible(Backend(frame))  # the kernel runs this frame
+    kernel = render_functional(frame)
+    chain = render_functional(frame, compiled=False)
+    assert np.array_equal(kernel.image, chain.image) and kernel.image.max() > 0.1
+    assert (kernel.samples, kernel.cycles) == (chain.samples, chain.cycles)
