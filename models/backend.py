@@ -107,6 +107,10 @@ class Backend:
         self.pre_classified = composite and transfer.order == "pre"
         #: VolumePro 500's 3-D cursor, drawn over the samples on it (composite only).
         self.cursor = CursorTable(scene.cursor) if scene.cursor is not None else None
+        #: A supervolume brick's plan (hwsim.golden.bricks): crop, cut planes and the
+        #: cursor are placed in the whole volume, so its positions move back there.
+        self.origin = getattr(plan, "origin", None)
+        self.scene_volume = plan.whole.volume if self.origin is not None else volume
         self.illum_table = None
         if self.need_grad and (transfer.modulates or transfer.modulates_illumination):
             # Largest |gradient| the data can have, in value units per world unit.
@@ -189,14 +193,19 @@ class Backend:
 
     # ------------------------------------------------------------------ per step
 
+    def scene_positions(self, step: Step) -> np.ndarray:
+        """The step's positions in the scene's volume (a brick's, moved back)."""
+        return step.zyx if self.origin is None else step.zyx + self.origin
+
     def masks(self, step: Step) -> tuple[Step, np.ndarray | None]:
         """Crop box and cut planes: the samples kept and their cut-plane factors."""
         keep, factor = None, None
+        zyx = self.scene_positions(step)
         if self.scene.crop is not None:
-            keep = crop_unit.crop_keep(step.zyx, self.scene.crop)
+            keep = crop_unit.crop_keep(zyx, self.scene.crop)
         if self.scene.cut_planes:
             factor = crop_unit.cut_factor(
-                index_to_world(step.zyx, self.volume),
+                index_to_world(zyx, self.scene_volume),
                 self.scene.cut_planes,
                 # The machine's plane count; a what-if beyond it (hwsim.machine_features)
                 # gets a unit as wide as the scene asks.
@@ -212,7 +221,7 @@ class Backend:
                 self.stopped = step.rays[~passed]
             keep = passed if keep is None else keep & passed
         if keep is not None and self.cursor is not None and self.cursor.cursor.disable_crop:
-            keep |= self.cursor.parts(step.zyx) >= 0  # drawn where the volume is cut away
+            keep |= self.cursor.parts(zyx) >= 0  # drawn where the volume is cut away
         if keep is not None:
             step = subset_step(step, keep)
             factor = factor[keep] if factor is not None else None
@@ -320,7 +329,7 @@ class Backend:
 
     def _composite(self, step: Step, src: SampleSource, factor, state: RayState) -> None:
         dp = self.dp
-        part = self.cursor.parts(step.zyx) if self.cursor is not None else None
+        part = self.cursor.parts(self.scene_positions(step)) if self.cursor is not None else None
         maybe = getattr(src, "maybe_visible", None)
         if maybe is not None:
             # The source knows samples that are provably transparent (all their voxels
