@@ -330,7 +330,7 @@ def _cmd_archs(args: argparse.Namespace) -> int:
         for name, arch in builtin_archs().items():
             print(name)
             for feature, has, source in feature_rows(arch):
-                print(f"  {feature:<20} {has:<34} {source}")
+                print(f"  {feature:<21} {has:<34} {source}")
         return 0
     print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
     for name, arch in builtin_archs().items():
