@@ -150,15 +150,16 @@ def render_bricks(
             image = np.floor(image * ((1 << bits) - 1) + 0.5).astype(np.int64)
         key = plan.first_step if not whole.back_to_front else -plan.first_step
         parts.append((plan.ray_ids, key, image))
+        brick_cycles = int(getattr(result, "cycles", 0) or 0)  # the functional rung: none
         samples += int(result.samples)
-        cycles += int(getattr(result, "cycles", 0) or 0)
+        cycles += brick_cycles
         _add_counters(counters, getattr(result, "counters", {}) or {})
         per_brick.append(
             {
                 "index": list(brick.index),
                 "shape": list(brick.shape),
                 "samples": int(result.samples),
-                "cycles": int(getattr(result, "cycles", 0) or 0),
+                "cycles": brick_cycles,
             }
         )
         if progress is not None:
