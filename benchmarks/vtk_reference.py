@@ -233,12 +233,11 @@ class VtkRayCaster:
 
         centre = (np.array([nx, ny, nz], dtype=np.float64) - 1.0) / 2.0 * [sx, sy, sz]
         radius = 0.5 * float(np.linalg.norm(np.array([nx * sx, ny * sy, nz * sz])))
-        direction, up = view_vectors(azimuth, elevation)
+        self._centre, self._radius = centre, radius
         camera = renderer.GetActiveCamera()
         camera.ParallelProjectionOn()
-        camera.SetFocalPoint(*centre)
-        camera.SetPosition(*(centre - 4.0 * radius * direction))
-        camera.SetViewUp(*up)
+        self.renderer = renderer
+        self.set_view(azimuth, elevation)
         scale = radius / zoom
         if width < height:
             scale *= height / width
@@ -249,6 +248,14 @@ class VtkRayCaster:
         self.sample_distance = float(sample_distance)
         self.mapper, self.window, self.renderer = mapper, window, renderer
         self._keep = (image, colour, opacity, prop, volume, light)
+
+    def set_view(self, azimuth: float, elevation: float) -> None:
+        """Look at the volume from ``azimuth``, ``elevation`` (hwsim's convention)."""
+        direction, up = view_vectors(azimuth, elevation)
+        camera = self.renderer.GetActiveCamera()
+        camera.SetFocalPoint(*self._centre)
+        camera.SetPosition(*(self._centre - 4.0 * self._radius * direction))
+        camera.SetViewUp(*up)
 
     @property
     def threads(self) -> int:

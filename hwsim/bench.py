@@ -10,18 +10,19 @@ transaction rungs run on ``cube4`` when the chosen machine is not modelled at th
 are measured on their own scene (:data:`RTL_SCENE`: head 12^3, lit composite,
 ``cube4``), the cycle rung rendering the same scene beside it; without a simulator,
 ``cycle_vs_rtl`` falls back to the cycle rung's simulated cycles per second over the
-toolchain's RTL figure (30 k cycles/s, toolchain.md), saying so. The goal
-ratios named by the tracker issues come from the harnesses in ``benchmarks/`` (imported,
-not copied):
+toolchain's RTL figure (30 k cycles/s, toolchain.md), saying so.
+
+Then the speed table of issue 18, from ``benchmarks/speed_table.py`` (imported, not
+copied; its docstring defines every row): golden against VTK (first frame and a
+rotation), the functional rung against VolPack and against golden, the cycle rung's
+samples per second and the timing-only transaction rung's speed-up on every machine,
+the peak memory of a 512^3 cycle frame, and two threads against one.  ``rows`` picks
+rows; each says whether its goal is met.  Two ratios are measured here:
 
 ============================  ==========================================  =====
 ratio                         definition                                  goal
 ============================  ==========================================  =====
-``golden_vs_vtk``             VTK seconds / golden seconds                0.5
-``functional_vs_golden``      golden seconds / functional seconds         2
-``transaction_vs_cycle``      cycle seconds / transaction seconds         10
 ``cycle_vs_rtl``              rtl seconds / cycle seconds (RTL_SCENE)     30
-``cycle_samples_per_second``  cycle-rung samples per wall second          5e6
 ``sweep_2_vs_1_workers``      1-worker / 2-worker seconds, 24-run sweep   1.8
 ============================  ==========================================  =====
 """
@@ -33,7 +34,7 @@ import platform
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,7 @@ import numpy as np
 
 __all__ = [
     "GOALS",
+    "TABLE_GOALS",
     "RTL_SCENE",
     "machine_info",
     "rung_speeds",
@@ -51,12 +53,20 @@ __all__ = [
 
 #: Goal of each ratio (``None``: no number was set).
 GOALS = {
-    "golden_vs_vtk": 0.5,
-    "functional_vs_golden": 2.0,
-    "transaction_vs_cycle": 10.0,
     "cycle_vs_rtl": 30.0,
-    "cycle_samples_per_second": 5e6,
     "sweep_2_vs_1_workers": 1.8,
+}
+#: The speed table's rows (``benchmarks/speed_table.py`` measures them), in order:
+#: name -> (goal, "higher" or "lower" is better, unit, definition).
+TABLE_GOALS: dict[str, tuple[float, str, str, str]] = {
+    "golden_vs_vtk_first": (0.5, "higher", "x", "VTK first-frame s / golden first-frame s"),
+    "golden_vs_vtk_rotation": (0.1, "higher", "x", "VTK s/frame / golden s/frame, rotation"),
+    "functional_vs_volpack": (0.1, "higher", "x", "VolPack s/frame / functional s/frame"),
+    "functional_vs_golden": (2.0, "higher", "x", "golden s / functional s, same positions"),
+    "cycle_samples_per_s": (5e6, "higher", "samples/s", "slowest machine, cycle rung"),
+    "timing_only_vs_cycle": (10.0, "higher", "x", "smallest cycle s / timing-only s"),
+    "cycle_512_peak_bytes": (1.5e9, "lower", "bytes", "largest peak RSS, 512^3 cycle frame"),
+    "threads_2_vs_1": (1.7, "higher", "x", "smallest 1-thread s / 2-thread s"),
 }
 _REPO = Path(__file__).resolve().parents[1]
 #: A machine a rung models when the benchmark's machine is not modelled at that rung.
@@ -243,11 +253,17 @@ def run_bench(
     vtk: bool = True,
     sweep: bool = True,
     sweep_size: int = 96,
+    rows: Sequence[str] | None = None,
+    table_sizes: Sequence[int] = (128, 256),
+    memory_size: int = 512,
     log: Callable[[str], None] = lambda m: None,
 ) -> dict[str, Any]:
-    """Measure every rung and every goal ratio; returns the JSON-ready report."""
+    """Measure every rung, the speed table's rows (``rows``: names of
+    ``benchmarks/speed_table.py``'s rows, all by default; ``()`` none) and the two
+    ratios of their own (``cycle_vs_rtl``, ``sweep_2_vs_1_workers``); the JSON-ready
+    report."""
     report: dict[str, Any] = {
-        "schema": 1,
+        "schema": 2,
         "benchmark": "hwsim-bench",
         "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "machine": machine_info(),
@@ -256,60 +272,23 @@ def run_bench(
     log(f"rungs: head {size}^3 -> {image}x{image} on {arch}")
     rungs = rung_speeds(size, image, arch, repeats)
     report["rungs"] = rungs
+    table = _harness("speed_table")
+    if table is None:
+        report["table"] = []
+        report["table_note"] = "benchmarks/ folder not found (run from a clone)"
+    else:
+        chosen = list(table.ROWS if rows is None else rows)
+        skipped = [r for r in chosen if r.startswith("golden_vs_vtk")] if not vtk else []
+        report["table"] = table.run(
+            [r for r in chosen if r not in skipped],
+            sizes=table_sizes,
+            memory_size=memory_size,
+            repeats=repeats,
+            log=log,
+        )
+        for name in skipped:
+            report["table"].append({"row": name, "status": "skipped (--no-vtk)", "goal_met": None})
     ratios: dict[str, Any] = {}
-    golden = _harness("bench_golden") if vtk else None
-    if golden is None:
-        why = "skipped (--no-vtk)" if not vtk else "benchmarks/ folder not found"
-        ratios["golden_vs_vtk"] = _ratio("golden_vs_vtk", None, "vtk s / golden s", note=why)
-    else:
-        log("golden vs VTK (benchmarks/bench_golden.py)")
-        try:
-            vtk_report = golden.run_benchmark(
-                [size], [image], golden_repeats=repeats, vtk_frames=5, memory=False, log=log
-            )
-            case = vtk_report["cases"][0]
-            ratios["golden_vs_vtk"] = _ratio(
-                "golden_vs_vtk",
-                case["ratio"],
-                "vtk seconds / golden seconds",
-                golden_seconds=case["golden"]["seconds"],
-                vtk_seconds=case["vtk"]["seconds"],
-                vtk_threads=case["vtk"]["threads"],
-            )
-        except ImportError as exc:  # VTK is the optional `bench` extra
-            ratios["golden_vs_vtk"] = _ratio(
-                "golden_vs_vtk", None, "vtk s / golden s", note=f"VTK not importable: {exc}"
-            )
-    functional = _harness("bench_functional")
-    if functional is not None and rungs["functional"]["status"] == "ok":
-        log("functional vs golden (benchmarks/bench_functional.py)")
-        case = functional.run([size], arch, repeats, image)["cases"][0]
-        ratios["functional_vs_golden"] = _ratio(
-            "functional_vs_golden",
-            case["ratio"],
-            "golden seconds / functional seconds, same sample positions",
-            golden_seconds=case["golden_seconds"],
-            functional_seconds=case["functional_seconds"],
-        )
-    else:
-        ratios["functional_vs_golden"] = _from_rungs(
-            rungs, "functional_vs_golden", "golden", "functional"
-        )
-    paired = dict(rungs)
-    if "paired_with_cycle" in rungs["transaction"]:
-        paired["transaction"] = rungs["transaction"]["paired_with_cycle"]
-    ratios["transaction_vs_cycle"] = _from_rungs(
-        paired, "transaction_vs_cycle", "cycle", "transaction"
-    )
-    if ratios["transaction_vs_cycle"]["status"] == "ok":
-        # The rung's wall time includes the functional datapath for the image; the event
-        # model alone is reported beside it (not instead of it).  Both on one machine.
-        txn = paired["transaction"]
-        ratios["transaction_vs_cycle"]["arch"] = txn["arch"]
-        ratios["transaction_vs_cycle"]["timing_model_seconds"] = txn["timing_seconds"]
-        ratios["transaction_vs_cycle"]["timing_model_vs_cycle"] = (
-            rungs["cycle"]["seconds"] / txn["timing_seconds"]
-        )
     if rungs["rtl"]["status"] == "ok":
         rtl, cyc = rungs["rtl"], rungs["rtl"]["cycle_same_scene"]
         ratios["cycle_vs_rtl"] = _ratio(
@@ -332,11 +311,6 @@ def run_bench(
         )
     else:
         ratios["cycle_vs_rtl"] = _from_rungs(rungs, "cycle_vs_rtl", "rtl", "cycle")
-    ratios["cycle_samples_per_second"] = _ratio(
-        "cycle_samples_per_second",
-        rungs["cycle"].get("samples_per_second") if rungs["cycle"]["status"] == "ok" else None,
-        "cycle-rung samples per wall second (issue: >= 5 M at 4 pipelines, 128^3 and 256^3)",
-    )
     scaling = _harness("bench_sweep") if sweep else None
     if scaling is None:
         why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
@@ -369,6 +343,15 @@ def format_bench(report: dict[str, Any]) -> str:
             )
         else:
             lines.append(f"{rung:<13}{'-':>9}{'-':>12}  {r['status']}")
+    table = _harness("speed_table")
+    if report.get("table") and table is not None:
+        done = [r for r in report["table"] if "goal" in r]
+        lines.append(table.format_rows(done))
+        lines += [
+            f"{r['row']:<24}{'-':>11}{'-':>11}  {r['status']}"
+            for r in report["table"]
+            if "goal" not in r
+        ]
     lines.append(f"{'ratio':<22}{'value':>8}{'goal':>7}  met")
     for name, r in report["ratios"].items():
         value = "-" if r["value"] is None else f"{r['value']:.3g}"

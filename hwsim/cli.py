@@ -13,6 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from hwsim.bench import TABLE_GOALS
 from hwsim.errors import HwsimError, InputError
 
 __all__ = ["main", "build_parser", "DEFAULT_RENDER_OUT"]
@@ -159,6 +160,24 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung")
     b.add_argument("--no-vtk", action="store_true", help="skip golden vs VTK")
     b.add_argument("--no-sweep", action="store_true", help="skip the 1 vs 2 worker sweep")
+    b.add_argument(
+        "--rows",
+        metavar="ROW",
+        nargs="+",
+        default=None,
+        help="speed-table rows (default all; 'none' for none): " + ", ".join(TABLE_GOALS),
+    )
+    b.add_argument(
+        "--table-sizes",
+        metavar="N",
+        type=int,
+        nargs="+",
+        default=[128, 256],
+        help="volume sides of the cycle and timing-only rows (128 256)",
+    )
+    b.add_argument(
+        "--memory-size", metavar="N", type=int, default=512, help="side of the memory row (512)"
+    )
     b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
     b.add_argument("--quiet", action="store_true")
     from rtl.cli import add_parser as add_rtl_parser
@@ -385,6 +404,19 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     ):
         if not lo <= value <= hi:
             raise InputError(f"{value} is out of range", key=flag, allowed=f"{lo} .. {hi}")
+    for n in (*args.table_sizes, args.memory_size):
+        if not 8 <= n <= 1024:
+            raise InputError(
+                f"{n} is out of range", key="--table-sizes/--memory-size", allowed="8 .. 1024"
+            )
+    rows = args.rows
+    if rows == ["none"]:
+        rows = []
+    elif rows is not None:
+        for row in rows:
+            if row not in TABLE_GOALS:
+                allowed = ", ".join(TABLE_GOALS) + ", none"
+                raise InputError(f"no row {row!r}", key="--rows", allowed=allowed)
     resolve_arch(args.arch)
     out = output_folder(args.out)
     log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
@@ -395,6 +427,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         args.repeats,
         vtk=not args.no_vtk,
         sweep=not args.no_sweep,
+        rows=rows,
+        table_sizes=args.table_sizes,
+        memory_size=args.memory_size,
         log=log,
     )
     (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")

@@ -47,16 +47,15 @@ from __future__ import annotations
 
 import hashlib
 import inspect
-import os
 import weakref
-from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
 from numba.extending import register_jitable
 
-from hwsim.errors import InputError
 from hwsim.numerics import ROUNDING_CODES, SATURATIONS, round_scaled, round_shift_raw
+from hwsim.threads import THREADS_ENV_VAR, frame_threads
+from hwsim.threads import pool as thread_pool
 from models.datapath import Datapath
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
@@ -93,9 +92,6 @@ _UNIT_FUNCTIONS = (
 )
 for _fn in _UNIT_FUNCTIONS:
     register_jitable(_fn)
-
-#: Environment variable: threads per frame (:func:`frame_threads`).
-THREADS_ENV_VAR = "HWSIM_THREADS"
 
 #: Hash of the called unit functions' source (part of the compiled kernel's cache key).
 UNITS_HASH = hashlib.sha256(
@@ -343,29 +339,6 @@ def _kernel_for(config: tuple[int, ...] | None):
 #: A step is cut into runs for several threads only above this many samples per thread:
 #: below it, handing a run to a thread costs about what it saves.
 _SAMPLES_PER_THREAD = 2048
-_POOLS: dict[int, ThreadPoolExecutor] = {}
-
-
-def frame_threads() -> int:
-    """Threads one frame's compiled composite stage uses: ``HWSIM_THREADS``, else every
-    core this process may run on (sweeps start their workers with one each)."""
-    text = os.environ.get(THREADS_ENV_VAR)
-    if not text:
-        return max(1, len(os.sched_getaffinity(0)))
-    try:
-        threads = int(text)
-    except ValueError:
-        threads = 0
-    if not 1 <= threads <= 256:
-        raise InputError(f"{text!r} is not a thread count", key=THREADS_ENV_VAR, allowed="1 .. 256")
-    return threads
-
-
-def _pool(threads: int) -> ThreadPoolExecutor:
-    pool = _POOLS.get(threads)
-    if pool is None:
-        pool = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="hwsim-frame")
-    return pool
 
 
 def eligible(backend) -> bool:
@@ -530,7 +503,7 @@ class CompositeKernel:
                 f = np.ascontiguousarray(factor[cut]) if factor.size else factor
                 return (np.ascontiguousarray(zyx[cut]), np.ascontiguousarray(rays[cut]), f)
 
-            pool = _pool(threads)
+            pool = thread_pool(threads)
             runs = [pool.submit(self._run_part, *part(k), state, table) for k in range(1, parts)]
             sat = self._run_part(*part(0), state, table)  # this thread takes run 0
             sat = sat + sum(r.result() for r in runs)

@@ -27,10 +27,12 @@ import numpy as np
 from hwsim.errors import InputError
 from hwsim.golden import geometry as geo
 from hwsim.golden import occupancy as occ
+from hwsim.golden import raywalk
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.classification import FloatClassifier
 from hwsim.golden.cursor import blend_cursor, cursor_parts
 from hwsim.golden.positions import SamplePlan, Step, make_plan
+from hwsim.golden.power import power
 from hwsim.golden.sampling import interleave, sample, sample_gradients, taps, trilinear_rows
 from hwsim.golden.shading import crop_keep, cut_factor, magnitude, phong
 from hwsim.scene import Scene
@@ -93,7 +95,9 @@ class _Renderer:
         transfer: TransferFunction,
         plan: SamplePlan,
         reflectance_map: int | None = None,
+        compiled: bool = True,
     ) -> None:
+        self.compiled = compiled
         self.scene, self.volume, self.transfer, self.plan = scene, volume, transfer, plan
         self.reflectance_map = reflectance_map
         self.mode = scene.render.mode
@@ -215,6 +219,9 @@ class _Renderer:
         iso = 0.5 * (lo + hi) if iso is None else iso
         samples = 0
         feedback = alive if mode in ("composite", "iso") else None
+        if self.compiled and raywalk.eligible(self):  # the same operations, a whole ray at a time
+            acc, samples, rays = raywalk.walk(self, progress)
+            return GoldenResult(plan.to_image(acc), samples, rays, plan)
         for j, step in enumerate(plan.steps(feedback)):
             step, factor = self.mask(step)
             if self.stopped is not None:  # embedded geometry ends these rays
@@ -290,7 +297,7 @@ class _Renderer:
         if part is not None:
             rgb, a = blend_cursor(rgb, a, part[vis], cursor)  # type: ignore[arg-type]
         dt = step.dt if np.isscalar(step.dt) else step.dt[vis]
-        a = 1.0 - (1.0 - a) ** (dt / self.ref)
+        a = 1.0 - power(1.0 - a, dt / self.ref)
         if self.plan.back_to_front:  # samples farthest first: C = a c + (1 - a) C
             acc[rays, :3] = a[:, None] * rgb + (1.0 - a)[:, None] * acc[rays, :3]
             acc[rays, 3] = a + (1.0 - a) * acc[rays, 3]
@@ -338,6 +345,7 @@ def render_golden(
     progress: Callable[[int, int], None] | None = None,
     leap: bool = True,
     reflectance_map: int | None = None,
+    compiled: bool = True,
 ) -> GoldenResult:
     """Render ``scene`` on ``volume`` in float64.
 
@@ -375,4 +383,4 @@ def render_golden(
         )
     occupancy = occupancy_for(scene, volume, transfer) if leap else None
     plan = make_plan(scene, volume, sampling, occupancy=occupancy)
-    return _Renderer(scene, volume, transfer, plan, reflectance_map).run(progress)
+    return _Renderer(scene, volume, transfer, plan, reflectance_map, compiled).run(progress)

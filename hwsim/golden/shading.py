@@ -19,9 +19,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from hwsim.golden.power import power
 from hwsim.scene import CropSpec, CutPlane, Material
 
-__all__ = ["magnitude", "normals", "cube_map_normals", "phong", "crop_keep", "cut_factor"]
+__all__ = [
+    "magnitude",
+    "normals",
+    "cube_map_normals",
+    "phong",
+    "unit_vector",
+    "crop_keep",
+    "cut_factor",
+]
 
 _TINY = 1e-12
 
@@ -53,12 +62,12 @@ def cube_map_normals(n: np.ndarray, size: int) -> np.ndarray:
         u = n[rows, others[:, k]] / safe  # in [-1, 1] on the face
         cell = np.clip(np.floor((u + 1.0) * 0.5 * size), 0, size - 1)
         out[rows, others[:, k]] = (cell + 0.5) / size * 2.0 - 1.0
-    out = _unit(out)
+    out = unit_vector(out)
     out[major <= _TINY] = 0.0
     return out
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def unit_vector(v: np.ndarray) -> np.ndarray:
     """Rows (or one vector) scaled to unit length; zero vectors stay zero."""
     if v.ndim == 1:
         norm = float(np.linalg.norm(v))
@@ -90,16 +99,20 @@ def phong(
         n = cube_map_normals(n, reflectance_map)
     out = material.ambient * rgb
     for direction, intensity in lights:
-        ndl = np.maximum(n @ direction, 0.0)
-        h = _unit(toward_viewer + direction)
-        if h.ndim == 1:
-            ndh = n @ h
-        else:
-            ndh = n[:, 0] * h[:, 0] + n[:, 1] * h[:, 1] + n[:, 2] * h[:, 2]
-        spec = material.specular * np.maximum(ndh, 0.0) ** material.shininess
+        # Dot products written out (not BLAS, whose fused multiply-adds depend on the
+        # CPU): the compiled ray walk computes the same bits.
+        ndl = np.maximum(_dot(n, direction), 0.0)
+        ndh = _dot(n, unit_vector(toward_viewer + direction))
+        spec = material.specular * power(np.maximum(ndh, 0.0), material.shininess)
         light = intensity * (material.diffuse * ndl[:, None] * rgb + spec[:, None])
         out += light if modulation is None else modulation[:, None] * light
     return np.clip(out, 0.0, 1.0, out=out)
+
+
+def _dot(n: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise ``n . v`` of ``(n, 3)`` rows with one vector ``(3,)`` or rows ``(n, 3)``."""
+    v = np.broadcast_to(v, n.shape)
+    return n[:, 0] * v[:, 0] + n[:, 1] * v[:, 1] + n[:, 2] * v[:, 2]
 
 
 def crop_keep(zyx: np.ndarray, crop: CropSpec) -> np.ndarray:

@@ -154,7 +154,7 @@ def local_client(workers: int) -> Iterator[Any]:
         # fresh mmap and page faults: a 96^3 functional render took 3x longer.
         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
         # One worker per core already: each render runs its frame on one thread
-        # (models.fused.frame_threads), unless the user chose otherwise.
+        # (hwsim.threads.frame_threads), unless the user chose otherwise.
         "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": os.environ.get("HWSIM_THREADS", "1"),
     }
     with dask.config.set(settings):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import rungs
 
+from hwsim import threads as frame_threads_module
 from hwsim.errors import InputError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.volumes import make_phantom
@@ -27,7 +28,7 @@ def test_threads_render_the_same_bits(monkeypatch, name):
         monkeypatch.setenv(fused.THREADS_ENV_VAR, threads)
         runs[threads] = render(scene, fidelity="functional", arch=arch, volume=volume)
     one = runs["1"]
-    assert {2, 3} <= set(fused._POOLS)  # steps were big enough to be cut into runs
+    assert {2, 3} <= set(frame_threads_module._POOLS)  # steps were big enough to be cut into runs
     for threads in ("2", "3"):
         run = runs[threads]
         assert np.array_equal(run.image, one.image), threads

@@ -27,7 +27,10 @@ SHRINK = {
     ("trade", "--widths"): ["--image", "32"],
     ("trade",): ["--image", "16", "--size", "16", "--rungs", "golden,functional"],
     ("figures",): ["--max-size", "128", "--rungs", "transaction"],
-    ("bench",): ["--size", "16", "--image", "16", "--repeats", "1", "--no-sweep"],
+    ("bench",): [
+        *("--size", "16", "--image", "16", "--repeats", "1", "--no-sweep"),
+        *("--rows", "functional_vs_golden"),
+    ],
 }
 
 #: Files each command promises in its ``--out`` folder (docs/cli.md, README).
