@@ -389,9 +389,13 @@ class CompositeKernel:
         else:
             key = (dp.voxel_bits, order, "differences")
             if key not in derived:
+                # One axis at a time, narrowed before it is laid out: a 512^3 volume
+                # never holds three wide (int32) difference volumes at once.
                 diffs = [
-                    _narrowest(_laid_out(d, shape, order))
-                    for d in gradient_unit.voxel_differences(be.raw)
+                    _laid_out(
+                        _narrowest(gradient_unit.voxel_difference(be.raw, axis)), shape, order
+                    )
+                    for axis in (2, 1, 0)
                 ]
                 wide = np.result_type(*diffs)
                 derived[key] = tuple(d.astype(wide, copy=False) for d in diffs)

@@ -42,6 +42,7 @@ from models.units.interp import (
 __all__ = [
     "GradientConfig",
     "voxel_differences",
+    "voxel_difference",
     "sample_differences",
     "to_world",
     "magnitude",
@@ -78,23 +79,27 @@ def voxel_differences(raw: np.ndarray) -> list[np.ndarray]:
     int32 when every voxel fits in 29 bits (then every difference, at most twice the
     range, fits too: a quarter of the int64 bytes to write), else int64; exact either way.
     """
+    return [voxel_difference(raw, axis) for axis in (2, 1, 0)]
+
+
+def voxel_difference(raw: np.ndarray, axis: int) -> np.ndarray:
+    """The central differences of :func:`voxel_differences` along one index ``axis``
+    (0 = z, 1 = y, 2 = x), raveled: one array at a time, so a caller that narrows each
+    before asking for the next never holds three wide ones.  The voxels are widened as
+    they are read (no wide copy of the volume)."""
     raw = np.asarray(raw)
     small = raw.size == 0 or (int(raw.min()) >= -(1 << 29) and int(raw.max()) < 1 << 29)
-    raw = raw.astype(np.int32 if small else np.int64, copy=False)
-    out = []
-    for axis in range(3):
-        n = raw.shape[axis]
-        if n < 2:
-            out.append(np.zeros(raw.size, dtype=raw.dtype))
-            continue
-        d = np.empty_like(raw)
-        v = np.moveaxis(raw, axis, 0)
-        dv = np.moveaxis(d, axis, 0)
-        np.subtract(v[2:], v[:-2], out=dv[1:-1])  # into place: no temporary
-        dv[0] = 2 * (v[1] - v[0])
-        dv[-1] = 2 * (v[-1] - v[-2])
-        out.append(d.ravel())
-    return out[::-1]
+    wide = np.int32 if small else np.int64
+    n = raw.shape[axis]
+    if n < 2:
+        return np.zeros(raw.size, dtype=wide)
+    d = np.empty(raw.shape, dtype=wide)
+    v = np.moveaxis(raw, axis, 0)
+    dv = np.moveaxis(d, axis, 0)
+    np.subtract(v[2:], v[:-2], out=dv[1:-1], dtype=wide)  # into place: no temporary
+    dv[0] = 2 * (v[1].astype(wide) - v[0])
+    dv[-1] = 2 * (v[-1].astype(wide) - v[-2])
+    return d.ravel()
 
 
 def sample_differences(

@@ -110,6 +110,8 @@ def test_incremental_controller_equals_batch(case, data):
     batch = schedule_bursts(cfg, bank, row, earliest)
     ctl = SdramController(cfg)
     i, n = 0, len(bank)
+    if data.draw(st.booleans()):  # room made up front changes no command
+        ctl.reserve(data.draw(st.integers(0, n)))
     while i < n:
         k = data.draw(st.integers(1, 5))
         if k == 1:

@@ -410,6 +410,7 @@ class SlabMachine(SliceOrderMachine):
             capacity=capacity,
             pixel_fifo=pixel_fifo,
             counters=c,
+            keep_schedules=self.trace is not None,
         )
         stages = {
             u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated

@@ -91,6 +91,7 @@ def run_timing(
     capacity: int,
     pixel_fifo: DrainFifo,
     counters: Counters,
+    keep_schedules: bool = False,
 ) -> FrameTiming:
     """Run the pipelines and the memory of one frame (rules of docs/cycle.md).
 
@@ -106,9 +107,14 @@ def run_timing(
         Input-buffer capacity in deliveries (>= 0).
     pixel_fifo : DrainFifo
     counters : Counters
+    keep_schedules : bool
+        Keep every module's per-burst schedule in ``schedules`` (a waveform needs them);
+        otherwise only their ``stats``.
     """
     dev = memory.sdram
     controllers = [SdramController(dev) for _ in range(memory.modules)]
+    for k, ctl in enumerate(controllers):  # each module's requests, known up front
+        ctl.reserve(sum(d.bursts[k][0].size for d in deliveries))
     tail = dev.cas_latency + dev.burst_cycles
     n_beams = sum(int(s.needs.size) for s in slices)
     ends = np.zeros(max(n_beams, 1), dtype=np.int64)
@@ -166,8 +172,16 @@ def run_timing(
     while state["g"] < len(deliveries):  # reads no beam waits for (none by construction)
         deliver()
     out.end = t
-    out.schedules = [ctl.schedule() for ctl in controllers]
-    out.stats = [sched.stats for sched in out.schedules]
+    # One module's schedule at a time, each controller dropped once read: at 512^3 a
+    # schedule holds ~40 bytes per burst and the frame ~17 M bursts.  The per-burst
+    # arrays are kept only for a waveform.
+    for k, ctl in enumerate(controllers):
+        sched = ctl.schedule()
+        controllers[k] = None
+        out.stats.append(sched.stats)
+        if keep_schedules:
+            out.schedules.append(sched)
+        del sched, ctl
     out.beam_ends = ends[:n_beams]
     out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else ends[:0]
     return out
