@@ -15,6 +15,7 @@ from pathlib import Path
 
 from hwsim.bench import TABLE_GOALS
 from hwsim.errors import HwsimError, InputError
+from hwsim.threads import using as using_threads
 
 __all__ = ["main", "build_parser", "DEFAULT_RENDER_OUT"]
 
@@ -72,6 +73,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--extend",
         action="store_true",
         help="render features the machine never had as a what-if (stats.json: extensions)",
+    )
+    r.add_argument(
+        "--threads",
+        type=int,
+        metavar="N",
+        default=None,
+        help="threads per frame (default: every usable core, or HWSIM_THREADS); the image "
+        "and cycles do not depend on it",
     )
     r.add_argument(
         "--timing-only",
@@ -244,6 +253,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
+    with using_threads(args.threads):  # read by every frame kernel
+        return _render_command(args)
+
+
+def _render_command(args: argparse.Namespace) -> int:
     from hwsim.fidelity import render
     from hwsim.output import write_render
     from hwsim.paths import output_file, output_folder

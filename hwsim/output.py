@@ -20,6 +20,7 @@ import numpy as np
 from hwsim import __version__
 from hwsim.errors import InputError
 from hwsim.paths import output_file, output_folder
+from hwsim.threads import frame_threads
 
 if TYPE_CHECKING:
     from hwsim.fidelity import RenderRun
@@ -85,6 +86,7 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
             "python": platform.python_version(),
             "numpy": np.__version__,
             "machine": platform.machine(),
+            "frame_threads": frame_threads(),  # the frame kernels' threads (--threads)
         },
     }
 

@@ -11,11 +11,13 @@ once, which Dask worker threads would do.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 
 from hwsim.errors import InputError
 
-__all__ = ["THREADS_ENV_VAR", "frame_threads", "pool"]
+__all__ = ["THREADS_ENV_VAR", "frame_threads", "pool", "using"]
 
 #: Environment variable: threads per frame (:func:`frame_threads`).
 THREADS_ENV_VAR = "HWSIM_THREADS"
@@ -44,3 +46,22 @@ def pool(threads: int) -> ThreadPoolExecutor:
     if found is None:
         found = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="hwsim-frame")
     return found
+
+
+@contextmanager
+def using(threads: int | None) -> Iterator[None]:
+    """Frames inside the block use ``threads`` threads (None: unchanged); restored after."""
+    if threads is None:
+        yield
+        return
+    if not 1 <= threads <= 256:
+        raise InputError(f"{threads} is out of range", key="--threads", allowed="1 .. 256")
+    old = os.environ.get(THREADS_ENV_VAR)
+    os.environ[THREADS_ENV_VAR] = str(threads)
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(THREADS_ENV_VAR, None)
+        else:
+            os.environ[THREADS_ENV_VAR] = old

@@ -40,6 +40,7 @@ import numpy as np
 
 from hwsim.errors import InputError
 from hwsim.golden.camera import Camera, world_to_index
+from hwsim.golden.leap_rays import leap_ray_plan
 from hwsim.golden.occupancy import Occupancy
 from hwsim.golden.steps import Step, bilinear_2d, linear_range, run_steps
 from hwsim.scene import Scene
@@ -261,6 +262,17 @@ class SamplePlan:
         if occupancy.empty:
             self._keep(np.zeros(self.ray_ids.size, dtype=bool))
             return
+        if self.kind == "ray":  # compiled, the same ranges (hwsim.golden.leap_rays)
+            self.j_lo, self.j_hi = leap_ray_plan(self, occupancy)
+        else:
+            self.j_lo, self.j_hi = self._march(occupancy)
+        # Drop rays left without samples only after both passes: the per-ray step
+        # vectors were read for every ray.
+        self._keep(self.j_lo <= self.j_hi)
+
+    def _march(self, occupancy: Occupancy) -> tuple[np.ndarray, np.ndarray]:
+        """The leap's march in NumPy over the rays still marching: new ``(j_lo, j_hi)``."""
+        j_lo0, j_hi0 = self.j_lo, self.j_hi
         delta = np.broadcast_to(self._delta, (self.ray_ids.size, 3))
         reach = np.maximum(
             np.maximum(np.abs(delta[:, 0]), np.abs(delta[:, 1])), np.abs(delta[:, 2])
@@ -288,9 +300,9 @@ class SamplePlan:
                 self.j_lo = j
             else:
                 self.j_hi = j
-        # Drop rays left without samples only after both passes: the per-ray step
-        # vectors above were read for every ray.
-        self._keep(self.j_lo <= self.j_hi)
+        out = self.j_lo, self.j_hi
+        self.j_lo, self.j_hi = j_lo0, j_hi0
+        return out
 
     def steps(self, alive: np.ndarray | None = None) -> Iterator[Step]:
         """The steps in blending order (front to back, or back to front where
