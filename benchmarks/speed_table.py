@@ -57,6 +57,7 @@ if __package__ in (None, ""):
 
 from benchmarks.report_io import write_report
 from hwsim.bench import TABLE_GOALS as GOALS
+from hwsim.threads import using as using_threads
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -66,23 +67,6 @@ MACHINES = ("cube4", "em-cube", "volumepro500", "volumepro1000", "vizard2")
 TURN = 5.0
 
 ROWS = tuple(GOALS)  # the table's rows, in order
-
-
-class _Threads:
-    """``HWSIM_THREADS`` set for a block (the frame kernels read it at every frame)."""
-
-    def __init__(self, n: int) -> None:
-        self.n, self.old = n, None
-
-    def __enter__(self) -> None:
-        self.old = os.environ.get("HWSIM_THREADS")
-        os.environ["HWSIM_THREADS"] = str(self.n)
-
-    def __exit__(self, *exc: object) -> None:
-        if self.old is None:
-            os.environ.pop("HWSIM_THREADS", None)
-        else:
-            os.environ["HWSIM_THREADS"] = self.old
 
 
 def _timed(fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -193,7 +177,7 @@ def golden_vs_vtk_rotation(frames: int, image: int = 256) -> dict[str, Any]:
         az = scene.view.azimuth + TURN * k
         view = dataclasses.replace(scene.view, azimuth=az)
         for threads in (1, 2):
-            with _Threads(threads):
+            with using_threads(threads):
                 moved = scene.replace(view=view)
                 s, result = _timed(lambda m=moved: render_golden(m, volume, transfer))
             samples = result.samples
@@ -216,7 +200,7 @@ def golden_vs_vtk_rotation(frames: int, image: int = 256) -> dict[str, Any]:
 
 def _with_threads(threads: int, fn: Callable[[], Any]) -> Callable[[], Any]:
     def run() -> Any:
-        with _Threads(threads):
+        with using_threads(threads):
             return fn()
 
     return run
@@ -243,7 +227,7 @@ def functional_vs_volpack(frames: int, repeats: int) -> dict[str, Any]:
         for _ in range(repeats):
             rounds["volpack"].append(vp.volpack_frame_seconds(work, frames, 1)["seconds_per_frame"])
             for threads in (1, 2):
-                with _Threads(threads):
+                with using_threads(threads):
                     hw = vp.hwsim_frame_seconds("volumepro500", frames, 1, 256)
                 rounds[f"functional_{threads}t"].append(hw["seconds_per_frame"])
     med = _median(rounds)

@@ -25,7 +25,13 @@ def power_scalar(x, e):  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def _power_rows(x, e, out):  # pragma: no cover - compiled
     for i in range(x.shape[0]):
-        out[i] = power_scalar(x[i], e[i] if e.shape[0] > 1 else e[0])
+        out[i] = power_scalar(x[i], e[i])
+
+
+@numba.njit(cache=True, nogil=True)
+def _power_by(x, e, out):  # pragma: no cover - compiled
+    for i in range(x.shape[0]):
+        out[i] = power_scalar(x[i], e)
 
 
 def power(x: np.ndarray, e: float | np.ndarray) -> np.ndarray:
@@ -33,9 +39,10 @@ def power(x: np.ndarray, e: float | np.ndarray) -> np.ndarray:
     shape), float64."""
     x = np.asarray(x, dtype=np.float64)
     flat = np.ascontiguousarray(x).ravel()
-    exps = np.ascontiguousarray(np.broadcast_to(np.asarray(e, dtype=np.float64), x.shape)).ravel()
-    if np.ndim(e) == 0:
-        exps = exps[:1] if exps.size else np.ones(1)
     out = np.empty_like(flat)
-    _power_rows(flat, exps, out)
+    if np.ndim(e) == 0:
+        _power_by(flat, float(e), out)
+    else:
+        exps = np.ascontiguousarray(np.broadcast_to(np.asarray(e, dtype=np.float64), x.shape))
+        _power_rows(flat, exps.ravel(), out)
     return out.reshape(x.shape)
