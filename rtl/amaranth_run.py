@@ -58,6 +58,7 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
                 raise RuntimeError("the RTL top did not finish")
         out["cycles"] = ctx.get(top.cycles)
         out["samples"] = ctx.get(top.samples)
+        out["stalls"] = ctx.get(top.stall_cycles)
 
     sim.add_testbench(bench)
     if vcd is not None:
@@ -65,4 +66,4 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
             sim.run()
     else:
         sim.run()
-    return decode(program, out["pixels"], out["cycles"], out["samples"])
+    return decode(program, out["pixels"], out["cycles"], out["samples"], out["stalls"])

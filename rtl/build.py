@@ -213,10 +213,11 @@ def build(
         component, params = build_unit(unit, settings.get(unit))
         text = to_verilog(component, unit)
         (out / f"{unit}.v").write_text(text)
+        # The top has no one latency: its frame's timing is its structure's (rtl/top.py).
         entry = {
             "params": params,
-            "latency": modules[unit].LATENCY,
-            "ii": modules[unit].II,
+            "latency": getattr(modules[unit], "LATENCY", None),
+            "ii": getattr(modules[unit], "II", None),
             "verilog": f"{unit}.v",
         }
         if synth:

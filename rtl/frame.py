@@ -4,6 +4,11 @@ image back.
 # Ref: architectures.md section 1 (Cube-4: the host loads the volume and the per-slice
 #      constants of a parallel projection); docs/cycle.md (the machine reproduced).
 
+The host writes what a driver would: the volume, the tables (LUT, opacity correction,
+gradient-magnitude and specular tables, the geometry unit's per-slice constants and ray
+bounds) and the frame's geometry and shading registers.  No timing value of any model
+(latency, slice period, stall counts) is written: the top's cycles are its own.
+
 :func:`prepare` turns a scene, its sample plan and an architecture into a
 :class:`FrameProgram`: load words (volume in the skewed layout, classification LUT,
 opacity-correction table, ray table, per-slice constants) and frame registers.  It
@@ -34,7 +39,6 @@ from models.datapath import Datapath
 from models.frame import Frame
 from models.machines.common.results import UNITS, CycleResult, elaborate_units
 from models.machines.cube4.frame import Cube4Frame
-from models.machines.cube4.timing import cube4_latency
 from models.units import composite as composite_unit
 from models.units import skew
 from rtl.top import RMW_WINDOW
@@ -186,6 +190,14 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
     n_rays = plan.shape[0] * plan.shape[1]
     if n_rays > geo.max_rays:
         raise _refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
+    if arch.slice_overhead_cycles:
+        raise _refuse(
+            f"{arch.name} adds {arch.slice_overhead_cycles} clocks between slices; the RTL "
+            "top's slices follow each other back to back (a what-if of the cycle rung only)",
+            "overheads.slice_cycles",
+            "0",
+            arch.source,
+        )
     fifo = machine.capacity["pixel_fifo_entries"]
     if fifo < 1:
         raise _refuse(
@@ -239,7 +251,6 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
     slay = slice_layout(geo, dp)
     loads += [(LOAD_SLICES, j, _pack(slay, rec)) for j, rec in enumerate(slices)]
 
-    latency = cube4_latency(machine.C)  # rule 5, the cycle rung's own function
     ert = backend.ert
     registers = {
         **_shading_registers(backend, dp, lit, modulate),
@@ -252,10 +263,7 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
         "kp": machine.kp,
         "forward": int(machine.forward),
         "c": machine.C,
-        "t": machine.T,
-        "overhead": arch.slice_overhead_cycles,
         "fifo_depth": fifo,
-        "latency": latency,
         "width": plan.shape[1],
         "height": plan.shape[0],
         "mip": int(mode == "mip"),
@@ -348,13 +356,12 @@ def _slice_constants(machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi) -> list[
     W = plan.shape[1]
     a = np.repeat(np.arange(n_a), n_b)
     b = np.tile(np.arange(n_b), n_a)
-    period = T + machine.arch.slice_overhead_cycles
+    period = T  # slices back to back (an overhead is refused above)
     last_issue = np.full(plan.shape[0] * W, -(10**9), dtype=np.int64)
     out = []
     for j, step in enumerate(plan.steps()):
         q = machine.slice_of(j)
         rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
-        rec["finish"] = int(np.count_nonzero(plan.j_hi == j))
         rays = step.rays
         if rays.size:
             full = 1 << machine.dp.interp.weight_bits
@@ -410,7 +417,13 @@ def _slice_constants(machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi) -> list[
     return out
 
 
-def decode(program: FrameProgram, pixels: list[dict[str, Any]], cycles: int, samples: int):
+def decode(
+    program: FrameProgram,
+    pixels: list[dict[str, Any]],
+    cycles: int,
+    samples: int,
+    stall_cycles: int | None = None,
+):
     """The frame's :class:`~models.machines.cube4.cycle.CycleResult` from the delivered pixels.
 
     ``pixels``: ``{"ray", "acc" (4 ints), "mip"}`` in bus order.  Every ray of the plan
@@ -435,7 +448,7 @@ def decode(program: FrameProgram, pixels: list[dict[str, Any]], cycles: int, sam
         "frame.cycles": int(cycles),
         "frame.samples": int(samples),
         "pixel_bus.pixels": len(pixels),
-        "pipeline.latency_cycles": program.registers["latency"],
+        **({} if stall_cycles is None else {"pixel_bus.stall_cycles": int(stall_cycles)}),
     }
     return CycleResult(
         image=image,

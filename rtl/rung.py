@@ -176,12 +176,10 @@ def run_simulator(
     if len(words) > ROM_WORDS:
         raise RuntimeError(f"{len(words)} load words exceed the bench ROM ({ROM_WORDS})")
     hexfile.write_text("".join(f"{w:x}\n" for w in words))
-    frame_bound = (
-        4
-        * (program.registers["t"] + program.registers["overhead"] + 64)
-        * (program.registers["n_kp"] + 2)
-        + 8 * program.n_rays
-    )
+    regs = program.registers
+    # A bound for a hung frame only (the frame's own clocks are the top's): every period,
+    # every ray frozen once per pixel, the drain.
+    frame_bound = 4 * (regs["n_a"] * regs["c"] + 64) * (regs["n_kp"] + 2) + 8 * program.n_rays
     job.write_text(
         json.dumps(
             {
@@ -212,7 +210,7 @@ def run_simulator(
     out.unlink()
     lay = pixel_layout(program.geo, program.dp)
     pixels = [_unpack_pixel(lay, int(w, 16)) for w in raw["pixels"]]
-    result = decode(program, pixels, raw["cycles"], raw["samples"])
+    result = decode(program, pixels, raw["cycles"], raw["samples"], raw["stall_cycles"])
     result.counters["rtl.simulator"] = simulator
     result.counters["rtl.simulated_clocks"] = raw["clocks"]
     return result, {"build_seconds": t1 - t0, "run_seconds": t2 - t1, "clocks": raw["clocks"]}

@@ -25,29 +25,29 @@ Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
   two neighbours, then the gradient from the neighbouring samples one beam later,
   classification, Phong shading and compositing.
 * **per-slice constants** (the host's geometry unit, parallel projection): slice index,
-  cell shift ``(da, db)``, base-plane offset ``(ia, ib)``, the quantised weights
-  ``(wa, wb)`` and the count of rays finishing, of every step, in a table the host
-  writes before the frame.  The ray table holds each base-plane ray's first and last
-  step.
-* **pixel bus**: a ray whose last sample enters the compositor joins the pixel FIFO; the
-  rays of slice period ``p`` are committed ``latency`` clocks after the period's block
-  ends (the machine's pipeline latency, rule 5 of docs/cycle.md) and drained one per
-  clock through the ``pixel`` stream (ray number, accumulators), which may be
-  back-pressured.
+  cell shift ``(da, db)``, base-plane offset ``(ia, ib)`` and the quantised weights
+  ``(wa, wb)`` of every step, in a table the host writes before the frame.  The ray table
+  holds each base-plane ray's first and last step.
+* **pixel bus**: when the compositor writes back a ray's last sample, the ray number is
+  pushed into the pixel FIFO (several pipelines may push in one clock); the bus pops one
+  per clock and sends the ray's accumulators through the ``pixel`` stream, which may be
+  back-pressured.  When the FIFO has no room for a push (occupancy at ``fifo_depth``;
+  several pushes in one clock go in pipeline order while there is room), the whole core
+  (sequencer, memories, every pipeline register: one clock enable) freezes for that
+  clock while the bus keeps draining; the push is retried the next clock.
 
-Timing: the prime period takes ``T = n_a C`` clocks, every other ``T +
-slice_overhead`` plus the rule-4 stall when the pixel FIFO (as the rule sees it: a
-credit counter) has no room for the period's finishing rays; ``cycles`` counts from the
-first clock of the prime period to the last pixel popped from the pixel FIFO, which is
-rules 1, 2, 4, 5 and 6 of the cycle rung for parallel views (no stretch: that needs
-perspective).
+Timing is the structure's: periods of ``T = n_a C`` clocks (computed here from the
+geometry registers), the depth of the pipeline registers, the FIFO's pushes and pops
+and the freezes.  The host loads no latency, period, overhead, per-slice count or
+credit.  ``cycles`` counts from the first clock of the prime period to the last pixel
+popped from the pixel FIFO (or to the sequencer's last clock if that is later).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from amaranth import Array, Cat, Const, Module, Mux, Signal, signed, unsigned
+from amaranth import Array, Cat, Const, EnableInserter, Module, Mux, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -70,34 +70,15 @@ from rtl.top_layouts import (
 from rtl.top_pipeline import EVAL_BASE, MAX_LIGHTS, STAGE_BASE, back_end, front_end, modulo
 
 # The load targets and word layouts are rtl.top_layouts'; the pipeline stages rtl.top_pipeline's.
-__all__ = [
-    "Cube4Top",
-    "TopConfig",
-    "issue_to_stage",
-    "issue_to_writeback",
-    "RMW_WINDOW",
-]
+__all__ = ["Cube4Top", "TopConfig", "RMW_WINDOW"]
 
 #: Clocks between a ray's compositing-buffer read and its write becoming visible.
 RMW_WINDOW = 5
-WHEEL = 64  # commit delay line: latency - (2 C + 18) < 64 clocks
-II = 1
-
-
-def issue_to_stage(beam_cycles: int) -> int:
-    """Clocks from a sample slot's issue to its sample entering the compositor (where a
-    finishing ray is staged for the pixel bus): ``2 C + 16``."""
-    return 2 * beam_cycles + STAGE_BASE
-
-
-def issue_to_writeback(beam_cycles: int) -> int:
-    """Clocks from a sample slot's issue to the compositor's answer: ``2 C + 19``."""
-    return issue_to_stage(beam_cycles) + 3
-
-
-#: A sample slot's issue to its compositor answer for one clock per beam (``C = 1``);
-#: each clock of ``C`` adds two (the evaluation wait and the gradient look-ahead).
-LATENCY = issue_to_writeback(1)
+#: Clocks the core needs at most to empty after the sequencer's last slot, beyond ``2
+#: C_max``: the slot delay (``C + EVAL_BASE``), the front end, the beam wait (``C``) and
+#: the back end (``STAGE_BASE``), the compositor and write-back; a bound, not a timing
+#: value: the frame's ``cycles`` stop at the last pixel popped.
+DRAIN_BOUND = STAGE_BASE + 8
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -152,8 +133,9 @@ class Cube4Top(wiring.Component):
         :func:`pixel_layout` (back-pressure allowed).
     busy, done : Out(1)
         A frame is running / has finished (``done`` holds until the next ``start``).
-    cycles, samples : Out(32)
-        The frame's clocks (first prime clock to last pixel popped) and samples composited.
+    cycles, samples, stall_cycles : Out(32)
+        The frame's clocks (first prime clock to the last pixel popped), samples
+        composited and clocks the core was frozen by a full pixel FIFO.
     """
 
     def __init__(self, dp: Datapath, geo: TopGeometry):
@@ -196,64 +178,35 @@ class Cube4Top(wiring.Component):
                 "done": Out(1),
                 "cycles": Out(32),
                 "samples": Out(32),
+                "stall_cycles": Out(32),
             }
         )
 
     # ------------------------------------------------------------------ sequencer
 
     def _sequencer(self, m: Module, slices):
-        """Periods ``p = 0 .. n_kp`` of ``T`` (+ overhead) clocks; slot counters."""
+        """Periods ``p = 0 .. n_kp`` of ``T = n_a C`` clocks; slot counters."""
         geo = self.geo
         ab = geo.axis_bits
         P = geo.pipelines
         s = {
             "run": Signal(name="run"),
             "period": Signal(ab + 1, name="period"),
-            "tick": Signal(16, name="tick"),
+            "tick": Signal(bit_length(geo.t_max), name="tick"),
             "a": Signal(ab, name="slot_a"),
             "g": Signal(ab, name="slot_g"),
             "amod": Signal(bit_length(P), name="slot_amod"),
-            "cycle": Signal(32, name="cycle"),
         }
+        t = Signal(bit_length(geo.t_max), name="slice_clocks")
+        m.d.comb += t.eq(self.n_a * self.c)
         lay = slice_layout(geo, self.dp)
         mem_c = Signal(lay, name="mem_consts")  # slice read in this period (p)
         eval_c = Signal(lay, name="eval_consts")  # slice evaluated (p - 1)
         prefetch = slices.read_port()
         m.d.comb += [prefetch.addr.eq(s["period"] + 1), prefetch.en.eq(1)]
         setup = Signal(2, name="setup")
-        period_len = Signal(17, name="period_len")
-        m.d.comb += period_len.eq(Mux(s["period"] == 0, self.t, self.t + self.overhead))
-        slot_live = Signal(name="slot_live")
-        m.d.comb += slot_live.eq(s["run"] & (s["tick"] < self.t))
-        # Rule 4: the pixel FIFO as the cycle rung's timing sees it (the rays of a step
-        # join at its block's end, one leaves per clock) is a credit counter; a step whose
-        # finishing rays do not fit stalls the sequencer until the bus has made room.
-        # The FIFO itself fills `latency` clocks later, with the same pops.
-        block_end = Signal(name="block_end")
-        m.d.comb += block_end.eq(s["run"] & (s["tick"] == period_len - 1))
-        credit = Signal(32, name="pixel_credit")
-        drained = Signal(32, name="pixel_credit_drained")
-        arrivals = Signal(32, name="pixel_arrivals")
-        stall_now = Signal(32, name="pixel_stall")
-        m.d.comb += [
-            drained.eq(Mux(credit > 0, credit - 1, 0)),
-            arrivals.eq(Mux(s["period"] >= 1, eval_c.finish, 0)),
-            stall_now.eq(
-                Mux(arrivals + drained > self.fifo_depth, arrivals + drained - self.fifo_depth, 0)
-            ),
-        ]
-        stalling = Signal(name="pixel_stalling")
-        stall_left = Signal(32, name="pixel_stall_left")
         end = Signal(name="period_end")
-        m.d.comb += end.eq((block_end & (stall_now == 0)) | (stalling & (stall_left == 1)))
-        with m.If(s["run"]):
-            m.d.sync += credit.eq(Mux(block_end, drained + arrivals, drained))
-            with m.If(block_end & (stall_now != 0)):
-                m.d.sync += [stalling.eq(1), stall_left.eq(stall_now)]
-            with m.Elif(stalling):
-                m.d.sync += stall_left.eq(stall_left - 1)
-                with m.If(stall_left == 1):
-                    m.d.sync += stalling.eq(0)
+        m.d.comb += end.eq(s["run"] & (s["tick"] == t - 1))
         with m.If(self.start):
             m.d.sync += [setup.eq(1), s["period"].eq(0)]
         with m.If(setup == 1):
@@ -269,23 +222,18 @@ class Cube4Top(wiring.Component):
                 s["a"].eq(0),
                 s["g"].eq(0),
                 s["amod"].eq(0),
-                s["cycle"].eq(0),
                 mem_c.eq(first.data),
-                credit.eq(0),
-                stalling.eq(0),
             ]
         with m.If(s["run"]):
-            m.d.sync += s["cycle"].eq(s["cycle"] + 1)
             m.d.sync += s["tick"].eq(s["tick"] + 1)
-            with m.If(slot_live):
-                with m.If(s["g"] == self.c - 1):
-                    m.d.sync += [
-                        s["g"].eq(0),
-                        s["a"].eq(s["a"] + 1),
-                        s["amod"].eq(Mux(s["amod"] == P - 1, 0, s["amod"] + 1)),
-                    ]
-                with m.Else():
-                    m.d.sync += s["g"].eq(s["g"] + 1)
+            with m.If(s["g"] == self.c - 1):
+                m.d.sync += [
+                    s["g"].eq(0),
+                    s["a"].eq(s["a"] + 1),
+                    s["amod"].eq(Mux(s["amod"] == P - 1, 0, s["amod"] + 1)),
+                ]
+            with m.Else():
+                m.d.sync += s["g"].eq(s["g"] + 1)
             with m.If(end):
                 m.d.sync += [
                     s["tick"].eq(0),
@@ -301,10 +249,10 @@ class Cube4Top(wiring.Component):
         s["mem_valid"] = Signal(name="mem_valid")
         s["eval_valid"] = Signal(name="eval_valid")
         m.d.comb += [
-            s["mem_valid"].eq(slot_live & (s["period"] < self.n_kp)),
-            s["eval_valid"].eq(slot_live & (s["period"] >= 1)),
+            s["mem_valid"].eq(s["run"] & (s["period"] < self.n_kp)),
+            s["eval_valid"].eq(s["run"] & (s["period"] >= 1)),
         ]
-        s["end"], s["block_end"] = end, block_end
+        s["end"] = end
         s["go"] = setup == 2
         s["mem_c"], s["eval_c"] = mem_c, eval_c
         return s
@@ -313,6 +261,10 @@ class Cube4Top(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
+        # Everything but the compositing buffer and the pixel bus is the core: one clock
+        # enable freezes it while a push into the pixel FIFO does not fit.
+        core = Module()
+        stall = Signal(name="pixel_fifo_stall")
         dp, geo = self.dp, self.geo
         P, ab = geo.pipelines, geo.axis_bits
         B = dp.voxel_bits
@@ -322,16 +274,24 @@ class Cube4Top(wiring.Component):
             return self.load.valid & (load.target == target)
 
         # Tables the host writes.
-        m.submodules.slices = slices = Memory(
+        core.submodules.slices = slices = Memory(
             shape=slice_layout(geo, dp), depth=geo.max_axis + 2, init=[]
         )
         wr = slices.write_port()
-        m.d.comb += [wr.addr.eq(load.addr), wr.data.eq(load.data), wr.en.eq(loading(LOAD_SLICES))]
-        m.submodules.rays = rays = Memory(shape=ray_layout(geo), depth=geo.max_rays, init=[])
+        core.d.comb += [
+            wr.addr.eq(load.addr),
+            wr.data.eq(load.data),
+            wr.en.eq(loading(LOAD_SLICES)),
+        ]
+        core.submodules.rays = rays = Memory(shape=ray_layout(geo), depth=geo.max_rays, init=[])
         wr = rays.write_port()
-        m.d.comb += [wr.addr.eq(load.addr), wr.data.eq(load.data), wr.en.eq(loading(LOAD_RAYS))]
+        core.d.comb += [
+            wr.addr.eq(load.addr),
+            wr.data.eq(load.data),
+            wr.en.eq(loading(LOAD_RAYS)),
+        ]
 
-        seq = self._sequencer(m, slices)
+        seq = self._sequencer(core, slices)
         m.d.comb += self.busy.eq(seq["run"])
 
         # ---------------------------------------------------------- memory -> slice buffers
@@ -341,32 +301,32 @@ class Cube4Top(wiring.Component):
         mem_c = seq["mem_c"]
         for k in range(P):
             module = Memory(shape=unsigned(B), depth=geo.module_words, init=[])
-            m.submodules[f"module_{k}"] = module
+            core.submodules[f"module_{k}"] = module
             wr = module.write_port()
-            m.d.comb += [
+            core.d.comb += [
                 wr.addr.eq(load.addr),
                 wr.data.eq(load.data[k * B : (k + 1) * B]),
                 wr.en.eq(loading(LOAD_VOLUME)),
             ]
             # Slot voxel of this pipeline: b = P g + ((k - q - a) mod P).
             r = Signal(bit_length(P), name=f"read_r{k}")
-            m.d.comb += r.eq(modulo(k + 2 * P - mem_c.qm - seq["amod"], P, 3 * P))
+            core.d.comb += r.eq(modulo(k + 2 * P - mem_c.qm - seq["amod"], P, 3 * P))
             a, b = seq["a"], Signal(ab + 1, name=f"read_b{k}")
-            m.d.comb += b.eq(seq["g"] * P + r)
+            core.d.comb += b.eq(seq["g"] * P + r)
             q = mem_c.q
             z = Mux(self.kp == 0, q, a)
             y = Mux(self.kp == 0, a, Mux(self.kp == 1, q, b))
             x = Mux(self.kp == 2, q, b)
             rd = module.read_port()
             addr = (z * self.ny + y) * self.cx + divide_by_constant(x, P, ab + 1)
-            m.d.comb += [rd.addr.eq(addr), rd.en.eq(1)]
+            core.d.comb += [rd.addr.eq(addr), rd.en.eq(1)]
             read_valid = Signal(name=f"read_valid{k}")
-            m.d.comb += read_valid.eq(seq["mem_valid"] & (b < self.n_b))
+            core.d.comb += read_valid.eq(seq["mem_valid"] & (b < self.n_b))
             # One clock later the voxel arrives; it is written at its slot.
             wslot = Signal(range(geo.t_max), name=f"write_slot{k}")
             wbank = Signal(2, name=f"write_bank{k}")
             wvalid = Signal(name=f"write_valid{k}")
-            m.d.sync += [
+            core.d.sync += [
                 wslot.eq(seq["a"] * self.c + seq["g"]),
                 wbank.eq(seq["period"][:2]),
                 wvalid.eq(read_valid),
@@ -374,9 +334,9 @@ class Cube4Top(wiring.Component):
             banks = []
             for bank in range(4):
                 buf = Memory(shape=unsigned(B), depth=geo.t_max, init=[])
-                m.submodules[f"slice_buffer_{k}_{bank}"] = buf
+                core.submodules[f"slice_buffer_{k}_{bank}"] = buf
                 bw = buf.write_port()
-                m.d.comb += [
+                core.d.comb += [
                     bw.addr.eq(wslot),
                     bw.data.eq(rd.data),
                     bw.en.eq(wvalid & (wbank == bank)),
@@ -392,10 +352,10 @@ class Cube4Top(wiring.Component):
         chain = [packed]
         for d in range(geo.c_max + EVAL_BASE):
             nxt = Signal(len(packed), name=f"slot_d{d}")
-            m.d.sync += nxt.eq(chain[-1])
+            core.d.sync += nxt.eq(chain[-1])
             chain.append(nxt)
         ev_slot = Signal(len(packed), name="eval_slot")
-        m.d.comb += ev_slot.eq(Array(chain)[self.c + EVAL_BASE])
+        core.d.comb += ev_slot.eq(Array(chain)[self.c + EVAL_BASE])
         pos, fields = 0, {}
         for name, width in (
             ("a", ab),
@@ -409,6 +369,8 @@ class Cube4Top(wiring.Component):
         fields["valid"] = fields["valid"][0]
         fields["consts"] = data.View(slice_layout(geo, dp), ev_slot[pos:])
 
+        # The compositing buffer is outside the core: the pixel bus reads it while the
+        # core is frozen.
         buffer_lay = buffer_layout(dp)
         m.submodules.ray_buffer = ray_buffer = Memory(shape=buffer_lay, depth=geo.max_rays, init=[])
         clear = ray_buffer.write_port()
@@ -417,75 +379,76 @@ class Cube4Top(wiring.Component):
             clear.data.eq(Cat(Const(0, buffer_lay.size - 1), Const(1, 1))),
             clear.en.eq(loading(LOAD_RAYS)),
         ]
-        fronts = [front_end(m, self, k, fields, bufs, rays) for k in range(P)]
-        backs = [back_end(m, self, k, fronts, ray_buffer, buffer_lay, loading) for k in range(P)]
-        self._pixel_bus(m, seq, ray_buffer, buffer_lay, backs)
+        fronts = [front_end(core, self, k, fields, bufs, rays) for k in range(P)]
+        backs = [
+            back_end(core, self, k, fronts, ray_buffer, buffer_lay, loading, ~stall)
+            for k in range(P)
+        ]
+        samples = Signal(32, name="sample_count")
+        with core.If(self.start):
+            core.d.sync += samples.eq(0)
+        with core.Else():
+            core.d.sync += samples.eq(samples + sum(back["counted"] for back in backs))
+        m.d.comb += self.samples.eq(samples)
+        # After the last period the core empties within a bound of its own depth.
+        draining = Signal(range(2 * geo.c_max + DRAIN_BOUND + 1), name="core_draining")
+        with core.If(seq["end"] & (seq["period"] == self.n_kp)):
+            core.d.sync += draining.eq(2 * geo.c_max + DRAIN_BOUND)
+        with core.Elif(draining != 0):
+            core.d.sync += draining.eq(draining - 1)
+        core_busy = seq["run"] | (draining != 0)
+        m.submodules.core = EnableInserter(~stall)(core)
+        self._pixel_bus(m, seq, ray_buffer, buffer_lay, backs, stall, core_busy)
         return m
 
     # ------------------------------------------------------------------ pixel bus
 
-    def _pixel_bus(self, m, seq, ray_buffer, buffer_lay, backs):
-        """Staging, the commit wheel (rule 5), the drain and the frame's end."""
+    def _pixel_bus(self, m, seq, ray_buffer, buffer_lay, backs, stall, core_busy):
+        """The pixel FIFO (pushes, the freeze when they do not fit), its drain and the
+        frame's end."""
         geo = self.geo
-        depth = geo.max_rays
-        pb = bit_length(depth)  # pointers carry one wrap bit
-        m.submodules.pixel_fifo = fifo = Memory(shape=unsigned(geo.ray_bits), depth=depth, init=[])
-        stage_ptr = Signal(pb, name="stage_ptr")
-        commit_ptr = Signal(pb, name="commit_ptr")
-        head = Signal(pb, name="head")
-        offset = Const(0, pb)
-        for back in backs:
+        ram = 1 << bit_length(geo.max_rays - 1)  # a power of two: pointers wrap cleanly
+        pb = bit_length(ram)  # pointers carry one wrap bit
+        m.submodules.pixel_fifo = fifo = Memory(shape=unsigned(geo.ray_bits), depth=ram, init=[])
+        tail = Signal(pb, name="fifo_tail")
+        head = Signal(pb, name="fifo_head")
+        occupancy = Signal(pb, name="fifo_occupancy")
+        m.d.comb += occupancy.eq(tail - head)
+        usable = Signal(32, name="fifo_usable")
+        m.d.comb += usable.eq(Mux(self.fifo_depth > ram, ram, self.fifo_depth))
+        room = Signal(pb + 1, name="fifo_room")
+        m.d.comb += room.eq(Mux(usable > occupancy, usable - occupancy, 0))
+        # Each compositor holds its ray until the FIFO takes it; in a clock with too little
+        # room the lower pipelines go first and the core freezes (the ones taken are
+        # remembered, so a frozen compositor's push is not repeated).
+        taken_before = Const(0, pb + 1)
+        refused = []
+        for k, back in enumerate(backs):
+            done = Signal(name=f"push_done{k}")
+            pending = Signal(name=f"push_pending{k}")
+            accept = Signal(name=f"push_accept{k}")
+            m.d.comb += [
+                pending.eq(back["push"] & ~done),
+                accept.eq(pending & (taken_before < room)),
+            ]
             port = fifo.write_port()
             m.d.comb += [
-                port.addr.eq((stage_ptr + offset)[: pb - 1]),
+                port.addr.eq((tail + taken_before)[: pb - 1]),
                 port.data.eq(back["ray"]),
-                port.en.eq(back["stage"]),
+                port.en.eq(accept),
             ]
-            offset = offset + back["stage"]
-        m.d.sync += stage_ptr.eq(stage_ptr + offset)
-        samples = Signal(32, name="sample_count")
-        m.d.sync += samples.eq(samples + sum(back["counted"] for back in backs))
-        m.d.comb += self.samples.eq(samples)
-
-        # Commit: the rays of a period join the FIFO `latency` clocks after it ends.  The
-        # stage pointer is sampled when the period's last sample has been staged: a slot
-        # issued at the period's last clock E - 1 is staged at E - 1 + S (S =
-        # issue_to_stage(C)), so the end pulse delayed S + 1 sees all of them.
-        wheel = [Signal(pb + 1, name=f"commit_wheel{k}") for k in range(WHEEL)]
-        end_d = seq["block_end"] & (seq["period"] >= 1)
-        chain = []
-        for d in range(2 * geo.c_max + STAGE_BASE + 1):
-            nxt = Signal(name=f"end_d{d}")
-            m.d.sync += nxt.eq(end_d)
-            end_d = nxt
-            chain.append(nxt)
-        tap = Signal(range(len(chain)), name="snapshot_tap")
-        m.d.comb += tap.eq((self.c << 1) + STAGE_BASE)
-        snap_at = Signal(name="snapshot")
-        m.d.comb += snap_at.eq(Array(chain)[tap])
-        snap_busy = Cat(*[x & (tap >= d) for d, x in enumerate(chain)]).any()
-        # Inserted at position latency - (S + 2) of a wheel that shifts toward 0 each
-        # clock, read at 0: visible `latency` clocks after the period's end.
-        insert_at = Signal(signed(10), name="insert_at")
-        m.d.comb += insert_at.eq(self.latency - tap - 2)
-        for k in range(WHEEL):
-            nxt = wheel[k + 1] if k + 1 < WHEEL else Const(0, pb + 1)
-            with m.If(snap_at & (insert_at == k)):
-                # Stagings of this cycle belong to the next period's slots.
-                m.d.sync += wheel[k].eq(Cat(stage_ptr, Const(1, 1)))
-            with m.Else():
-                m.d.sync += wheel[k].eq(nxt)
-        pending = Signal(name="commits_pending")
-        m.d.comb += pending.eq(Cat(*[w[pb] for w in wheel]).any())
-        with m.If(wheel[0][pb]):
-            m.d.sync += commit_ptr.eq(wheel[0][:pb])
+            m.d.sync += done.eq(stall & (done | accept))
+            refused.append(pending & ~accept)
+            taken_before = taken_before + accept
+        m.d.comb += stall.eq(Cat(*refused).any())
+        m.d.sync += tail.eq(tail + taken_before)
 
         # Drain: pop -> FIFO read (1 clock) -> compositing-buffer read (1 clock) -> output.
         advance = Signal(name="bus_advance")
         v1, v2 = Signal(name="bus_v1"), Signal(name="bus_v2")
         m.d.comb += advance.eq(~v2 | self.pixel.ready)
         pop = Signal(name="pop")
-        m.d.comb += pop.eq(advance & (head != commit_ptr))
+        m.d.comb += pop.eq(advance & (head != tail))
         fifo_rd = fifo.read_port()
         m.d.comb += [fifo_rd.addr.eq(head[: pb - 1]), fifo_rd.en.eq(advance)]
         pix_rd = ray_buffer.read_port()
@@ -503,22 +466,32 @@ class Cube4Top(wiring.Component):
             self.pixel.payload.mip.eq(entry.mip),
         ]
 
-        # Frame end: slices done, every commit made, FIFO empty.  `cycles` counts the
-        # sequencer's clocks plus the bus's after it (first prime clock = 0).
+        # The frame's clocks: from the first prime clock (0) to the last pixel popped, or
+        # to the sequencer's last clock if no pixel leaves after it.
         frame = Signal(name="frame")
-        counted = Signal(name="counted")
-        tail = Signal(32, name="tail_cycles")
-        finished = ~pending & ~snap_at & ~snap_busy & (head == commit_ptr)
+        clock = Signal(32, name="frame_clock")
+        last_pop = Signal(32, name="last_pop")
+        seq_end = Signal(32, name="sequencer_end")
+        stalls = Signal(32, name="stall_count")
         with m.If(self.start):
-            m.d.sync += [self.done.eq(0), samples.eq(0), counted.eq(0)]
+            m.d.sync += self.done.eq(0)
         with m.If(seq["go"]):
-            m.d.sync += [frame.eq(1), tail.eq(0)]
-        with m.Elif(frame & ~seq["run"]):
-            with m.If(finished):
-                # The count stops at the last pop; `done` waits for the bus to deliver.
-                m.d.sync += [frame.eq(0), counted.eq(1)]
-            with m.Else():
-                m.d.sync += tail.eq(tail + 1)
-        with m.If(counted & ~v1 & ~v2):
-            m.d.sync += [counted.eq(0), self.done.eq(1)]
-        m.d.comb += self.cycles.eq(seq["cycle"] + tail)
+            m.d.sync += [
+                frame.eq(1),
+                clock.eq(0),
+                last_pop.eq(0),
+                seq_end.eq(0),
+                stalls.eq(0),
+            ]
+        with m.Elif(frame):
+            m.d.sync += [clock.eq(clock + 1), stalls.eq(stalls + stall)]
+            with m.If(pop):
+                m.d.sync += last_pop.eq(clock + 1)
+            with m.If(seq["run"]):
+                m.d.sync += seq_end.eq(clock + 1)
+            with m.If(~seq["run"] & ~core_busy & (head == tail) & ~v1 & ~v2):
+                m.d.sync += [frame.eq(0), self.done.eq(1)]
+        m.d.comb += [
+            self.cycles.eq(Mux(last_pop > seq_end, last_pop, seq_end)),
+            self.stall_cycles.eq(stalls),
+        ]

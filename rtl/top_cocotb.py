@@ -69,6 +69,7 @@ async def frame(dut):
         "pixels": pixels,
         "cycles": int(dut.cycles.value),
         "samples": int(dut.samples.value),
+        "stall_cycles": int(dut.stall_cycles.value),
         "clocks": clock + int(job["load_count"]) + 4,
     }
     with open(os.environ["HWSIM_RTL_RESULT"], "w") as f:

@@ -79,8 +79,9 @@ class TopGeometry:
 
 def slice_layout(geo: TopGeometry, dp: Datapath):
     """One step's constants: slice ``q`` (and ``q mod P``), cell shift ``da``/``db``,
-    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset), weights ``wa``/``wb``,
-    and ``finish``: the rays whose last sample is this step's (rule 4's FIFO arrivals)."""
+    base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset) and weights
+    ``wa``/``wb``: what the host's geometry unit gives for a parallel view; nothing about
+    timing."""
     ab = geo.axis_bits
     w = dp.interp.weight.width
     return data.StructLayout(
@@ -93,7 +94,6 @@ def slice_layout(geo: TopGeometry, dp: Datapath):
             "ib": signed(geo.offset_bits),
             "wa": unsigned(w),
             "wb": unsigned(w),
-            "finish": unsigned(geo.ray_bits + 1),
         }
     )
 

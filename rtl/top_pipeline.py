@@ -237,9 +237,14 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
     return PipelineFrontEnd(record, history)
 
 
-def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loading) -> dict:
+def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loading, enable) -> dict:
     """Gradient, classification, shading and compositing of pipeline ``k``; returns its
-    pixel-bus staging (``stage``, ``ray``) and whether a sample was composited."""
+    pixel-FIFO push (``push``: a ray's last sample has just been written back; ``ray``)
+    and whether a sample was composited (``counted``).
+
+    ``ray_buffer`` lives outside the frozen core (the pixel bus reads it while the core
+    is frozen), so the read port here is gated by ``enable`` explicitly; the write-back
+    is not (a frozen compositor writes the same value again)."""
     dp, geo = top.dp, top.geo
     P = geo.pipelines
 
@@ -371,7 +376,7 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     side = Cat(ray, last)
     side8 = delayed(m, side, 8, f"side_c{k}")
     buf_rd = ray_buffer.read_port()
-    m.d.comb += [buf_rd.addr.eq(side8[: geo.ray_bits]), buf_rd.en.eq(1)]
+    m.d.comb += [buf_rd.addr.eq(side8[: geo.ray_bits]), buf_rd.en.eq(enable)]
     side9 = delayed(m, side8, 1, f"side9_{k}")
     entry = data.View(buffer_lay, buf_rd.data)
     cp = composite.i.payload
@@ -386,6 +391,7 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     # Writeback: the compositor's answer, for rays still alive.
     after = delayed(m, Cat(side9, entry.alive), 3, f"sidew{k}")
     ray_w = after[: geo.ray_bits]
+    last_w = after[geo.ray_bits]
     alive_w = after[len(side)]
     wb = ray_buffer.write_port()
     out = composite.o.payload
@@ -393,10 +399,12 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     m.d.comb += [
         wb.addr.eq(ray_w),
         wb.data.eq(Cat(out.acc, out.mip, ~out.terminated)),
+        # Not gated: a frozen compositor repeats the same write, and the pixel bus may
+        # read the ray as soon as the FIFO took it, in the clock of its write.
         wb.en.eq(counted),
     ]
     return {
-        "stage": composite.i.valid & side9[geo.ray_bits],
-        "ray": side9[: geo.ray_bits],
+        "push": composite.o.valid & last_w,
+        "ray": ray_w,
         "counted": counted,
     }

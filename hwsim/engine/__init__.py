@@ -14,7 +14,7 @@ from hwsim.engine.channel import Channel
 from hwsim.engine.clock import Clock
 from hwsim.engine.counters import Counters
 from hwsim.engine.delay import DelayLine
-from hwsim.engine.fifo import DeadlockError, DrainFifo
+from hwsim.engine.fifo import DeadlockError, DrainFifo, FreezingFifoRun, freezing_fifo
 from hwsim.engine.stage import Stage
 from hwsim.engine.trace import VcdTrace
 
@@ -25,6 +25,8 @@ __all__ = [
     "DeadlockError",
     "DelayLine",
     "DrainFifo",
+    "FreezingFifoRun",
+    "freezing_fifo",
     "Stage",
     "VcdTrace",
 ]

@@ -10,7 +10,11 @@ than hanging.
 
 from __future__ import annotations
 
-__all__ = ["DrainFifo", "DeadlockError"]
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DrainFifo", "DeadlockError", "FreezingFifoRun", "freezing_fifo"]
 
 
 class DeadlockError(RuntimeError):
@@ -84,3 +88,101 @@ class DrainFifo:
         cycles = -(-self.occupancy // self.rate)
         self._drain(cycles)
         return cycles
+
+
+@dataclass
+class FreezingFifoRun:
+    """What :func:`freezing_fifo` found: pop clock of every entry (in push order),
+    the producer's frozen clocks (at their stall-free times) and the FIFO's counters
+    (``pushed``, ``popped``, ``busy_cycles``, ``max_occupancy``, ``depth``, ``name``:
+    the attributes :class:`DrainFifo` reports)."""
+
+    name: str
+    depth: int
+    pops: np.ndarray
+    frozen_at: np.ndarray
+    max_occupancy: int
+
+    @property
+    def pushed(self) -> int:
+        return int(self.pops.size)
+
+    @property
+    def popped(self) -> int:
+        return int(self.pops.size)
+
+    @property
+    def busy_cycles(self) -> int:
+        return int(self.pops.size)  # one entry per clock
+
+    @property
+    def stall_cycles(self) -> int:
+        return int(self.frozen_at.size)
+
+    def shift_at(self, clock: int) -> int:
+        """Frozen clocks before the producer's stall-free clock ``clock`` (how much later
+        it happened)."""
+        return int(np.searchsorted(self.frozen_at, clock, side="left"))
+
+
+def freezing_fifo(name: str, push_clocks: np.ndarray, depth: int) -> FreezingFifoRun:
+    """A FIFO popped one entry per clock whose producer freezes while it cannot push.
+
+    ``push_clocks`` (ascending) are the clocks at which entries would be pushed if the
+    producer never froze; entries pushed in one clock go in in the given order.  In a
+    clock the FIFO takes as many of that clock's entries as it has room for (``depth``
+    minus the entries pushed and not yet popped before the clock); if any is left the
+    producer freezes for the clock (every later push happens one clock later) and pushes
+    the rest the next clock.  An entry pushed in clock ``c`` can be popped from ``c + 1``;
+    one pop per clock, in push order.  This is the RTL top's pixel FIFO (rtl/top.py).
+    """
+    push = np.asarray(push_clocks, dtype=np.int64)
+    n = push.size
+    if n and depth <= 0:
+        raise DeadlockError(
+            f"{name}: depth {depth} can never accept the {n} entries pending at cycle "
+            f"{int(push[0])}; the producer waits forever"
+        )
+    if n == 0:
+        return FreezingFifoRun(name, depth, push.copy(), push.copy(), 0)
+    idx = np.arange(n, dtype=np.int64)
+    # Never frozen: pop_i = max over k <= i of (push_k + 1 + i - k).
+    pops = idx + np.maximum.accumulate(push + 1 - idx)
+    # Entries in the FIFO right after each push clock's entries went in.
+    occupancy = idx + 1 - np.searchsorted(pops, push, side="left")
+    if int(occupancy.max()) <= depth:
+        return FreezingFifoRun(name, depth, pops, np.zeros(0, np.int64), int(occupancy.max()))
+    return _freezing_fifo_loop(name, push, depth)
+
+
+def _freezing_fifo_loop(name: str, push: np.ndarray, depth: int) -> FreezingFifoRun:
+    """:func:`freezing_fifo` clock by clock (only when the FIFO does fill up)."""
+    n = push.size
+    pops = np.empty(n, dtype=np.int64)
+    frozen: list[int] = []
+    shift = 0  # frozen clocks so far
+    last_pop = -1
+    head = 0  # entries popped before the current clock
+    i = 0
+    peak = 0
+    while i < n:
+        nominal = int(push[i])
+        clock = nominal + shift
+        end = i
+        while end < n and push[end] == nominal:
+            end += 1
+        while i < end:
+            while head < i and pops[head] < clock:
+                head += 1
+            room = depth - (i - head)
+            take = min(room, end - i)
+            for k in range(i, i + take):
+                last_pop = max(clock + 1, last_pop + 1)
+                pops[k] = last_pop
+            i += take
+            peak = max(peak, i - head)
+            if i < end:
+                frozen.append(nominal)
+                shift += 1
+                clock += 1
+    return FreezingFifoRun(name, depth, pops, np.asarray(frozen, dtype=np.int64), peak)

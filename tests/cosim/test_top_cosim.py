@@ -94,8 +94,9 @@ def test_top_pixel_backpressure_keeps_the_image(sim):
 
 @pytest.mark.parametrize("depth", [1, 5])
 def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
-    """Timing rule 4 in the top: a pixel FIFO smaller than the frame's rays stalls the
-    sequencer exactly as the cycle rung's compositors stall; cycles, not pixels."""
+    """Timing rule 4 in the top: a pixel FIFO smaller than the frame's rays freezes the
+    core in the clocks a push finds it full, as the cycle rung's rule; cycles, not
+    pixels, and the same frozen clocks."""
     require("verilator")
     program, reference = case("cube4", 30, 20, "lit", 8, pixel_fifo=depth)
     _, roomy = case("cube4", 30, 20, "lit", 8)
@@ -104,6 +105,8 @@ def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
     result, _ = run_simulator(program, "verilator")
     assert np.array_equal(result.image, roomy.image)
     assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
+    frozen = result.counters["pixel_bus.stall_cycles"]
+    assert frozen > 0 and frozen == reference.counters["pixel_bus.stall_cycles"]
 
 
 def test_top_image_comes_from_the_loaded_volume():

@@ -115,16 +115,18 @@ def test_counters_add_up_and_throughput_never_exceeds_P(head):
 
 
 def test_axis_aligned_cycle_count_has_its_closed_form():
-    """Timing rules of docs/cycle.md: (n + 1) slices of n ceil(n / P) clocks, the pipeline
-    latency (units + beam alignment C + 1 + gradient look-ahead C + address 1) and the
-    pixel-bus drain."""
+    """Timing rules of docs/cycle.md: the prime slice and n - 1 slices of n ceil(n / P)
+    clocks; the last slice's first pixels leave the pipeline latency later (address 1,
+    slice-buffer read 1, beam alignment C + 1, gradient look-ahead C, Cube-4's units, the
+    pixel FIFO's write 1) and the bus drains every ray one per clock (P arrive per clock)."""
     n, P = 16, 4
     vol = make_phantom("head", size=n)
     fixed, cycle, plan = functional_and_cycle(scene_of(0, 0, size=n), vol, "cube4")
     C = -(-n // P)
-    latency = 1 + (C + 1) + C + sum(u.LATENCY for u in UNITS.values())
+    units = ("interp", "gradient", "classify", "shade", "composite")  # no crop on Cube-4
+    latency = 1 + 1 + (C + 1) + C + sum(UNITS[u].LATENCY for u in units) + 1
     rays = plan.ray_ids.size  # all finish on the last slice; the bus drains one per clock
-    assert cycle.cycles == (n + 1) * n * C + latency + rays
+    assert cycle.cycles == n * n * C + latency + rays
     assert cycle.counters["pipeline.latency_cycles"] == latency
 
 

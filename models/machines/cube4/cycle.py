@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.engine import Channel, Clock, Counters, DelayLine, DrainFifo, Stage, VcdTrace
+from hwsim.engine import Channel, Clock, Counters, DelayLine, Stage, VcdTrace, freezing_fifo
 from hwsim.golden.positions import SamplePlan, Step
 from models.backend import Backend
 from models.machines.common.results import (
@@ -46,7 +46,7 @@ from models.machines.common.results import (
 from models.machines.common.slice_order import SliceFaults
 from models.machines.cube4.frame import Cube4Frame
 from models.machines.cube4.memory import Cube4Memory
-from models.machines.cube4.timing import cube4_lanes, cube4_latency
+from models.machines.cube4.timing import cube4_lanes, cube4_latency, cube4_pixel_pushes
 from models.units import classify as classify_unit
 from models.units import interp as interp_unit
 from models.units import skew as skew_unit
@@ -217,8 +217,8 @@ class Cube4Machine(Cube4Frame):
         state = be.new_state(plan.n_rays)
         depth = self.faults.pixel_fifo_depth
         capacity = self.capacity["pixel_fifo_entries"]
-        pixel_fifo = DrainFifo("pixel_bus.fifo", capacity if depth is None else depth)
-        c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
+        depth = capacity if depth is None else depth
+        c.set("pixel_bus.fifo_depth", depth)
         self.memory_stage = Stage("memory", skew_unit.LATENCY, skew_unit.II, P, c)
         self.memory_out = Channel("pipeline[{}].memory.o", P, c)
         stages = {
@@ -242,12 +242,11 @@ class Cube4Machine(Cube4Frame):
         self._reads = idle
         if self.need_slices:
             fifo1.push(self._read(0))
-        self.memory_stage.account(self._reads, T)
-        for stage in stages.values():
-            stage.account(idle, T)
+        prime_reads = self._reads
         self.clock.advance(T)
         steps = plan.steps()
-        blocks: list[tuple[np.ndarray, int, int]] = []
+        # Per step: busiest lanes, the block's stall-free clocks, memory reads.
+        blocks: list[tuple[np.ndarray, int, np.ndarray]] = []
         for j, step in enumerate(steps):
             q = self.slice_of(j)
             if self.need_slices:
@@ -290,30 +289,60 @@ class Cube4Machine(Cube4Frame):
                 if bus["dt_sum"] is not None:
                     bus["dt_sum"][rays] = state.dt_sum[rays]
             block = T + self.arch.slice_overhead_cycles + extra
-            stall = pixel_fifo.advance(block, int(rays.size), self.clock.cycle)
-            self.memory_stage.account(self._reads, block + stall, stall)
-            blocks.append((busy, block + stall, stall))
+            blocks.append((busy, block, self._reads))
             if self.trace is not None:
-                self._trace_samples(step, q, lanes, rays.size)
-            self.clock.advance(block + stall)
+                self._trace_samples(step, q, lanes)
+            self.clock.advance(block)
             if progress is not None:
                 progress(j + 1, plan.n_steps)
-        if blocks:  # per-unit accounting of every slice at once (same sums, fewer calls)
-            busy_k, cycles_k, stall_k = (np.array(x) for x in zip(*blocks, strict=True))
-            for stage in stages.values():
-                stage.account(busy_k, cycles_k, stall_k)
-        latency = cube4_latency(self.C)
-        drain = pixel_fifo.flush()
-        cycles = self.clock.advance(latency + drain)
-        for stage in [self.memory_stage, *stages.values()]:
-            stage.account(idle, latency + drain)
-            stage.publish()
+        cycles, fifo, tail = self._pixel_bus(blocks, depth, stages, prime_reads)
+        self.clock.advance(cycles - self.clock.cycle)
         self.memory.publish()
         self.memory_out.publish()
-        publish_pixel_bus(c, pixel_fifo, drain)
+        publish_pixel_bus(c, fifo, tail)
+        c.set("pixel_bus.stall_cycles", fifo.stall_cycles)
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
-        return frame_result(self, image, state, cycles, latency=latency)
+        return frame_result(self, image, state, cycles, latency=cube4_latency(self.C))
+
+    def _pixel_bus(self, blocks, depth: int, stages: dict, prime_reads):
+        """Rules 4-6: every ray pushed into the pixel FIFO when its last sample is written
+        back, the bus popping one per clock, the whole machine frozen in a clock where a
+        push finds the FIFO full.  Accounts every unit's busy/stall/idle clocks and
+        returns ``(cycles, the FIFO's run, clocks after the sequencer's last)``."""
+        P, T = self.P, self.T
+        idle = np.zeros(P, dtype=np.int64)
+        busy_k = np.array([b for b, _, _ in blocks], dtype=np.int64).reshape(-1, P)
+        block_k = np.array([n for _, n, _ in blocks], dtype=np.int64)
+        reads_k = np.array([r for _, _, r in blocks], dtype=np.int64).reshape(-1, P)
+        starts = T + np.concatenate([[0], np.cumsum(block_k)])  # stall-free period starts
+        pushes, _ = cube4_pixel_pushes(self.plan, starts[:-1], self.n_a, self.n_b, P)
+        fifo = freezing_fifo("pixel_bus.fifo", pushes, depth)
+        seq_nominal = int(starts[-1])
+        seq_end = seq_nominal + fifo.shift_at(seq_nominal)
+        last_pop = int(fifo.pops[-1]) + 1 if fifo.pops.size else 0
+        cycles = max(last_pop, seq_end)
+        # Frozen clocks fall in the period running at their stall-free clock (index k of
+        # the steps' periods) or after the last one (index len(blocks)).
+        where = np.searchsorted(starts, fifo.frozen_at, side="right") - 1
+        counts = np.bincount(where, minlength=starts.size)
+        stall_k, tail_stall = counts[: len(blocks)], int(counts[len(blocks)])
+        tail = cycles - seq_end
+        for stage in [self.memory_stage, *stages.values()]:
+            prime = prime_reads if stage is self.memory_stage else idle
+            stage.account(prime, T)
+            if blocks:
+                busy = reads_k if stage is self.memory_stage else busy_k
+                stage.account(busy, block_k + stall_k, stall_k)
+            stage.account(idle, tail + tail_stall, tail_stall)
+            stage.publish()
+        if self.trace is not None and fifo.pops.size:
+            pops = fifo.pops
+            ends = np.setdiff1d(pops + 1, pops, assume_unique=True)
+            cyc = np.concatenate([pops, ends])
+            val = np.r_[np.ones(pops.size, np.int64), np.zeros(ends.size, np.int64)]
+            self.trace.record("pixel_bus", "o__valid", 1, cyc, val)
+        return cycles, fifo, tail
 
     def _lanes(self, source: HardwareSource) -> np.ndarray:
         """Pipeline evaluating each sample (:func:`~models.machines.cube4.timing.cube4_lanes`)."""
@@ -329,7 +358,7 @@ class Cube4Machine(Cube4Frame):
             self.trace.record(scope, "o__valid", 1, cycles, valid[m])
             self.trace.record(scope, "o__payload", bits, cycles, stream[m])
 
-    def _trace_samples(self, step: Step, q: int, lanes: np.ndarray, finished: int) -> None:
+    def _trace_samples(self, step: Step, q: int, lanes: np.ndarray) -> None:
         if step.rays.size:
             a = np.clip(np.floor(step.zyx[:, self.a_ax] + 0.5), 0, self.n_a - 1).astype(np.int64)
             b = np.clip(np.floor(step.zyx[:, self.b_ax] + 0.5), 0, self.n_b - 1).astype(np.int64)
@@ -342,11 +371,6 @@ class Cube4Machine(Cube4Frame):
                 cyc = np.concatenate([busy, ends])
                 val = np.r_[np.ones(busy.size, np.int64), np.zeros(ends.size, np.int64)]
                 self.trace.record(f"pipeline[{m}].interp", "i__valid", 1, cyc, val)
-        if finished:
-            end = self.clock.cycle + self.T
-            cyc = end + np.arange(finished + 1)
-            val = np.r_[np.ones(finished, np.int64), 0]
-            self.trace.record("pixel_bus", "o__valid", 1, cyc, val)
 
 
 def _finishing_rays(plan: SamplePlan) -> Callable[[int], np.ndarray]:

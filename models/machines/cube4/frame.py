@@ -10,14 +10,15 @@ the registers a driver would, so the RTL never imports the cycle model.
 
 from __future__ import annotations
 
+from hwsim.arch import ArchConfig
 from hwsim.errors import InputError
 from models.backend import Backend
 from models.frame import Frame
+from models.machines.common.results import buffer_table
 from models.machines.common.sections import refuse_sections
 from models.machines.common.slice_order import SliceOrderMachine
-from models.machines.cube4.timing import cube4_buffers
 
-__all__ = ["Cube4Frame", "check_cube4_frame"]
+__all__ = ["Cube4Frame", "check_cube4_frame", "cube4_buffers"]
 
 
 def check_cube4_frame(frame: Frame) -> None:
@@ -56,3 +57,17 @@ class Cube4Frame(SliceOrderMachine):
     def slice_of(self, j: int) -> int:
         """The volume slice read at step ``j`` of the frame."""
         return j if self.forward else self.n_kp - 1 - j
+
+
+def cube4_buffers(arch: ArchConfig, C: int, T: int) -> dict[str, int]:
+    """A Cube-4 machine's on-chip buffer capacities per pipeline (``[buffers]``, entries),
+    checked against a volume of ``C`` clocks per beam and ``T`` per slice.  Defaults:
+    sized for ``limits.max_volume``.  One copy for the cycle and transaction models."""
+    n_max = max(arch.max_volume)
+    c_max = -(-n_max // arch.pipelines)
+    defaults = {
+        "beam_fifo_entries": c_max + 1,  # architectures.md 9.2: n / P
+        "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
+        "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
+    }
+    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1, "slice_fifo_entries": T})

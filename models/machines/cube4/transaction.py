@@ -4,8 +4,7 @@
 #      pipelines on a skewed memory, one pixel bus) and 9.2-9.3 (buffer sizes, latencies
 #      [I]); docs/cycle.md "Timing rules" (the rules this model approximates).
 
-Three cooperating SimPy processes exchange whole slices and batches of pixels instead of
-voxels and clocks:
+Two cooperating SimPy processes exchange whole slices instead of voxels and clocks:
 
 * **memory**: the P skewed modules read a slice's ``n_a`` beams back to back, ``C =
   ceil(n_b / P)`` clocks per beam, as one batch (the skew never lets two voxels of a beam
@@ -13,17 +12,17 @@ voxels and clocks:
   slice FIFO (a :class:`simpy.Store`), which lets the memory run one slice ahead of the
   samples (the primed slice);
 * **pipelines**: take a slice, spend ``max(T, busiest lane)`` clocks on it plus the
-  machine's per-slice overhead, then push the rays that finished into the pixel FIFO (a
-  :class:`simpy.Container`), waiting while it is full.  On a shear-warp plan the skew
-  spreads a slice's samples evenly (``ceil(samples / P)``, never above ``T``); on a
-  shear-image (perspective) plan the busiest lane is counted over every planned sample's
-  position with the cycle rung's lane rule (:func:`busiest_lanes`);
-* **pixel bus**: drains the pixel FIFO one pixel per clock, in batches of at most one
-  base-plane row.
+  machine's per-slice overhead.  On a shear-warp plan the skew spreads a slice's samples
+  evenly (``ceil(samples / P)``, never above ``T``); on a shear-image (perspective) plan
+  the busiest lane is counted over every planned sample's position with the cycle rung's
+  lane rule (:func:`busiest_lanes`).
 
-The frame ends when the last pixel has left and the pipeline latency (unit ``LATENCY``
-constants, the beam alignment and the gradient's look-ahead) has elapsed.  Sample and
-finishing-ray counts per slice come from the plan's ray ranges; no voxel is read.
+The pixel bus is then the cycle rung's rule, one copy
+(:func:`~models.machines.cube4.timing.cube4_pixel_pushes`,
+:func:`hwsim.engine.fifo.freezing_fifo`): each ray pushed when its last sample is written
+back, from the position of that one sample; the bus pops one pixel per clock and the
+machine freezes in a clock where a push finds the FIFO full.  Sample counts per slice come
+from the plan's ray ranges; no voxel is read.
 """
 
 from __future__ import annotations
@@ -35,13 +34,17 @@ from typing import Any
 import numpy as np
 import simpy
 
+from hwsim.engine.fifo import freezing_fifo
 from hwsim.golden.positions import SamplePlan
 from models.frame import Frame
-from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.slice_order import slice_direction
 from models.machines.common.transaction import TxnTiming, slice_loads
-from models.machines.cube4.frame import check_cube4_frame
-from models.machines.cube4.timing import cube4_buffers, cube4_lanes, cube4_latency
+from models.machines.cube4.frame import check_cube4_frame, cube4_buffers
+from models.machines.cube4.timing import (
+    cube4_lanes,
+    cube4_latency,
+    cube4_pixel_pushes,
+)
 
 __all__ = ["Cube4Geometry", "Cube4Transaction", "busiest_lanes"]
 
@@ -123,14 +126,13 @@ class Cube4Transaction:
             slice_overhead=arch.slice_overhead_cycles,
             pixel_fifo_depth=depth if pixel_fifo_depth is None else pixel_fifo_depth,
         )
-        self.row_pixels = max(1, plan.shape[1])
         slice_direction(plan)  # one slice order per frame, or refused
 
     def run(self) -> TxnTiming:
         """Simulate the frame; return its cycles and the event model's counters."""
         start = time.perf_counter()
         geo, P, T = self.geo, self.geo.pipelines, self.geo.slice_cycles
-        samples, finishing = slice_loads(self.plan)
+        samples, _ = slice_loads(self.plan)
         if self.plan.kind == "shear-image":
             # Rays are not one per voxel column: count each pipeline's samples.
             busiest_of = busiest_lanes(self.plan, P)
@@ -140,8 +142,8 @@ class Cube4Transaction:
             busiest_of = -(-samples // P)
         env = simpy.Environment()
         slice_fifo = simpy.Store(env, capacity=1)
-        bus = PixelBus(env, geo.pixel_fifo_depth, self.row_pixels)
-        stats = {"events": 0, "stretch": 0, "pipe_end": 0}
+        stats = {"events": 0, "stretch": 0}
+        starts: list[int] = []
 
         def memory():
             for j in range(geo.slices):
@@ -152,34 +154,43 @@ class Cube4Transaction:
         def pipelines():
             for j in range(len(samples)):
                 yield slice_fifo.get()
+                starts.append(int(env.now))
                 busiest = int(busiest_of[j])
                 stretch = max(0, busiest - T)
                 stats["stretch"] += stretch
                 yield env.timeout(T + geo.slice_overhead + stretch)
                 stats["events"] += 2
-                yield from bus.push(int(finishing[j]))
-            stats["pipe_end"] = int(env.now)
+            starts.append(int(env.now))
 
         env.process(memory())
         env.process(pipelines())
-        env.run()  # until nothing is scheduled: the bus has sent every pixel
-        end = max(stats["pipe_end"], bus.end)
-        # Frame start: the memory begins reading slice 0 (the primed slice) at cycle 0.
-        cycles = end + geo.latency
+        env.run()  # until nothing is scheduled: every slice has been processed
+        # The pixel bus (rules 4-6): each ray pushed when its last sample is written back,
+        # one pop per clock, everything frozen while a push finds the FIFO full; only the
+        # rays' last sample positions are computed, no voxel.
+        pushes, _ = cube4_pixel_pushes(
+            self.plan, np.asarray(starts[:-1]), geo.beams, geo.beam_voxels, P
+        )
+        fifo = freezing_fifo("pixel_bus.fifo", pushes, geo.pixel_fifo_depth)
+        seq_end = starts[-1] + fifo.shift_at(starts[-1])
+        cycles = max(int(fifo.pops[-1]) + 1 if fifo.pops.size else 0, seq_end)
         voxels = geo.slices * geo.beams * geo.beam_voxels
         counters: dict[str, Any] = {
             "memory.busy_cycles": geo.slices * T,
             "memory.reads": voxels,
             "memory.read_bytes": 2 * voxels,  # 16-bit words, as the cycle model counts
             "pipelines.busy_cycles": -(-int(samples.sum()) // P) if P else 0,
-            "pipelines.stall_cycles": bus.stall_cycles,
+            "pipelines.stall_cycles": fifo.stall_cycles,
             "pipelines.stretch_cycles": stats["stretch"],
-            **bus.counters(stats["pipe_end"]),
+            "pixel_bus.pixels": fifo.pushed,
+            "pixel_bus.busy_cycles": fifo.busy_cycles,
+            "pixel_bus.max_occupancy": fifo.max_occupancy,
+            "pixel_bus.drain_cycles": cycles - seq_end,
             "pipeline.latency_cycles": geo.latency,
             "frame.cycles": cycles,
             "frame.samples": int(samples.sum()),
-            "transaction.events": stats["events"] + bus.events,
-            "transaction.granularity": "slice (n_a beam batch) / pixel row",
+            "transaction.events": stats["events"] + fifo.pushed,
+            "transaction.granularity": "slice (n_a beam batch) / pixel",
             "transaction.timing_seconds": time.perf_counter() - start,
         }
         return TxnTiming(int(cycles), counters)
