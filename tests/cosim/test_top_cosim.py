@@ -1,4 +1,5 @@
-"""cocotb tier of the Cube-4 RTL top: whole frames on Icarus and on Verilator, image
+"""Simulator tier of the Cube-4 RTL top: whole frames on Icarus and on Verilator (the
+testbench runs the frame by itself, no Python per clock), image
 bit-identical to the cycle rung and the same cycle count, on both Cube-4 architectures
 and several views, unlit (composite, MIP) and lit (gradients from neighbouring samples,
 Phong, gradient-opacity modulation); with a back-pressured pixel bus the image stays and
@@ -20,7 +21,6 @@ from simulators import require
 from top_cases import LIT_CASES, TOP_CASES, case
 
 from rtl.rung import run_simulator
-from rtl.top_layouts import LOAD_VOLUME
 
 pytestmark = pytest.mark.cosim
 SIMULATORS = ["verilator", "icarus"]
@@ -112,12 +112,10 @@ def test_top_shallow_pixel_fifo_stalls_like_the_cycle_rung(depth):
 def test_top_image_comes_from_the_loaded_volume():
     require("verilator")
     program, reference = case("cube4", 30, 20, "mip", 12)
-    loads = list(program.loads)
-    first = next(i for i, (t, _, _) in enumerate(loads) if t == LOAD_VOLUME)
-    # Word 150 of the volume: all P voxels set to full scale.
-    target, addr, _ = loads[first + 150]
-    loads[first + 150] = (target, addr, (1 << (program.geo.pipelines * program.dp.voxel_bits)) - 1)
-    broken = dataclasses.replace(program, loads=loads)
+    words = list(program.volume_words)
+    # Word 150 of the voxel memory (outside the chip): all P voxels set to full scale.
+    words[150] = (1 << (program.geo.pipelines * program.dp.voxel_bits)) - 1
+    broken = dataclasses.replace(program, volume_words=words)
     result, _ = run_simulator(broken, "verilator")
     assert not np.array_equal(result.image, reference.image)
     assert result.cycles == reference.cycles  # the data changed, not the timing

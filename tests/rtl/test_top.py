@@ -71,7 +71,7 @@ def _prepare(scene, size=8, arch="cube4"):
 @pytest.mark.parametrize(
     ("scene", "size", "key"),
     [
-        (scene_of(0, 0, "mip"), 17, "volume"),
+        (scene_of(0, 0, "mip"), 129, "volume"),
         (scene_of(0, 0, "xray"), 8, "render.mode"),
         (dataclasses.replace(scene_of(0, 0, "composite"), crop=CropSpec(x=(0.0, 4.0))), 8, "crop"),
         (scene_of(0, 0, "lit").replace(lights=(Light(),) * 3), 8, "lights"),
