@@ -129,3 +129,27 @@ def test_top_early_ray_termination_equals_cycle_rung():
     result, _ = run_simulator(program, "verilator")
     assert np.array_equal(result.image, reference.image)
     assert result.samples == reference.samples and result.cycles == reference.cycles
+
+
+#: Views at exactly 45 degrees (sample positions on half-voxel diagonals), the body
+#: diagonal, and along each axis in both directions.
+EXACT_VIEWS = [
+    ("cube4", 45, 0, "lit", 12),
+    ("cube4", 0, 45, "lit", 12),
+    ("cube4", 45, 45, "lit", 12),
+    ("cube4", 135, 0, "lit", 12),
+    ("cube4", 45, 35.26438968, "lit", 12),
+    ("cube4-teramac", -45, 0, "mip", 10),
+    ("cube4", 180, 0, "lit", 12),
+    ("cube4", 270, 0, "composite", 12),
+    ("cube4", 0, -90, "lit", 12),
+]
+
+
+@pytest.mark.parametrize("key", EXACT_VIEWS, ids=lambda k: "-".join(map(str, k)))
+def test_top_exact_and_axis_views_equal_cycle_rung(key):
+    require("verilator")
+    program, reference = case(*key)
+    result, _ = run_simulator(program, "verilator")
+    assert np.array_equal(result.image, reference.image)
+    assert (result.cycles, result.samples) == (reference.cycles, reference.samples)
