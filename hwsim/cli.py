@@ -32,23 +32,13 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from hwsim.fidelity import FIDELITIES, SAMPLINGS
-    from hwsim.scene import MODES, PROJECTIONS
 
     parser = _Parser(prog="hwsim", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     r = sub.add_parser("render", help="render a scene at a fidelity; writes image + stats.json")
-    r.add_argument("scene", nargs="?", help="scene TOML file or built-in name (default: head)")
-    src = r.add_mutually_exclusive_group()
-    src.add_argument("--volume", metavar="PATH", help="volume file or DICOM folder")
-    src.add_argument("--phantom", metavar="NAME[:key=value,...]", help="built-in phantom")
-    r.add_argument("--shape", metavar="Z,Y,X", help="shape of a headerless .raw volume")
-    r.add_argument("--dtype", help="voxel type of a .raw volume (e.g. uint16)")
-    r.add_argument("--mode", choices=MODES)
-    r.add_argument("--view", metavar="AZ,EL", help="azimuth,elevation in degrees")
-    r.add_argument("--image", metavar="W[xH]", help="image size in pixels")
-    r.add_argument("--projection", choices=PROJECTIONS)
+    _add_scene_options(r)
     r.add_argument(
         "--arch",
         metavar="NAME|FILE.toml",
@@ -191,8 +181,32 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quiet", action="store_true")
     from rtl.cli import add_parser as add_rtl_parser
 
-    add_rtl_parser(sub)
+    rtl_actions = add_rtl_parser(sub)
+    d = rtl_actions.add_parser(
+        "diff",
+        help="render a scene at the cycle and rtl rungs; the first clock where they differ",
+    )
+    _add_scene_options(d)
+    d.add_argument("--arch", metavar="NAME|FILE.toml", default="cube4")
+    d.add_argument("--simulator", choices=("verilator", "icarus"), default="verilator")
+    d.add_argument("--quiet", action="store_true")
     return parser
+
+
+def _add_scene_options(p: argparse.ArgumentParser) -> None:
+    """The scene and its overrides (``render``, ``rtl diff``; read by _apply_overrides)."""
+    from hwsim.scene import MODES, PROJECTIONS
+
+    p.add_argument("scene", nargs="?", help="scene TOML file or built-in name (default: head)")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--volume", metavar="PATH", help="volume file or DICOM folder")
+    src.add_argument("--phantom", metavar="NAME[:key=value,...]", help="built-in phantom")
+    p.add_argument("--shape", metavar="Z,Y,X", help="shape of a headerless .raw volume")
+    p.add_argument("--dtype", help="voxel type of a .raw volume (e.g. uint16)")
+    p.add_argument("--mode", choices=MODES)
+    p.add_argument("--view", metavar="AZ,EL", help="azimuth,elevation in degrees")
+    p.add_argument("--image", metavar="W[xH]", help="image size in pixels")
+    p.add_argument("--projection", choices=PROJECTIONS)
 
 
 def _add_repeatable(parser: argparse.ArgumentParser, flag: str, metavar: str, what: str) -> None:
@@ -454,10 +468,24 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_rtl(args: argparse.Namespace) -> int:
+    if args.rtl_command == "diff":
+        return _rtl_diff(args)
     from rtl.cli import run
 
     with _progress_bar(args.quiet, "rtl build") as progress:
         return run(args, progress)
+
+
+def _rtl_diff(args: argparse.Namespace) -> int:
+    """Exit 0 when the rungs agree on every event, 1 where they differ."""
+    from hwsim.rtl_diff import rtl_diff
+    from hwsim.scene import load_scene
+
+    scene = _apply_overrides(load_scene(args.scene), args)
+    report = rtl_diff(scene, arch=args.arch, simulator=args.simulator)
+    for line in report.lines():
+        print(line)
+    return 0 if report.identical else 1
 
 
 _COMMANDS = {

@@ -9,12 +9,15 @@ from hwsim.errors import InputError
 __all__ = ["add_parser", "run"]
 
 
-def add_parser(sub) -> None:
-    """Add ``rtl build [UNIT|all|top] --out DIR [--set UNIT.KEY=VALUE ...]``."""
+def add_parser(sub):
+    """Add ``rtl build [UNIT|all|top] --out DIR [--set UNIT.KEY=VALUE ...]``; returns the
+    ``rtl`` actions (hwsim/cli.py adds ``rtl diff``, which needs the cycle rung)."""
     from rtl.build import UNITS
 
-    r = sub.add_parser("rtl", help="Verilog and synthesis statistics of the RTL units")
-    actions = r.add_subparsers(dest="rtl_command", metavar="build", required=True)
+    r = sub.add_parser(
+        "rtl", help="Verilog and synthesis statistics of the RTL units; rtl against cycle rung"
+    )
+    actions = r.add_subparsers(dest="rtl_command", metavar="build|diff", required=True)
     b = actions.add_parser("build", help="write DIR/<unit>.v and DIR/synth.json")
     b.add_argument(
         "unit",
@@ -37,6 +40,7 @@ def add_parser(sub) -> None:
         "--abc", action="store_true", help="map gates with ABC (slow on the gradient unit: minutes)"
     )
     b.add_argument("--quiet", action="store_true")
+    return actions
 
 
 def run(args: argparse.Namespace, progress=None) -> int:

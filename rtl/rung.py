@@ -174,11 +174,17 @@ def _build(source: Path, folder: Path, simulator: str) -> Path:
 
 
 def run_simulator(
-    program: FrameProgram, simulator: str = "verilator", *, stall_every: int = 0
+    program: FrameProgram,
+    simulator: str = "verilator",
+    *,
+    stall_every: int = 0,
+    events: bool = False,
 ) -> tuple[CycleResult, dict]:
     """Run one frame on ``simulator``; returns the result and timings (``build_seconds``,
     ``run_seconds``: the whole process, ``sim_seconds``: the frame's clocks alone on
-    Verilator, ``clocks``)."""
+    Verilator, ``clocks``).  ``events``: also ``timing["events"]``, the frame clocks of
+    every period start (``"S"``), frozen clock (``"F"``) and delivered pixel (``"P"``:
+    ``(clock, ray)``)."""
     require_simulator(simulator)
     folder = build_dir(program, simulator)
     folder.mkdir(parents=True, exist_ok=True)
@@ -189,7 +195,7 @@ def run_simulator(
     t1 = time.perf_counter()
     pid = os.getpid()
     loads_hex, volume_hex = folder / f"loads_{pid}.hex", folder / f"volume_{pid}.hex"
-    pixels_hex = folder / f"pixels_{pid}.hex"
+    pixels_hex, events_txt = folder / f"pixels_{pid}.hex", folder / f"events_{pid}.txt"
     words = program.load_words()
     loads_hex.write_text("".join(f"{w:x}\n" for w in words))
     volume_hex.write_text("".join(f"{w:x}\n" for w in program.volume_words))
@@ -206,6 +212,7 @@ def run_simulator(
         f"+stall_every={stall_every}",
         f"+pixels={pixels_hex}",
         f"+limit={limit}",
+        *([f"+events={events_txt}"] if events else []),
         *(f"+r_{name}={int(value):x}" for name, value in regs.items()),
     ]
     cmd = [str(exe)] if simulator == "verilator" else ["vvp", "-n", str(exe)]
@@ -226,13 +233,30 @@ def run_simulator(
     result = decode(program, pixels, raw["cycles"], raw["samples"], raw["stall_cycles"])
     result.counters["rtl.simulator"] = simulator
     result.counters["rtl.simulated_clocks"] = raw["clocks"]
+    if events:
+        timing_events = _read_events(events_txt, lay)
+        events_txt.unlink()
     timing = {
         "build_seconds": t1 - t0,
         "run_seconds": t2 - t1,
         "sim_seconds": raw.get("seconds"),
         "clocks": raw["clocks"],
     }
+    if events:
+        timing["events"] = timing_events
     return result, timing
+
+
+def _read_events(path: Path, lay) -> dict[str, list]:
+    """The testbench's event file as ``{"S": [clock], "F": [clock], "P": [(clock, ray)]}``."""
+    out: dict[str, list] = {"S": [], "F": [], "P": []}
+    for line in path.read_text().splitlines():
+        kind, clock, *rest = line.split()
+        if kind == "P":
+            out["P"].append((int(clock), _unpack_pixel(lay, int(rest[0], 16))["ray"]))
+        else:
+            out[kind].append(int(clock))
+    return out
 
 
 def _unpack_pixel(lay, word: int) -> dict:

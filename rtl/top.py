@@ -141,6 +141,9 @@ class Cube4Top(wiring.Component):
     cycles, samples, stall_cycles : Out(32)
         The frame's clocks (first prime clock to the last pixel popped), samples
         composited and clocks the core was frozen by a full pixel FIFO.
+    frame_clock : Out(32); frozen, period_start : Out(1)
+        Status for traces and ``hwsim rtl diff``: the clock of the frame (0 = the prime
+        period's first), the core frozen in this clock, a period's first slot issued.
     """
 
     def __init__(self, dp: Datapath, geo: TopGeometry):
@@ -187,6 +190,9 @@ class Cube4Top(wiring.Component):
                 "cycles": Out(32),
                 "samples": Out(32),
                 "stall_cycles": Out(32),
+                "frame_clock": Out(32),
+                "frozen": Out(1),
+                "period_start": Out(1),
             }
         )
 
@@ -496,4 +502,7 @@ class Cube4Top(wiring.Component):
         m.d.comb += [
             self.cycles.eq(Mux(last_pop > seq_end, last_pop, seq_end)),
             self.stall_cycles.eq(stalls),
+            self.frame_clock.eq(clock),
+            self.frozen.eq(stall),
+            self.period_start.eq(seq["run"] & (seq["tick"] == 0) & ~stall),
         ]

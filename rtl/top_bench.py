@@ -34,6 +34,9 @@ __all__ = ["bench_verilog", "icarus_testbench", "register_ports", "verilator_mai
 
 #: Top ports the bench drives or reads itself (everything else is a frame register).
 _BENCH_OWNED = {
+    "frame_clock",
+    "frozen",
+    "period_start",
     "load__valid",
     "load__payload",
     "vmem_addr",
@@ -96,6 +99,9 @@ def bench_verilog(top, name: str = "cube4_top") -> str:
         ".cycles(cycles)",
         ".samples(samples)",
         ".stall_cycles(stall_cycles)",
+        ".frame_clock(frame_clock)",
+        ".frozen(frozen)",
+        ".period_start(period_start)",
     ]
     reads = "\n".join(
         f"      if (vmem_addr[{k * A + A - 1}:{k * A}] < {geo.module_words})\n"
@@ -110,7 +116,9 @@ def bench_verilog(top, name: str = "cube4_top") -> str:
   reg [{P * B - 1}:0] vmem [0:{geo.module_words - 1}];
   reg [{load_bits - 1}:0] rom [0:{rom_words - 1}];
   reg [8*512-1:0] path;
-  integer nloads, stall_every, fd;
+  integer nloads, stall_every, fd, efd;
+  wire [31:0] frame_clock;
+  wire frozen, period_start;
   reg [2:0] state;  // 0 idle, 1 loading, 2 start, 3 frame, 4 finished
   reg [31:0] index, tick;
   wire load_valid = state == 1;
@@ -129,11 +137,13 @@ def bench_verilog(top, name: str = "cube4_top") -> str:
     tick = 0;
     vmem_data = 0;
     fd = 0;
+    efd = 0;
     if ($value$plusargs("volume=%s", path)) $readmemh(path, vmem);
     if ($value$plusargs("loads=%s", path)) $readmemh(path, rom);
     if (!$value$plusargs("nloads=%d", nloads)) nloads = 0;
     if (!$value$plusargs("stall_every=%d", stall_every)) stall_every = 0;
     if ($value$plusargs("pixels=%s", path)) fd = $fopen(path, "w");
+    if ($value$plusargs("events=%s", path)) efd = $fopen(path, "w");
 {plusargs}
   end
   always @(posedge clk) begin
@@ -164,10 +174,16 @@ def bench_verilog(top, name: str = "cube4_top") -> str:
         3: begin
           tick <= tick + 1;
           if (pixel_valid && pixel_ready && fd != 0) $fwrite(fd, "%h\\n", pixel_payload);
+          if (efd != 0) begin
+            if (period_start) $fwrite(efd, "S %0d\\n", frame_clock);
+            if (frozen) $fwrite(efd, "F %0d\\n", frame_clock);
+            if (pixel_valid && pixel_ready) $fwrite(efd, "P %0d %h\\n", frame_clock, pixel_payload);
+          end
           if (done) begin
             state <= 4;
             finished <= 1;
             if (fd != 0) $fclose(fd);
+            if (efd != 0) $fclose(efd);
           end
         end
         default: ;

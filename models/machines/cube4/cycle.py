@@ -316,8 +316,18 @@ class Cube4Machine(Cube4Frame):
         block_k = np.array([n for _, n, _ in blocks], dtype=np.int64)
         reads_k = np.array([r for _, _, r in blocks], dtype=np.int64).reshape(-1, P)
         starts = T + np.concatenate([[0], np.cumsum(block_k)])  # stall-free period starts
-        pushes, _ = cube4_pixel_pushes(self.plan, starts[:-1], self.n_a, self.n_b, P)
+        pushes, _, rays = cube4_pixel_pushes(self.plan, starts[:-1], self.n_a, self.n_b, P)
         fifo = freezing_fifo("pixel_bus.fifo", pushes, depth)
+        frozen = fifo.frozen_at
+        periods = np.concatenate([[0], starts[:-1]])
+        #: The bus's events at actual clocks (frozen clocks included), for rtl diffs: each
+        #: period's first slot, each frozen clock, each pixel's pop and ray.
+        self.bus_events = {
+            "period_starts": periods + np.searchsorted(frozen, periods, side="right"),
+            "frozen": frozen + np.arange(frozen.size),
+            "pops": fifo.pops,
+            "rays": rays,
+        }
         seq_nominal = int(starts[-1])
         seq_end = seq_nominal + fifo.shift_at(seq_nominal)
         last_pop = int(fifo.pops[-1]) + 1 if fifo.pops.size else 0

@@ -68,10 +68,10 @@ def cube4_slots(
 
 def cube4_pixel_pushes(
     plan: SamplePlan, period_start: np.ndarray, n_a: int, n_b: int, P: int
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """When every ray of ``plan`` would be pushed into the pixel FIFO if nothing froze
-    (timing rules 4-5), and its pipeline: ``(push clocks ascending, lanes)`` in FIFO order
-    (clock, then pipeline).
+    (timing rules 4-5), its pipeline and its base-plane ray number: ``(push clocks
+    ascending, lanes, rays)`` in FIFO order (clock, then pipeline).
 
     A ray is pushed when the compositor writes back its last sample: ``latency - 1``
     clocks after that sample's slot ``a C + b div P`` of the period that evaluates its
@@ -90,7 +90,7 @@ def cube4_pixel_pushes(
     lanes = (q + a + b) % P
     push = np.asarray(period_start, dtype=np.int64)[j] + a * C + b // P + cube4_latency(C) - 1
     order = np.lexsort((lanes, push))
-    return push[order], lanes[order]
+    return push[order], lanes[order], plan.ray_ids[order]
 
 
 def cube4_lanes(q: int, pa: np.ndarray, pb: np.ndarray, n_a: int, n_b: int, P: int) -> np.ndarray:

@@ -168,7 +168,7 @@ class Cube4Transaction:
         # The pixel bus (rules 4-6): each ray pushed when its last sample is written back,
         # one pop per clock, everything frozen while a push finds the FIFO full; only the
         # rays' last sample positions are computed, no voxel.
-        pushes, _ = cube4_pixel_pushes(
+        pushes, _, _ = cube4_pixel_pushes(
             self.plan, np.asarray(starts[:-1]), geo.beams, geo.beam_voxels, P
         )
         fifo = freezing_fifo("pixel_bus.fifo", pushes, geo.pixel_fifo_depth)
