@@ -113,7 +113,9 @@ def _harness(name: str):
     return importlib.import_module(f"benchmarks.{name}")
 
 
-def rung_speeds(size: int, image: int, arch: str, repeats: int) -> dict[str, Any]:
+def rung_speeds(
+    size: int, image: int, arch: str, repeats: int, rtl_size: int = RTL_SCENE["size"]
+) -> dict[str, Any]:
     """Wall seconds and samples per wall second of every rung on one scene."""
     from hwsim.errors import NotAvailableError
     from hwsim.fidelity import FIDELITIES, render
@@ -140,7 +142,7 @@ def rung_speeds(size: int, image: int, arch: str, repeats: int) -> dict[str, Any
     out: dict[str, Any] = {}
     for rung in FIDELITIES:
         if rung == "rtl":  # its own small scene; the cycle rung's row on it rides along
-            small = rtl_speeds(repeats)
+            small = rtl_speeds(repeats, size=rtl_size)
             out[rung] = {**small["rtl"], "cycle_same_scene": small["cycle"]}
             continue
         rung_arch, note = arch, None
@@ -181,8 +183,10 @@ def _timed(runs) -> dict[str, Any]:
     }
 
 
-def rtl_speeds(repeats: int, simulator: str = "verilator") -> dict[str, Any]:
-    """The rtl and cycle rungs on :data:`RTL_SCENE` (same scene, same frame).
+def rtl_speeds(
+    repeats: int, simulator: str = "verilator", size: int = RTL_SCENE["size"]
+) -> dict[str, Any]:
+    """The rtl and cycle rungs on :data:`RTL_SCENE` at ``size``^3 (same scene, same frame).
 
     Returns ``{"rtl": ..., "cycle": ...}`` rows; the rtl row is ``not available`` (with
     the reason) when the simulator is missing.  The rtl wall time is a whole frame as the
@@ -195,7 +199,7 @@ def rtl_speeds(repeats: int, simulator: str = "verilator") -> dict[str, Any]:
     from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
     from hwsim.volumes import make_phantom
 
-    cfg = RTL_SCENE
+    cfg = {**RTL_SCENE, "size": size, "image": size}
     volume = make_phantom("head", size=cfg["size"])
     az, el = cfg["view"]
     scene = Scene(
@@ -255,6 +259,7 @@ def run_bench(
     sweep: bool = True,
     sweep_size: int = 96,
     rows: Sequence[str] | None = None,
+    rtl_size: int = RTL_SCENE["size"],
     table_sizes: Sequence[int] = (128, 256),
     memory_size: int = 512,
     log: Callable[[str], None] = lambda m: None,
@@ -271,7 +276,7 @@ def run_bench(
         "scene": {"phantom": "head", "size": size, "image": image, "arch": arch},
     }
     log(f"rungs: head {size}^3 -> {image}x{image} on {arch}")
-    rungs = rung_speeds(size, image, arch, repeats)
+    rungs = rung_speeds(size, image, arch, repeats, rtl_size)
     report["rungs"] = rungs
     table = _harness("speed_table")
     if table is None:

@@ -177,6 +177,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument(
         "--memory-size", metavar="N", type=int, default=512, help="side of the memory row (512)"
     )
+    b.add_argument(
+        "--rtl-size",
+        metavar="N",
+        type=int,
+        default=64,
+        help="head phantom side of the rtl row and cycle_vs_rtl (64; the first run of a size "
+        "class builds its Verilator model, minutes)",
+    )
     b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
     b.add_argument("--quiet", action="store_true")
     from rtl.cli import add_parser as add_rtl_parser
@@ -429,6 +437,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         ("--size", args.size, 8, 512),
         ("--image", args.image, 8, 1024),
         ("--repeats", args.repeats, 1, 100),
+        ("--rtl-size", args.rtl_size, 4, 128),
     ):
         if not lo <= value <= hi:
             raise InputError(f"{value} is out of range", key=flag, allowed=f"{lo} .. {hi}")
@@ -458,6 +467,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         rows=rows,
         table_sizes=args.table_sizes,
         memory_size=args.memory_size,
+        rtl_size=args.rtl_size,
         log=log,
     )
     (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")

@@ -21,7 +21,8 @@ if str(REPO) not in sys.path:
 
 
 def test_every_rung_and_ratio_is_reported_and_missing_ones_say_so():
-    report = run_bench(16, 16, "volumepro500", 1, vtk=False, sweep=False, rows=())
+    # rtl_size 16: the RTL top's smallest size class (its build is the cosim tests').
+    report = run_bench(16, 16, "volumepro500", 1, vtk=False, sweep=False, rows=(), rtl_size=16)
     assert set(report["rungs"]) == set(FIDELITIES)
     for r in report["rungs"].values():
         assert r["status"] == "ok" and r["seconds"] > 0 and r["samples_per_second"] > 0
@@ -40,7 +41,15 @@ def test_every_rung_and_ratio_is_reported_and_missing_ones_say_so():
 def test_the_speed_table_rows_say_their_goal_and_whether_it_is_met():
     rows = ["functional_vs_golden", "cycle_samples_per_s", "timing_only_vs_cycle"]
     report = run_bench(
-        16, 16, "volumepro500", 1, vtk=False, sweep=False, rows=rows, table_sizes=(16,)
+        16,
+        16,
+        "volumepro500",
+        1,
+        vtk=False,
+        sweep=False,
+        rows=rows,
+        table_sizes=(16,),
+        rtl_size=16,
     )
     table = {r["row"]: r for r in report["table"]}
     assert list(table) == rows
@@ -70,6 +79,7 @@ def test_the_speed_table_rows_say_their_goal_and_whether_it_is_met():
 
 def test_vtk_rows_skipped_by_no_vtk_say_so(tmp_path):
     argv = ["bench", "--size", "16", "--image", "16", "--repeats", "1", "--no-vtk", "--no-sweep"]
+    argv += ["--rtl-size", "16"]  # the RTL top's smallest size class (built by the cosim tests)
     argv += ["--rows", "golden_vs_vtk_first", "--out", str(tmp_path), "--quiet"]
     assert main(argv) == 0
     report = json.loads((tmp_path / "bench.json").read_text())
@@ -90,6 +100,7 @@ def test_a_bad_row_or_size_is_refused_naming_the_flag(tmp_path, capsys, extra, k
 
 def test_cli_bench_writes_json(tmp_path):
     argv = ["bench", "--size", "16", "--image", "16", "--repeats", "1", "--no-vtk", "--no-sweep"]
+    argv += ["--rtl-size", "16"]  # the RTL top's smallest size class (built by the cosim tests)
     assert main([*argv, "--rows", "none", "--out", str(tmp_path), "--quiet"]) == 0
     report = json.loads((tmp_path / "bench.json").read_text())
     assert report["rungs"]["golden"]["status"] == "ok"

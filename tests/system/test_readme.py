@@ -28,7 +28,7 @@ SHRINK = {
     ("trade",): ["--image", "16", "--size", "16", "--rungs", "golden,functional"],
     ("figures",): ["--max-size", "128", "--rungs", "transaction"],
     ("bench",): [
-        *("--size", "16", "--image", "16", "--repeats", "1", "--no-sweep"),
+        *("--size", "16", "--image", "16", "--repeats", "1", "--no-sweep", "--rtl-size", "16"),
         *("--rows", "functional_vs_golden"),
     ],
 }
