@@ -74,7 +74,7 @@ _REPO = Path(__file__).resolve().parents[1]
 _FALLBACK_ARCH = {"cycle": "cube4", "transaction": "cube4"}
 #: The lit P = 4 top's Verilator model over a 64^3 frame (docs/rtl.md, measured by
 #: benchmarks/bench_rtl.py): the reference when no simulator is installed to measure it.
-RTL_MEASURED_CLOCKS_PER_SECOND = 150e3
+RTL_MEASURED_CLOCKS_PER_SECOND = 190e3
 #: The rtl rung's benchmark scene: lit composite, so every pipeline computes gradients,
 #: Phong shading and compositing.
 RTL_SCENE = {"size": 64, "image": 64, "arch": "cube4", "view": (30, 20), "mode": "composite"}
@@ -312,7 +312,7 @@ def run_bench(
         ratios["cycle_vs_rtl"] = _ratio(
             "cycle_vs_rtl",
             rungs["cycle"]["simulated_cycles_per_second"] / RTL_MEASURED_CLOCKS_PER_SECOND,
-            "cycle-rung simulated cycles/s / the Verilator model's 150 k clocks/s "
+            "cycle-rung simulated cycles/s / the Verilator model's 190 k clocks/s "
             "(docs/rtl.md; no HDL simulator here to run the rtl rung)",
         )
     else:
