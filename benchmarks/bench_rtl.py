@@ -14,7 +14,9 @@ and samples per wall second of both rungs and their ratio (goal: the cycle rung 
 rtl rung per simulated sample), the rtl frame split into host preparation and simulator
 process, and the clocks the simulator ran (table loads plus the frame) per second of the
 simulator process and, on Verilator, per second of the clock loop alone (goal: 100 k on the
-lit P = 4 top over a 64^3 frame).  Nothing is asserted: benchmarks are not tests.
+lit P = 4 top over a 64^3 frame).  Everything runs on one thread (``HWSIM_THREADS=1``):
+the Verilator model runs on one, and the cycle rung's compiled stage would otherwise use
+both cores.  Nothing is asserted: benchmarks are not tests.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from hwsim.bench import machine_info
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.threads import using
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
@@ -129,6 +132,7 @@ def run(
         "machine": machine_info(),
         "scene": "head phantom, ct preset, lit composite, view 30,15, image N x N, cube4",
         "repeats": repeats,
+        "threads": 1,
         "cases": cases,
     }
 
@@ -141,7 +145,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--out", type=Path)
     args = p.parse_args(argv)
-    report = run(args.sizes, args.simulators, args.repeats, args.icarus_max)
+    with using(1):
+        report = run(args.sizes, args.simulators, args.repeats, args.icarus_max)
     write_report(report, args.out)
     return 0
 

@@ -191,12 +191,14 @@ def rtl_speeds(
     Returns ``{"rtl": ..., "cycle": ...}`` rows; the rtl row is ``not available`` (with
     the reason) when the simulator is missing.  The rtl wall time is a whole frame as the
     user sees it: simulator start, host loads, frame, pixel read-back (the Verilator build
-    is cached and made by the warm-up render).
+    is cached and made by the warm-up render).  Both on one thread: the Verilator model
+    runs on one.
     """
 
     from hwsim.errors import NotAvailableError
     from hwsim.fidelity import render
     from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+    from hwsim.threads import using
     from hwsim.volumes import make_phantom
 
     cfg = {**RTL_SCENE, "size": size, "image": size}
@@ -216,15 +218,16 @@ def rtl_speeds(
     out: dict[str, Any] = {}
     for rung in ("cycle", "rtl"):
         kw = {"simulator": simulator} if rung == "rtl" else {}
-        try:
-            render(scene, fidelity=rung, arch=cfg["arch"], volume=volume, **kw)  # warm-up
-        except NotAvailableError as exc:
-            out[rung] = {"status": "not available", "note": exc.message}
-            continue
-        runs = [
-            render(scene, fidelity=rung, arch=cfg["arch"], volume=volume, **kw)
-            for _ in range(repeats)
-        ]
+        with using(1):
+            try:
+                render(scene, fidelity=rung, arch=cfg["arch"], volume=volume, **kw)  # warm-up
+            except NotAvailableError as exc:
+                out[rung] = {"status": "not available", "note": exc.message}
+                continue
+            runs = [
+                render(scene, fidelity=rung, arch=cfg["arch"], volume=volume, **kw)
+                for _ in range(repeats)
+            ]
         out[rung] = {**_timed(runs), "note": note}
     return out
 

@@ -87,9 +87,14 @@ def subset_step(step: Step, keep: np.ndarray) -> Step:
 class Backend:
     """Set-up and per-sample stages of one scene on one datapath."""
 
-    def __init__(self, frame: Frame, *, exercise_unused: bool = False) -> None:
+    def __init__(
+        self, frame: Frame, *, exercise_unused: bool = False, compiled: bool = True
+    ) -> None:
         self.frame = frame
         self.exercise_unused = exercise_unused
+        #: Whether a machine may run the composite stage in a compiled kernel where it
+        #: has one (False: always the unit chain, to compare the two).
+        self.compiled = compiled
         scene, volume, transfer, plan = frame.scene, frame.volume, frame.transfer, frame.plan
         self.scene, self.volume, self.transfer, self.plan = scene, volume, transfer, plan
         self.arch = frame.arch

@@ -46,6 +46,7 @@ def render_cycle(
     trace: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
     steady_state: bool = False,
+    compiled: bool = True,
 ) -> CycleResult:
     """Render ``frame`` on its architecture's modelled hardware.
 
@@ -61,6 +62,10 @@ def render_cycle(
     steady_state : bool
         VolumePro family: also time a second frame back to back and report the cycles
         between the two frames' ends (``frame.period_cycles``: the continuous frame rate).
+    compiled : bool
+        Let a machine run its composite stage in a compiled kernel where it has one
+        (Cube-4: :mod:`models.machines.cube4.slice_kernel`); False: the vectorised unit
+        chain everywhere (the same bits, slower).
     """
     arch = frame.arch
     machine = machine_for(arch, "cycle")
@@ -72,7 +77,7 @@ def render_cycle(
         )
     if faults is not None and not isinstance(faults, machine.faults_type):
         raise TypeError(f"{arch.name} takes {machine.faults_type.__name__} faults")
-    backend = Backend(frame, exercise_unused=elaborate_all)
+    backend = Backend(frame, exercise_unused=elaborate_all, compiled=compiled)
     vcd = VcdTrace() if trace is not None else None
     result = machine.cycle(
         backend, faults=faults, trace=vcd, progress=progress, steady_state=steady_state

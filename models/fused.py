@@ -48,6 +48,7 @@ from __future__ import annotations
 import hashlib
 import inspect
 import weakref
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -63,7 +64,18 @@ from models.units import gradient as gradient_unit
 from models.units import interp as interp_unit
 from models.units import shade as shade_unit
 
-__all__ = ["THREADS_ENV_VAR", "UNITS_HASH", "CompositeKernel", "eligible", "frame_threads"]
+__all__ = [
+    "GRAD_FLAGS",
+    "STAGE_HASH",
+    "THREADS_ENV_VAR",
+    "UNITS_HASH",
+    "CompositeKernel",
+    "StageConstants",
+    "eligible",
+    "frame_threads",
+    "shade_and_blend",
+    "world_and_modulate",
+]
 
 #: The unit functions the kernel calls: registered with numba so compiled code may call
 #: them (all take and return scalars only: array arguments would cost a reference-count
@@ -98,9 +110,19 @@ UNITS_HASH = hashlib.sha256(
     "".join(inspect.getsource(fn) for fn in _UNIT_FUNCTIONS).encode()
 ).hexdigest()
 
+#: Hash of the stage this module compiles into every kernel (its own source and the unit
+#: functions'): part of the cache key of kernels in other modules that inline
+#: :func:`shade_and_blend` and its siblings, which numba's cache does not track.
+STAGE_HASH = hashlib.sha256(
+    (UNITS_HASH + Path(__file__).read_text(encoding="utf-8")).encode()
+).hexdigest()
+
 #: Kernel inputs ``grad_p`` (int64 flags and constants), by position.
 _NEED_GRAD, _FROM_VOXELS, _WORLD, _MODULATES, _LIT = range(5)
 _GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS, _MAP_SIZE = range(5, 11)
+#: Where other kernels find the flags :func:`world_and_modulate` takes in ``grad_p``:
+#: world units, modulation, the magnitude's scale and the table's entries.
+GRAD_FLAGS = (_WORLD, _MODULATES, _GM_SCALE, _GM_ENTRIES)
 #: Back-to-front blending: the accumulator's fraction bits above 12 (-1: front to back).
 _BTF_UP = 11
 
@@ -135,7 +157,8 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
         st_z, st_y, st_x = strides[0], strides[1], strides[2]
         o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
         cut = factor.shape[0] > 0
-        lit = grad_p[_LIT] != 0
+        world, modulates = grad_p[_WORLD] != 0, grad_p[_MODULATES] != 0
+        gm_scale, gm_entries = grad_p[_GM_SCALE], grad_p[_GM_ENTRIES]
         cell = np.empty(3, np.int64)  # the centre's cell along z, y, x
         w = np.empty(3, np.int64)  # its raw weights
         # Pass 1, per sample: value, classification, gradient; the visible samples are
@@ -181,75 +204,112 @@ def _make_kernel(units_hash: str, constants: tuple[int, ...] | None):
                                 ahead = s
                             else:
                                 g[2 - a, m] = ahead - s
-                if grad_p[_WORLD]:
+                # world_and_modulate's steps, written out: as a call they cost this
+                # loop 4 % (measured on a 128^3 VolumePro 500 frame).
+                if world:
                     for c3 in range(3):
                         g[c3, m] = round_shift_raw(g[c3, m] * ratio[c3], 12, 1)
-                if grad_p[_MODULATES]:
+                if modulates:
                     gx, gy, gz = g[0, m], g[1, m], g[2, m]
                     mag = gradient_unit.isqrt_raw(gx * gx + gy * gy + gz * gz)
-                    gi = classify_unit.gm_index_raw(mag, grad_p[_GM_SCALE], grad_p[_GM_ENTRIES])
+                    gi = classify_unit.gm_index_raw(mag, gm_scale, gm_entries)
                     alpha = classify_unit.scale_alpha_raw(alpha, gm_table[gi])
             rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
             rgba[3, m] = alpha
             vis_rays[m] = rays[i]
             m += 1
-        if lit:
-            # Pass 2, shading, in loops without branches over the visible samples (the
-            # compiler vectorises them): normals, each light's terms, the colours.
-            for j in range(m):
-                g[0, j], g[1, j], g[2, j] = gradient_unit.normal_raw(
-                    g[0, j], g[1, j], g[2, j], f_bits
-                )
-            diffuse = np.zeros(m, np.int64)
-            specular = np.zeros(m, np.int64)
-            kd, ks, ka = grad_p[_KD], grad_p[_KS], grad_p[_KA]
-            r_map = grad_p[_MAP_SIZE]
-            for j in range(m if r_map > 0 else 0):  # reflectance maps: one lookup each
-                ci = shade_unit.cell_index_raw(g[0, j], g[1, j], g[2, j], r_map)
-                diffuse[j], specular[j] = maps[0, ci], maps[1, ci]
-            for k in range(light.shape[0] if r_map == 0 else 0):
-                lx, ly, lz, i_k = light[k, 0], light[k, 1], light[k, 2], intensity[k]
-                hx, hy, hz = half[k, 0], half[k, 1], half[k, 2]
-                for j in range(m):
-                    d, si = shade_unit.light_terms_raw(
-                        g[0, j], g[1, j], g[2, j], lx, ly, lz, hx, hy, hz, i_k, kd,
-                        spec_entries, f_bits,
-                    )  # fmt: skip
-                    diffuse[j] += d
-                    specular[j] += shade_unit.specular_raw(i_k, ks, spec[si])
-            for c3 in range(3):
-                for j in range(m):
-                    rgba[c3, j] = shade_unit.shade_raw(ka, rgba[c3, j], diffuse[j], specular[j])
-        # Pass 3: composite.alpha saturation (counted), the opacity-correction ROM, the
-        # blend (each ray at most once per call, so the order is free), termination.
-        btf_up = grad_p[_BTF_UP]
-        for j in range(m):
-            alpha = rgba[3, j]
-            if alpha < 0 or alpha > 4096:
-                sat[0] += 1
-                alpha = min(max(alpha, 0), 4096)
-            alpha = table[alpha]
-            ray = vis_rays[j]
-            if btf_up >= 0:  # back to front: C = a c + (1 - a) C, one rounding each
-                r = composite_unit.btf_raw(acc[ray, 0], rgba[0, j], alpha, btf_up, acc_code)
-                gr = composite_unit.btf_raw(acc[ray, 1], rgba[1, j], alpha, btf_up, acc_code)
-                b = composite_unit.btf_raw(acc[ray, 2], rgba[2, j], alpha, btf_up, acc_code)
-                a_new = composite_unit.btf_raw(acc[ray, 3], 4096, alpha, btf_up, acc_code)
-            else:
-                aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
-                r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, rgba[0, j], acc_code)
-                gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, rgba[1, j], acc_code)
-                b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, rgba[2, j], acc_code)
-                a_new = acc[ray, 3] + aw
-            for c4, v in enumerate((r, gr, b, a_new)):
-                if v < 0 or v > one:  # composite.acc saturation (counted)
-                    sat[1] += 1
-                    v = min(max(v, 0), one)
-                acc[ray, c4] = v
-            if ert_thr >= 0:
-                alive[ray] = acc[ray, 3] < ert_thr
+        shade_and_blend(
+            rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table, acc,
+            ert_thr, alive, sat, f_bits, spec_entries, one, acc_code,
+        )  # fmt: skip
 
     return numba.njit(cache=True, nogil=True)(kernel)
+
+
+# The parts of the composite stage that do not depend on where the samples come from,
+# shared by every compiled kernel (this one and the cycle rungs' slice kernels, which
+# take samples from the corners their datapath delivered): inlined into each, so a
+# specialised kernel keeps its constants.
+
+
+@numba.njit(inline="always")
+def world_and_modulate(gx, gy, gz, alpha, world, modulates, ratio, gm_scale, gm_entries, gm_table):
+    """A sample's gradient ``(gx, gy, gz)`` to world units when the voxels are anisotropic
+    (``gradient.to_world``), and its opacity ``alpha`` modulated by the gradient's
+    magnitude when the transfer function does (``classify.modulate``): ``(gx, gy, gz,
+    alpha)``."""
+    if world:
+        gx = round_shift_raw(gx * ratio[0], 12, 1)
+        gy = round_shift_raw(gy * ratio[1], 12, 1)
+        gz = round_shift_raw(gz * ratio[2], 12, 1)
+    if modulates:
+        mag = gradient_unit.isqrt_raw(gx * gx + gy * gy + gz * gz)
+        gi = classify_unit.gm_index_raw(mag, gm_scale, gm_entries)
+        alpha = classify_unit.scale_alpha_raw(alpha, gm_table[gi])
+    return gx, gy, gz, alpha
+
+
+@numba.njit(inline="always")
+def shade_and_blend(
+    rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table, acc, ert_thr,
+    alive, sat, f_bits, spec_entries, one, acc_code,
+):  # fmt: skip
+    """Shade (when lit) and blend the ``m`` visible samples a kernel kept (their colours
+    and opacities ``rgba[:, :m]``, rays ``vis_rays[:m]``, gradients ``g[:, :m]``) into the
+    accumulators ``acc``; counts saturations in ``sat``."""
+    if grad_p[_LIT] != 0:
+        # Pass 2, shading, in loops without branches over the visible samples (the
+        # compiler vectorises them): normals, each light's terms, the colours.
+        for j in range(m):
+            g[0, j], g[1, j], g[2, j] = gradient_unit.normal_raw(g[0, j], g[1, j], g[2, j], f_bits)
+        diffuse = np.zeros(m, np.int64)
+        specular = np.zeros(m, np.int64)
+        kd, ks, ka = grad_p[_KD], grad_p[_KS], grad_p[_KA]
+        r_map = grad_p[_MAP_SIZE]
+        for j in range(m if r_map > 0 else 0):  # reflectance maps: one lookup each
+            ci = shade_unit.cell_index_raw(g[0, j], g[1, j], g[2, j], r_map)
+            diffuse[j], specular[j] = maps[0, ci], maps[1, ci]
+        for k in range(light.shape[0] if r_map == 0 else 0):
+            lx, ly, lz, i_k = light[k, 0], light[k, 1], light[k, 2], intensity[k]
+            hx, hy, hz = half[k, 0], half[k, 1], half[k, 2]
+            for j in range(m):
+                d, si = shade_unit.light_terms_raw(
+                    g[0, j], g[1, j], g[2, j], lx, ly, lz, hx, hy, hz, i_k, kd,
+                    spec_entries, f_bits,
+                )  # fmt: skip
+                diffuse[j] += d
+                specular[j] += shade_unit.specular_raw(i_k, ks, spec[si])
+        for c3 in range(3):
+            for j in range(m):
+                rgba[c3, j] = shade_unit.shade_raw(ka, rgba[c3, j], diffuse[j], specular[j])
+    # Pass 3: composite.alpha saturation (counted), the opacity-correction ROM, the
+    # blend (each ray at most once per call, so the order is free), termination.
+    btf_up = grad_p[_BTF_UP]
+    for j in range(m):
+        alpha = rgba[3, j]
+        if alpha < 0 or alpha > 4096:
+            sat[0] += 1
+            alpha = min(max(alpha, 0), 4096)
+        alpha = table[alpha]
+        ray = vis_rays[j]
+        if btf_up >= 0:  # back to front: C = a c + (1 - a) C, one rounding each
+            r = composite_unit.btf_raw(acc[ray, 0], rgba[0, j], alpha, btf_up, acc_code)
+            gr = composite_unit.btf_raw(acc[ray, 1], rgba[1, j], alpha, btf_up, acc_code)
+            b = composite_unit.btf_raw(acc[ray, 2], rgba[2, j], alpha, btf_up, acc_code)
+            a_new = composite_unit.btf_raw(acc[ray, 3], 4096, alpha, btf_up, acc_code)
+        else:
+            aw = composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
+            r = acc[ray, 0] + composite_unit.ftb_colour_raw(aw, rgba[0, j], acc_code)
+            gr = acc[ray, 1] + composite_unit.ftb_colour_raw(aw, rgba[1, j], acc_code)
+            b = acc[ray, 2] + composite_unit.ftb_colour_raw(aw, rgba[2, j], acc_code)
+            a_new = acc[ray, 3] + aw
+        for c4, v in enumerate((r, gr, b, a_new)):
+            if v < 0 or v > one:  # composite.acc saturation (counted)
+                sat[1] += 1
+                v = min(max(v, 0), one)
+            acc[ray, c4] = v
+        if ert_thr >= 0:
+            alive[ray] = acc[ray, 3] < ert_thr
 
 
 @numba.njit(inline="always")
@@ -355,51 +415,15 @@ def eligible(backend) -> bool:
     return not be.scene.lit or be.shader is not None
 
 
-class CompositeKernel:
-    """The per-frame constants of one back end, packed for the kernel."""
+class StageConstants:
+    """The per-frame constants of one back end's composite stage, packed for a compiled
+    kernel: the LUT, gradient and shading flags, the shader, the opacity-correction ROMs
+    (:meth:`table`), the formats (``config``), and how a step's samples are cut into
+    runs for the frame's threads (:meth:`run_parts`)."""
 
-    def __init__(self, backend, voxel_diffs: bool) -> None:
-        """``voxel_diffs``: the gradient comes from voxels (the kernel then reads the
-        voxel differences, ``gradient.voxel_differences``)."""
+    def __init__(self, backend) -> None:
         be, dp = backend, backend.dp
         self.backend = be
-        # The raw voxels (and differences) in their narrowest integer type, promoted as
-        # they are read: a quarter of the promoted int64 bytes, half of int32 (memory
-        # traffic is what a 256^3 frame waits on).
-        # Laid out with the principal axis slowest: a step's samples lie on one voxel
-        # slice, read from contiguous rows instead of one cache line each (x principal).
-        shape = be.volume.shape
-        axis = be.plan.principal_axis
-        order = (2, 0, 1) if axis == 2 else (0, 1, 2)
-        # Kept per volume (as the golden renderer keeps its derived arrays): successive
-        # frames of one volume and datapath width lay the voxels out once per order.
-        derived = _DERIVED.setdefault(be.volume, {})
-        key = (dp.voxel_bits, order)
-        if key not in derived:
-            derived[key] = _narrowest(_laid_out(be.raw, shape, order))
-        self.vox = derived[key]
-        self.shape = np.asarray(shape, dtype=np.int64)
-        self.strides = _strides(shape, order)
-        dz, dy, dx = (int(st) if n > 1 else 0 for st, n in zip(self.strides, shape, strict=True))
-        self.offsets = np.array(
-            [0, dx, dy, dx + dy, dz, dz + dx, dz + dy, dz + dy + dx], dtype=np.int64
-        )  # interp.corner_offsets in this layout
-        if not voxel_diffs:
-            self.dxyz = (self.vox[:1],) * 3
-        else:
-            key = (dp.voxel_bits, order, "differences")
-            if key not in derived:
-                # One axis at a time, narrowed before it is laid out: a 512^3 volume
-                # never holds three wide (int32) difference volumes at once.
-                diffs = [
-                    _laid_out(
-                        _narrowest(gradient_unit.voxel_difference(be.raw, axis)), shape, order
-                    )
-                    for axis in (2, 1, 0)
-                ]
-                wide = np.result_type(*diffs)
-                derived[key] = tuple(d.astype(wide, copy=False) for d in diffs)
-            self.dxyz = derived[key]
         shift = dp.voxel_bits + be.S - int(np.log2(dp.classify.entries))
         cfg = dp.composite
         self.config = (
@@ -413,10 +437,6 @@ class CompositeKernel:
             1 << cfg.acc_frac_bits,
             ROUNDING_CODES[cfg.acc.rounding],
         )
-        # Specialised for the machine's own formats; overridden widths (a width sweep)
-        # share the generic kernel.
-        own = dp == Datapath.for_volume(be.arch, be.volume)
-        self.kernel = _kernel_for(self.config if own else None)
         self.rgb12 = np.ascontiguousarray(be.lut.rgb12, dtype=np.int64)
         self.alpha12 = np.ascontiguousarray(be.lut.alpha12, dtype=np.int64)
         spacing = np.asarray(be.volume.spacing, dtype=np.float64)[::-1]
@@ -461,6 +481,9 @@ class CompositeKernel:
             self.ert_thr = int(cfg.acc.quantize(max(be.ert, 0.0)))
         self._tables: dict[float, np.ndarray] = {}
         self._no_factor = np.zeros(0, dtype=np.int64)
+        #: The machine's own formats: a kernel may be specialised for them; overridden
+        #: widths (a width sweep) share a generic kernel.
+        self.own_formats = dp == Datapath.for_volume(be.arch, be.volume)
 
     def table(self, dt) -> np.ndarray | None:
         """The opacity-correction ROM of a step whose samples all have step length
@@ -482,39 +505,94 @@ class CompositeKernel:
             table = self._tables[dt] = composite_unit.correction_for(k, be.dp.composite)
         return table
 
-    def run(self, step, factor, state, table: np.ndarray) -> None:
-        """Composite the samples of ``step`` (after masks) into ``state``, with the
-        opacity-correction ROM ``table`` (:meth:`table`).
+    def run_parts(self, run_part, per_sample: tuple, factor, state, table) -> None:
+        """``run_part(*per_sample, factor, state, table)`` over a step's samples (arrays
+        ``per_sample``, the first axis the sample; ``factor`` per sample or None), counting
+        the saturations it returns.
 
         A step's rays are distinct, so its samples touch disjoint accumulators: with
         :func:`frame_threads` above one, large steps are cut into that many runs of
-        samples composited at once, on this thread and the pool's (the kernel releases
-        the GIL),
-        each counting its own saturations; the result is the same bits in any case."""
-        be = self.backend
-        zyx = np.ascontiguousarray(step.zyx, dtype=np.float64)
-        rays = np.asarray(step.rays, dtype=np.int64)
+        samples composited at once, on this thread and the pool's (the kernels release
+        the GIL), each counting its own saturations; the result is the same bits in any
+        case."""
         factor = self._no_factor if factor is None else np.asarray(factor, dtype=np.int64)
-        n, threads = rays.size, frame_threads()
+        n, threads = per_sample[0].shape[0], frame_threads()
         parts = min(threads, n // _SAMPLES_PER_THREAD)
         if parts <= 1:
-            sat = self._run_part(zyx, rays, factor, state, table)
+            sat = run_part(*per_sample, factor, state, table)
         else:
             # Interleaved runs (sample k goes to run k mod parts): neighbouring samples
             # cost alike (transparent ones next to each other), so the runs balance.
             def part(k: int):
                 cut = slice(k, None, parts)
                 f = np.ascontiguousarray(factor[cut]) if factor.size else factor
-                return (np.ascontiguousarray(zyx[cut]), np.ascontiguousarray(rays[cut]), f)
+                return (*(np.ascontiguousarray(a[cut]) for a in per_sample), f)
 
             pool = thread_pool(threads)
-            runs = [pool.submit(self._run_part, *part(k), state, table) for k in range(1, parts)]
-            sat = self._run_part(*part(0), state, table)  # this thread takes run 0
+            runs = [pool.submit(run_part, *part(k), state, table) for k in range(1, parts)]
+            sat = run_part(*part(0), state, table)  # this thread takes run 0
             sat = sat + sum(r.result() for r in runs)
         if sat[0]:
             SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
         if sat[1]:
-            SATURATIONS[be.dp.composite.acc.name] += int(sat[1])
+            SATURATIONS[self.backend.dp.composite.acc.name] += int(sat[1])
+
+
+class CompositeKernel(StageConstants):
+    """The functional rung's kernel for one back end: the stage constants and the
+    volume's voxels laid out for it."""
+
+    def __init__(self, backend, voxel_diffs: bool) -> None:
+        """``voxel_diffs``: the gradient comes from voxels (the kernel then reads the
+        voxel differences, ``gradient.voxel_differences``)."""
+        super().__init__(backend)
+        be, dp = backend, backend.dp
+        # The raw voxels (and differences) in their narrowest integer type, promoted as
+        # they are read: a quarter of the promoted int64 bytes, half of int32 (memory
+        # traffic is what a 256^3 frame waits on).
+        # Laid out with the principal axis slowest: a step's samples lie on one voxel
+        # slice, read from contiguous rows instead of one cache line each (x principal).
+        shape = be.volume.shape
+        axis = be.plan.principal_axis
+        order = (2, 0, 1) if axis == 2 else (0, 1, 2)
+        # Kept per volume (as the golden renderer keeps its derived arrays): successive
+        # frames of one volume and datapath width lay the voxels out once per order.
+        derived = _DERIVED.setdefault(be.volume, {})
+        key = (dp.voxel_bits, order)
+        if key not in derived:
+            derived[key] = _narrowest(_laid_out(be.raw, shape, order))
+        self.vox = derived[key]
+        self.shape = np.asarray(shape, dtype=np.int64)
+        self.strides = _strides(shape, order)
+        dz, dy, dx = (int(st) if n > 1 else 0 for st, n in zip(self.strides, shape, strict=True))
+        self.offsets = np.array(
+            [0, dx, dy, dx + dy, dz, dz + dx, dz + dy, dz + dy + dx], dtype=np.int64
+        )  # interp.corner_offsets in this layout
+        if not voxel_diffs:
+            self.dxyz = (self.vox[:1],) * 3
+        else:
+            key = (dp.voxel_bits, order, "differences")
+            if key not in derived:
+                # One axis at a time, narrowed before it is laid out: a 512^3 volume
+                # never holds three wide (int32) difference volumes at once.
+                diffs = [
+                    _laid_out(
+                        _narrowest(gradient_unit.voxel_difference(be.raw, axis)), shape, order
+                    )
+                    for axis in (2, 1, 0)
+                ]
+                wide = np.result_type(*diffs)
+                derived[key] = tuple(d.astype(wide, copy=False) for d in diffs)
+            self.dxyz = derived[key]
+        self.kernel = _kernel_for(self.config if self.own_formats else None)
+
+    def run(self, step, factor, state, table: np.ndarray) -> None:
+        """Composite the samples of ``step`` (after masks) into ``state``, with the
+        opacity-correction ROM ``table`` (:meth:`table`), on the frame's threads
+        (:meth:`run_parts`)."""
+        zyx = np.ascontiguousarray(step.zyx, dtype=np.float64)
+        rays = np.asarray(step.rays, dtype=np.int64)
+        self.run_parts(self._run_part, (zyx, rays), factor, state, table)
 
     def _run_part(self, zyx, rays, factor, state, table) -> np.ndarray:
         """One run of samples through the kernel; returns its saturation counts."""

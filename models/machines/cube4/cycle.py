@@ -98,6 +98,17 @@ class HardwareSource:
         out._cells = tuple(tuple(x[sel] for x in cell) for cell in self._cells)
         return out
 
+    def composite_fused(self, step: Step, factor: np.ndarray | None, state) -> bool:
+        """Run the back end's composite stage on ``step`` in one compiled pass
+        (:mod:`models.machines.cube4.slice_kernel`) when the frame allows it; False: use
+        the unit chain."""
+        kernel = self.m.kernel
+        table = None if kernel is None else kernel.table(step.dt)
+        if table is None:
+            return False
+        kernel.run(self, step, factor, state, table)
+        return True
+
     def maybe_visible(self) -> np.ndarray | None:
         """False where every corner of a sample's cell classifies to opacity 0."""
         flags = self.m.planes(self.q).get("maybe")
@@ -152,6 +163,11 @@ class Cube4Machine(Cube4Frame):
         self.memory = Cube4Memory(backend.raw, P, self.counters, self.faults.stuck_module)
         self.datapath = self._slice_datapath()
         self.elaborate_all = backend.exercise_unused
+        self.kernel = None
+        if backend.compiled:
+            from models.machines.cube4.slice_kernel import SliceKernel  # imports numba
+
+            self.kernel = SliceKernel.for_backend(backend, self.a_ax, self.b_ax, self.kp)
         if backend.mode == "composite":
             self._next_visible = backend.transparent_ranges()
         self._cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}

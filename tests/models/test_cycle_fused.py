@@ -1,0 +1,203 @@
+"""Cube-4's compiled composite stage (models/machines/cube4/slice_kernel.py) gives the
+unit chain's bits.
+
+Whole cycle frames rendered with the kernel (``compiled=True``, the default) equal the
+vectorised unit chain (``compiled=False``) in image, samples, cycles and every counter,
+over both Cube-4 machines (and three pipelines), views along an axis, at 45 degrees and from behind,
+anisotropic voxels, modulation and early termination, crop and cut planes, narrow and
+wide formats, several pipeline counts and every injected fault that changes the data the
+kernel reads (a stuck module, a dropped ring link, a short beam or slice FIFO, a lost
+hand-off); the kernel ran on each.  Frames outside its scope take the chain.  Its cache
+key covers the shared stage it inlines.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hwsim.fidelity import resolve_arch
+from hwsim.golden import make_plan
+from hwsim.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.threads import using
+from hwsim.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+from models import fused
+from models.cycle import render_cycle
+from models.datapath import Datapath
+from models.frame import frame_of
+from models.machines.cube4 import slice_kernel
+from models.machines.cube4.cycle import Faults
+
+pytestmark = pytest.mark.model
+
+
+def _scene(az=30, el=20, size=32, transfer=None, **kw):
+    return Scene(
+        transfer=transfer or TransferSpec(preset="ct"),
+        view=ViewSpec(azimuth=az, elevation=el, width=size, height=size, zoom=1.3),
+        render=RenderSpec(**{"mode": "composite", **kw.pop("render", {})}),
+        **kw,
+    )
+
+
+MODULATED = TransferSpec(preset="ct", gradient_opacity=((100.0, 0.0), (1500.0, 1.0)))
+CUT = (CutPlane(normal=(0.3, 0.2, 1.0), offset=1.0, thickness=6, falloff=3),)
+
+#: (machine, changes to it, volume, scene, format overrides, faults); every one runs the
+#: kernel.
+CASES = {
+    "cube4": ("cube4", {}, "head", _scene(), {}, None),
+    "cube4-axis": ("cube4", {}, "head", _scene(az=0, el=0), {}, None),
+    "cube4-45-45": ("cube4", {}, "head", _scene(az=45, el=45), {}, None),
+    "cube4-back": ("cube4", {}, "head", _scene(az=180, el=-35), {}, None),
+    "cube4-x-principal": ("cube4", {}, "head-z", _scene(az=95, el=-5), {}, None),
+    "cube4-anisotropic": ("cube4", {}, "head-z", _scene(az=-60, el=30), {}, None),
+    "cube4-modulated-ert": (
+        "cube4",
+        {},
+        "head",
+        _scene(transfer=MODULATED, render={"early_termination": 0.7}),
+        {},
+        None,
+    ),
+    "cube4-crop-cut": (
+        "cube4",
+        {},
+        "head",
+        _scene(crop=CropSpec(y=(4, 15), invert=True), cut_planes=CUT),
+        {},
+        None,
+    ),
+    "cube4-unlit": ("cube4", {}, "head", _scene(render={"lighting": False}), {}, None),
+    "cube4-two-lights": (
+        "cube4",
+        {},
+        "head",
+        _scene(lights=(Light(direction=(-0.4, 0.5, 1.0)), Light(direction=(0.7, -0.2, 0.5)))),
+        {},
+        None,
+    ),
+    "cube4-P3": ("cube4", {"pipelines": 3}, "head", _scene(az=-25, el=15), {}, None),
+    "cube4-teramac": ("cube4-teramac", {}, "head", _scene(az=70, el=-20), {}, None),
+    "narrow-nearest-even": (
+        "cube4",
+        {},
+        "head",
+        _scene(az=-70, el=25),
+        {"interp.weight_bits": 5, "interp.rounding": "nearest-even", "interp.sample_frac_bits": 2},
+        None,
+    ),
+    "wide-truncate": (
+        "cube4",
+        {},
+        "head",
+        _scene(transfer=MODULATED),
+        {
+            "interp.weight_bits": 16,
+            "interp.sample_frac_bits": 12,
+            "interp.rounding": "truncate",
+            "gradient.normal_frac_bits": 4,
+            "composite.acc_frac_bits": 12,
+            "classify.entries": 256,
+        },
+        None,
+    ),
+    "stuck-module": ("cube4", {}, "head", _scene(), {}, Faults(stuck_module=(1, 4095))),
+    "dropped-link": ("cube4", {}, "head", _scene(), {}, Faults(dropped_link=2)),
+    "dropped-handoff": ("cube4", {}, "head", _scene(), {}, Faults(dropped_handoff=0)),
+    "short-beam-fifo": ("cube4", {}, "head", _scene(), {}, Faults(beam_fifo_adjust=-1)),
+    "short-slice-fifo": ("cube4", {}, "head", _scene(), {}, Faults(slice_fifo_adjust=-1)),
+    "tiny-pixel-fifo": ("cube4", {}, "head", _scene(), {}, Faults(pixel_fifo_depth=1)),
+}
+
+
+@pytest.fixture(scope="module")
+def volumes():
+    return {
+        "head": make_phantom("head", size=21),
+        "head-z": make_phantom("head", size=24, z_spacing=1.7),
+    }
+
+
+def _render(arch_name, changes, volume, scene, overrides, faults, **kw):
+    arch = resolve_arch(arch_name)
+    arch = dataclasses.replace(arch, **changes) if changes else arch
+    tf = resolve_transfer(scene.transfer, volume)
+    plan = make_plan(scene, volume, arch.order)
+    dp = Datapath.from_arch(arch, volume.bits, overrides)
+    frame = frame_of(scene, volume, tf, arch, plan, datapath=dp)
+    return render_cycle(frame, faults=faults, **kw)
+
+
+def _same(fast, ref):
+    np.testing.assert_array_equal(fast.image, ref.image)
+    assert (fast.samples, fast.rays, fast.cycles) == (ref.samples, ref.rays, ref.cycles)
+    assert fast.counters == ref.counters
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_compiled_cycle_frames_equal_the_unit_chain(case, volumes, monkeypatch):
+    arch, changes, volume, scene, overrides, faults = CASES[case]
+    runs = []
+    original = slice_kernel.SliceKernel.run
+
+    def counted(self, src, step, factor, state, table):
+        runs.append(step.rays.size)
+        return original(self, src, step, factor, state, table)
+
+    monkeypatch.setattr(slice_kernel.SliceKernel, "run", counted)
+    fast = _render(arch, changes, volumes[volume], scene, overrides, faults)
+    assert sum(runs) > 0, "the kernel did not run"
+    ref = _render(arch, changes, volumes[volume], scene, overrides, faults, compiled=False)
+    _same(fast, ref)
+    assert ref.image[..., 3].max() > 0.05  # something was composited
+
+
+def test_threads_split_steps_into_runs_with_the_same_bits(volumes, monkeypatch):
+    """Steps above two runs' worth of samples are cut for the frame's threads."""
+    monkeypatch.setattr(fused, "_SAMPLES_PER_THREAD", 64)
+    args = ("cube4", {}, volumes["head"], _scene(), {}, None)
+    with using(1):
+        one = _render(*args)
+    with using(2):
+        two = _render(*args)
+    _same(two, one)
+
+
+@pytest.mark.parametrize(
+    "scene",
+    [
+        _scene(transfer=TransferSpec(preset="ct", order="pre")),
+        _scene(render={"mode": "mip"}),
+        Scene(
+            transfer=TransferSpec(preset="ct"),
+            view=ViewSpec(azimuth=-30, elevation=10, width=32, height=32, projection="perspective"),
+        ),
+    ],
+    ids=["pre-classified", "mip", "perspective"],
+)
+def test_frames_outside_the_kernels_scope_take_the_unit_chain(scene, volumes, monkeypatch):
+    runs = []
+    original = slice_kernel.SliceKernel.run
+
+    def counted(self, src, step, *rest):
+        runs.append(step.rays.size)
+        return original(self, src, step, *rest)
+
+    monkeypatch.setattr(slice_kernel.SliceKernel, "run", counted)
+    args = ("cube4", {}, volumes["head"], scene, {}, None)
+    _same(_render(*args), _render(*args, compiled=False))
+    assert not runs
+
+
+def test_the_cache_key_covers_the_shared_stage():
+    """The kernel inlines models/fused.py's shading and blending: its closure holds the
+    hash of that file and of every unit function (numba keys its cache by this module's
+    source and the closure only)."""
+    kernel = slice_kernel._kernel()
+    assert kernel.py_func.__closure__ is not None
+    held = [c.cell_contents for c in kernel.py_func.__closure__]
+    assert fused.STAGE_HASH in held
