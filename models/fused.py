@@ -399,6 +399,8 @@ def _kernel_for(config: tuple[int, ...] | None):
 #: A step is cut into runs for several threads only above this many samples per thread:
 #: below it, handing a run to a thread costs about what it saves.
 _SAMPLES_PER_THREAD = 2048
+#: Samples per block of a thread's run (:meth:`StageConstants.run_parts`).
+_BLOCK = 256
 
 
 def eligible(backend) -> bool:
@@ -521,17 +523,25 @@ class StageConstants:
         if parts <= 1:
             sat = run_part(*per_sample, factor, state, table)
         else:
-            # Interleaved runs (sample k goes to run k mod parts): neighbouring samples
-            # cost alike (transparent ones next to each other), so the runs balance.
+            # Runs of interleaved blocks (block b goes to run b mod parts): neighbouring
+            # samples cost alike (transparent ones next to each other), so the runs
+            # balance; blocks, not single samples, so that two threads do not write the
+            # same cache lines of the accumulators (neighbouring rays) all the time.
+            block = (np.arange(n) // _BLOCK) % parts
+
             def part(k: int):
-                cut = slice(k, None, parts)
-                f = np.ascontiguousarray(factor[cut]) if factor.size else factor
-                return (*(np.ascontiguousarray(a[cut]) for a in per_sample), f)
+                cut = block == k
+                f = factor[cut] if factor.size else factor
+                return (*(a[cut] for a in per_sample), f)
 
             pool = thread_pool(threads)
             runs = [pool.submit(run_part, *part(k), state, table) for k in range(1, parts)]
             sat = run_part(*part(0), state, table)  # this thread takes run 0
             sat = sat + sum(r.result() for r in runs)
+        self.count_saturations(sat)
+
+    def count_saturations(self, sat: np.ndarray) -> None:
+        """Add a kernel's saturation counts (``composite.alpha``, ``composite.acc``)."""
         if sat[0]:
             SATURATIONS[composite_unit.ALPHA.name] += int(sat[0])
         if sat[1]:
@@ -592,9 +602,9 @@ class CompositeKernel(StageConstants):
         (:meth:`run_parts`)."""
         zyx = np.ascontiguousarray(step.zyx, dtype=np.float64)
         rays = np.asarray(step.rays, dtype=np.int64)
-        self.run_parts(self._run_part, (zyx, rays), factor, state, table)
+        self.run_parts(self.run_part, (zyx, rays), factor, state, table)
 
-    def _run_part(self, zyx, rays, factor, state, table) -> np.ndarray:
+    def run_part(self, zyx, rays, factor, state, table) -> np.ndarray:
         """One run of samples through the kernel; returns its saturation counts."""
         sat = np.zeros(2, dtype=np.int64)
         self.kernel(

@@ -46,7 +46,8 @@ import numpy as np
 
 from hwsim.golden.occupancy import Occupancy
 from hwsim.golden.positions import SamplePlan
-from hwsim.golden.steps import Step
+from hwsim.threads import frame_threads
+from hwsim.threads import pool as thread_pool
 from models.backend import Backend, RayState
 
 __all__ = ["applies", "plan_positions", "run_steps_compiled"]
@@ -185,12 +186,18 @@ def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
 class _Walker:
     """One plan's step walk: the static arguments of :func:`_step` and its buffers."""
 
-    def __init__(self, plan: SamplePlan, distance: np.ndarray, block: int) -> None:
+    def __init__(
+        self, plan: SamplePlan, distance: np.ndarray, block: int, mine: np.ndarray | None = None
+    ) -> None:
+        """``mine``: which plan rays this walker walks (a boolean per plan ray; all when
+        None)."""
         block_shift = int(block).bit_length() - 1
         if 1 << block_shift != block:
             raise ValueError(f"occupancy block {block} is not a power of two")
         sheared = plan.kind == "shear-warp"
         has_samples = plan.j_lo <= plan.j_hi
+        if mine is not None:
+            has_samples &= mine
         join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
         ray_cols = _ray_terms(plan, block)
         n = max(plan.ray_ids.size, 1)
@@ -230,6 +237,11 @@ class _Walker:
         return _step(j, *self._before, alive, *self._after)
 
 
+#: Plan rays per block of a thread's share (:func:`run_steps_compiled`): rays next to
+#: each other cost alike, so interleaved blocks balance the threads.
+_RAY_BLOCK = 16
+
+
 def run_steps_compiled(
     plan: SamplePlan,
     blocks: Occupancy,
@@ -241,22 +253,47 @@ def run_steps_compiled(
     """Composite every step of ``plan`` into ``state`` with ``kernel``
     (:class:`models.fused.CompositeKernel`), skipping samples in unoccupied ``blocks``;
     fills ``stopped`` as :meth:`models.functional._Functional._run_leapt` does and
-    returns the samples simulated."""
+    returns the samples simulated.
+
+    With :func:`~hwsim.threads.frame_threads` above one the plan's rays are dealt to the
+    threads in interleaved blocks of :data:`_RAY_BLOCK`; each thread walks every step for
+    its own rays (a ray's samples stay in order, in one thread), so the frame is the
+    same bits for any thread count, and the threads meet only at the end."""
     table = kernel.table(plan._dt)
-    walk = _Walker(plan, blocks.distance, blocks.block)
+    n_rays = plan.ray_ids.size
+    threads = min(frame_threads(), max(1, n_rays // (4 * _RAY_BLOCK)))
+    if threads <= 1:
+        share = [None]
+    else:
+        block = (np.arange(n_rays) // _RAY_BLOCK) % threads
+        share = [block == k for k in range(threads)]
     stops = kernel.ert_thr >= 0
-    simulated = 0
-    for j in range(plan.n_steps):
-        m = walk.step(j, state.alive)
-        if m:
-            rays = walk.rays[:m]
-            kernel.run(Step(rays, walk.zyx[:m], walk.dt), None, state, table)
-            simulated += m
-            if stops:
-                stopped[rays[~state.alive[rays]]] = j
-        if progress is not None:
-            progress(j + 1, plan.n_steps)
-    return simulated
+    no_factor = np.zeros(0, dtype=np.int64)
+
+    def walk_share(mine, report) -> tuple[int, np.ndarray]:
+        walk = _Walker(plan, blocks.distance, blocks.block, mine)
+        simulated, sat = 0, np.zeros(2, dtype=np.int64)
+        for j in range(plan.n_steps):
+            m = walk.step(j, state.alive)
+            if m:
+                rays = walk.rays[:m]
+                sat += kernel.run_part(walk.zyx[:m], rays, no_factor, state, table)
+                simulated += m
+                if stops:
+                    stopped[rays[~state.alive[rays]]] = j
+            if report is not None:
+                report(j + 1, plan.n_steps)
+        return simulated, sat
+
+    if len(share) == 1:
+        results = [walk_share(None, progress)]
+    else:
+        pool = thread_pool(threads)
+        others = [pool.submit(walk_share, mine, None) for mine in share[1:]]
+        results = [walk_share(share[0], progress)]  # this thread reports progress
+        results += [f.result() for f in others]
+    kernel.count_saturations(sum(sat for _, sat in results))
+    return sum(simulated for simulated, _ in results)
 
 
 def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:

@@ -329,11 +329,11 @@ def _render(arch_name, volume, scene, overrides, **kw):
 def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
     arch, volume, scene, overrides = CASES[case]
     runs = []
-    original = fused.CompositeKernel.run
+    original = fused.CompositeKernel.run_part
 
-    def counted(self, step, factor, state, table):
-        runs.append(step.rays.size)
-        return original(self, step, factor, state, table)
+    def counted(self, zyx, rays, factor, state, table):
+        runs.append(rays.size)
+        return original(self, zyx, rays, factor, state, table)
 
     walked = []
     original_walk = fused_steps.run_steps_compiled
@@ -342,7 +342,7 @@ def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
         walked.append(True)
         return original_walk(*args)
 
-    monkeypatch.setattr(fused.CompositeKernel, "run", counted)
+    monkeypatch.setattr(fused.CompositeKernel, "run_part", counted)
     monkeypatch.setattr(fused_steps, "run_steps_compiled", walk)
     fast = _render(arch, volumes[volume], scene, overrides)
     assert sum(runs) > 0, "the kernel did not run"
