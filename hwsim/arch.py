@@ -100,6 +100,9 @@ class ArchConfig:
     host_bus_bytes_per_second : float
         The board's bus to the host (0: not modelled): a supervolume's brick images
         travel over it to be blended.
+    technology : str
+        ``[silicon] technology``: the process node of the machine's era, the energy and
+        area model's default (a built-in name of ``hwsim/energy/technologies`` or a file).
     published : dict
         Headline figures to compare against (samples/s, fps at a size), with sources.
     """
@@ -140,6 +143,7 @@ class ArchConfig:
     section_width: int = 0
     section_overhead_cycles: int = 0
     host_bus_bytes_per_second: float = 0.0
+    technology: str = "cmos45"
 
     @property
     def value_bits(self) -> tuple[int, ...]:
@@ -223,6 +227,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     limits = top.table("limits")
     features = top.table("features")
     overheads = top.table("overheads")
+    silicon = top.table("silicon")
     bits = limits.raw("voxel_bits", [8, 12, 16])
     if not isinstance(bits, list) or not bits or any(b not in (8, 12, 16, 32) for b in bits):
         raise limits.error("voxel_bits", f"invalid {bits!r}", "a list of 8, 12, 16, 32")
@@ -267,8 +272,9 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         section_width=overheads.integer("section_width", 0, 0, 1 << 16),
         section_overhead_cycles=overheads.integer("section_cycles", 0, 0, 1 << 24),
         host_bus_bytes_per_second=overheads.number("host_bus_bytes_per_second", 0.0, 0, 1e12),
+        technology=silicon.string("technology", "cmos45"),
     )
-    for t in (p, limits, features, overheads):
+    for t in (p, limits, features, overheads, silicon):
         t.finish()
     top.finish()
     if cfg.memory:

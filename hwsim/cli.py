@@ -74,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
         "and cycles do not depend on it",
     )
     r.add_argument(
+        "--technology",
+        metavar="NAME|FILE.toml",
+        help="cycle and transaction rungs: price energy and area in this technology "
+        "(cmos45, cmos250, cmos350 or a file; default: the machine's era node)",
+    )
+    r.add_argument(
         "--timing-only",
         action="store_true",
         help="transaction rung: time the frame without its image (stats.json only)",
@@ -284,6 +290,7 @@ def _render_command(args: argparse.Namespace) -> int:
         "simulator": args.simulator,
         "extend": args.extend,
         "timing_only": args.timing_only,
+        "technology": args.technology,
     }
     if args.frames != 1 or args.turn is not None:
         if args.timing_only:
@@ -317,6 +324,14 @@ def _render_command(args: argparse.Namespace) -> int:
                 f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
                 f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
                 f"{run.samples / run.cycles:.2f} samples/cycle"
+            )
+        if run.silicon is not None:
+            e, a = run.silicon["energy"], run.silicon["area"]
+            watts = f", {e['average_watts']:.2f} W at this frame rate" if e["average_watts"] else ""
+            print(
+                f"  energy {e['total_joules'] * 1e3:.3f} mJ/frame "
+                f"({(e['per_sample_joules'] or 0) * 1e9:.2f} nJ/sample{watts}), area "
+                f"{a['total_mm2']:.1f} mm^2 in {run.silicon['technology']['name']}"
             )
         note = " (no --out given: replaced the previous render there)" if replacing else ""
         names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
@@ -372,13 +387,23 @@ def _cmd_archs(args: argparse.Namespace) -> int:
             for feature, has, source in feature_rows(arch):
                 print(f"  {feature:<21} {has:<34} {source}")
         return 0
-    print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  rungs")
+    from hwsim.energy import units_below_clock
+
+    print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  {'node':<8} rungs")
+    flags = []
     for name, arch in builtin_archs().items():
         rungs = " ".join(machine_rungs(arch))
         print(
             f"{name:<15} {arch.order:<15} {arch.pipelines:>3} {arch.clock_hz / 1e6:>6.2f} MHz "
-            f"{arch.peak_samples_per_second / 1e6:>7.0f} MS/s  {rungs}"
+            f"{arch.peak_samples_per_second / 1e6:>7.0f} MS/s  {arch.technology:<8} {rungs}"
         )
+        slow = units_below_clock(arch)
+        if slow:
+            units = ", ".join(f"{u} {f / 1e6:.0f} MHz" for u, f in slow)
+            flags.append(f"  {name}: below its {arch.clock_hz / 1e6:.0f} MHz clock: {units}")
+    if flags:
+        print("units whose synthesised RTL is slower than the clock (docs/energy.md):")
+        print("\n".join(flags))
     return 0
 
 

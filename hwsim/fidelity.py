@@ -71,6 +71,9 @@ class RenderRun:
     extensions: list[dict[str, str]] = field(default_factory=list)
     #: How samples were shaded (Phong, or the machine's reflectance maps); None: unlit.
     shading: str | None = None
+    #: Energy per frame and silicon area (:mod:`hwsim.energy`): ``{"technology", "energy",
+    #: "area"}`` for cycle and transaction renders; None where no action was counted.
+    silicon: dict[str, Any] | None = None
 
 
 def builtin_archs() -> dict[str, ArchConfig]:
@@ -261,6 +264,7 @@ def render(
     simulator: str | None = None,
     extend: bool = False,
     timing_only: bool = False,
+    technology: str | None = None,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -297,6 +301,10 @@ def render(
     timing_only : bool
         ``transaction`` rung only: time the frame without its image (``image`` is None;
         :func:`models.transaction.timing_only`).
+    technology : str, optional
+        ``cycle`` and ``transaction`` rungs: price the frame's actions and the machine's
+        area in this technology (a built-in name or a TOML file; default: the machine's
+        ``[silicon] technology``), :mod:`hwsim.energy`.
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -330,6 +338,10 @@ def render(
         machine: ArchConfig | None = arch
     else:
         machine = resolve_arch(arch) if arch is not None else None
+    if technology is not None:  # a bad technology is refused before the frame is computed
+        from hwsim.energy import load_technology
+
+        load_technology(technology)
     extensions = []
     chosen = IDEAL  # the ideal renderer's shading (its gradients: the scene's, or voxel)
     if machine is not None:
@@ -374,6 +386,7 @@ def render(
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene, transfer)
     cycles = clock = None
+    silicon = None
     derived: dict[str, Any] = {}
     if fidelity == "golden" and machine is not None:  # the machine's refusals hold here too
         from models.frame import frame_of
@@ -417,6 +430,10 @@ def render(
             derived = result.derived
         if fidelity in ("cycle", "rtl"):
             used, elided = result.elaborated_units, result.elided_units
+        if fidelity in ("cycle", "transaction") and not bricked:
+            from hwsim.energy import estimate_frame
+
+            silicon = estimate_frame(frame, counters, used, cycles, technology)
     wall = time.perf_counter() - start
     return RenderRun(
         scene=scene,
@@ -437,6 +454,7 @@ def render(
         derived=derived,
         extensions=[e.describe() for e in extensions],
         shading=chosen.describe_shading() if scene.lit else None,
+        silicon=silicon,
     )
 
 

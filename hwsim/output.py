@@ -82,6 +82,10 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "derived": run.derived,
         "extensions": run.extensions,  # features outside the machine (a what-if render)
         "shading": run.shading,
+        # Energy per frame and silicon area (hwsim.energy; None: no actions counted).
+        "technology": run.silicon["technology"] if run.silicon else None,
+        "energy": run.silicon["energy"] if run.silicon else None,
+        "area": run.silicon["area"] if run.silicon else None,
         "host": {
             "python": platform.python_version(),
             "numpy": np.__version__,

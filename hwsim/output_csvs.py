@@ -78,8 +78,16 @@ def write_csvs(run: RenderRun, out: Path) -> dict[str, Path]:
             ]
         )
     rows = unit_rows(run.counters)
+    energy = run.silicon["energy"]["units"] if run.silicon else {}
+    area = run.silicon["area"]["units"] if run.silicon else {}
+    for row in rows:  # each pipeline's share: its own actions, one unit's silicon
+        unit = str(row["unit"])
+        if unit in energy:
+            row["energy_joules"] = int(row.get("inputs", 0)) * energy[unit]["joules_per_action"]
+        if unit in area:
+            row["area_mm2"] = area[unit]["per_pipeline_mm2"]
     with open(paths["units"], "w", newline="") as fh:
-        fields = ["unit", "pipeline", *_KINDS, "total_cycles"]
+        fields = ["unit", "pipeline", *_KINDS, "total_cycles", "energy_joules", "area_mm2"]
         w = csv.DictWriter(fh, fieldnames=fields)
         w.writeheader()
         w.writerows(rows)
@@ -89,4 +97,9 @@ def write_csvs(run: RenderRun, out: Path) -> dict[str, Path]:
         for path, value in run.counters.items():
             if path.startswith(("memory.", "ring.", "slice_fifo.", "pixel_bus.")):
                 w.writerow([path, value])
+        if run.silicon:  # hwsim.energy: each memory's energy, each buffer's area
+            for store, entry in run.silicon["energy"]["memories"].items():
+                w.writerow([f"energy.{store}.joules", entry["joules"]])
+            for name, entry in run.silicon["area"]["buffers"].items():
+                w.writerow([f"area.{name}.mm2", entry["mm2"]])
     return paths

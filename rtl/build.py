@@ -140,6 +140,7 @@ def _yosys() -> str:
     return path
 
 
+_LTP = re.compile(r"Longest topological path in \S+ \(length=(\d+)\)")
 _MEMORY = re.compile(r"^\s*reg\s+\[(\d+):0\]\s+\S+\s+\[(\d+):0\];", re.M)
 #: A memory's power-up contents (``initial begin mem[i] = ...; end``): the SRAMs are
 #: loaded at run time, and Yosys spends minutes on tens of thousands of init words.
@@ -152,7 +153,8 @@ _MEMORY_INIT = re.compile(
 
 def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
     """Generic gate-level synthesis of one module: cell counts by type, total cells,
-    flip-flops, and SRAM bits (kept as memories).
+    flip-flops, SRAM bits (kept as memories) and the longest path between flip-flops in
+    gates (Yosys ``ltp -noff``).
 
     Without ``abc`` the counts are Yosys' own techmap gates after ``opt`` (seconds per
     unit); ``abc`` re-maps them with ABC's fast script (minutes for the gradient unit's
@@ -161,7 +163,7 @@ def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
         f"read_verilog top.v; hierarchy -top {top}; proc; flatten; opt; wreduce; "
         "memory -nomap; opt -full; techmap; opt -fast; "
         + ("abc -fast -g AND,NAND,OR,NOR,XOR,XNOR,ANDNOT,ORNOT,MUX; " if abc else "")
-        + "opt_clean; tee -q -o stat.json stat -json"
+        + "opt_clean; tee -q -o stat.json stat -json; tee -q -o ltp.txt ltp -noff"
     )
     with tempfile.TemporaryDirectory(prefix="hwsim-synth-") as tmp:
         Path(tmp, "top.v").write_text(_MEMORY_INIT.sub(r"\1", verilog))
@@ -171,6 +173,7 @@ def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
         if done.returncode != 0:
             raise HwsimError(f"yosys failed on {top}: {done.stderr.strip()[-500:]}")
         stat = json.loads(Path(tmp, "stat.json").read_text())
+        ltp = _LTP.search(Path(tmp, "ltp.txt").read_text())
     design = stat["design"]
     by_type = {k: int(v) for k, v in design["num_cells_by_type"].items()}
     memories = [(int(w) + 1) * (int(d) + 1) for w, d in _MEMORY.findall(verilog)]
@@ -180,6 +183,9 @@ def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
         "cells_by_type": by_type,
         "memories": len(memories),
         "memory_bits": sum(memories),
+        # Gates on the longest path between flip-flops (and ports): the logic levels one
+        # clock must cover.
+        "logic_levels": int(ltp.group(1)) if ltp else None,
     }
 
 

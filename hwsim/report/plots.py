@@ -153,3 +153,33 @@ def plot_bandwidth(memory: dict[str, float], seconds: float, path: Path) -> Path
         ax.barh(names, [memory[n] / seconds / 1e9 for n in names], color="tab:green")
 
     return _bars(path, names, "GB/s at the simulated clock", draw)
+
+
+def plot_energy(energy: dict[str, Any], path: Path) -> Path | None:
+    """Energy of one frame by unit, memory and leakage (uJ), as horizontal bars."""
+    parts = {f"unit: {u}": e["joules"] for u, e in energy.get("units", {}).items()}
+    parts.update({f"memory: {m}": e["joules"] for m, e in energy.get("memories", {}).items()})
+    parts["static (leakage)"] = energy.get("static_joules", 0.0)
+    if not any(parts.values()):
+        return None
+    names = list(parts)
+
+    def draw(ax) -> None:
+        ax.barh(names, [parts[n] * 1e6 for n in names], color="tab:orange")
+
+    return _bars(path, names, "energy per frame (uJ)", draw)
+
+
+def plot_area(area: dict[str, Any], path: Path) -> Path | None:
+    """Area of every pipeline's units and of the buffers (mm^2), as horizontal bars."""
+    parts = {f"units: {u}": a["mm2"] for u, a in area.get("units", {}).items()}
+    parts.update({f"buffer: {b}": a["mm2"] for b, a in area.get("buffers", {}).items()})
+    if not parts:
+        return None
+    names = list(parts)
+
+    def draw(ax) -> None:
+        ax.barh(names, [parts[n] for n in names], color="tab:purple")
+        ax.set_xscale("log")
+
+    return _bars(path, names, "area (mm^2, log scale)", draw)

@@ -27,6 +27,7 @@ import numpy as np
 from hwsim.errors import HwsimError, InputError
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
+from hwsim.report.energy import energy_blocks
 from hwsim.trade.files import EXACT_LEGEND, psnr_cell
 
 __all__ = ["RunRecord", "load_run", "build_report", "write_report"]
@@ -266,6 +267,7 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
         )
     else:
         blocks.append(("img", bw, "memory bandwidth"))
+    blocks += energy_blocks(s, out, index, NOT_RECORDED)
     published = _published(run)
     blocks.append(("h3", "Published figures"))
     if run.overrides:

@@ -45,6 +45,10 @@ COLUMNS = (
     ("samples_per_second", "REAL"),
     ("wall_seconds", "REAL"),
     ("wall_samples_per_second", "REAL"),
+    ("technology", "TEXT"),  # hwsim.energy: the node the next three are priced in
+    ("energy_joules", "REAL"),
+    ("energy_per_sample_joules", "REAL"),
+    ("area_mm2", "REAL"),
     ("image_sha256", "TEXT"),
     ("run_dir", "TEXT"),
     ("stats", "TEXT"),
@@ -111,6 +115,11 @@ class RunsDB:
             self.conn.execute(
                 f"CREATE TABLE IF NOT EXISTS runs (\n  key TEXT NOT NULL UNIQUE,\n  {cols}\n)"
             )
+            # A database from before a column existed gains it (NULL in its old rows).
+            have = {r[1] for r in self.conn.execute("PRAGMA table_info(runs)")}
+            for name, sql_type in COLUMNS:
+                if name not in have:
+                    self.conn.execute(f"ALTER TABLE runs ADD COLUMN {name} {sql_type}")
             self.conn.execute(
                 "CREATE TABLE IF NOT EXISTS meta (name TEXT PRIMARY KEY, value TEXT NOT NULL)"
             )

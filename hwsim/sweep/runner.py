@@ -125,6 +125,13 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
                 )
             },
         )
+        if stats.get("energy"):  # hwsim.energy, priced in the machine's own node
+            row.update(
+                technology=stats["technology"]["name"],
+                energy_joules=stats["energy"]["total_joules"],
+                energy_per_sample_joules=stats["energy"]["per_sample_joules"],
+                area_mm2=stats["area"]["total_mm2"],
+            )
         if out_dir is not None:
             folder = Path(out_dir) / key[:16]
             write_render(result, folder)

@@ -2,9 +2,14 @@
 
 ``width_trade`` renders every scene with the functional datapath once per value of each
 width knob (the others at the architecture's defaults) and compares against the float64
-golden renderer at the *same* sample positions, so the error is purely numerical.  It
-writes ``widths.csv``, ``widths.json`` and ``widths.png`` (PSNR against bits, one panel
-per knob).  The fidelity-ladder trade (speed against error per rung) is
+golden renderer at the *same* sample positions, so the error is purely numerical.  Next
+to the error, each row prices the datapath (:mod:`hwsim.energy`, the machine's own node):
+the machine's area with that width, and the energy its units spend per sample on the
+scene (the memory traffic does not change with these widths; a frame's total is that
+times its samples, plus the memories).  It writes ``widths.csv``, ``widths.json``,
+``widths.png`` (PSNR against bits, one panel per knob) and ``widths-pareto.png`` (PSNR
+against area and against energy per sample, every width of every knob, the Pareto front
+drawn).  The fidelity-ladder trade (speed against error per rung) is
 :mod:`hwsim.trade.ladder`.
 """
 
@@ -29,6 +34,7 @@ __all__ = [
     "WIDTH_KNOBS",
     "WidthCase",
     "default_cases",
+    "pareto_front",
     "width_trade",
     "write_width_trade",
 ]
@@ -87,9 +93,13 @@ def width_trade(
     progress: Callable[[int, int], None] | None = None,
 ) -> list[dict[str, Any]]:
     """One row per (knob, value, scene): PSNR, RMSE, max abs error, functional seconds."""
-    from models.datapath import Datapath
+    from hwsim.energy import load_technology
+    from hwsim.energy.model import machine_area, unit_joules_per_sample
+    from models.datapath import Datapath, units_needed
     from models.frame import frame_of
     from models.functional import render_functional
+
+    tech = load_technology(arch.technology)
 
     knobs = WIDTH_KNOBS if knobs is None else knobs
     rows: list[dict[str, Any]] = []
@@ -107,6 +117,8 @@ def width_trade(
                 frame = frame_of(case.scene, case.volume, tf, arch, plan, datapath=dp)
                 image = render_functional(frame).image
                 seconds = time.perf_counter() - start
+                used = [u for u, on in units_needed(case.scene, tf.modulates).items() if on]
+                per_sample = unit_joules_per_sample(arch, dp, case.scene, used, tech)
                 rows.append(
                     {
                         "knob": knob,
@@ -117,6 +129,9 @@ def width_trade(
                         "rmse": rmse(golden, image),
                         "max_abs_error": max_abs_error(golden, image),
                         "functional_seconds": seconds,
+                        "technology": tech.name,
+                        "area_mm2": machine_area(arch, dp, tech)["total_mm2"],
+                        "unit_energy_per_sample_joules": sum(per_sample.values()),
                     }
                 )
                 done += 1
@@ -133,7 +148,12 @@ def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[s
     import matplotlib.pyplot as plt
 
     out = output_folder(out_dir)
-    paths = {"csv": out / "widths.csv", "json": out / "widths.json", "png": out / "widths.png"}
+    paths = {
+        "csv": out / "widths.csv",
+        "json": out / "widths.json",
+        "png": out / "widths.png",
+        "pareto": out / "widths-pareto.png",
+    }
     write_rows(rows, paths["csv"], paths["json"])
     knobs = list(dict.fromkeys(r["knob"] for r in rows))
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
@@ -156,4 +176,45 @@ def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[s
     fig.tight_layout()
     fig.savefig(paths["png"], dpi=110)
     plt.close(fig)
+    _pareto_plot(plt, rows, knobs, scenes, paths["pareto"])
     return paths
+
+
+def pareto_front(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The points no other beats (lower cost ``x``, higher PSNR ``y``), by cost."""
+    front: list[tuple[float, float]] = []
+    for x, y in sorted(points, key=lambda p: (p[0], -p[1])):
+        if not front or y > front[-1][1]:
+            front.append((x, y))
+    return front
+
+
+def _pareto_plot(plt, rows, knobs, scenes, path: Path) -> None:
+    """PSNR against area and against unit energy per sample, one colour per knob, one
+    marker per scene, each scene's Pareto front as a line."""
+    axes_of = (
+        ("area_mm2", "area (mm^2)"),
+        ("unit_energy_per_sample_joules", "unit energy per sample (J)"),
+    )
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0))
+    markers = "osD^v<>"
+    for ax, (key, label) in zip(axes, axes_of, strict=True):
+        for k, knob in enumerate(knobs):
+            for m, scene in enumerate(scenes):
+                pts = [(r[key], min(r["psnr_db"], 99.0)) for r in rows
+                       if r["knob"] == knob and r["scene"] == scene]  # fmt: skip
+                ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=18, color=f"C{k}",
+                           marker=markers[m % len(markers)],
+                           label=knob if m == 0 else None)  # fmt: skip
+        for m, scene in enumerate(scenes):
+            front = pareto_front([(r[key], min(r["psnr_db"], 99.0)) for r in rows
+                                  if r["scene"] == scene])  # fmt: skip
+            ax.plot([p[0] for p in front], [p[1] for p in front], "k-", lw=0.8,
+                    label="Pareto front" if m == 0 else None)  # fmt: skip
+        ax.axhline(40.0, color="grey", lw=0.8, ls="--")
+        ax.set_xlabel(f"{label}, {rows[0]['technology']}" if rows else label)
+        ax.set_ylabel("PSNR vs golden (dB)")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -85,6 +85,12 @@ class Machine:
         (functional, transaction, cycle, rtl), so they refuse alike.
     rtl_top : str or None
         The module of the family's RTL top, where one exists.
+    silicon : callable or None
+        ``silicon(arch, datapath)``: the machine's buffers and interpolator, a
+        :class:`~models.machines.common.silicon.Silicon` (the energy and area model).
+    accesses : callable or None
+        ``accesses(counters, arch, datapath, units)``: a frame's memory actions
+        (:class:`~models.machines.common.silicon.Access`) from its counters.
     package : str
         The package holding the family's architecture files.
     """
@@ -98,6 +104,8 @@ class Machine:
     check_frame: Callable[..., None] | None = None
     rtl_top: str | None = None
     package: str = field(default="")
+    silicon: Callable[..., Any] | None = None
+    accesses: Callable[..., Any] | None = None
 
     def arch_files(self) -> list[Path]:
         """The family's built-in architecture files."""

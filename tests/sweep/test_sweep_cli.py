@@ -119,3 +119,32 @@ def test_an_unreachable_scheduler_is_bad_input(tmp_path, capsys):
     argv = ["sweep", str(tmp_path / "s.toml"), "--db", str(tmp_path / "r.db")]
     assert main([*argv, "--scheduler", "tcp://127.0.0.1:9"]) == 2
     assert "tcp://127.0.0.1:9: --scheduler: cannot reach the scheduler" in capsys.readouterr().err
+
+
+def test_every_timed_row_holds_its_energy_and_area(tmp_path):
+    """hwsim.energy in each cycle and transaction row, priced in the machine's own node;
+    one pipeline has a quarter of four's datapath area; functional rows have none."""
+    (tmp_path / "s.toml").write_text(
+        'schema = 1\n[sweep]\narch = ["volumepro500"]\n'
+        'fidelity = ["cycle", "transaction", "functional"]\n'
+        'phantom = ["head:size=16"]\nimage = [16]\npipelines = [1, 4]\n'
+    )
+    db = tmp_path / "runs.db"
+    argv = ["sweep", str(tmp_path / "s.toml"), "--workers", "1", "--db", str(db), "--quiet"]
+    assert main(argv) == 0
+    with RunsDB(db) as runs:
+        rows = runs.rows()
+    assert len(rows) == 6 and all(r["status"] == "ok" for r in rows)
+    area = {}
+    for r in rows:
+        stats = r["stats"]
+        if r["fidelity"] == "functional":
+            assert r["energy_joules"] is None and stats["energy"] is None
+            continue
+        assert r["technology"] == stats["technology"]["name"] == "cmos350"
+        assert r["energy_joules"] == stats["energy"]["total_joules"] > 0
+        assert r["energy_per_sample_joules"] == stats["energy"]["per_sample_joules"] > 0
+        assert r["area_mm2"] == stats["area"]["total_mm2"] > 0
+        area[r["fidelity"], r["params"]["pipelines"]] = stats["area"]["units"]["interp"]["mm2"]
+    for rung in ("cycle", "transaction"):
+        assert area[rung, 4] == pytest.approx(4 * area[rung, 1])

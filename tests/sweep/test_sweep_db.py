@@ -47,3 +47,23 @@ def test_a_file_that_is_not_a_database_is_bad_input(tmp_path):
     bad.write_text("not sqlite " * 100)
     with pytest.raises(InputError, match="r.db: --db: not an SQLite database"):
         RunsDB(bad)
+
+
+def test_a_database_from_before_a_column_gains_it(tmp_path):
+    """A results file written before the energy columns existed opens, gains them (NULL
+    in its old rows) and takes new rows."""
+    path = tmp_path / "old.db"
+    conn = sqlite3.connect(path)
+    conn.execute(
+        "CREATE TABLE runs (key TEXT NOT NULL UNIQUE, status TEXT NOT NULL, params TEXT NOT NULL)"
+    )
+    conn.execute("CREATE TABLE meta (name TEXT PRIMARY KEY, value TEXT NOT NULL)")
+    conn.execute("INSERT INTO meta VALUES ('schema', '1')")
+    conn.execute("INSERT INTO runs VALUES ('old', 'ok', '{}')")
+    conn.commit()
+    conn.close()
+    with RunsDB(path) as db:
+        db.insert(row("new", energy_joules=1.5e-3, area_mm2=12.0, technology="cmos45"))
+        rows = {r["key"]: r for r in db.rows()}
+    assert rows["old"]["energy_joules"] is None
+    assert (rows["new"]["energy_joules"], rows["new"]["area_mm2"]) == (1.5e-3, 12.0)

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 from models.machines import Machine, single_frames
+from models.machines.cube4 import silicon
 from models.machines.cube4.cycle import Cube4Machine, Faults
 from models.machines.cube4.frame import check_cube4_frame
 from models.machines.cube4.transaction import Cube4Transaction
@@ -19,4 +20,6 @@ MACHINE = Machine(
     check_frame=check_cube4_frame,
     rtl_top="rtl.top",
     package="models.machines.cube4",
+    silicon=silicon.silicon,
+    accesses=silicon.accesses,
 )

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 from models.machines import Machine, single_frames
+from models.machines.vizard2 import silicon
 from models.machines.vizard2.config import VizardFaults, check_frame
 from models.machines.vizard2.cycle import VizardMachine
 from models.machines.vizard2.transaction import VizardTransaction
@@ -18,4 +19,6 @@ MACHINE = Machine(
     faults_type=VizardFaults,
     check_frame=check_frame,
     package="models.machines.vizard2",
+    silicon=silicon.silicon,
+    accesses=silicon.accesses,
 )

@@ -10,6 +10,7 @@ from typing import Any
 
 from models.frame import Frame
 from models.machines import Machine
+from models.machines.volumepro import silicon
 from models.machines.volumepro.cycle import SlabFaults, SlabMachine
 from models.machines.volumepro.transaction import SlabTransaction
 from models.machines.volumepro.vp1000_transaction import Vp1000Transaction
@@ -37,4 +38,6 @@ MACHINE = Machine(
     faults_type=SlabFaults,
     steady_state=True,
     package="models.machines.volumepro",
+    silicon=silicon.silicon,
+    accesses=silicon.accesses,
 )

@@ -1,0 +1,58 @@
+"""Energy per frame and silicon area: action counts times per-action energies (issue 19).
+
+# Ref: docs/energy.md.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hwsim.energy.model import estimate
+from hwsim.energy.technology import Technology, builtin_technologies, load_technology
+
+__all__ = [
+    "Technology",
+    "builtin_technologies",
+    "estimate",
+    "estimate_frame",
+    "load_technology",
+    "units_below_clock",
+]
+
+
+def units_below_clock(arch, technology: str | None = None) -> list[tuple[str, float]]:
+    """``(unit, fmax_hz)`` of each datapath unit of ``arch`` whose synthesised RTL cannot
+    run at the machine's clock in ``technology`` (default: the machine's own node)."""
+    from hwsim.energy.model import DATAPATH
+    from hwsim.energy.synth import unit_silicon
+
+    tech = load_technology(technology or arch.technology)
+    out = []
+    for unit in DATAPATH:
+        syn = unit_silicon(unit, tech, arch.clock_hz)
+        if syn is not None and syn["meets_clock"] is False:
+            out.append((unit, syn["fmax_hz"]))
+    return out
+
+
+def estimate_frame(
+    frame, counters, units: list[str], cycles: int | None, technology: str | None = None
+) -> dict[str, Any] | None:
+    """:func:`estimate` of a rendered ``frame`` (a :class:`models.frame.Frame`) in
+    ``technology`` (default: its machine's ``[silicon] technology``); None when the
+    machine's family declares no silicon."""
+    from models.machines import machine_for
+
+    arch = frame.arch
+    if machine_for(arch).silicon is None:
+        return None
+    tech = load_technology(technology or arch.technology)
+    return estimate(
+        arch=arch,
+        dp=frame.datapath,
+        scene=frame.scene,
+        counters=counters,
+        units=units,
+        cycles=cycles,
+        tech=tech,
+    )

@@ -1,0 +1,226 @@
+"""Energy per frame and silicon area of one rendered frame: action counts times prices.
+
+# Ref: docs/energy.md (every rule and assumption); models/units/ops.py (what each unit
+#      does per sample); models/machines/<family>/silicon.py (each machine's buffers and
+#      memory actions); hwsim/energy/technology.py (the prices).
+
+Dynamic energy is the frame's actions priced by the technology:
+
+* a datapath unit acts once per sample it processes (the cycle rung's per-pipeline
+  ``inputs`` counters; the transaction rung's ``frame.samples``); elided units perform
+  no actions; one action costs the unit's operator inventory at its widths;
+* each memory action of the family's :func:`accesses`: SDRAM reads per bit,
+  activations and refreshes per command, on-chip buffers per access by array size.
+
+Static energy is the machine's area times the technology's leakage density times the
+frame time.  Area is the machine's silicon whatever the scene: every datapath unit of
+every pipeline (its operators instantiated once each, its pipeline registers and tables)
+plus the buffers, sized for the machine's largest volume.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any
+
+from hwsim.energy.synth import unit_datapath, unit_silicon
+from hwsim.energy.technology import Technology
+from models.machines.common.silicon import Silicon, counter_sum
+from models.units.ops import Op, unit_ops
+
+__all__ = [
+    "DATAPATH",
+    "estimate",
+    "machine_area",
+    "op_area_um2",
+    "op_energy_pj",
+    "synthesized_unit",
+    "unit_inventory",
+    "unit_joules_per_sample",
+]
+
+#: The datapath units priced (the crop unit only where the machine has one).
+DATAPATH = ("interp", "gradient", "classify", "shade", "composite", "crop")
+_PJ, _UM2_PER_MM2 = 1e-12, 1e6
+#: The frame's samples the hardware issued (VIZARD II's transaction rung names them so).
+_SAMPLES = ("frame.issued_samples", "frame.samples")
+
+
+def op_energy_pj(op: Op, tech: Technology) -> float:
+    """One sample's worth of ``op``: ``count`` operations."""
+    if op.kind == "add":
+        each = tech.add_pj(op.a)
+    elif op.kind == "mult":
+        each = tech.mult_pj(op.a, op.b)
+    elif op.kind == "table":
+        each = tech.sram_pj(op.a, op.a * op.b)
+    else:  # register
+        each = tech.register_pj(op.a)
+    return each * op.count
+
+
+def op_area_um2(op: Op, tech: Technology) -> float:
+    """The hardware of ``op`` in one pipeline (its ``instances``)."""
+    if op.kind == "add":
+        return tech.add_um2(op.a) * op.instances
+    if op.kind == "mult":
+        return tech.mult_um2(op.a, op.b) * op.instances
+    if op.kind == "table":
+        return tech.storage_um2(op.a * op.b) * op.instances
+    return tech.storage_um2(int(op.a * op.instances))  # registers: flip-flops
+
+
+def unit_inventory(unit: str, dp, silicon: Silicon, lights: int, shading: str) -> list[Op]:
+    """``unit``'s operators per sample on datapath ``dp``."""
+    return unit_ops(
+        unit,
+        voxel_bits=dp.voxel_bits,
+        sample_frac_bits=dp.interp.sample_frac_bits,
+        weight_bits=dp.interp.weight_bits,
+        lerps=silicon.lerps,
+        gradient_source=dp.gradient.source,
+        normal_frac_bits=dp.gradient.normal_frac_bits,
+        lut_entries=dp.classify.entries,
+        color_bits=dp.classify.color_bits,
+        alpha_bits=dp.classify.alpha_bits,
+        lights=lights,
+        shading=shading,
+        spec_table_entries=dp.shade.spec_table_entries,
+        map_size=dp.shade.map_size,
+        acc_frac_bits=dp.composite.acc_frac_bits,
+    )
+
+
+def _unit_actions(counters: Mapping[str, int], unit: str) -> int:
+    """Samples ``unit`` processed: its pipelines' ``inputs`` (cycle rung), else the frame's
+    samples (transaction rung: every issued sample passes every elaborated unit)."""
+    return counter_sum(counters, f"pipeline[].{unit}.inputs", *_SAMPLES)
+
+
+def synthesized_unit(unit: str, silicon: Silicon, tech: Technology, arch) -> dict[str, Any] | None:
+    """``unit``'s RTL as synthesised (:mod:`hwsim.energy.synth`, one pipeline's unit at
+    its default widths), with the table's area of the same unit at the same widths beside
+    it, and whether its longest path meets ``arch``'s clock."""
+    syn = unit_silicon(unit, tech, arch.clock_hz)
+    if syn is None:
+        return None
+    params = syn["params"]
+    same = dataclasses.replace(silicon, lerps=7)  # the RTL's interp unit is trilinear
+    inventory = unit_inventory(
+        unit, unit_datapath(unit, params), same, params.get("lights", 1),
+        params.get("method", "phong"),
+    )  # fmt: skip
+    table = sum(op_area_um2(op, tech) for op in inventory) / _UM2_PER_MM2
+    return {**syn, "table_mm2_same_widths": table, "table_over_synthesized": table / syn["mm2"]}
+
+
+def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
+    """The silicon of ``arch`` with datapath ``dp``, whatever the scene: every pipeline's
+    units (one light's hardware each) and the buffers."""
+    from models.machines import machine_for
+
+    silicon = machine_for(arch).silicon(arch, dp)
+    P = arch.pipelines
+    unit_area = {}
+    for u in _units_of(arch):
+        inventory = unit_inventory(u, dp, silicon, 1, dp.shade.method)
+        per = sum(op_area_um2(op, tech) for op in inventory)
+        unit_area[u] = {
+            "mm2": P * per / _UM2_PER_MM2,
+            "per_pipeline_mm2": per / _UM2_PER_MM2,
+            "gate_equivalents": P * per / tech.gate_um2(1.0),
+            "synthesized": synthesized_unit(u, silicon, tech, arch),
+        }
+    buffers = {
+        s.name: {
+            "mm2": s.copies * tech.storage_um2(s.bits) / _UM2_PER_MM2,
+            "bits": s.copies * s.bits,
+            "copies": s.copies,
+        }
+        for s in silicon.storage
+    }
+    total = sum(a["mm2"] for a in unit_area.values()) + sum(b["mm2"] for b in buffers.values())
+    return {
+        "total_mm2": total,
+        "gate_equivalents": total * _UM2_PER_MM2 / tech.gate_um2(1.0),
+        "pipelines": P,
+        "per_pipeline_mm2": sum(a["per_pipeline_mm2"] for a in unit_area.values()),
+        "units": unit_area,
+        "buffers": buffers,
+    }
+
+
+def unit_joules_per_sample(arch, dp, scene, units: list[str], tech: Technology) -> dict[str, float]:
+    """Energy of one action of each of ``units`` (those of ``arch``'s datapath) for
+    ``scene`` (its lights) on datapath ``dp``."""
+    from models.machines import machine_for
+
+    silicon = machine_for(arch).silicon(arch, dp)
+    lights = max(1, len(scene.lights)) if scene.lit else 0
+    out = {}
+    for u in (u for u in _units_of(arch) if u in units):
+        inventory = unit_inventory(u, dp, silicon, lights, dp.shade.method)
+        out[u] = sum(op_energy_pj(op, tech) for op in inventory) * _PJ
+    return out
+
+
+def _units_of(arch) -> list[str]:
+    return [u for u in DATAPATH if u != "crop" or arch.crop]
+
+
+def estimate(
+    *,
+    arch,
+    dp,
+    scene,
+    counters: Mapping[str, int],
+    units: list[str],
+    cycles: int | None,
+    tech: Technology,
+) -> dict[str, Any]:
+    """``{"technology", "energy", "area"}`` of one frame (``units``: the elaborated ones)."""
+    from models.machines import machine_for
+
+    family = machine_for(arch)
+    silicon = family.silicon(arch, dp)
+    area = machine_area(arch, dp, tech)
+    unit_energy = {}
+    for u, per in unit_joules_per_sample(arch, dp, scene, units, tech).items():
+        actions = _unit_actions(counters, u)
+        unit_energy[u] = {"actions": actions, "joules_per_action": per, "joules": actions * per}
+    storage = {s.name: s for s in silicon.storage}
+    memories: dict[str, dict[str, Any]] = {}
+    for acc in family.accesses(counters, arch, dp, units):
+        if acc.store == "dram":
+            price = {
+                "read": acc.word_bits * tech.v("energy", "dram_read_bit_pj"),
+                "activate": tech.v("energy", "dram_activate_pj"),
+                "refresh": tech.v("energy", "dram_refresh_pj"),
+            }[acc.kind]
+        else:
+            price = tech.sram_pj(acc.word_bits, storage[acc.store].bits)
+        entry = memories.setdefault(acc.store, {"joules": 0.0, "actions": {}})
+        entry["actions"][acc.kind] = entry["actions"].get(acc.kind, 0) + acc.count
+        entry["joules"] += acc.count * price * _PJ
+    dynamic = sum(e["joules"] for e in unit_energy.values()) + sum(
+        m["joules"] for m in memories.values()
+    )
+    frame_seconds = cycles / arch.clock_hz if cycles else None
+    static = area["total_mm2"] * tech.leakage_w_per_mm2 * frame_seconds if frame_seconds else 0.0
+    total = dynamic + static
+    samples = counter_sum(counters, *_SAMPLES)
+    return {
+        "technology": tech.describe(),
+        "energy": {
+            "total_joules": total,
+            "dynamic_joules": dynamic,
+            "static_joules": static,
+            "per_sample_joules": total / samples if samples else None,
+            "average_watts": total / frame_seconds if frame_seconds else None,
+            "frame_seconds": frame_seconds,
+            "units": unit_energy,
+            "memories": memories,
+        },
+        "area": area,
+    }

@@ -1,0 +1,77 @@
+"""The report's energy and area section of one run (``stats.json``'s ``energy``, ``area``
+and ``technology``, from :mod:`hwsim.energy`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from hwsim.report import plots
+
+__all__ = ["energy_blocks"]
+
+
+def _g(v: Any, spec: str = ".4g") -> str:
+    return "-" if v is None else format(v, spec)
+
+
+def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: str) -> list:
+    """Blocks: totals, the breakdown plots, and each unit's area two ways and clock."""
+    blocks: list = [("h3", "Energy and area")]
+    energy, area, tech = stats.get("energy"), stats.get("area"), stats.get("technology")
+    if not energy or not area:
+        blocks.append(("p", f"Energy and area: {not_recorded} by the {stats['fidelity']} rung."))
+        return blocks
+    blocks.append(
+        (
+            "table",
+            ["quantity", "value"],
+            [
+                ["technology", f"{tech['name']} ({tech['node_nm']:g} nm, {tech['vdd']:g} V)"],
+                ["energy per frame (J)", _g(energy["total_joules"])],
+                ["  dynamic / static (J)", f"{_g(energy['dynamic_joules'])} / "
+                 f"{_g(energy['static_joules'])}"],
+                ["energy per sample (J)", _g(energy["per_sample_joules"])],
+                ["average power at the simulated frame rate (W)", _g(energy["average_watts"])],
+                ["area (mm^2)", _g(area["total_mm2"])],
+                ["area per pipeline, units (mm^2)", _g(area["per_pipeline_mm2"])],
+                ["gate equivalents", _g(area["gate_equivalents"], ".3e")],
+            ],
+        )
+    )  # fmt: skip
+    for plot, alt in (
+        (plots.plot_energy(energy, out / f"run{index}-energy.png"), "energy breakdown"),
+        (plots.plot_area(area, out / f"run{index}-area.png"), "area breakdown"),
+    ):
+        if plot is not None:
+            blocks.append(("img", plot, alt))
+    rows = []
+    for unit, entry in area["units"].items():
+        syn = entry.get("synthesized")
+        if syn:
+            meets = {True: "yes", False: "NO", None: "-"}[syn["meets_clock"]]
+            rows.append(
+                [
+                    unit,
+                    _g(syn["table_mm2_same_widths"]),
+                    _g(syn["mm2"]),
+                    _g(syn["table_over_synthesized"], ".2f"),
+                    str(syn["logic_levels"]),
+                    _g(syn["fmax_hz"] / 1e6 if syn["fmax_hz"] else None, ".0f"),
+                    meets,
+                ]
+            )
+    if rows:
+        blocks.append(
+            (
+                "p",
+                "Each unit's area two ways (one pipeline, the RTL's default widths): the "
+                "operator table and the synthesised RTL in gate equivalents; and the clock "
+                f"its longest path allows against the machine's {_g(stats['clock_hz'] / 1e6)} "
+                "MHz (docs/energy.md).",
+            )
+        )
+        header = ["unit", "table mm^2", "RTL mm^2", "table / RTL", "gate levels", "fmax MHz",
+                  "meets clock"]  # fmt: skip
+        blocks.append(("table", header, rows))
+    return blocks
