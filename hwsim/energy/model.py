@@ -135,6 +135,7 @@ def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
     buffers = {
         s.name: {
             "mm2": s.copies * tech.storage_um2(s.bits) / _UM2_PER_MM2,
+            "gate_equivalents": s.copies * tech.storage_um2(s.bits) / tech.gate_um2(1.0),
             "bits": s.copies * s.bits,
             "copies": s.copies,
         }
