@@ -28,7 +28,7 @@ import numpy as np
 
 from hwsim.errors import HwsimError, InputError
 from hwsim.sweep.db import RunsDB
-from hwsim.sweep.spec import RunSpec, Sweep, build_run, code_version, run_key
+from hwsim.sweep.spec import RunSpec, Sweep, build_run, code_version, run_key, technology_of
 
 __all__ = [
     "ALLOWED_FAILURES",
@@ -102,7 +102,11 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
         scene, arch, fidelity, overrides = build_run(run)
         row.update(scene=scene.name, volume=scene.volume.describe(), mode=scene.render.mode)
         result = render(
-            scene, fidelity=fidelity, arch=arch, timing_only=p.get("timing_only", False)
+            scene,
+            fidelity=fidelity,
+            arch=arch,
+            timing_only=p.get("timing_only", False),
+            technology=technology_of(run),
         )
         stats = stats_plain(result)
         row.update(

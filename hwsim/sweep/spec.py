@@ -39,6 +39,7 @@ __all__ = [
     "parse_sweep",
     "build_run",
     "run_key",
+    "technology_of",
     "code_version",
 ]
 
@@ -57,6 +58,7 @@ PARAMETERS = (
     "pipelines",
     "clock_hz",
     "timing_only",
+    "technology",
 )
 _ARCH_OVERRIDES = ("pipelines", "clock_hz")
 
@@ -226,6 +228,14 @@ def _code_version() -> str:
     return f"{__version__}+{digest.hexdigest()[:12]}"
 
 
+def technology_of(run: RunSpec) -> str | None:
+    """The run's ``technology`` (a file relative to the sweep file's folder), or None."""
+    value = run.values.get("technology")
+    if value is None:
+        return None
+    return str(Path(run.base_dir) / value) if value.endswith(".toml") else value
+
+
 def run_key(run: RunSpec) -> str:
     """SHA-256 of the resolved scene, architecture, overrides, fidelity and code version."""
     scene, arch, fidelity, overrides = build_run(run)
@@ -238,6 +248,8 @@ def run_key(run: RunSpec) -> str:
     }
     if run.values.get("timing_only"):  # a timed frame without its image is another run
         payload["timing_only"] = True
+    if run.values.get("technology"):  # the same frame priced in another node
+        payload["technology"] = technology_of(run)
     text = json.dumps(payload, sort_keys=True, default=str, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -278,6 +290,15 @@ def _check(name: str, value: Any, source: str, key: str, base: str) -> Any:
             raise InputError(
                 f"unknown architecture {value!r}", source=source, key=key, allowed=allowed
             )
+    elif name == "technology":
+        from hwsim.energy import load_technology
+
+        if not isinstance(value, str):
+            raise InputError(f"must be a string, got {value!r}", source=source, key=key)
+        try:
+            load_technology(str(Path(base) / value) if value.endswith(".toml") else value)
+        except InputError as exc:
+            raise InputError(exc.message, source=source, key=key, allowed=exc.allowed) from None
     elif name == "timing_only":
         if not isinstance(value, bool):
             raise InputError(f"must be true or false, got {value!r}", source=source, key=key)

@@ -241,3 +241,25 @@ def test_units_below_the_clock_are_flagged():
     its synthesised path is far too long for VolumePro 500's 125 MHz in 0.35 um."""
     slow = dict(units_below_clock(resolve_arch("volumepro500")))
     assert "gradient" in slow and slow["gradient"] < 125e6 / 4
+
+
+def test_a_users_technology_file_derives_from_a_built_in(tmp_path, head):
+    """A file of one's own: a 28 nm node scaled from the 45 nm base, with its own memory
+    and leakage, used by a render through ``technology=`` (and ``--technology``)."""
+    path = tmp_path / "my28.toml"
+    path.write_text(
+        'schema = 1\n[technology]\nname = "my28"\nnode_nm = 28\nvdd = 0.8\nbase = "cmos45"\n'
+        "[energy]\n"
+        'dram_read_bit_pj = { value = 8.0, tag = "I", source = "LPDDR4 ~ 8 pJ/bit" }\n'
+        'dram_activate_pj = { value = 900.0, tag = "I", source = "scaled by hand" }\n'
+        'dram_refresh_pj = { value = 20000.0, tag = "I", source = "scaled by hand" }\n'
+        '[leakage]\nw_per_mm2 = { value = 0.05, tag = "I", source = "a guess, stated" }\n'
+    )
+    mine, base = load_technology(str(path)), load_technology("cmos45")
+    assert mine.add_pj(16) == pytest.approx(base.add_pj(16) * (28 / 45) * (0.8 / 0.9) ** 2)
+    s = _silicon("volumepro500", head, technology=str(path))
+    assert s["technology"]["name"] == "my28" and s["technology"]["base"] == "cmos45"
+    assert (
+        s["area"]["total_mm2"]
+        < _silicon("volumepro500", head, technology="cmos45")["area"]["total_mm2"]
+    )

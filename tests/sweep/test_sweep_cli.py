@@ -122,29 +122,42 @@ def test_an_unreachable_scheduler_is_bad_input(tmp_path, capsys):
 
 
 def test_every_timed_row_holds_its_energy_and_area(tmp_path):
-    """hwsim.energy in each cycle and transaction row, priced in the machine's own node;
+    """hwsim.energy in each cycle and transaction row, priced in the node the sweep names;
     one pipeline has a quarter of four's datapath area; functional rows have none."""
     (tmp_path / "s.toml").write_text(
         'schema = 1\n[sweep]\narch = ["volumepro500"]\n'
         'fidelity = ["cycle", "transaction", "functional"]\n'
         'phantom = ["head:size=16"]\nimage = [16]\npipelines = [1, 4]\n'
+        'technology = ["cmos350", "cmos45"]\n'
     )
     db = tmp_path / "runs.db"
     argv = ["sweep", str(tmp_path / "s.toml"), "--workers", "1", "--db", str(db), "--quiet"]
     assert main(argv) == 0
     with RunsDB(db) as runs:
         rows = runs.rows()
-    assert len(rows) == 6 and all(r["status"] == "ok" for r in rows)
+    assert len(rows) == 12 and all(r["status"] == "ok" for r in rows)
     area = {}
     for r in rows:
         stats = r["stats"]
         if r["fidelity"] == "functional":
             assert r["energy_joules"] is None and stats["energy"] is None
             continue
-        assert r["technology"] == stats["technology"]["name"] == "cmos350"
+        assert r["technology"] == stats["technology"]["name"] == r["params"]["technology"]
         assert r["energy_joules"] == stats["energy"]["total_joules"] > 0
         assert r["energy_per_sample_joules"] == stats["energy"]["per_sample_joules"] > 0
         assert r["area_mm2"] == stats["area"]["total_mm2"] > 0
-        area[r["fidelity"], r["params"]["pipelines"]] = stats["area"]["units"]["interp"]["mm2"]
+        key = r["fidelity"], r["params"]["pipelines"], r["technology"]
+        area[key] = stats["area"]["units"]["interp"]["mm2"]
     for rung in ("cycle", "transaction"):
-        assert area[rung, 4] == pytest.approx(4 * area[rung, 1])
+        for tech in ("cmos350", "cmos45"):
+            assert area[rung, 4, tech] == pytest.approx(4 * area[rung, 1, tech])
+        assert area[rung, 4, "cmos45"] < area[rung, 4, "cmos350"] / 50
+
+
+def test_an_unknown_technology_is_refused_when_the_sweep_is_read(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text('schema = 1\n[sweep]\ntechnology = ["cmos9"]\n')
+    argv = ["sweep", str(tmp_path / "s.toml"), "--workers", "1", "--db", str(tmp_path / "r.db")]
+    assert main([*argv, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "s.toml" in err and "sweep.technology" in err and "cmos45" in err
+    assert not (tmp_path / "r.db").exists()
