@@ -1,5 +1,6 @@
-"""Cube-4's compiled composite stage (models/machines/cube4/slice_kernel.py) gives the
-unit chain's bits.
+"""The cycle rung's compiled composite stages give the unit chain's bits: Cube-4's
+(models/machines/cube4/slice_kernel.py) and the VolumePro family's
+(models/machines/volumepro/slab_kernel.py).
 
 Whole cycle frames rendered with the kernel (``compiled=True``, the default) equal the
 vectorised unit chain (``compiled=False``) in image, samples, cycles and every counter,
@@ -30,6 +31,8 @@ from models.datapath import Datapath
 from models.frame import frame_of
 from models.machines.cube4 import slice_kernel
 from models.machines.cube4.cycle import Faults
+from models.machines.volumepro import slab_kernel
+from models.machines.volumepro.cycle import SlabFaults
 
 pytestmark = pytest.mark.model
 
@@ -114,6 +117,106 @@ CASES = {
 }
 
 
+#: The VolumePro family: trilinear samples, sample or voxel gradients, supersampling.
+SLAB_CASES = {
+    "vp500": ("volumepro500", {}, "head", _scene(), {}, None),
+    "vp500-axis": ("volumepro500", {}, "head", _scene(az=0, el=0), {}, None),
+    "vp500-45-45": ("volumepro500", {}, "head", _scene(az=45, el=45), {}, None),
+    "vp500-back": ("volumepro500", {}, "head", _scene(az=180, el=-35), {}, None),
+    "vp500-y-principal": ("volumepro500", {}, "head", _scene(az=10, el=80), {}, None),
+    "vp500-x-principal": ("volumepro500", {}, "head-z", _scene(az=95, el=-5), {}, None),
+    "vp500-anisotropic": ("volumepro500", {}, "head-z", _scene(az=-60, el=30), {}, None),
+    "vp500-modulated": ("volumepro500", {}, "head", _scene(transfer=MODULATED), {}, None),
+    "vp500-crop": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(crop=CropSpec(y=(4, 15), invert=True)),
+        {},
+        None,
+    ),
+    "vp500-supersampled": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(az=20, el=50, render={"supersampling": 2.0}),
+        {},
+        None,
+    ),
+    # Sample slices between voxel slices along each principal axis: the trilinear paths.
+    "vp500-supersampled-x": (
+        "volumepro500",
+        {},
+        "head-z",
+        _scene(az=95, el=-5, render={"supersampling": 2.0}),
+        {},
+        None,
+    ),
+    "vp500-supersampled-y": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(az=10, el=80, render={"supersampling": 2.0}),
+        {},
+        None,
+    ),
+    "vp1000-supersampled-x": (
+        "volumepro1000",
+        {},
+        "head-z",
+        _scene(az=95, el=-5, render={"supersampling": 2.0}),
+        {},
+        None,
+    ),
+    "vp500-unlit": ("volumepro500", {}, "head", _scene(render={"lighting": False}), {}, None),
+    "vp500-narrow": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(az=-70, el=25),
+        {"interp.weight_bits": 5, "interp.rounding": "nearest-even", "interp.sample_frac_bits": 2},
+        None,
+    ),
+    "em-cube": ("em-cube", {}, "head", _scene(az=100, el=10), {}, None),
+    "vp1000-voxel-gradients": ("volumepro1000", {}, "head", _scene(az=-20, el=60), {}, None),
+    "vp1000-x-principal": ("volumepro1000", {}, "head-z", _scene(az=95, el=-5), {}, None),
+    "vp1000-supersampled-cut": (
+        "volumepro1000",
+        {},
+        "head",
+        _scene(cut_planes=CUT, render={"supersampling": 3.0}),
+        {},
+        None,
+    ),
+    "vp500-stuck-module": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(),
+        {},
+        SlabFaults(stuck_module=(1, 4095)),
+    ),
+    "vp500-dropped-link": ("volumepro500", {}, "head", _scene(), {}, SlabFaults(dropped_link=2)),
+    "vp500-stuck-bank": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(),
+        {},
+        SlabFaults(stuck_bank=(0, 1, 3000)),
+    ),
+    "vp500-lost-handoff": ("volumepro500", {}, "head", _scene(), {}, SlabFaults(dropped_handoff=1)),
+    "vp500-short-beam-fifo": (
+        "volumepro500",
+        {},
+        "head",
+        _scene(),
+        {},
+        SlabFaults(beam_fifo_adjust=-1),
+    ),
+}
+
+
 @pytest.fixture(scope="module")
 def volumes():
     return {
@@ -149,6 +252,24 @@ def test_compiled_cycle_frames_equal_the_unit_chain(case, volumes, monkeypatch):
         return original(self, src, step, factor, state, table)
 
     monkeypatch.setattr(slice_kernel.SliceKernel, "run", counted)
+    fast = _render(arch, changes, volumes[volume], scene, overrides, faults)
+    assert sum(runs) > 0, "the kernel did not run"
+    ref = _render(arch, changes, volumes[volume], scene, overrides, faults, compiled=False)
+    _same(fast, ref)
+    assert ref.image[..., 3].max() > 0.05  # something was composited
+
+
+@pytest.mark.parametrize("case", list(SLAB_CASES))
+def test_compiled_slab_frames_equal_the_unit_chain(case, volumes, monkeypatch):
+    arch, changes, volume, scene, overrides, faults = SLAB_CASES[case]
+    runs = []
+    original = slab_kernel.SlabKernel.run
+
+    def counted(self, src, step, factor, state, table):
+        runs.append(step.rays.size)
+        return original(self, src, step, factor, state, table)
+
+    monkeypatch.setattr(slab_kernel.SlabKernel, "run", counted)
     fast = _render(arch, changes, volumes[volume], scene, overrides, faults)
     assert sum(runs) > 0, "the kernel did not run"
     ref = _render(arch, changes, volumes[volume], scene, overrides, faults, compiled=False)

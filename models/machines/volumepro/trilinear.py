@@ -68,6 +68,17 @@ class TrilinearSource:
         y = [interp_unit.lerp(x[0], x[1], fy, cfg), interp_unit.lerp(x[2], x[3], fy, cfg)]
         return interp_unit.lerp(y[0], y[1], fz, cfg)
 
+    def composite_fused(self, step: Step, factor: np.ndarray | None, state) -> bool:
+        """Run the back end's composite stage on ``step`` in two compiled passes
+        (:mod:`models.machines.volumepro.slab_kernel`) when the frame allows it; False:
+        use the unit chain."""
+        kernel = self.m.kernel
+        table = None if kernel is None else kernel.table(step.dt)
+        if table is None:
+            return False
+        kernel.run(self, step, factor, state, table)
+        return True
+
     def maybe_visible(self) -> np.ndarray | None:
         """False where every voxel of a sample's two cells classifies to opacity 0."""
         m = self.m
