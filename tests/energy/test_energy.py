@@ -201,6 +201,9 @@ def test_cycle_and_transaction_price_the_same_actions_the_same(arch, head):
             assert entry["joules"] == other["joules"]
     assert cyc["energy"]["dynamic_joules"] == txn["energy"]["dynamic_joules"]
     assert cyc["area"] == txn["area"]
+    # Sweeps time frames without their images: the same actions, the same energy.
+    timed = _silicon(arch, head, "transaction", timing_only=True)
+    assert timed["energy"] == txn["energy"]
     again = _silicon(arch, head, "cycle")
     assert again == cyc  # deterministic
 
