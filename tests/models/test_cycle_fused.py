@@ -25,7 +25,7 @@ from hwsim.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSp
 from hwsim.threads import using
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
-from models import fused
+from models import fused, fused_stage
 from models.cycle import render_cycle
 from models.datapath import Datapath
 from models.frame import frame_of
@@ -279,7 +279,7 @@ def test_compiled_slab_frames_equal_the_unit_chain(case, volumes, monkeypatch):
 
 def test_threads_split_steps_into_runs_with_the_same_bits(volumes, monkeypatch):
     """Steps above two runs' worth of samples are cut for the frame's threads."""
-    monkeypatch.setattr(fused, "_SAMPLES_PER_THREAD", 64)
+    monkeypatch.setattr(fused_stage, "_SAMPLES_PER_THREAD", 64)
     args = ("cube4", {}, volumes["head"], _scene(), {}, None)
     with using(1):
         one = _render(*args)
@@ -315,7 +315,7 @@ def test_frames_outside_the_kernels_scope_take_the_unit_chain(scene, volumes, mo
 
 
 def test_the_cache_key_covers_the_shared_stage():
-    """The kernel inlines models/fused.py's shading and blending: its closure holds the
+    """The kernel inlines models/fused_stage.py's shading and blending: its closure holds the
     hash of that file and of every unit function (numba keys its cache by this module's
     source and the closure only)."""
     kernel = slice_kernel._kernel()

@@ -11,7 +11,6 @@ from hwsim import threads as frame_threads_module
 from hwsim.errors import InputError
 from hwsim.fidelity import render, resolve_arch
 from hwsim.volumes import make_phantom
-from models import fused
 
 pytestmark = pytest.mark.model
 
@@ -25,7 +24,7 @@ def test_threads_render_the_same_bits(monkeypatch, name):
     arch = resolve_arch(name)
     runs = {}
     for threads in ("1", "2", "3"):
-        monkeypatch.setenv(fused.THREADS_ENV_VAR, threads)
+        monkeypatch.setenv(frame_threads_module.THREADS_ENV_VAR, threads)
         runs[threads] = render(scene, fidelity="functional", arch=arch, volume=volume)
     one = runs["1"]
     assert {2, 3} <= set(frame_threads_module._POOLS)  # steps were big enough to be cut into runs
@@ -38,7 +37,7 @@ def test_threads_render_the_same_bits(monkeypatch, name):
 
 @pytest.mark.parametrize("text", ["0", "two", "-1", "1000"])
 def test_a_bad_thread_count_is_refused_naming_the_variable(monkeypatch, text):
-    monkeypatch.setenv(fused.THREADS_ENV_VAR, text)
+    monkeypatch.setenv(frame_threads_module.THREADS_ENV_VAR, text)
     with pytest.raises(InputError) as info:
-        fused.frame_threads()
+        frame_threads_module.frame_threads()
     assert info.value.key == "HWSIM_THREADS"

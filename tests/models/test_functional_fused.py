@@ -13,6 +13,7 @@ compiled kernel's cache key covers every unit function it calls.
 
 from __future__ import annotations
 
+import hashlib
 import re
 from pathlib import Path
 
@@ -26,7 +27,7 @@ from hwsim.numerics import ROUNDING_CODES, round_scaled, round_shift_raw
 from hwsim.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
-from models import fused, fused_steps
+from models import fused, fused_stage, fused_steps
 from models.datapath import Datapath
 from models.frame import frame_of
 from models.functional import render_functional
@@ -192,19 +193,24 @@ def test_shading_classify_and_blend_arithmetic_compiled_equal_numpy():
 
 
 def test_the_cache_key_covers_every_unit_function_the_kernel_calls():
-    source = Path(fused.__file__).read_text()
+    """The kernels call unit functions and inline the shared stage (models/fused_stage.py):
+    the stage's hash covers both, and it is a closure value of every kernel."""
+    source = Path(fused.__file__).read_text() + Path(fused_stage.__file__).read_text()
     called = set(re.findall(r"\b(\w+_unit)\.(\w+_raw)\(", source))
-    registered = {fn.__name__ for fn in fused._UNIT_FUNCTIONS}
+    registered = {fn.__name__ for fn in fused_stage._UNIT_FUNCTIONS}
     assert {name for _, name in called} <= registered
     assert {"round_shift_raw", "round_scaled", "cell_weight"} <= registered
-    assert len(fused.UNITS_HASH) == 64
+    assert len(fused.UNITS_HASH) == 64 and len(fused.STAGE_HASH) == 64
+    stage_source = Path(fused_stage.__file__).read_text(encoding="utf-8")
+    expected = hashlib.sha256((fused.UNITS_HASH + stage_source).encode()).hexdigest()
+    assert fused.STAGE_HASH == expected
     # The hash is a closure value of every kernel (numba's cache key holds closure
     # values), next to the configuration's constants when specialised.
     config = (4, 8, 1, 4, 4096, 10, 1024, 1 << 16, 1)
     for key in (config, None):
         kernel = fused._kernel_for(key)
         cells = [c.cell_contents for c in kernel.py_func.__closure__]
-        assert fused.UNITS_HASH in cells
+        assert fused.STAGE_HASH in cells
         assert (config in cells) == (key is not None)
 
 

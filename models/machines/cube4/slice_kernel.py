@@ -2,8 +2,8 @@
 
 # Ref: architectures.md sections 1.1-1.4 and 9.1 (Cube-4's pipelines: bilinear samples on
 #      voxel slices, central-difference gradients over three slices, classification,
-#      shading, compositing); models/fused.py (the functional rung's kernel, whose
-#      shading and blending this one inlines).
+#      shading, compositing); models/fused_stage.py (the shading and blending shared with
+#      the functional rung, inlined here).
 
 :class:`~models.machines.cube4.cycle.HardwareSource` hands the back end's composite stage
 (:meth:`models.backend.Backend._composite`) the samples of one step as a chain of
@@ -15,9 +15,9 @@ forty NumPy calls per step, and the calls, not the arithmetic, are most of a fra
 one compiled loop does the same: it reads the same corner planes (so a fault injected in
 the ring, the FIFOs or the memory reaches the samples exactly as in the chain), calls the
 same ``*_raw`` unit functions, keeps the visible samples and hands them to the shading
-and blending shared with the functional rung (:func:`models.fused.shade_and_blend`).
+and blending shared with the functional rung (:func:`models.fused_stage.shade_and_blend`).
 
-**Scope.**  The functional kernel's (:func:`models.fused.eligible`): post-classified
+**Scope.**  The functional kernel's (:func:`models.fused_stage.eligible`): post-classified
 composite through one LUT, one shader, steps whose samples share a step length with an
 opacity-correction ROM; anything else takes the chain.
 ``tests/models/test_cycle_fused.py`` checks that both give the same bits, cycles and
@@ -30,7 +30,7 @@ import numba
 import numpy as np
 
 from hwsim.numerics import round_scaled
-from models.fused import (
+from models.fused_stage import (
     GRAD_FLAGS,
     STAGE_HASH,
     StageConstants,

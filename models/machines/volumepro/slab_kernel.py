@@ -4,7 +4,7 @@ corner planes the ring delivered.
 # Ref: architectures.md sections 3 and 9.1 (VolumePro 500 z-supersampling: trilinear
 #      samples between voxel slices; gradients from samples or, VolumePro 1000, from
 #      voxels then interpolated); models/machines/volumepro/trilinear.py (the chain this
-#      replaces, lerp for lerp); models/fused.py (the shading and blending it inlines).
+#      replaces, lerp for lerp); models/fused_stage.py (the shading and blending it inlines).
 
 :class:`~models.machines.volumepro.trilinear.TrilinearSource` hands the back end's
 composite stage a chain of vectorised unit calls per step. Here two compiled loops do the
@@ -17,11 +17,11 @@ the chain asks for them (a slice's first use reads it from memory, with its coun
 2. for the visible samples, the gradient (the voxel differences' planes at the same
    taps, or the samples one voxel away: the slices of the taps at ``p +- 1`` along the
    principal axis, the cells at ``p +- 1`` in the slice), world units and modulation,
-   then :func:`models.fused.shade_and_blend`.
+   then :func:`models.fused_stage.shade_and_blend`.
 
 Each trilinear sample lerps its eight corners x, then y, then z (``_tri``'s order), or,
 when the principal-axis weight is 0 or 1, bilinears the one slice it selects: the same
-integers.  Scope: :func:`models.fused.eligible`, steps with an opacity-correction ROM.
+integers.  Scope: :func:`models.fused_stage.eligible`, steps with an opacity-correction ROM.
 ``tests/models/test_cycle_fused.py`` checks image, cycles and counters against the chain.
 """
 
@@ -31,7 +31,7 @@ import numba
 import numpy as np
 
 from hwsim.numerics import round_scaled
-from models.fused import (
+from models.fused_stage import (
     GRAD_FLAGS,
     STAGE_HASH,
     StageConstants,
