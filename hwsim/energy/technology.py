@@ -21,7 +21,7 @@ bit (SRAM cells from :data:`SRAM_MIN_BITS` bits, flip-flops below).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
@@ -141,10 +141,6 @@ class Technology:
         }
 
 
-def _read(path: Path) -> dict:
-    return read_toml(path)
-
-
 def _parse(data: dict, source: str, base: Technology | None) -> Technology:
     top = Table(data, source)
     schema = top.integer("schema", SCHEMA)
@@ -224,7 +220,7 @@ def load_technology(name_or_path: str) -> Technology:
             key="--technology",
             allowed=", ".join(sorted(builtins)) + ", or a .toml file",
         )
-    data = _read(path)
+    data = read_toml(path)
     source = f"hwsim/energy/technologies/{path.name}" if name_or_path in builtins else str(path)
     base_name = data.get("technology", {}).get("base") if isinstance(data, dict) else None
     base = None
@@ -234,10 +230,3 @@ def load_technology(name_or_path: str) -> Technology:
     tech = _parse(data, source, base)
     _CACHE[name_or_path] = tech
     return tech
-
-
-def with_values(tech: Technology, table: str, **changes: float) -> Technology:
-    """``tech`` with some values replaced (tests and what-ifs)."""
-    values = {k: dict(v) for k, v in tech.values.items()}
-    values[table].update(changes)
-    return replace(tech, values=values)
