@@ -43,6 +43,7 @@ __all__ = [
     "StageConstants",
     "eligible",
     "shade_and_blend",
+    "slice_cell",
     "world_and_modulate",
 ]
 
@@ -94,6 +95,15 @@ _GM_SCALE, _GM_ENTRIES, _KA, _KD, _KS, _MAP_SIZE = range(5, 11)
 GRAD_FLAGS = (_WORLD, _MODULATES, _GM_SCALE, _GM_ENTRIES)
 #: Back-to-front blending: the accumulator's fraction bits above 12 (-1: front to back).
 _BTF_UP = 11
+
+
+@numba.njit(inline="always")
+def slice_cell(p, w_bits, w_code):
+    """The in-slice cell of position ``p`` and its weight quantised from its own fraction
+    (the slice machines' geometry unit, ``SliceOrderMachine.cell``: no clamp, their
+    corner planes have margins), as the slice kernels ask for a gradient neighbour's."""
+    c = np.floor(p)
+    return np.int64(c), np.int64(round_scaled((p - c) * 2.0**w_bits, w_code))
 
 
 @numba.njit(inline="always")

@@ -29,13 +29,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from hwsim.numerics import round_scaled
 from models.fused_stage import (
     GRAD_FLAGS,
     STAGE_HASH,
     StageConstants,
     eligible,
     shade_and_blend,
+    slice_cell,
     world_and_modulate,
 )
 from models.units import classify as classify_unit
@@ -91,9 +91,9 @@ def _make_kernel(stage_hash: str):
                 diff_a = np.int64(0)
                 diff_b = np.int64(0)
                 for sign in (1.0, -1.0):
-                    c, w = _cell(pa[i] + sign, w_bits, w_code)
+                    c, w = slice_cell(pa[i] + sign, w_bits, w_code)
                     r = (c + 2) * pw + cb[i] + 2
-                    c, w2 = _cell(pb[i] + sign, w_bits, w_code)
+                    c, w2 = slice_cell(pb[i] + sign, w_bits, w_code)
                     r2 = row - cb[i] + c
                     if r < 0 or r >= rows or r2 < 0 or r2 >= rows:
                         sat[_OUTSIDE] = 1
@@ -128,14 +128,6 @@ def _corners(plane, row, wa, wb, w_bits, w_code):
             plane[row, 0], plane[row, 1], plane[row, 2], plane[row, 3], wa, wb, w_bits, w_code
         )
     )
-
-
-@numba.njit(inline="always")
-def _cell(p, w_bits, w_code):
-    """The in-slice cell of position ``p`` and its weight quantised from its own fraction
-    (the geometry unit, ``SliceOrderFrame.cell``: no clamp, the planes have margins)."""
-    c = np.floor(p)
-    return np.int64(c), np.int64(round_scaled((p - c) * 2.0**w_bits, w_code))
 
 
 _KERNEL = None

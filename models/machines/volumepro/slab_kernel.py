@@ -30,13 +30,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from hwsim.numerics import round_scaled
 from models.fused_stage import (
     GRAD_FLAGS,
     STAGE_HASH,
     StageConstants,
     eligible,
     shade_and_blend,
+    slice_cell,
     world_and_modulate,
 )
 from models.units import classify as classify_unit
@@ -92,12 +92,6 @@ def _tri(p0, p1, row, wk, wa, wb, kp, w_bits, w_code):
         wb, w_bits, w_code,
     )  # fmt: skip
     return np.int64(lerp(y0, y1, wa, w_bits, w_code))
-
-
-@numba.njit(inline="always")
-def _cell(p, w_bits, w_code):
-    c = np.floor(p)
-    return np.int64(c), np.int64(round_scaled((p - c) * 2.0**w_bits, w_code))
 
 
 def _make_kernels(stage_hash: str):
@@ -161,9 +155,9 @@ def _make_kernels(stage_hash: str):
                     diff_a = np.int64(0)
                     diff_b = np.int64(0)
                     for sign in (1.0, -1.0):
-                        c, w = _cell(pa[i] + sign, w_bits, w_code)
+                        c, w = slice_cell(pa[i] + sign, w_bits, w_code)
                         r = (c + 2) * pw + cb[i] + 2
-                        c2, w2 = _cell(pb[i] + sign, w_bits, w_code)
+                        c2, w2 = slice_cell(pb[i] + sign, w_bits, w_code)
                         r2 = row - cb[i] + c2
                         if r < 0 or r >= rows or r2 < 0 or r2 >= rows:
                             sat[_OUTSIDE] = 1
