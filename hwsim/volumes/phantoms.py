@@ -258,25 +258,92 @@ def _head_tissue(z: np.ndarray, y: np.ndarray, x: np.ndarray, h: np.float32) -> 
     return vol
 
 
+#: The head's declared value range: a CT scanner's 12-bit window in HU, which every voxel
+#: is clipped to.  Declared rather than read off the data, so that a part of the head
+#: (:func:`head_box`, generated on a worker) converts and classifies as the whole does.
+HEAD_RANGE = (-1024, 3071)
+
+
+def head_axes(size: int, z_spacing: float) -> tuple[np.ndarray, np.ndarray, np.float32]:
+    """The head's normalised voxel-centre coordinates along z and along y (= x), float32,
+    and the voxel size ``h`` its partial-volume blend uses."""
+    n, nz = size, max(1, round(size / z_spacing))
+    half = n / 2.0
+    z = ((np.arange(nz) - (nz - 1) / 2.0) * z_spacing / half).astype(np.float32)
+    y = ((np.arange(n) - (n - 1) / 2.0) / half).astype(np.float32)
+    return z, y, np.float32(2.0 / n)
+
+
+def head_box(
+    size: int, noise: float, seed: int, z_spacing: float, z: slice, y: slice
+) -> np.ndarray:
+    """Voxels ``z x y x all x`` of the head phantom (int16 HU), bit for bit those of the
+    whole phantom: every voxel is a function of its own coordinates (the layers are
+    elementwise in float32, whole rows along x; the noise is counter-based,
+    :func:`gaussian_noise`), so any box can be generated on its own."""
+    zc, yc, h = head_axes(size, z_spacing)
+    zs, ys = range(len(zc))[z], range(len(yc))[y]
+    box = _head_tissue(zc[z], yc[y], yc, h)
+    if noise > 0:
+        shape = (len(zc), len(yc), len(yc))
+        box += np.float32(noise) * gaussian_noise(seed, shape, zs, ys).astype(np.float32)
+    return np.clip(np.rint(box), *HEAD_RANGE).astype(np.int16)
+
+
+def gaussian_noise(seed: int, shape: tuple[int, int, int], zs: range, ys: range) -> np.ndarray:
+    """Standard normal noise (float64) at voxels ``zs x ys x all x`` of a ``shape`` volume:
+    Box-Muller on two uniforms per voxel, each the SplitMix64 hash of the seed and the
+    voxel's index in the whole volume (a counter-based generator: no state, so a part of
+    the volume draws exactly the numbers the whole does).
+
+    # Ref: G. Steele, D. Lea, C. Flood, "Fast splittable pseudorandom number generators",
+    #      OOPSLA 2014 (SplitMix64); Box and Muller, Ann. Math. Stat. 29 (1958).
+    """
+    _, ny, nx = shape
+    z = np.arange(zs.start, zs.stop, dtype=np.uint64)[:, None, None]
+    y = np.arange(ys.start, ys.stop, dtype=np.uint64)[None, :, None]
+    x = np.arange(nx, dtype=np.uint64)[None, None, :]
+    index = (z * np.uint64(ny) + y) * np.uint64(nx) + x
+    key = _splitmix64(np.array([seed], dtype=np.uint64))[0]
+    two = np.uint64(2)
+    u1 = 1.0 - _unit(_splitmix64(index * two + key))  # (0, 1]: log is finite
+    u2 = _unit(_splitmix64(index * two + key + np.uint64(1)))
+    return np.sqrt(-2.0 * np.log(u1)) * np.cos(2.0 * np.pi * u2)
+
+
+def _splitmix64(x: np.ndarray) -> np.ndarray:
+    """SplitMix64's output function of ``x + golden gamma`` (uint64, wrapping)."""
+    z = x + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+def _unit(bits: np.ndarray) -> np.ndarray:
+    """The top 53 bits of uint64 hashes as floats in ``[0, 1)``."""
+    return (bits >> np.uint64(11)).astype(np.float64) * (1.0 / (1 << 53))
+
+
 def _head(source: str, size: int, noise: float, seed: int, z_spacing: float) -> Volume:
     """CT-like head, crown toward +y, face toward -z, in a box of ``size`` voxels along x
     and y (and ``round(size / z_spacing)`` slices along z) with the head filling ~80%.
 
     Layers are painted in order with a partial-volume blend ``coverage = clip(0.5 - d/h)``
-    of an approximate signed distance ``d`` (``h`` = one voxel), then noise is added.
+    of an approximate signed distance ``d`` (``h`` = one voxel), then noise is added and
+    the values clipped to :data:`HEAD_RANGE`, the volume's declared range.
     """
-    n, nz = size, max(1, round(size / z_spacing))
-    half = n / 2.0
-    z = ((np.arange(nz) - (nz - 1) / 2.0) * z_spacing / half).astype(np.float32)
-    y = ((np.arange(n) - (n - 1) / 2.0) / half).astype(np.float32)
-    rng = np.random.default_rng(seed)
-    data = np.empty((nz, n, n), dtype=np.int16)
+    nz = len(head_axes(size, z_spacing)[0])
+    data = np.empty((nz, size, size), dtype=np.int16)
     for k in range(0, nz, _HEAD_SLAB):  # slabs bound the temporaries' memory
-        slab = _head_tissue(z[k : k + _HEAD_SLAB], y, y, np.float32(2.0 / n))
-        if noise > 0:
-            slab += np.float32(noise) * rng.standard_normal(slab.shape, dtype=np.float32)
-        data[k : k + _HEAD_SLAB] = np.clip(np.rint(slab), -1024, 3071)
-    meta = {"seed": seed, "noise": noise, "orientation": "crown +y, face -z"}
+        data[k : k + _HEAD_SLAB] = head_box(
+            size, noise, seed, z_spacing, slice(k, k + _HEAD_SLAB), slice(None)
+        )
+    meta = {
+        "seed": seed,
+        "noise": noise,
+        "orientation": "crown +y, face -z",
+        "value_range": HEAD_RANGE,
+    }
     return Volume(
         data=data, spacing=(z_spacing, 1.0, 1.0), name="head", source=source, units="HU", meta=meta
     )
@@ -304,7 +371,7 @@ PHANTOMS: dict[str, PhantomInfo] = {
     "head": PhantomInfo(
         "CT-like head in Hounsfield units: skin, skull, brain, ventricles, eyes, sinus, jaw",
         {
-            "size": Param(int, 128, 8, 512, help="voxels along x and y"),
+            "size": Param(int, 128, 8, 1024, help="voxels along x and y"),
             "noise": Param(float, 8.0, 0.0, 200.0, help="Gaussian noise sigma, HU"),
             "seed": Param(int, 0, 0, 2**31 - 1, help="noise seed"),
             "z_spacing": Param(float, 1.0, 0.25, 8.0, help="slice spacing; fewer, thicker slices"),

@@ -28,7 +28,9 @@ BTF = {"blend_order": "back-to-front"}
 
 @pytest.fixture(scope="module")
 def head():
-    return make_phantom("head", size=24)
+    # At 24^3 the two blend orders differ in a handful of pixels, and with seed 0's noise
+    # in none (the fixed-point sums happen to round alike): seed 1 keeps a difference.
+    return make_phantom("head", size=24, seed=1)
 
 
 def _samples(plan):

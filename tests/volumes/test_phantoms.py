@@ -159,7 +159,8 @@ def test_head_skull_scalp_and_ranges(head):
     scalp = crown[np.argmax(crown) :]
     assert np.any((scalp >= 30) & (scalp <= 50))  # skin outside the bone
     assert head.units == "HU" and head.data.dtype == np.int16 and head.bits == 16
-    assert head.value_range[0] == -1000 and head.value_range[1] <= 2000
+    assert head.data.min() == -1000 and head.data.max() <= 2000
+    assert head.value_range == (-1024, 3071)  # declared: the 12-bit CT window it is clipped to
     bone = head.data >= 700
     assert 0.02 < bone.mean() < 0.15
 
@@ -175,6 +176,32 @@ def test_head_is_deterministic_for_a_seed_and_noise_is_mild():
     air = clean.data == -1000
     assert 6 < diff[~air].std() < 10  # default 8 HU
     assert a.source == "head:size=32,seed=3"
+
+
+def test_head_noise_is_standard_normal_and_independent_of_the_box():
+    from hwsim.volumes.phantoms import gaussian_noise
+
+    shape = (40, 50, 60)
+    whole = gaussian_noise(7, shape, range(0, 40), range(0, 50))
+    assert abs(whole.mean()) < 0.01 and abs(whole.std() - 1.0) < 0.01
+    assert abs(np.corrcoef(whole[:, :, :-1].ravel(), whole[:, :, 1:].ravel())[0, 1]) < 0.01
+    part = gaussian_noise(7, shape, range(11, 12), range(20, 37))
+    np.testing.assert_array_equal(part, whole[11:12, 20:37])
+    assert not np.array_equal(gaussian_noise(8, shape, range(0, 40), range(0, 50)), whole)
+
+
+@pytest.mark.parametrize("z_spacing", [1.0, 1.5])
+@pytest.mark.parametrize(
+    "box", [(5, 6, 0, 48), (0, 32, 7, 8), (3, 30, 10, 40), (31, 32, 47, 48)], ids=str
+)
+def test_a_box_of_the_head_is_the_wholes_bits(box, z_spacing):
+    """What a worker generating only its part of the phantom relies on."""
+    from hwsim.volumes.phantoms import head_box
+
+    whole = make_phantom("head", size=48, seed=5, z_spacing=z_spacing).data
+    z0, z1, y0, y1 = box
+    part = head_box(48, 8.0, 5, z_spacing, slice(z0, z1), slice(y0, y1))
+    np.testing.assert_array_equal(part, whole[z0:z1, y0:y1])
 
 
 def test_head_anisotropic_slices_keep_the_anatomy():
