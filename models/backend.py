@@ -18,6 +18,7 @@ warp of a base-plane image) live here too.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -100,7 +101,9 @@ class Backend:
         self.arch = frame.arch
         self.dp = dp = frame.datapath
         self.mode = scene.render.mode
-        self.raw, self.vmap = converted_volume(volume, dp.voxel_bits)
+        # The raw-value map (the volume's conversion rule); the converted voxels
+        # themselves (:attr:`raw`) only when a rung reads the whole volume.
+        self.vmap = convert_values(np.array(volume.value_range), volume, dp.voxel_bits)[1]
         self.S = dp.interp.sample_frac_bits
         self.ref = min(volume.spacing)
         composite = self.mode == "composite"
@@ -158,6 +161,13 @@ class Backend:
         self.stopped: np.ndarray | None = None  # rays the depth test ended this step
         if scene.classification is not None or scene.geometry is not None:
             self._setup_features()
+
+    @functools.cached_property
+    def raw(self) -> np.ndarray:
+        """The whole volume as raw voxels (:func:`~models.units.voxel.converted_volume`),
+        converted on first use: a frame split across workers reads its voxels a part at
+        a time instead (:mod:`hwsim.volumes.parts`) and never asks for this."""
+        return converted_volume(self.volume, self.dp.voxel_bits)[0]
 
     def classified_voxels(self, raw: np.ndarray) -> list[np.ndarray]:
         """Pre-classification: the LUT applied to raw voxels (any shape), RGBA UQ1.12."""
@@ -345,9 +355,9 @@ class Backend:
                 keep = keep | (part >= 0)
             if keep is not None and not keep.all():
                 sel = np.flatnonzero(keep)
-                if not sel.size:
-                    return
                 state.extra["skipped"] = state.extra.get("skipped", 0) + step.rays.size - sel.size
+                if not sel.size:
+                    return  # every sample skipped (counted above: a step of only those too)
                 step = subset_step(step, keep)
                 factor = factor[sel] if factor is not None else None
                 part = part[sel] if part is not None else None

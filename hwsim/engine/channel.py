@@ -49,10 +49,15 @@ class Channel:
         fire = valid & ready
         self._held = valid[:, -1] & ~ready[:, -1]
         transfers = fire.sum(axis=1)
-        self._sums[0] += transfers
-        self._sums[1] += valid.sum(axis=1) - transfers
-        self._sums[2] += valid.shape[1] - valid.sum(axis=1)
+        self.account(transfers, valid.sum(axis=1) - transfers, valid.shape[1] - valid.sum(axis=1))
         return fire
+
+    def account(self, transfers: np.ndarray, stalls: np.ndarray, idles: np.ndarray) -> None:
+        """Add one block's per-lane transfers, stalled and idle cycles counted elsewhere
+        (a link that is always ready: transfers are its valid cycles, no stalls)."""
+        self._sums[0] += transfers
+        self._sums[1] += stalls
+        self._sums[2] += idles
 
     def publish(self) -> None:
         """Write the accumulated per-lane counts into the counters."""

@@ -34,6 +34,7 @@ ends past blocks that cannot be visible (:meth:`SamplePlan.leap`).
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterator
 
 import numpy as np
@@ -249,6 +250,14 @@ class SamplePlan:
         """Keep only the plan rays where ``keep`` is True (per-ray arrays filtered)."""
         for name in self._per_ray:
             setattr(self, name, getattr(self, name)[keep])
+
+    def subset(self, keep: np.ndarray) -> SamplePlan:
+        """The same plan holding only the rays where ``keep`` (bool per plan ray) is True:
+        each kept ray's samples at the same positions (every position is a function of
+        its own ray), for a frame split by rays."""
+        part = copy.copy(self)
+        part._keep(np.asarray(keep, dtype=bool))
+        return part
 
     def leap(self, occupancy: Occupancy) -> None:
         """Shorten every ray's step range past blocks that ``occupancy`` marks empty.

@@ -48,7 +48,10 @@ _CONVERTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def converted_volume(volume: Volume, bits: int) -> tuple[np.ndarray, VoxelMap]:
-    """:func:`convert_volume`, kept per volume and width (the array is read-only)."""
+    """:func:`convert_volume`, kept per volume and width (the array is read-only).  A
+    volume read in parts (:mod:`hwsim.volumes.parts`) has no voxels to convert whole."""
+    if "parts" in volume.meta:
+        raise RuntimeError(f"{volume.source}: read a part at a time, never converted whole")
     per_width = _CONVERTED.setdefault(volume, {})
     if bits not in per_width:
         raw, vmap = convert_volume(volume, bits)

@@ -30,6 +30,7 @@ def test_every_slice_of_every_axis_reads_each_voxel_once_one_per_module_per_cloc
         n_a, n_b = shape[a_ax], shape[b_ax]
         for s in range(shape[kp]):
             stream, sched = mem.read_slice(kp, s)
+            assert np.array_equal(mem.account(kp, s), sched.valid.sum(axis=1))
             T = n_a * -(-n_b // P)
             assert stream.shape == (P, T)
             # One voxel per module per clock: pipeline m only ever reads module m ...
@@ -45,6 +46,26 @@ def test_every_slice_of_every_axis_reads_each_voxel_once_one_per_module_per_cloc
     mem.publish()
     total_reads = sum(counters[f"memory.module[{m}].reads"] for m in range(P))
     assert total_reads == 3 * raw.size
+    idle = sum(counters[f"memory.module[{m}].idle_slots"] for m in range(P))
+    slots = 0
+    for kp in range(3):
+        n_a, n_b = (shape[ax] for ax in range(3) if ax != kp)
+        slots += shape[kp] * P * n_a * -(-n_b // P)  # every module, every clock of a slice
+    assert total_reads + idle == slots
+
+
+def test_a_memory_without_modules_counts_the_same_reads(rng):
+    raw = _volume((5, 6, 9), rng)
+    full, counting = Counters(), Counters()
+    mem = Cube4Memory(raw, 4, full)
+    bare = Cube4Memory(None, 4, counting, shape=raw.shape)
+    for kp in range(3):
+        for s in range(raw.shape[kp]):
+            mem.read_slice(kp, s)
+            assert np.array_equal(mem.account(kp, s), bare.account(kp, s))
+    mem.publish()
+    bare.publish()
+    assert full.as_dict() == counting.as_dict()
 
 
 @pytest.mark.parametrize("kp", [0, 1, 2])
@@ -59,6 +80,7 @@ def test_256_beams_are_conflict_free_for_every_skew_residue(kp):
     mem = Cube4Memory(raw, 4, counters)
     for s in range(4):
         _, sched = mem.read_slice(kp, s)
+        mem.account(kp, s)
         assert sched.valid.all()  # 4 divides 256: no idle slot
         z, y, x = sched.zyx
         assert np.all((x + y + z) % 4 == np.arange(4)[:, None])

@@ -112,15 +112,19 @@ class SliceOrderMachine:
             weight[other] = self.dp.interp.weight.quantize(frac[other])
         return c.astype(np.int64), weight, frac
 
-    def _hand_off(self, rays: np.ndarray, lanes: np.ndarray, prev_lane: np.ndarray, state) -> None:
-        """Move accumulators to the pipeline of their ray's new sample (ring hand-off)."""
+    def _hand_off(
+        self, rays: np.ndarray, lanes: np.ndarray, prev_lane: np.ndarray, state, counters=None
+    ) -> None:
+        """Move accumulators to the pipeline of their ray's new sample (ring hand-off),
+        counted in ``counters`` (default: the machine's)."""
+        counters = self.counters if counters is None else counters
         before = prev_lane[rays]
         moved = (before >= 0) & (before != lanes)
-        self.counters.add("composite.handoffs", int(moved.sum()))
+        counters.add("composite.handoffs", int(moved.sum()))
         k = self.faults.dropped_handoff
         if k is not None:
             lost = rays[moved & (lanes == k)]
             if lost.size:
                 self.be.cleared_acc(lost, state)
-                self.counters.add("composite.lost_handoffs", int(lost.size))
+                counters.add("composite.lost_handoffs", int(lost.size))
         prev_lane[rays] = lanes

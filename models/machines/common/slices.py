@@ -87,6 +87,8 @@ class SliceDatapath:
         the same as :meth:`DelayLine.read_at`, precomputed."""
         key = (residue, L)
         if key not in self._read_cache:
+            if len(self._read_cache) >= 16:  # P = 256 has 256 residues: keep the latest
+                self._read_cache.pop(next(iter(self._read_cache)))
             t = self._cell_t
             flat = ((residue + self._a + self._b) % self.P) * L + t
             depths = {self.beam_depth, self.C, self.C + 1, 1, 0}

@@ -44,6 +44,7 @@ from models.machines.common.results import (
     publish_pixel_bus,
 )
 from models.machines.common.slice_order import SliceFaults
+from models.machines.common.slices import SliceDatapath
 from models.machines.cube4.frame import Cube4Frame
 from models.machines.cube4.memory import Cube4Memory
 from models.machines.cube4.timing import cube4_lanes, cube4_latency, cube4_pixel_pushes
@@ -53,6 +54,7 @@ from models.units import skew as skew_unit
 
 __all__ = [
     "Faults",
+    "Sweep",
     "CycleResult",
     "Cube4Machine",
     "UNITS",
@@ -82,10 +84,12 @@ class HardwareSource:
         self.pb = step.zyx[:, machine.b_ax]
         self._cells = machine.cell(self.pa), machine.cell(self.pb)
 
-    def _bilinear(self, planes: np.ndarray, cells_a, cells_b) -> np.ndarray:
+    def _bilinear(self, q: int, channel: str, cells_a, cells_b) -> np.ndarray:
         (ca, fa, _), (cb, fb, _) = cells_a, cells_b
+        planes = self.m.planes(q)
+        rows = (ca + 2 - planes["a0"]) * self.m.plane_width + (cb + 2)
         # np.take: a row gather ~20x faster than fancy indexing of a 2-D array.
-        corners = np.take(planes, (ca + 2) * self.m.plane_width + (cb + 2), axis=0)
+        corners = np.take(planes[channel], rows, axis=0)
         return interp_unit.bilinear(
             corners[:, 0], corners[:, 1], corners[:, 2], corners[:, 3], fa, fb, self.m.dp.interp
         )
@@ -111,44 +115,67 @@ class HardwareSource:
 
     def maybe_visible(self) -> np.ndarray | None:
         """False where every corner of a sample's cell classifies to opacity 0."""
-        flags = self.m.planes(self.q).get("maybe")
+        planes = self.m.planes(self.q)
+        flags = planes.get("maybe")
         if flags is None:
             return None
         (ca, _, _), (cb, _, _) = self._cells
-        return flags[(ca + 2) * self.m.plane_width + (cb + 2)]
+        return flags[(ca + 2 - planes["a0"]) * self.m.plane_width + (cb + 2)]
 
     def value(self) -> np.ndarray:
-        return self._bilinear(self.m.planes(self.q, "value"), *self._cells)
+        return self._bilinear(self.q, "value", *self._cells)
 
     def channels(self) -> list[np.ndarray]:
-        return [self._bilinear(self.m.planes(self.q, c), *self._cells) for c in "rgba"]
+        return [self._bilinear(self.q, c, *self._cells) for c in "rgba"]
 
     def gradient(self, sel: np.ndarray) -> np.ndarray:
-        m = self.m
+        m, q = self.m, self.q
         cells_a, cells_b = (tuple(x[sel] for x in cell) for cell in self._cells)
         pa, pb = self.pa[sel], self.pb[sel]
-        cur = m.planes(self.q, "value")
         g = np.empty((pa.size, 3), dtype=np.int64)
-        ahead = m.planes(min(self.q + 1, m.n_kp - 1), "value")
-        behind = m.planes(max(self.q - 1, 0), "value")
-        g[:, 2 - m.kp] = self._bilinear(ahead, cells_a, cells_b) - self._bilinear(
-            behind, cells_a, cells_b
+        ahead, behind = min(q + 1, m.n_kp - 1), max(q - 1, 0)
+        g[:, 2 - m.kp] = self._bilinear(ahead, "value", cells_a, cells_b) - self._bilinear(
+            behind, "value", cells_a, cells_b
         )
         for axis, p, cells in ((m.a_ax, pa, cells_a), (m.b_ax, pb, cells_b)):
             up, down = m.cell(p + 1.0, cells), m.cell(p - 1.0, cells)
             if axis == m.a_ax:
-                g[:, 2 - axis] = self._bilinear(cur, up, cells_b) - self._bilinear(
-                    cur, down, cells_b
+                g[:, 2 - axis] = self._bilinear(q, "value", up, cells_b) - self._bilinear(
+                    q, "value", down, cells_b
                 )
             else:
-                g[:, 2 - axis] = self._bilinear(cur, cells_a, up) - self._bilinear(
-                    cur, cells_a, down
+                g[:, 2 - axis] = self._bilinear(q, "value", cells_a, up) - self._bilinear(
+                    q, "value", cells_a, down
                 )
         return g
 
 
+@dataclass
+class Sweep:
+    """What one pass of a frame's steps over some of its rays produced (all of them in
+    one process; a band of them on a worker, :mod:`models.machines.cube4.bands`): the
+    samples each pipeline evaluated per step (``busy``, ``(n_steps, P)``), the
+    accumulators the pixel bus delivered for ``rays`` and the per-sample counts."""
+
+    rays: np.ndarray
+    acc: np.ndarray
+    touched: np.ndarray
+    dt_sum: np.ndarray | None
+    busy: np.ndarray
+    samples: int
+    skipped: int
+    counters: dict[str, int]
+
+
 class Cube4Machine(Cube4Frame):
-    """P Cube-4 pipelines rendering one frame of ``backend``'s plan and scene."""
+    """P Cube-4 pipelines rendering one frame of ``backend``'s plan and scene.
+
+    :meth:`run` is one process's frame: :meth:`sample_pass` over every ray with whole
+    slices read from the memory modules through the slice FIFOs (:class:`ModuleSlices`),
+    then :meth:`frame`.  A frame split across workers runs :meth:`sample_pass` once per
+    band of rays on slices read in bands (:mod:`models.machines.cube4.bands`) and
+    :meth:`frame` once on all the sweeps: the timing is the frame's, never a part's.
+    """
 
     def __init__(
         self, backend: Backend, *, faults: Faults | None = None, trace: VcdTrace | None = None
@@ -156,11 +183,9 @@ class Cube4Machine(Cube4Frame):
         self.faults = faults or Faults()
         self.trace = trace
         super().__init__(backend)  # refusals, slice geometry, buffer capacities
-        P = self.P
         self.counters = Counters()
         self.elaborated, self.elided = self._elaborate()
         self.need_slices = "gradient" in self.elaborated
-        self.memory = Cube4Memory(backend.raw, P, self.counters, self.faults.stuck_module)
         self.datapath = self._slice_datapath()
         self.elaborate_all = backend.exercise_unused
         self.kernel = None
@@ -170,13 +195,19 @@ class Cube4Machine(Cube4Frame):
             self.kernel = SliceKernel.for_backend(backend, self.a_ax, self.b_ax, self.kp)
         if backend.mode == "composite":
             self._next_visible = backend.transparent_ranges()
-        self._cache: dict[int, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
         self._current: dict[int, dict[str, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ slices
 
-    def _corners(self, stream: np.ndarray, q: int) -> dict[str, np.ndarray]:
-        """Corner planes of every payload channel of slice ``q`` (promoted by S)."""
+    def corner_planes(
+        self, stream: np.ndarray, q: int, datapath: SliceDatapath | None = None, a0: int = 0
+    ) -> dict:
+        """Corner planes of every payload channel of slice ``q`` (promoted by S) from its
+        stream through ``datapath`` (default: the whole slice's).  A band's stream holds
+        beams ``a0 ..`` only; its module residue is then that of beam ``a0``, and
+        ``planes["a0"]`` says which cell the planes' first row is (row ``r``: cell
+        ``a0 + r - 2``)."""
+        datapath = self.datapath if datapath is None else datapath
         S = self.dp.interp.sample_frac_bits
         payloads = {}
         if self.be.pre_classified:
@@ -184,8 +215,8 @@ class Cube4Machine(Cube4Frame):
             payloads.update((c, v.reshape(stream.shape)) for c, v in zip("rgba", rgba, strict=True))
         if not self.be.pre_classified or self.be.need_grad or "gradient" in self.elaborated:
             payloads["value"] = stream
-        corners = {k: self.datapath.corners(v, q) << S for k, v in payloads.items()}
-        planes = {}
+        corners = {k: datapath.corners(v, q + a0) << S for k, v in payloads.items()}
+        planes: dict = {"a0": a0}
         if self.be.mode == "composite" and not self.elaborate_all:
             if self.be.pre_classified:
                 planes["maybe"] = corners["a"].max(axis=0).ravel() > 0
@@ -202,92 +233,36 @@ class Cube4Machine(Cube4Frame):
         planes.update((k, v.reshape(4, -1).T.copy()) for k, v in corners.items())
         return planes
 
-    def _planes_for(self, stream: np.ndarray, q: int) -> dict[str, np.ndarray]:
-        cached = self._cache.get(q)
-        if cached is not None and np.array_equal(cached[0], stream):
-            return cached[1]
-        planes = self._corners(stream, q)
-        self._cache[q] = (stream, planes)
-        return planes
-
     def planes(self, q: int, channel: str | None = None):
         return self._current[q] if channel is None else self._current[q][channel]
-
-    def _read(self, j: int) -> np.ndarray:
-        q = self.slice_of(j)
-        stream, sched = self.memory.read_slice(self.kp, q)
-        # Module -> pipeline stream: valid in every scheduled slot; Cube-4 never
-        # back-pressures inside a slice (stalls happen between slices, at the pixel bus).
-        self.memory_out.observe(sched.valid, True)
-        self._reads = sched.valid.sum(axis=1)
-        self.counters.add("ring.link_transfers", 2 * int(sched.valid.sum()))
-        if self.trace is not None:
-            self._trace_memory(stream, sched.valid)
-        return stream
 
     # ------------------------------------------------------------------ frame
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
+        return self.frame([self.sample_pass(ModuleSlices(self), progress)])
+
+    def sample_pass(self, slices, progress: Callable[[int, int], None] | None = None) -> Sweep:
+        """Every step of the plan (``backend.plan``: the frame's, or a band of its rays):
+        each sample's pipeline, the hand-offs between pipelines, the back end's stages on
+        samples interpolated from the planes ``slices.at(j)`` delivers, and each ray's
+        accumulator as the pixel bus takes it after its last sample."""
         be, plan, P, T = self.be, self.plan, self.P, self.T
-        c = self.counters
         state = be.new_state(plan.n_rays)
-        depth = self.faults.pixel_fifo_depth
-        capacity = self.capacity["pixel_fifo_entries"]
-        depth = capacity if depth is None else depth
-        c.set("pixel_bus.fifo_depth", depth)
-        self.memory_stage = Stage("memory", skew_unit.LATENCY, skew_unit.II, P, c)
-        self.memory_out = Channel("pipeline[{}].memory.o", P, c)
-        stages = {
-            u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
-        }
-        slice_depth = T + self.faults.slice_fifo_adjust
-        fifo1 = DelayLine(slice_depth, P) if self.need_slices else None
-        fifo2 = DelayLine(slice_depth, P) if self.need_slices else None
-        if self.need_slices:
-            c.set("slice_fifo.depth", slice_depth)
-        bus = {
-            "acc": be.new_state(plan.n_rays).acc,
-            "touched": np.zeros(plan.n_rays, dtype=bool),
-            "dt_sum": None if state.dt_sum is None else np.zeros_like(state.dt_sum),
-        }
+        counts = Counters()  # per-sample counts of this pass (hand-offs)
+        bus = be.new_state(plan.n_rays)
         finishing = _finishing_rays(plan)
         prev_lane = np.full(plan.n_rays, -1, dtype=np.int64)
-        self.clock = Clock(self.arch.clock_hz)
-        idle = np.zeros(P, dtype=np.int64)
-        # Prime: the first slice is read one slice ahead of its samples (fixed hardware).
-        self._reads = idle
-        if self.need_slices:
-            fifo1.push(self._read(0))
-        prime_reads = self._reads
+        busy_k = np.zeros((plan.n_steps, P), dtype=np.int64)
+        self.clock = Clock(self.arch.clock_hz)  # for the waveform only
+        slices.prime()  # the first slice is read one slice ahead of its samples
         self.clock.advance(T)
-        steps = plan.steps()
-        # Per step: busiest lanes, the block's stall-free clocks, memory reads.
-        blocks: list[tuple[np.ndarray, int, np.ndarray]] = []
-        for j, step in enumerate(steps):
+        for j, step in enumerate(plan.steps()):
             q = self.slice_of(j)
-            if self.need_slices:
-                self._reads = idle
-                nxt = self._read(j + 1) if j + 1 < self.n_kp else np.zeros((P, T), np.int64)
-                cur_stream = fifo1.push(nxt)
-                prev_stream = fifo2.push(cur_stream)
-                self._current = {q: self._planes_for(cur_stream, q)}
-                if j + 1 < self.n_kp:
-                    self._current[self.slice_of(j + 1)] = self._planes_for(
-                        nxt, self.slice_of(j + 1)
-                    )
-                if j >= 1:
-                    self._current[self.slice_of(j - 1)] = self._planes_for(
-                        prev_stream, self.slice_of(j - 1)
-                    )
-                for old in [k for k in self._cache if abs(k - q) > 1]:
-                    del self._cache[old]
-            else:
-                self._current = {q: self._corners(self._read(j), q)}
+            self._current = slices.at(j)
             source = HardwareSource(self, step, q)
             lanes = self._lanes(source)
-            busy = np.bincount(lanes, minlength=P)
-            extra = max(0, int(busy.max(initial=0)) - T)
-            self._hand_off(step.rays, lanes, prev_lane, state)
+            busy_k[j] = busy = np.bincount(lanes, minlength=P)
+            self._hand_off(step.rays, lanes, prev_lane, state, counts)
             if step.rays.size:
                 # The back end may drop samples (terminated rays, crop); then the source
                 # is rebuilt for the samples that remain.
@@ -300,38 +275,107 @@ class Cube4Machine(Cube4Frame):
                 )
             rays = finishing(j)
             if rays.size:
-                bus["acc"][rays] = state.acc[rays]
-                bus["touched"][rays] = state.touched[rays]
-                if bus["dt_sum"] is not None:
-                    bus["dt_sum"][rays] = state.dt_sum[rays]
-            block = T + self.arch.slice_overhead_cycles + extra
-            blocks.append((busy, block, self._reads))
+                bus.acc[rays] = state.acc[rays]
+                bus.touched[rays] = state.touched[rays]
+                if bus.dt_sum is not None:
+                    bus.dt_sum[rays] = state.dt_sum[rays]
             if self.trace is not None:
                 self._trace_samples(step, q, lanes)
-            self.clock.advance(block)
+            extra = max(0, int(busy.max(initial=0)) - T)
+            self.clock.advance(T + self.arch.slice_overhead_cycles + extra)
             if progress is not None:
                 progress(j + 1, plan.n_steps)
-        cycles, fifo, tail = self._pixel_bus(blocks, depth, stages, prime_reads)
-        self.clock.advance(cycles - self.clock.cycle)
-        self.memory.publish()
-        self.memory_out.publish()
+        self._current = {}
+        ids = plan.ray_ids
+        return Sweep(
+            rays=ids,
+            acc=bus.acc[ids],
+            touched=bus.touched[ids],
+            dt_sum=None if bus.dt_sum is None else bus.dt_sum[ids],
+            busy=busy_k,
+            samples=state.samples,
+            skipped=int(state.extra.get("skipped", 0)),
+            counters=counts.as_dict(),
+        )
+
+    def frame(self, sweeps: list[Sweep]) -> CycleResult:
+        """The frame of ``sweeps`` (disjoint sets of rays covering the plan): the samples
+        per pipeline and step added up, then the frame's timing by its rules -- every
+        slice read once (:meth:`_slice_reads`), each slice as long as its busiest
+        pipeline, the pixel bus from the whole plan -- and the image from the
+        accumulators the bus delivered."""
+        be, plan, P, T = self.be, self.plan, self.P, self.T
+        c = self.counters
+        state = be.new_state(plan.n_rays)
+        busy_k = np.zeros((plan.n_steps, P), dtype=np.int64)
+        skipped = 0
+        for sweep in sweeps:
+            state.acc[sweep.rays] = sweep.acc
+            state.touched[sweep.rays] = sweep.touched
+            if state.dt_sum is not None:
+                state.dt_sum[sweep.rays] = sweep.dt_sum
+            busy_k += sweep.busy
+            state.samples += sweep.samples
+            skipped += sweep.skipped
+            for key, value in sweep.counters.items():
+                c.add(key, value)
+        depth = self.faults.pixel_fifo_depth
+        depth = self.capacity["pixel_fifo_entries"] if depth is None else depth
+        c.set("pixel_bus.fifo_depth", depth)
+        if self.need_slices:
+            c.set("slice_fifo.depth", T + self.faults.slice_fifo_adjust)
+        stages = {
+            u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
+        }
+        prime_reads, reads_k = self._slice_reads()
+        extra_k = np.maximum(busy_k.max(axis=1, initial=0) - T, 0)
+        block_k = T + self.arch.slice_overhead_cycles + extra_k
+        cycles, fifo, tail = self._pixel_bus(busy_k, block_k, reads_k, depth, stages, prime_reads)
         publish_pixel_bus(c, fifo, tail)
         c.set("pixel_bus.stall_cycles", fifo.stall_cycles)
-        c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
-        image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
+        c.set("simulation.transparent_samples_skipped", skipped)
+        image = be.finish(state.acc, state.touched, state.dt_sum)
         return frame_result(self, image, state, cycles, latency=cube4_latency(self.C))
 
-    def _pixel_bus(self, blocks, depth: int, stages: dict, prime_reads):
+    def _slice_reads(self) -> tuple[np.ndarray, np.ndarray]:
+        """Count every slice read of the frame in the memory modules (reads, idle slots,
+        the skew check), the module-to-pipeline links and the ring; returns the reads per
+        pipeline of the priming read and of each step's read."""
+        P, c = self.P, self.counters
+        memory = Cube4Memory(None, P, c, shape=self.be.volume.shape)
+        memory_out = Channel("pipeline[{}].memory.o", P, c)
+        self.memory_stage = Stage("memory", skew_unit.LATENCY, skew_unit.II, P, c)
+        idle = np.zeros(P, dtype=np.int64)
+
+        def read(j: int) -> np.ndarray:
+            # Module -> pipeline stream: valid in every scheduled slot; Cube-4 never
+            # back-pressures inside a slice (stalls happen between slices, at the pixel bus).
+            reads = memory.account(self.kp, self.slice_of(j))
+            memory_out.account(reads, idle, self.T - reads)
+            c.add("ring.link_transfers", 2 * int(reads.sum()))
+            return reads
+
+        # The slice FIFOs read each slice one step ahead of its samples (and the first
+        # before the first step); without them each step reads its own slice.
+        prime = read(0) if self.need_slices else idle
+        ahead = 1 if self.need_slices else 0
+        reads_k = np.array(
+            [read(j + ahead) if j + ahead < self.n_kp else idle for j in range(self.plan.n_steps)],
+            dtype=np.int64,
+        ).reshape(-1, P)
+        memory.publish()
+        memory_out.publish()
+        return prime, reads_k
+
+    def _pixel_bus(self, busy_k, block_k, reads_k, depth: int, stages: dict, prime_reads):
         """Rules 4-6: every ray pushed into the pixel FIFO when its last sample is written
         back, the bus popping one per clock, the whole machine frozen in a clock where a
         push finds the FIFO full.  Accounts every unit's busy/stall/idle clocks and
         returns ``(cycles, the FIFO's run, clocks after the sequencer's last)``."""
         P, T = self.P, self.T
         idle = np.zeros(P, dtype=np.int64)
-        busy_k = np.array([b for b, _, _ in blocks], dtype=np.int64).reshape(-1, P)
-        block_k = np.array([n for _, n, _ in blocks], dtype=np.int64)
-        reads_k = np.array([r for _, _, r in blocks], dtype=np.int64).reshape(-1, P)
-        starts = T + np.concatenate([[0], np.cumsum(block_k)])  # stall-free period starts
+        n = len(block_k)
+        starts = T + np.concatenate([[0], np.cumsum(block_k)]).astype(np.int64)
         pushes, _, rays = cube4_pixel_pushes(self.plan, starts[:-1], self.n_a, self.n_b, P)
         fifo = freezing_fifo("pixel_bus.fifo", pushes, depth)
         frozen = fifo.frozen_at
@@ -349,15 +393,15 @@ class Cube4Machine(Cube4Frame):
         last_pop = int(fifo.pops[-1]) + 1 if fifo.pops.size else 0
         cycles = max(last_pop, seq_end)
         # Frozen clocks fall in the period running at their stall-free clock (index k of
-        # the steps' periods) or after the last one (index len(blocks)).
+        # the steps' periods) or after the last one (index n).
         where = np.searchsorted(starts, fifo.frozen_at, side="right") - 1
         counts = np.bincount(where, minlength=starts.size)
-        stall_k, tail_stall = counts[: len(blocks)], int(counts[len(blocks)])
+        stall_k, tail_stall = counts[:n], int(counts[n])
         tail = cycles - seq_end
         for stage in [self.memory_stage, *stages.values()]:
             prime = prime_reads if stage is self.memory_stage else idle
             stage.account(prime, T)
-            if blocks:
+            if n:
                 busy = reads_k if stage is self.memory_stage else busy_k
                 stage.account(busy, block_k + stall_k, stall_k)
             stage.account(idle, tail + tail_stall, tail_stall)
@@ -397,6 +441,58 @@ class Cube4Machine(Cube4Frame):
                 cyc = np.concatenate([busy, ends])
                 val = np.r_[np.ones(busy.size, np.int64), np.zeros(ends.size, np.int64)]
                 self.trace.record(f"pipeline[{m}].interp", "i__valid", 1, cyc, val)
+
+
+class ModuleSlices:
+    """Whole slices as one process's machine reads them: from the memory modules (the
+    host's write of the whole volume, :class:`Cube4Memory`) through the two slice delay
+    FIFOs, each slice's corner planes computed once and kept while a step needs them."""
+
+    def __init__(self, m: Cube4Machine) -> None:
+        self.m = m
+        self.memory = Cube4Memory(m.be.raw, m.P, Counters(), m.faults.stuck_module)
+        depth = m.T + m.faults.slice_fifo_adjust
+        self.fifos = (DelayLine(depth, m.P), DelayLine(depth, m.P)) if m.need_slices else None
+        self._cache: dict[int, tuple[np.ndarray, dict]] = {}
+
+    def _read(self, j: int) -> np.ndarray:
+        m = self.m
+        stream, sched = self.memory.read_slice(m.kp, m.slice_of(j))
+        if m.trace is not None:
+            m._trace_memory(stream, sched.valid)
+        return stream
+
+    def prime(self) -> None:
+        if self.fifos is not None:
+            self.fifos[0].push(self._read(0))
+
+    def _planes_for(self, stream: np.ndarray, q: int) -> dict:
+        cached = self._cache.get(q)
+        if cached is not None and np.array_equal(cached[0], stream):
+            return cached[1]
+        planes = self.m.corner_planes(stream, q)
+        self._cache[q] = (stream, planes)
+        return planes
+
+    def at(self, j: int) -> dict[int, dict]:
+        """The planes step ``j`` reads: its slice's, and with the slice FIFOs the slices
+        before and after it as the FIFOs deliver them."""
+        m = self.m
+        q = m.slice_of(j)
+        if self.fifos is None:
+            return {q: m.corner_planes(self._read(j), q)}
+        fifo1, fifo2 = self.fifos
+        nxt = self._read(j + 1) if j + 1 < m.n_kp else np.zeros((m.P, m.T), np.int64)
+        cur_stream = fifo1.push(nxt)
+        prev_stream = fifo2.push(cur_stream)
+        current = {q: self._planes_for(cur_stream, q)}
+        if j + 1 < m.n_kp:
+            current[m.slice_of(j + 1)] = self._planes_for(nxt, m.slice_of(j + 1))
+        if j >= 1:
+            current[m.slice_of(j - 1)] = self._planes_for(prev_stream, m.slice_of(j - 1))
+        for old in [k for k in self._cache if abs(k - q) > 1]:
+            del self._cache[old]
+        return current
 
 
 def _finishing_rays(plan: SamplePlan) -> Callable[[int], np.ndarray]:

@@ -52,7 +52,7 @@ def _make_kernel(stage_hash: str):
     """The kernel (generic in the formats: one compilation serves every width)."""
 
     def kernel(
-        cur, ahead, behind, pw, pa, pb, ca, wa, cb, wb, rays, factor, rgb12, alpha12,
+        cur, ahead, behind, a0, pw, pa, pb, ca, wa, cb, wb, rays, factor, rgb12, alpha12,
         grad_p, ratio, gm_table, light, half, intensity, spec, maps, table, acc, ert_thr,
         alive, sat, config, cols, need_grad,
     ):  # fmt: skip
@@ -69,8 +69,11 @@ def _make_kernel(stage_hash: str):
         vis_rays = np.empty(n, np.int64)
         g = np.empty((3, n), np.int64)
         m = 0
+        # Each plane's first row is its band's first beam a0 (0: a whole slice); the
+        # slices ahead and behind may hold other bands: their rows are shifted.
+        shift_ahead, shift_behind = (a0[0] - a0[1]) * pw, (a0[0] - a0[2]) * pw
         for i in range(n):
-            row = (ca[i] + 2) * pw + cb[i] + 2
+            row = (ca[i] + 2 - a0[0]) * pw + cb[i] + 2
             if row < 0 or row >= rows:
                 sat[_OUTSIDE] = 1
                 return
@@ -85,14 +88,18 @@ def _make_kernel(stage_hash: str):
                 # HardwareSource.gradient: along the principal axis the same cell on the
                 # slices ahead and behind; in the slice the cell of p + 1 and p - 1 (its
                 # weight quantised from its own fraction), the other axis unchanged.
-                g[g_k, m] = _corners(ahead, row, wa[i], wb[i], w_bits, w_code) - _corners(
-                    behind, row, wa[i], wb[i], w_bits, w_code
+                r_ahead, r_behind = row + shift_ahead, row + shift_behind
+                if min(r_ahead, r_behind) < 0 or max(r_ahead, r_behind) >= rows:
+                    sat[_OUTSIDE] = 1
+                    return
+                g[g_k, m] = _corners(ahead, r_ahead, wa[i], wb[i], w_bits, w_code) - _corners(
+                    behind, r_behind, wa[i], wb[i], w_bits, w_code
                 )
                 diff_a = np.int64(0)
                 diff_b = np.int64(0)
                 for sign in (1.0, -1.0):
                     c, w = slice_cell(pa[i] + sign, w_bits, w_code)
-                    r = (c + 2) * pw + cb[i] + 2
+                    r = (c + 2 - a0[0]) * pw + cb[i] + 2
                     c, w2 = slice_cell(pb[i] + sign, w_bits, w_code)
                     r2 = row - cb[i] + c
                     if r < 0 or r >= rows or r2 < 0 or r2 >= rows:
@@ -161,14 +168,12 @@ class SliceKernel(StageConstants):
         """Composite ``step``'s samples (after masks), interpolated from the planes of
         ``src`` (a ``HardwareSource`` of that step), into ``state``."""
         m, q = src.m, src.q
-        cur = m.planes(q, "value")
-        planes = (cur, cur, cur)  # the slices ahead and behind: read for gradients only
+        here = m.planes(q)
+        slices = (here, here, here)  # the slices ahead and behind: read for gradients only
         if self.need_grad:
-            planes = (
-                cur,
-                m.planes(min(q + 1, m.n_kp - 1), "value"),
-                m.planes(max(q - 1, 0), "value"),
-            )
+            slices = (here, m.planes(min(q + 1, m.n_kp - 1)), m.planes(max(q - 1, 0)))
+        planes = tuple(p["value"] for p in slices)
+        a0 = np.array([p["a0"] for p in slices], dtype=np.int64)
         (ca, wa, _), (cb, wb, _) = src._cells
         per_sample = (
             np.ascontiguousarray(src.pa, dtype=np.float64),
@@ -183,7 +188,7 @@ class SliceKernel(StageConstants):
         def run_part(pa, pb, ca, wa, cb, wb, rays, factor, state, table):
             sat = np.zeros(3, dtype=np.int64)
             self.kernel(
-                *planes, m.plane_width, pa, pb, ca, wa, cb, wb, rays, factor,
+                *planes, a0, m.plane_width, pa, pb, ca, wa, cb, wb, rays, factor,
                 self.rgb12, self.alpha12, self.grad_p, self.ratio, self.gm_table, self.light,
                 self.half, self.intensity, self.spec, self.maps, table, state.acc,
                 self.ert_thr, state.alive, sat, self.config, self.cols, self.need_grad,
