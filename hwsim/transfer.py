@@ -120,6 +120,13 @@ def _percentiles(volume: Volume, lo: float, hi: float) -> tuple[float, float]:
     """The 40th and 99.5th percentile of the voxels above ``lo`` (kept per volume: a
     turntable or a sweep resolves the preset once per frame)."""
     cached = _PERCENTILES.get(volume)
+    if (cached is None or cached[0] != (lo, hi)) and "parts" in volume.meta:
+        raise InputError(
+            "the mr preset reads percentiles of the whole volume",
+            source=volume.source,
+            key="transfer.preset",
+            allowed="another preset or a transfer table with --workers",
+        )
     if cached is None or cached[0] != (lo, hi):
         data = volume.data
         nonzero = data[data > lo]

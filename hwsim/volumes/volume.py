@@ -111,6 +111,14 @@ class Volume:
         if data.dtype.kind in "iu" and self.bits == 0:
             object.__setattr__(self, "bits", data.dtype.itemsize * 8)
 
+    def __reduce__(self):
+        # A volume read in parts (hwsim.volumes.parts) pickles as where its voxels are,
+        # never as its placeholder data (which would be materialised whole).
+        parts = self.meta.get("parts")
+        if parts is not None:
+            return (type(parts).volume, (parts,))
+        return super().__reduce__()
+
     @property
     def shape(self) -> tuple[int, int, int]:
         """Voxel counts along ``(z, y, x)``."""
