@@ -93,6 +93,10 @@ class Machine:
         (:class:`~models.machines.common.silicon.Access`) from its counters.
     package : str
         The package holding the family's architecture files.
+    split : type or None
+        ``split(frame, faults)``: the family's frame split by rays across workers (its
+        ``bands(n)``, ``task`` and ``combine(results)``; e.g.
+        :class:`models.machines.cube4.bands.BandSplit`); None: frames run in one process.
     """
 
     name: str
@@ -106,6 +110,7 @@ class Machine:
     package: str = field(default="")
     silicon: Callable[..., Any] | None = None
     accesses: Callable[..., Any] | None = None
+    split: type | None = None
 
     def arch_files(self) -> list[Path]:
         """The family's built-in architecture files."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from models.machines import Machine, single_frames
 from models.machines.cube4 import silicon
+from models.machines.cube4.bands import BandSplit
 from models.machines.cube4.cycle import Cube4Machine, Faults
 from models.machines.cube4.frame import check_cube4_frame
 from models.machines.cube4.transaction import Cube4Transaction
@@ -22,4 +23,5 @@ MACHINE = Machine(
     package="models.machines.cube4",
     silicon=silicon.silicon,
     accesses=silicon.accesses,
+    split=BandSplit,
 )
