@@ -80,6 +80,26 @@ def build_parser() -> argparse.ArgumentParser:
         "(cmos45, cmos250, cmos350 or a file; default: the machine's era node)",
     )
     r.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="cycle rung, Cube-4 family: split the frame across N worker processes (a "
+        "local Dask cluster); the volume is read in parts, the frame bit-identical",
+    )
+    r.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="cycle rung, Cube-4 family: split the frame across the Dask cluster at "
+        "tcp://HOST:PORT",
+    )
+    r.add_argument(
+        "--bands",
+        type=int,
+        metavar="N",
+        help="with --workers/--scheduler: bands of rays the frame is cut into (default: "
+        "one per worker)",
+    )
+    r.add_argument(
         "--timing-only",
         action="store_true",
         help="transaction rung: time the frame without its image (stats.json only)",
@@ -103,6 +123,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_max_memory(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
+    c = sub.add_parser(
+        "convert", help="rewrite a volume uncompressed (.nrrd or .npy): readable in parts"
+    )
+    c.add_argument("volume", metavar="IN", help="volume file or DICOM folder")
+    c.add_argument("out", metavar="OUT", help="OUT.nrrd (raw, keeps spacing and units) or .npy")
+    _add_max_memory(c)
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
     a = sub.add_parser("archs", help="list built-in architectures")
@@ -292,7 +318,19 @@ def _render_command(args: argparse.Namespace) -> int:
         "timing_only": args.timing_only,
         "technology": args.technology,
     }
+    if args.workers is not None or args.scheduler is not None:
+        options.update(workers=args.workers, scheduler=args.scheduler, bands=args.bands)
+    elif args.bands is not None:
+        raise InputError(
+            "cuts a frame split across workers", key="--bands", allowed="with --workers"
+        )
     if args.frames != 1 or args.turn is not None:
+        if "workers" in options:
+            raise InputError(
+                "a turntable renders its frames one after another in this process",
+                key="--workers",
+                allowed="one frame (no --frames or --turn)",
+            )
         if args.timing_only:
             raise InputError(
                 "a turntable writes its frames' images",
@@ -325,6 +363,13 @@ def _render_command(args: argparse.Namespace) -> int:
                 f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
                 f"{run.samples / run.cycles:.2f} samples/cycle"
             )
+        if run.split is not None:
+            peaks = [b["peak_rss_bytes"] for b in run.split["bands"]]
+            print(
+                f"  split across {run.split['workers']} workers in {len(peaks)} bands: peak "
+                f"memory {max(peaks) / 2**30:.2f} GB per worker, "
+                f"{run.split['driver_peak_rss_bytes'] / 2**30:.2f} GB here"
+            )
         if run.silicon is not None:
             e, a = run.silicon["energy"], run.silicon["area"]
             watts = f", {e['average_watts']:.2f} W at this frame rate" if e["average_watts"] else ""
@@ -336,6 +381,35 @@ def _render_command(args: argparse.Namespace) -> int:
         note = " (no --out given: replaced the previous render there)" if replacing else ""
         names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
         print(f"  wrote {', '.join([*names, str(paths['stats'].name)])}{note}")
+    return 0
+
+
+def _cmd_convert(args: argparse.Namespace) -> int:
+    """A volume rewritten uncompressed, so that a frame split across workers can read it
+    a part at a time: raw-encoded NRRD (keeps the spacing and HU units) or .npy."""
+    import nrrd
+    import numpy as np
+
+    from hwsim.paths import output_file
+    from hwsim.volumes import read_volume
+
+    out = args.out
+    if not out.lower().endswith((".nrrd", ".npy")):
+        raise InputError("unknown output type", source=out, key="OUT", allowed=".nrrd or .npy")
+    output_file(out, "OUT")
+    volume = read_volume(args.volume)
+    data = np.ascontiguousarray(volume.data)
+    if out.lower().endswith(".npy"):
+        np.save(out, data)
+        kept = "spacing not kept: .npy has none"
+    else:
+        header = {"encoding": "raw", "spacings": list(volume.spacing[::-1])}
+        if volume.units == "HU":
+            header["content"] = f"{volume.name} (Hounsfield units)"
+        nrrd.write(out, data, header=header, index_order="C")
+        kept = f"spacing {volume.spacing}"
+    shape = "x".join(map(str, volume.shape))
+    print(f"wrote {out}: {shape} {data.dtype}, {kept}")
     return 0
 
 
@@ -510,6 +584,7 @@ def _rtl_diff(args: argparse.Namespace) -> int:
 
 _COMMANDS = {
     "render": _cmd_render,
+    "convert": _cmd_convert,
     "scenes": _cmd_scenes,
     "phantoms": _cmd_phantoms,
     "archs": _cmd_archs,

@@ -38,6 +38,8 @@ __all__ = [
 ]
 
 FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
+#: Most workers (and bands) one frame is split across.
+MAX_WORKERS = 256
 #: The machine a timed rung models when no --arch is given.
 DEFAULT_ARCH = "volumepro500"
 SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
@@ -74,6 +76,9 @@ class RenderRun:
     #: Energy per frame and silicon area (:mod:`hwsim.energy`): ``{"technology", "energy",
     #: "area"}`` for cycle and transaction renders; None where no action was counted.
     silicon: dict[str, Any] | None = None
+    #: A frame split across workers (:mod:`hwsim.frame_split`): workers, each band's rays,
+    #: samples, seconds and peak memory; None: one process.
+    split: dict[str, Any] | None = None
 
 
 def builtin_archs() -> dict[str, ArchConfig]:
@@ -229,7 +234,7 @@ BYTES_PER_PIXEL = 512
 BYTES_PER_VOXEL = 48
 
 
-def check_work(scene: Scene, volume: Volume) -> None:
+def check_work(scene: Scene, volume: Volume, *, whole_volume: bool = True) -> None:
     """Refuse, before any work, a frame whose samples or memory exceed the budgets.
 
     Samples are bounded by ``pixels x (volume diagonal / sample step + 1)``; memory by
@@ -246,7 +251,8 @@ def check_work(scene: Scene, volume: Volume) -> None:
             key="render.sample_spacing",
             allowed=f"a coarser sample spacing, a smaller image, or {SAMPLE_ENV_VAR}",
         )
-    nbytes = BYTES_PER_PIXEL * pixels + BYTES_PER_VOXEL * int(np.prod(volume.shape))
+    voxels = int(np.prod(volume.shape)) if whole_volume else 0  # read in parts: per worker
+    nbytes = BYTES_PER_PIXEL * pixels + BYTES_PER_VOXEL * voxels
     require_fits(nbytes, what=f"a {scene.view.width}x{scene.view.height} frame", key="view")
 
 
@@ -265,6 +271,9 @@ def render(
     extend: bool = False,
     timing_only: bool = False,
     technology: str | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    bands: int | None = None,
 ) -> RenderRun:
     """Render ``scene`` at ``fidelity``.
 
@@ -305,6 +314,11 @@ def render(
         ``cycle`` and ``transaction`` rungs: price the frame's actions and the machine's
         area in this technology (a built-in name or a TOML file; default: the machine's
         ``[silicon] technology``), :mod:`hwsim.energy`.
+    workers, scheduler, bands : optional
+        ``cycle`` rung: split the frame across a local Dask cluster of ``workers``
+        processes, or the cluster at ``scheduler``, in ``bands`` bands of rays (default:
+        one per worker), reading the volume in parts (:mod:`hwsim.frame_split`); the same
+        image, cycles and counters as one process.  What the split did is ``split``.
     """
     if fidelity not in FIDELITIES:
         raise InputError(
@@ -332,6 +346,9 @@ def render(
         raise InputError(
             "an HDL simulator runs the rtl rung only", key="--simulator", allowed="rtl"
         )
+    split = workers is not None or scheduler is not None
+    if split:
+        _check_split(fidelity, volume, workers, scheduler, bands, elaborate_all, steady_state)
     if arch is None and fidelity != "golden":
         arch = DEFAULT_ARCH
     if isinstance(arch, ArchConfig):
@@ -363,10 +380,14 @@ def render(
         )
     from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
 
-    if volume is None:
+    if split:
+        from hwsim.volumes.parts import volume_parts
+
+        volume = volume_parts(scene.volume, scene.base_dir).volume()
+    elif volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
     volume = value_path_volume(scene, volume, machine)
-    check_work(scene, volume)
+    check_work(scene, volume, whole_volume=not split)
     bricked = False
     if machine is not None and oversize(volume, machine):
         if not (machine.supervolumes or extend):
@@ -386,7 +407,7 @@ def render(
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene, transfer)
     cycles = clock = None
-    silicon = None
+    silicon = split_info = None
     derived: dict[str, Any] = {}
     if fidelity == "golden" and machine is not None:  # the machine's refusals hold here too
         from models.frame import frame_of
@@ -414,6 +435,25 @@ def render(
             frame = frame_of(scene, volume, transfer, machine)
             check_family(frame)
             result = time_frame(frame, steady_state=steady_state)
+        elif split:
+            from hwsim.frame_split import split_frame
+
+            if bricked:
+                raise InputError(
+                    "a supervolume's bricks are frames of their own",
+                    key="--workers",
+                    allowed=f"a volume of at most {' x '.join(map(str, machine.max_volume))}",  # type: ignore[union-attr]
+                )
+            frame = frame_of(scene, volume, transfer, machine)
+            check_family(frame)
+            result, split_info = split_frame(
+                frame,
+                workers=workers,
+                scheduler=scheduler,
+                bands=bands,
+                progress=progress,
+                trace=trace is not None,
+            )
         elif bricked:
 
             def one_brick(frame):
@@ -455,7 +495,37 @@ def render(
         extensions=[e.describe() for e in extensions],
         shading=chosen.describe_shading() if scene.lit else None,
         silicon=silicon,
+        split=split_info,
     )
+
+
+def _check_split(fidelity, volume, workers, scheduler, bands, elaborate_all, steady_state) -> None:
+    """Refuse, before any work, what a frame split across workers cannot be."""
+    if fidelity != "cycle":
+        raise InputError(
+            f"the {fidelity} rung renders a frame in one process",
+            key="--workers",
+            allowed="--fidelity cycle",
+        )
+    if workers is not None and scheduler is not None:
+        raise InputError(
+            "give a worker count or a scheduler, not both", key="--workers", allowed="one of them"
+        )
+    if workers is not None and not (isinstance(workers, int) and 1 <= workers <= MAX_WORKERS):
+        raise InputError(
+            f"{workers!r} is out of range", key="--workers", allowed=f"1 .. {MAX_WORKERS}"
+        )
+    if bands is not None and not (isinstance(bands, int) and 1 <= bands <= MAX_WORKERS):
+        raise InputError(f"{bands!r} is out of range", key="--bands", allowed=f"1 .. {MAX_WORKERS}")
+    if volume is not None:
+        raise InputError(
+            "a frame split across workers reads its volume in parts, not a loaded volume",
+            key="volume",
+            allowed="the scene's volume file or phantom",
+        )
+    for flag, given in (("--elaborate-all", elaborate_all), ("--steady-state", steady_state)):
+        if given:
+            raise InputError("renders in one process", key=flag, allowed="no --workers")
 
 
 def check_family(frame) -> None:

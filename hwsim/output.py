@@ -86,6 +86,8 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "technology": run.silicon["technology"] if run.silicon else None,
         "energy": run.silicon["energy"] if run.silicon else None,
         "area": run.silicon["area"] if run.silicon else None,
+        # A frame split across workers: each band's rays, seconds and peak memory.
+        "split": run.split,
         "host": {
             "python": platform.python_version(),
             "numpy": np.__version__,

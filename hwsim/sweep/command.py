@@ -15,9 +15,10 @@ __all__ = ["sweep_command"]
 
 def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the sweep the parsed ``args`` describe; exit status 1 if any run failed."""
+    from hwsim.cluster import check_address, connect, local_client
     from hwsim.paths import output_file, output_folder
     from hwsim.sweep.db import RunsDB, check_ours
-    from hwsim.sweep.runner import check_address, connect, local_client, run_sweep
+    from hwsim.sweep.runner import run_sweep
     from hwsim.sweep.spec import load_sweep
 
     if not 1 <= args.workers <= 256:

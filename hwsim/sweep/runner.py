@@ -13,20 +13,19 @@ recorded as failed with Dask's ``KilledWorker`` error.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
-import logging
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hwsim.errors import HwsimError, InputError
+from hwsim.cluster import ALLOWED_FAILURES, connect, local_client
+from hwsim.errors import HwsimError
 from hwsim.sweep.db import RunsDB
 from hwsim.sweep.spec import RunSpec, Sweep, build_run, code_version, run_key, technology_of
 
@@ -39,9 +38,6 @@ __all__ = [
     "run_sweep",
     "image_digest",
 ]
-
-#: How many workers may die holding one task before the run is recorded as failed.
-ALLOWED_FAILURES = 3
 
 
 @dataclass
@@ -147,71 +143,6 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
         row.update(status="error", error=text)
     row["finished_at"] = _now()
     return row
-
-
-@contextlib.contextmanager
-def local_client(workers: int) -> Iterator[Any]:
-    """A Dask client on a ``LocalCluster`` of ``workers`` single-thread processes.
-
-    Everything listens on 127.0.0.1 only; the dashboard is off.
-    """
-    import dask
-    from distributed import Client, LocalCluster
-
-    settings = {
-        "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
-        # Dask's nannies export MALLOC_TRIM_THRESHOLD_=65536 to their workers; that fixes
-        # glibc's mmap threshold at 128 KiB, so every NumPy temporary of a render is a
-        # fresh mmap and page faults: a 96^3 functional render took 3x longer.
-        "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
-        # One worker per core already: each render runs its frame on one thread
-        # (hwsim.threads.frame_threads), unless the user chose otherwise.
-        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": os.environ.get("HWSIM_THREADS", "1"),
-    }
-    with dask.config.set(settings):
-        cluster = LocalCluster(
-            n_workers=workers,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address="127.0.0.1:0",
-            worker_dashboard_address="127.0.0.1:0",
-            silence_logs=logging.ERROR,
-        )
-        try:
-            with Client(cluster) as client:
-                yield client
-        finally:
-            cluster.close()
-
-
-def check_address(address: str) -> None:
-    """``[tcp://]host:port`` with a port in 1 .. 65535, or a one-line input error."""
-    rest = address.split("://", 1)[-1]
-    host, _, port = rest.rpartition(":")
-    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
-        raise InputError(
-            f"{address!r} has no port",
-            source=address,
-            key="--scheduler",
-            allowed="tcp://HOST:PORT with PORT in 1 .. 65535",
-        )
-
-
-@contextlib.contextmanager
-def connect(address: str) -> Iterator[Any]:
-    """A Dask client on an existing scheduler (``tcp://host:port``)."""
-    from distributed import Client
-
-    check_address(address)
-    try:
-        client = Client(address, timeout="5s")
-    except (OSError, TimeoutError) as exc:
-        raise InputError(
-            f"cannot reach the scheduler: {exc}", source=address, key="--scheduler"
-        ) from None
-    with client:
-        yield client
 
 
 def run_sweep(
