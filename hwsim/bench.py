@@ -18,14 +18,16 @@ copied; its docstring defines every row): golden against VTK (first frame and a
 rotation), the functional rung against VolPack and against golden, the cycle rung's
 samples per second and the timing-only transaction rung's speed-up on every machine,
 the peak memory of a 512^3 cycle frame, and two threads against one.  ``rows`` picks
-rows; each says whether its goal is met.  Two ratios are measured here:
+rows; each says whether its goal is met.  Three ratios are measured here:
 
-============================  ==========================================  =====
-ratio                         definition                                  goal
-============================  ==========================================  =====
-``cycle_vs_rtl``              rtl seconds / cycle seconds (RTL_SCENE)     10
-``sweep_2_vs_1_workers``      1-worker / 2-worker seconds, 24-run sweep   1.8
-============================  ==========================================  =====
+==============================  ==========================================  =====
+ratio                           definition                                  goal
+==============================  ==========================================  =====
+``cycle_vs_rtl``                rtl seconds / cycle seconds (RTL_SCENE)     10
+``sweep_2_vs_1_workers``        1-worker / 2-worker seconds, 24-run sweep   1.8
+``split_frame_2_vs_1_workers``  1-worker / 2-worker seconds, one cube4      1.7
+                                cycle frame (256^3, benchmarks/split_frame)
+==============================  ==========================================  =====
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ __all__ = [
 GOALS = {
     "cycle_vs_rtl": 10.0,
     "sweep_2_vs_1_workers": 1.8,
+    "split_frame_2_vs_1_workers": 1.7,
 }
 #: The speed table's rows (``benchmarks/speed_table.py`` measures them), in order:
 #: name -> (goal, "higher" or "lower" is better, unit, definition).
@@ -261,6 +264,7 @@ def run_bench(
     vtk: bool = True,
     sweep: bool = True,
     sweep_size: int = 96,
+    split_size: int = 256,
     rows: Sequence[str] | None = None,
     rtl_size: int = RTL_SCENE["size"],
     table_sizes: Sequence[int] = (128, 256),
@@ -268,9 +272,9 @@ def run_bench(
     log: Callable[[str], None] = lambda m: None,
 ) -> dict[str, Any]:
     """Measure every rung, the speed table's rows (``rows``: names of
-    ``benchmarks/speed_table.py``'s rows, all by default; ``()`` none) and the two
-    ratios of their own (``cycle_vs_rtl``, ``sweep_2_vs_1_workers``); the JSON-ready
-    report."""
+    ``benchmarks/speed_table.py``'s rows, all by default; ``()`` none) and the three
+    ratios of their own (``cycle_vs_rtl``, ``sweep_2_vs_1_workers``,
+    ``split_frame_2_vs_1_workers``); the JSON-ready report."""
     report: dict[str, Any] = {
         "schema": 2,
         "benchmark": "hwsim-bench",
@@ -332,6 +336,26 @@ def run_bench(
             sweep_report["speedup_2_workers"],
             "1-worker seconds / 2-worker seconds, 24-run sweep",
             cases=sweep_report["cases"],
+        )
+    split = _harness("split_frame") if sweep else None
+    if split is None:
+        why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
+        ratios["split_frame_2_vs_1_workers"] = _ratio(
+            "split_frame_2_vs_1_workers", None, "", note=why
+        )
+    else:
+        log(
+            f"a cube4 cycle frame on 1 and 2 Dask workers, {split_size}^3 "
+            "(benchmarks/split_frame.py)"
+        )
+        split_report = split.run((split_size,), (1, 2), reference_max=0, log=log)
+        ratios["split_frame_2_vs_1_workers"] = _ratio(
+            "split_frame_2_vs_1_workers",
+            split_report["speedup_2_vs_1"].get(f"{split_size}^3 warm"),
+            "1-worker s / 2-worker s, one cube4 cycle frame of the dense scenario on a "
+            "running local cluster (second frame)",
+            rows=split_report["rows"],
+            identical=all(c["identical"] for c in split_report["checks"]),
         )
     report["ratios"] = ratios
     report["machine"]["load_average_after"] = machine_info()["load_average"]

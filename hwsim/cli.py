@@ -191,7 +191,11 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
     b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung")
     b.add_argument("--no-vtk", action="store_true", help="skip golden vs VTK")
-    b.add_argument("--no-sweep", action="store_true", help="skip the 1 vs 2 worker sweep")
+    b.add_argument(
+        "--no-sweep",
+        action="store_true",
+        help="skip the Dask ratios: the 1 vs 2 worker sweep and split frame",
+    )
     b.add_argument(
         "--rows",
         metavar="ROW",
