@@ -21,7 +21,7 @@ one-process frame needs the whole volume in memory: 2.26 GB at 512^3, ~18 GB at 
 
 ``--volume ct`` renders the CT of ``../shared/data/ct_cranium.nrrd`` resampled
 (trilinear) to ``N^3`` and written to a scratch ``.npy`` a slab at a time, read by the
-workers through a memory map; ``head`` generates the phantom's parts on the workers.
+workers a box at a time; ``head`` generates the phantom's parts on the workers.
 ``--pipelines`` renders a what-if Cube-4 with that many pipelines (the 1024^3 claim's P
 was not published: architectures.md 1.4).
 """

@@ -4,7 +4,7 @@
 
 A 1024^3 volume of 16-bit voxels is 2 GiB; a frame split across workers must not hold it
 whole in any process.  A :class:`VolumeParts` describes where the voxels are (a file
-read through a memory map, or the head phantom, generated a box at a time by
+read a box at a time with explicit reads, or the head phantom, generated a box at a time by
 :func:`~hwsim.volumes.phantoms.head_box`) and hands out boxes of them; it pickles as that
 description, never as voxels, so a worker on another machine opens its own.
 
@@ -77,46 +77,56 @@ class VolumeParts:
     def box(self, z: slice, y: slice, x: slice | int = slice(None)) -> np.ndarray:
         """Voxels ``z x y x x`` (``x`` an int: one column, dropped from the shape), in the
         volume's type, bit for bit what the whole volume holds there."""
+        if isinstance(x, int):
+            return self._columns(z, y, x)
+        return self._rows(z, y)[:, :, x]
+
+    def _rows(self, z: slice, y: slice) -> np.ndarray:
+        """Whole rows along x of ``z x y``: generated (the head), or read from the file
+        with one ``pread`` per z (rows of one z are contiguous).  Explicit reads, not a
+        memory map: a mapped file's pages count in the process's resident memory, and
+        the kernel maps more of them than were touched (read-around, large folios)."""
         if self.kind == "head":
-            if isinstance(x, int):
-                return self._head_columns(z, y, x)
             from hwsim.volumes.phantoms import head_box
 
-            return head_box(*self.args, z, y)[:, :, x]
-        return np.ascontiguousarray(self._mapped()[z, y, x]).astype(self.dtype, copy=False)
+            return head_box(*self.args, z, y)
+        path, offset, dtype = self.args
+        file_dtype = np.dtype(dtype)
+        nz, ny, nx = self.shape
+        zs, ys = range(nz)[z], range(ny)[y]
+        if ys.step != 1 or zs.step != 1:
+            raise ValueError("boxes are read with unit steps")
+        out = np.empty((len(zs), len(ys), nx), dtype=file_dtype)
+        row = nx * file_dtype.itemsize
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            for i, k in enumerate(zs):
+                start = offset + (k * ny + ys.start) * row
+                got = os.preadv(fd, [memoryview(out[i]).cast("B")], start)
+                if got != len(ys) * row:
+                    raise InputError("ends early", source=self.source, key="shape")
+        finally:
+            os.close(fd)
+        return out.astype(self.dtype, copy=False)
 
-    def _head_columns(self, z: slice, y: slice, x: int) -> np.ndarray:
-        """One x column of the head over ``z x y``.  The phantom generates whole rows
-        along x (its bits depend on it), so whole ``(z, all y, all x)`` planes are
-        generated and kept while requests come from nearby z (a band of slices along x
-        moves a little per slice): each plane is generated about once per frame."""
-        from hwsim.volumes.phantoms import head_box
-
+    def _columns(self, z: slice, y: slice, x: int) -> np.ndarray:
+        """One x column over ``z x y``.  Whole ``(z, all y, all x)`` planes are read (or
+        generated: the head's bits are those of whole rows along x) and kept while the
+        requests come from nearby z (a band of slices along x moves a little per slice),
+        so each plane is read about once per frame."""
         zs = range(self.shape[0])[z]
-        planes = _HEAD_PLANES.setdefault(self, {})
-        missing = [k for k in zs if k not in planes]
-        for k in missing:
-            planes[k] = head_box(*self.args, slice(k, k + 1), slice(None))[0]
+        planes = _PLANES.setdefault(self, {})
+        for k in zs:
+            if k not in planes:
+                planes[k] = self._rows(slice(k, k + 1), slice(None))[0]
         window = 2 * max(len(zs), 1)
         for k in [k for k in planes if k < zs.start - window or k >= zs.stop + window]:
             del planes[k]
         return np.stack([planes[k][y, x] for k in zs]).reshape(len(zs), -1)
 
-    def _mapped(self) -> np.ndarray:
-        path, offset, dtype = self.args
-        cached = _MAPS.get((path, offset))
-        if cached is None:
-            cached = np.memmap(
-                path, dtype=np.dtype(dtype), mode="r", offset=offset, shape=self.shape
-            )
-            _MAPS[(path, offset)] = cached
-        return cached
 
-
-#: Memory maps opened in this process (one per file; the pages are the page cache's).
-_MAPS: dict[tuple[str, int], np.ndarray] = {}
-#: Planes of the head a worker generated for x-column requests, per volume.
-_HEAD_PLANES: dict[VolumeParts, dict[int, np.ndarray]] = {}
+#: Whole z planes kept for x-column requests, per volume (a worker's band of them).
+_PLANES: dict[VolumeParts, dict[int, np.ndarray]] = {}
 
 
 def volume_parts(spec: VolumeSpec, base_dir: Path | None = None) -> VolumeParts:

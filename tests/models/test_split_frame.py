@@ -1,7 +1,7 @@
 """A Cube-4 cycle frame split into bands of rays gives the one-process frame bit for bit.
 
 Each band reads only its rows of every slice (from the volume's parts: the head phantom
-generated a box at a time, or a file through a memory map) and routes them through a
+generated a box at a time, or a file read a box at a time) and routes them through a
 band-sized datapath (models/machines/cube4/bands.py); the driver adds the bands' per-step
 pipeline loads and times the frame.  The reference is the one-process frame, whose
 slices come from the memory modules' host write and the slice FIFOs: image, samples,
@@ -170,7 +170,7 @@ def test_what_a_band_cannot_reproduce_is_refused(faults, key):
 
 
 @pytest.mark.parametrize("kind", ["npy", "nrrd"])
-def test_a_file_read_through_a_memory_map_gives_the_loaded_files_frame(kind, tmp_path):
+def test_a_file_read_a_box_at_a_time_gives_the_loaded_files_frame(kind, tmp_path):
     import nrrd
 
     from hwsim.volumes import make_phantom
