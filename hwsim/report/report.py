@@ -220,6 +220,7 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
             ],
         )
     )
+    blocks += _split_blocks(s)
     if s["fidelity"] == "golden" and not s["arch"]:
         reference, origin = None, "this run is the ideal golden reference"
     else:
@@ -294,6 +295,34 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
             ("p", "No published figures for this run (no architecture, or none in its file).")
         )
     return blocks
+
+
+def _split_blocks(s: dict[str, Any]) -> list[Block]:
+    """A frame split across workers (``stats.json`` ``split``): each band's share."""
+    split = s.get("split")
+    if not split:
+        return []
+    gib = 2.0**30
+    rows = [
+        [
+            str(b["band"]),
+            _fmt(b["rays"]),
+            _fmt(b["samples"]),
+            _fmt(b["rows"]),
+            _fmt(b["seconds"], ".3g"),
+            f"{b['peak_rss_bytes'] / gib:.2f}",
+            b["host"],
+        ]
+        for b in split["bands"]
+    ]
+    text = (
+        f"The frame ran in {len(rows)} bands of rays on {split['workers']} Dask workers, each "
+        "reading only its rows of the volume; the image, cycles and counters are the "
+        "one-process frame's. The driver (combine, pixel bus, image) peaked at "
+        f"{split['driver_peak_rss_bytes'] / gib:.2f} GiB."
+    )
+    head = ["band", "rays", "samples", "beams read (all slices)", "seconds", "peak GiB", "host:pid"]
+    return [("h3", "Split across workers"), ("p", text), ("table", head, rows)]
 
 
 def _trade_blocks(folder: Path, out: Path) -> list[Block]:

@@ -44,6 +44,9 @@ def test_two_workers_render_the_one_process_frame_bit_for_bit(tmp_path, capsys):
     assert sum(b["samples"] for b in split["bands"]) == one["samples"]
     assert all(b["peak_rss_bytes"] > 0 and b["rows"] > 0 for b in split["bands"])
     assert "split across 2 workers in 2 bands" in printed
+    assert main(["report", str(tmp_path / "two"), "--out", str(tmp_path / "report")]) == 0
+    report = (tmp_path / "report" / "report.md").read_text()
+    assert "### Split across workers" in report and "ran in 2 bands of rays on 2" in report
 
 
 def test_one_bar_covers_every_band_and_a_killed_worker_s_band_is_rerun(tmp_path):
