@@ -26,7 +26,7 @@ import numpy as np
 
 from hwsim.errors import InputError
 from hwsim.scene import VolumeSpec
-from hwsim.volumes.readers import HU_AIR_THRESHOLD, _nrrd_spacing, _stem
+from hwsim.volumes.readers import HU_AIR_THRESHOLD, _nrrd_spacing, _stem, npy_header
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume
 
 __all__ = ["VolumeParts", "volume_parts", "is_partial"]
@@ -252,18 +252,7 @@ def _value_range(parts: VolumeParts) -> tuple[float, float]:
 
 
 def _npy_layout(path: Path):
-    try:
-        with open(path, "rb") as fh:
-            version = np.lib.format.read_magic(fh)
-            read = (
-                np.lib.format.read_array_header_1_0
-                if version == (1, 0)
-                else np.lib.format.read_array_header_2_0
-            )
-            shape, fortran, dtype = read(fh, max_header_size=1 << 16)
-            offset = fh.tell()
-    except (ValueError, OSError, EOFError, SyntaxError) as exc:
-        raise InputError(f"cannot read .npy header: {exc}", source=str(path)) from None
+    shape, fortran, dtype, offset = npy_header(path)
     if len(shape) != 3 or fortran:
         raise InputError(
             f"holds a {'Fortran-order ' if fortran else ''}array of shape {shape}",

@@ -278,8 +278,8 @@ def declare(shape, dtype: np.dtype, source: str, key: str = "shape") -> int:
     return nbytes
 
 
-def _read_npy(path: Path) -> Volume:
-    src = str(path)
+def npy_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:
+    """A ``.npy`` file's shape, Fortran order, dtype and data offset (the header only)."""
     try:
         with open(path, "rb") as fh:
             version = np.lib.format.read_magic(fh)
@@ -288,10 +288,15 @@ def _read_npy(path: Path) -> Volume:
                 if version == (1, 0)
                 else np.lib.format.read_array_header_2_0
             )
-            shape, _, dtype = read_header(fh, max_header_size=1 << 16)
-            offset = fh.tell()
+            shape, fortran, dtype = read_header(fh, max_header_size=1 << 16)
+            return shape, fortran, dtype, fh.tell()
     except (ValueError, OSError, EOFError, SyntaxError) as exc:
-        raise InputError(f"cannot read .npy header: {exc}", source=src) from None
+        raise InputError(f"cannot read .npy header: {exc}", source=str(path)) from None
+
+
+def _read_npy(path: Path) -> Volume:
+    src = str(path)
+    shape, _, dtype, offset = npy_header(path)
     if dtype.hasobject:
         raise InputError("holds Python objects", source=src, key="dtype", allowed="numbers")
     nbytes = declare(shape, dtype, src) if shape else dtype.itemsize
