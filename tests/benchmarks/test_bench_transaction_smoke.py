@@ -46,3 +46,30 @@ def test_error_table_measures_a_case_and_says_when_it_cannot_compare():
         assert vp_row["error"] is not None
     else:
         assert vp_row["error"] is None and vp_row["note"].startswith("not yet compared")
+    # Every row names its independence: Cube-4's rungs share the timing functions, so its
+    # row is a consistency check, never shown as a number; VolumePro's are partly shared.
+    assert (row["comparison"], row["independence"]) == ("cube4", "shared")
+    assert row["error_shown"].startswith("consistency check (shared code: cube4_latency")
+    assert (vp_row["comparison"], vp_row["independence"]) == ("volumepro", "partly shared")
+    assert vp_row["error_shown"].endswith("%") or vp_row["error"] is None
+
+
+def test_the_error_table_gains_its_independence_columns_without_re_measuring():
+    """``annotate`` adds the verdicts to an existing report from its numbers alone."""
+    from benchmarks.transaction_error import annotate, cases
+
+    quick = {c["name"]: c for c in cases(quick=True)}
+    names = ["head48 parallel 0,0 img48 P4", "head32 parallel 0,0 volumepro500"]
+    names.append(next(n for n in quick if n.endswith("vizard2")))
+    rows = [
+        {"case": n, "arch": quick[n]["arch"].name, "projection": "parallel", "error": e}
+        for n, e in zip(names, [0.05, 0.003, -0.01], strict=True)
+    ]
+    report = annotate({"schema": 1, "cases": rows}, {n: quick[n]["arch"] for n in names})
+    shown = [r["independence"] for r in report["cases"]]
+    assert shown == ["shared", "partly shared", "partly shared"]
+    # A shared row's number is no measurement: the largest measured error leaves it out.
+    assert report["max_abs_error"] == 0.05 and report["max_abs_error_not_shared"] == 0.01
+    assert set(report["independence"]) == {"cube4", "volumepro", "vizard2"}
+    assert report["independence"]["cube4"]["shared"][0].endswith("cube4_latency")
+    assert report["worst"]["cube4-P4 parallel"]["error_shown"].startswith("consistency check")
