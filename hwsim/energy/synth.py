@@ -8,13 +8,20 @@ widths (cells by type, flip-flops, SRAM bits, the longest path between flip-flop
 gates), written by ``python -m hwsim.energy.synth`` (which runs ``hwsim rtl build all``;
 the ``synth`` tests re-synthesise a unit and compare).  From it:
 
-* **gate equivalents**: each generic gate in NAND2 equivalents of a standard-cell
-  library (:data:`GATE_EQUIVALENTS`, NanGate 45 nm X1 cells [R]); SRAMs kept as memories
-  priced per bit as the table does;
-* **fmax**: the longest path's gates times the technology's delay per gate level; the
-  unit's pipeline already holds its ``LATENCY`` registers, so this is the clock the unit
-  as built can run at.  Yosys' techmap builds ripple-carry adders and never retimes, so
-  the depth is an upper bound of what a timing-driven flow would reach.
+* **logic**: each generic gate and flip-flop in NAND2 equivalents of a standard-cell
+  library (:data:`GATE_EQUIVALENTS`, NanGate 45 nm X1 cells [R]).  This is the
+  independent side of "area two ways": the table prices operators from Horowitz's
+  figures, this counts the cells Yosys builds;
+* **storage**: the RTL's memories, counted in bits (their own count, from the Verilog)
+  but priced per bit by the SAME :meth:`Technology.storage_um2` the table uses: where
+  SRAM dominates a unit, the two areas agree through that shared price, not
+  independently (:data:`INDEPENDENCE`);
+* **fmax** (an estimate, :func:`fmax_basis`): the longest path's gate count times an
+  inferred delay per generic gate level (1.5 FO4), not a timing analysis (no cell
+  library timing, no wires, no sizing).  The unit's pipeline already holds its
+  ``LATENCY`` registers.  Yosys' techmap builds Brent-Kung adders and carry-save
+  multipliers but never restructures or retimes the unrolled square root and dividers,
+  so the depth is the RTL as written, not what a timing-driven flow would reach.
 """
 
 from __future__ import annotations
@@ -30,7 +37,15 @@ from typing import Any
 
 from hwsim.energy.technology import FF_GATE_EQUIVALENTS, Technology
 
-__all__ = ["GATE_EQUIVALENTS", "gate_equivalents", "synthesised", "unit_silicon"]
+__all__ = [
+    "GATE_EQUIVALENTS",
+    "INDEPENDENCE",
+    "fmax_basis",
+    "gate_equivalents",
+    "operator_gate_equivalents",
+    "synthesised",
+    "unit_silicon",
+]
 
 #: NAND2 equivalents of Yosys' generic cells: NanGate 45 nm open cell library X1 cells
 #: over NAND2_X1's 0.798 um^2 [R] (INV 0.532, AND2/OR2 1.064, XOR2 1.596, MUX2 1.862,
@@ -48,6 +63,17 @@ GATE_EQUIVALENTS = {
     "$_MUX_": 2.33,
 }
 _DATA = "units_synth.json"
+#: What "area two ways" compares independently, and what it shares (docs/energy.md).
+INDEPENDENCE = (
+    "logic: independent (operator table vs Yosys cells); storage: bits counted "
+    "independently, priced by the same SRAM model (shared)"
+)
+
+
+def fmax_basis(tech: Technology) -> str:
+    """How a unit's fmax is obtained, to print beside it: an estimate, not timing."""
+    fo4 = tech.v("timing", "gate_level_fo4")
+    return f"estimate: logic levels x {fo4:g} FO4 (inferred unit delay), not timing analysis"
 
 
 @cache
@@ -80,19 +106,63 @@ def unit_silicon(unit: str, tech: Technology, clock_hz: float) -> dict[str, Any]
     if entry is None:
         return None
     ge = gate_equivalents(entry["cells_by_type"])
-    um2 = tech.gate_um2(ge) + tech.storage_um2(entry["memory_bits"])
+    logic_um2 = tech.gate_um2(ge)
+    storage_um2 = tech.storage_um2(entry["memory_bits"])  # the table's price per bit
     levels = entry["logic_levels"]
     fmax = 1e12 / (levels * tech.gate_level_ps) if levels else None
     return {
-        "mm2": um2 / 1e6,
+        "mm2": (logic_um2 + storage_um2) / 1e6,
+        "logic_mm2": logic_um2 / 1e6,
+        "storage_mm2": storage_um2 / 1e6,
         "gate_equivalents": ge,
+        "flip_flops": entry["flip_flops"],
         "memory_bits": entry["memory_bits"],
         "logic_levels": levels,
         "latency": entry["latency"],
         "fmax_hz": fmax,
+        "fmax_basis": fmax_basis(tech),
         "meets_clock": None if fmax is None else fmax >= clock_hz,
         "params": entry["params"],
     }
+
+
+@cache
+def operator_gate_equivalents(kind: str, a: int, b: int = 0) -> float:
+    """One operator of the table's inventory built alone and synthesised by the same Yosys
+    flow as the units (:func:`rtl.build.synthesize`), in NAND2 equivalents: ``add`` of two
+    ``a``-bit operands, ``mult`` ``a`` x ``b`` bits, ``register`` ``a`` flip-flops loaded
+    under an enable with a synchronous reset (as :class:`rtl.common.StallingPipeline`
+    builds them).  Needs a full Yosys on PATH.  What the table's operator price is
+    measured against (docs/energy.md, "Area two ways")."""
+    from amaranth import Module
+    from amaranth.lib import wiring
+    from amaranth.lib.wiring import In, Out
+
+    from rtl.build import synthesize
+    from rtl.export import to_verilog
+
+    ports = {
+        "add": {"x": In(a), "y": In(a), "o": Out(a + 1)},
+        "mult": {"x": In(a), "y": In(b), "o": Out(a + b)},
+        "register": {"x": In(a), "en": In(1), "o": Out(a)},
+    }
+
+    class _Operator(wiring.Component):
+        def elaborate(self, platform):
+            m = Module()
+            if kind == "add":
+                m.d.comb += self.o.eq(self.x + self.y)
+            elif kind == "mult":
+                m.d.comb += self.o.eq(self.x * self.y)
+            else:
+                with m.If(self.en):
+                    m.d.sync += self.o.eq(self.x)
+            return m
+
+    if kind not in ports:
+        raise KeyError(f"no operator {kind!r} (add, mult, register)")
+    stat = synthesize(to_verilog(_Operator(ports[kind]), "op"), "op")
+    return gate_equivalents(stat["cells_by_type"])
 
 
 def unit_datapath(unit: str, params: dict[str, Any]):
@@ -144,3 +214,17 @@ if __name__ == "__main__":
     target = Path(str(resources.files("hwsim.energy") / "data" / _DATA))
     refresh(target)
     print(f"wrote {target}", file=sys.stderr)
+
+
+def listed_gate_equivalents(inventory) -> float:
+    """The logic an operator inventory lists (its operators and pipeline registers; tables
+    apart), each operator built alone through the units' Yosys flow
+    (:func:`operator_gate_equivalents`): the table's own list at Yosys' gate counts.  Set
+    against a unit's synthesised logic it measures how much of the RTL the list covers."""
+    total = 0.0
+    for op in inventory:
+        if op.kind == "register":
+            total += operator_gate_equivalents("register", int(op.a * op.instances))
+        elif op.kind != "table":
+            total += operator_gate_equivalents(op.kind, op.a, op.b) * op.instances
+    return total
