@@ -320,10 +320,11 @@ def _cmd_archs(args: argparse.Namespace) -> int:
             for feature, has, source in feature_rows(arch):
                 print(f"  {feature:<21} {has:<34} {source}")
         return 0
-    from hwsim.energy import units_below_clock
+    from hwsim.energy import load_technology, units_below_clock
+    from hwsim.energy.synth import fmax_basis
 
     print(f"{'name':<15} {'order':<15} {'P':>3} {'clock':>10} {'peak':>12}  {'node':<8} rungs")
-    flags = []
+    flags, basis = [], ""
     for name, arch in builtin_archs().items():
         rungs = " ".join(machine_rungs(arch))
         print(
@@ -332,10 +333,13 @@ def _cmd_archs(args: argparse.Namespace) -> int:
         )
         slow = units_below_clock(arch)
         if slow:
-            units = ", ".join(f"{u} {f / 1e6:.0f} MHz" for u, f in slow)
-            flags.append(f"  {name}: below its {arch.clock_hz / 1e6:.0f} MHz clock: {units}")
+            units = ", ".join(f"{u} ~{f / 1e6:.0f} MHz" for u, f in slow)
+            clock = f"{arch.clock_hz / 1e6:.0f} MHz"
+            flags.append(f"  {name}: estimated below its {clock} clock: {units}")
+            basis = fmax_basis(load_technology(arch.technology))
     if flags:
-        print("units whose synthesised RTL is slower than the clock (docs/energy.md):")
+        print(f"units whose synthesised RTL is estimated slower than the clock ({basis}; "
+              "docs/energy.md):")  # fmt: skip
         print("\n".join(flags))
     return 0
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from hwsim.energy.synth import INDEPENDENCE
 from hwsim.report import plots
 
 __all__ = ["energy_blocks"]
@@ -46,16 +47,22 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
         if plot is not None:
             blocks.append(("img", plot, alt))
     rows = []
+    basis = independence = None
     for unit, entry in area["units"].items():
         syn = entry.get("synthesized")
         if syn:
             meets = {True: "yes", False: "NO", None: "-"}[syn["meets_clock"]]
+            basis = syn.get("fmax_basis", basis)
+            independence = syn.get("independence", independence)
             rows.append(
                 [
                     unit,
-                    _g(syn["table_mm2_same_widths"]),
-                    _g(syn["mm2"]),
-                    _g(syn["table_over_synthesized"], ".2f"),
+                    _g(syn.get("table_logic_mm2")),
+                    _g(syn.get("logic_mm2")),
+                    _g(syn.get("logic_table_over_synthesized"), ".2f"),
+                    _g(syn.get("table_storage_bits"), "d"),
+                    _g(syn["memory_bits"], "d"),
+                    _g(syn.get("storage_mm2")),
                     str(syn["logic_levels"]),
                     _g(syn["fmax_hz"] / 1e6 if syn["fmax_hz"] else None, ".0f"),
                     meets,
@@ -65,13 +72,17 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
         blocks.append(
             (
                 "p",
-                "Each unit's area two ways (one pipeline, the RTL's default widths): the "
-                "operator table and the synthesised RTL in gate equivalents; and the clock "
-                f"its longest path allows against the machine's {_g(stats['clock_hz'] / 1e6)} "
-                "MHz (docs/energy.md).",
+                "Each unit's area two ways (one pipeline, the RTL's default widths), logic "
+                "and storage apart: the operator table against the synthesised RTL's Yosys "
+                "cells in gate equivalents; the storage bits each side counts. "
+                f"Independence: {independence or INDEPENDENCE}, so only the logic ratio "
+                "tests the table. The clock its longest path allows, against the machine's "
+                f"{_g(stats['clock_hz'] / 1e6)} MHz, is an {basis or 'estimate'} "
+                "(docs/energy.md).",
             )
         )
-        header = ["unit", "table mm^2", "RTL mm^2", "table / RTL", "gate levels", "fmax MHz",
-                  "meets clock"]  # fmt: skip
+        header = ["unit", "table logic mm^2", "RTL logic mm^2", "logic table / RTL",
+                  "table storage bits", "RTL storage bits", "storage mm^2 (shared price)",
+                  "gate levels", "est. fmax MHz", "meets clock (est.)"]  # fmt: skip
         blocks.append(("table", header, rows))
     return blocks

@@ -26,6 +26,10 @@ def test_a_cycle_render_writes_energy_and_area(tmp_path, capsys):
     assert energy["total_joules"] > energy["dynamic_joules"] > 0
     assert set(energy["units"]) <= {"interp", "gradient", "classify", "shade", "composite"}
     assert area["total_mm2"] > 0 and area["units"]["gradient"]["synthesized"]["logic_levels"]
+    classify = area["units"]["classify"]["synthesized"]  # area two ways, logic and storage apart
+    assert classify["logic_mm2"] + classify["storage_mm2"] == pytest.approx(classify["mm2"])
+    assert classify["table_storage_bits"] > 0 and "shared" in classify["independence"]
+    assert classify["fmax_basis"].startswith("estimate")
     with open(out / "units.csv") as fh:
         rows = list(csv.DictReader(fh))
     interp = [r for r in rows if r["unit"] == "interp"]
@@ -52,8 +56,9 @@ def test_an_unknown_technology_is_refused_before_the_frame(tmp_path, capsys):
     assert not (tmp_path / "x" / "stats.json").exists()
 
 
-def test_archs_flags_units_slower_than_the_clock(capsys):
+def test_archs_flags_units_estimated_slower_than_the_clock(capsys):
     assert main(["archs"]) == 0
     text = capsys.readouterr().out
     assert "node" in text and "cmos350" in text
-    assert "volumepro500: below its 125 MHz clock:" in text and "gradient" in text
+    assert "volumepro500: estimated below its 125 MHz clock:" in text and "gradient" in text
+    assert "logic levels x 1.5 FO4 (inferred unit delay), not timing analysis" in text
