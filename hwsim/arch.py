@@ -277,6 +277,15 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     for t in (p, limits, features, overheads, silicon):
         t.finish()
     top.finish()
+    from hwsim.published import parse_published
+
+    # Every figure labelled (fitted, peak or prediction) and checked against the file.
+    parse_published(
+        cfg.published,
+        source=source,
+        peak_samples_per_second=cfg.peak_samples_per_second,
+        arch_data=data,
+    )
     if cfg.memory:
         from hwsim.memory.sdram import parse_memory
 

@@ -26,10 +26,18 @@ machine without early termination or space leaping visits every sample whatever 
 content, so this is the dense-volume figure the papers quote; the scenario a machine
 with those features is timed on is brute force (the scene enables neither).
 
-Optional sub-tables of ``[published]``: ``tolerance`` (key -> allowed relative
-difference, e.g. ``fps_256 = 0.05``) and ``notes`` (key -> text shown beside the row).
-Nothing here is fitted: each simulated figure is the rung's own cycle count divided by
-the machine's clock.
+Sub-tables of ``[published]``: ``evidence`` (key -> ``fitted``, ``peak`` or
+``prediction``, required: :mod:`hwsim.published`), ``fitted_from`` (key -> the keys set
+from it), ``tolerance`` (key -> allowed relative difference, e.g. ``fps_256 = 0.05``) and
+``notes`` (key -> text shown beside the row); ``[[published.measured]]`` entries are
+figures on their own scenarios (:class:`hwsim.published.Scenario`).
+
+Nothing is fitted here: each simulated figure is the rung's own cycle count divided by
+the machine's clock.  Whether the comparison is worth anything is the row's ``evidence``:
+a ``fitted`` or ``peak`` row shows only the modelled overheads.  Where a machine has two or
+more figures, :func:`leave_one_out` fits the clock on each in turn and predicts the others
+from the same cycle counts (cycles do not depend on the clock: every timing parameter is in
+clocks), so a reader sees what one figure says about the rest.
 """
 
 from __future__ import annotations
@@ -46,16 +54,19 @@ from typing import Any
 
 from hwsim.arch import ArchConfig
 from hwsim.errors import HwsimError, InputError, NotAvailableError
+from hwsim.published import DEFAULT_SIZE, PublishedFigure, Scenario, parse_published
 from hwsim.scene import Scene, VolumeSpec, load_scene
 
 __all__ = [
     "TIMING_RUNGS",
     "FigureRow",
+    "LeaveOneOut",
     "PublishedFigure",
     "figure_machine",
     "figure_scene",
     "figure_size",
     "figure_value",
+    "leave_one_out",
     "measure_figures",
     "published_figures",
     "write_figures",
@@ -63,8 +74,6 @@ __all__ = [
 
 #: The rungs that produce a cycle count, cheapest first.
 TIMING_RUNGS = ("functional", "transaction", "cycle", "rtl")
-#: Scenario side used for ``samples_per_second`` when the file names no size.
-DEFAULT_SIZE = 256
 
 
 @dataclass
@@ -89,59 +98,64 @@ class FigureRow:
     #: frames, where the machine model times them: the continuous rate the papers quote).
     basis: str = "single frame"
     single_frame: float | None = None  # the one-frame value when basis is the period
+    #: "fitted", "peak" or "prediction" (hwsim.published): what the comparison is worth.
+    evidence: str = "prediction"
+    metric: str = ""  # "fps", "seconds" or "samples_per_second"
+    fitted_from: list[str] | None = None  # the arch keys set from this figure
+    scenario: str = ""  # what the figure is measured on
+    kind: str = "stated"  # "measured", "simulated" or "stated" by its source
+    source: str = ""  # the tagged citation of a measured figure
+    #: the frame's time apart from its cycles (a supervolume's host read back), for
+    #: leave_one_out's refit of the clock
+    host_seconds: float = 0.0
+    used_cycles: int | None = None  # the cycles the figure was computed from
 
 
 def figure_size(arch: ArchConfig, key: str) -> int | None:
     """The scenario side ``N`` a published key is measured at (None: not a figure)."""
-    for prefix in ("fps_", "seconds_"):
-        if key.startswith(prefix) and key[len(prefix) :].isdigit():
-            return int(key[len(prefix) :])
-    if key == "samples_per_second":
-        sizes = [figure_size(arch, k) for k in arch.published if k != key]
-        sizes = [s for s in sizes if s is not None]
-        return min(sizes) if sizes else DEFAULT_SIZE
+    for fig in published_figures(arch):
+        if fig.key == key:
+            return fig.size
     return None
 
 
-@dataclass(frozen=True)
-class PublishedFigure:
-    """One row of a machine's ``[published]`` table: the only place a figure is written."""
-
-    key: str
-    value: float
-    size: int  # the scenario side it is quoted at (:func:`figure_size`)
-    tolerance: float | None  # the acceptance band, where the file sets one
-    note: str
-
-
 def published_figures(arch: ArchConfig) -> list[PublishedFigure]:
-    """The numeric figures of ``arch``'s ``[published]`` table, in file order."""
-    published = arch.published
-    tolerance = published.get("tolerance", {}) or {}
-    notes = published.get("notes", {}) or {}
-    out = []
-    for key, value in published.items():
-        size = figure_size(arch, key)
-        if isinstance(value, (int, float)) and not isinstance(value, bool) and size is not None:
-            out.append(
-                PublishedFigure(
-                    key, float(value), size, tolerance.get(key), str(notes.get(key, ""))
-                )
-            )
-    return out
+    """The figures of ``arch``'s ``[published]`` table, in file order (checked when the
+    file was loaded; an :class:`ArchConfig` built in code is checked here)."""
+    return parse_published(
+        arch.published, source=arch.source, peak_samples_per_second=arch.peak_samples_per_second
+    )
 
 
-def figure_scene(size: int) -> Scene:
-    """The dense scenario on a ``size^3`` head phantom (one sample per voxel)."""
+def figure_scene(scenario: int | Scenario) -> Scene:
+    """The scene of a figure's scenario; an int ``N`` is the dense scenario on an ``N^3``
+    head phantom (one sample per voxel)."""
     import dataclasses
 
+    if isinstance(scenario, int):
+        scenario = Scenario((scenario, scenario, scenario))
+    size = scenario.volume[0]
     scene = load_scene("head")
     spec = VolumeSpec(phantom="head", params=(("size", size),))
-    # Pixel pitch 2 r / (zoom N) with r = sqrt(3) N / 2: one voxel when zoom = sqrt(3).
+    width, height = scenario.image or (size, size)
+    # Pixel pitch 2 r / (zoom W) with r = sqrt(3) N / 2: N / W voxels when zoom = sqrt(3).
     view = dataclasses.replace(
-        scene.view, azimuth=0.0, elevation=0.0, width=size, height=size, zoom=math.sqrt(3.0)
+        scene.view,
+        azimuth=scenario.view[0],
+        elevation=scenario.view[1],
+        projection=scenario.projection,
+        width=width,
+        height=height,
+        zoom=math.sqrt(3.0),
     )
-    return scene.replace(volume=spec, view=view, name=f"dense-head-{size}")
+    render_spec = dataclasses.replace(
+        scene.render,
+        mode=scenario.mode,
+        supersampling=scenario.supersampling,
+        early_termination=scenario.early_termination,
+    )
+    name = f"dense-head-{size}" if scenario.dense else f"figure-head-{size}"
+    return scene.replace(volume=spec, view=view, render=render_spec, name=name)
 
 
 def figure_value(key: str, run, cycles: int | None = None) -> float:
@@ -149,12 +163,38 @@ def figure_value(key: str, run, cycles: int | None = None) -> float:
     back-to-back frame period) when given; a supervolume's frame adds the host's read
     back of its bricks (``derived.supervolume.host_seconds``)."""
     seconds = (run.cycles if cycles is None else cycles) / run.clock_hz
-    seconds += run.derived.get("supervolume", {}).get("host_seconds", 0.0)
-    if key.startswith("fps_"):
+    seconds += host_seconds(run)
+    return _from_seconds(key, seconds, run.samples)
+
+
+def host_seconds(run) -> float:
+    """A frame's time that is not machine cycles: a supervolume's host read back."""
+    return float(run.derived.get("supervolume", {}).get("host_seconds", 0.0))
+
+
+def _metric(key: str) -> str:
+    for metric in ("fps", "seconds"):
+        if key == metric or key.startswith(metric + "_"):
+            return metric
+    return "samples_per_second"
+
+
+def _from_seconds(key: str, seconds: float, samples: int) -> float:
+    metric = _metric(key)
+    if metric == "fps":
         return 1.0 / seconds
-    if key.startswith("seconds_"):
+    if metric == "seconds":
         return seconds
-    return run.samples / seconds
+    return samples / seconds
+
+
+def _to_seconds(key: str, value: float, samples: int) -> float:
+    metric = _metric(key)
+    if metric == "fps":
+        return 1.0 / value
+    if metric == "seconds":
+        return value
+    return samples / value
 
 
 def figure_machine(arch: ArchConfig) -> ArchConfig:
@@ -193,24 +233,41 @@ def measure_figures(
     rows: list[FigureRow] = []
     volumes: dict[int, Any] = {}
     plans = {arch.name: published_figures(arch) for arch in archs}
+
+    def measurable(arch: ArchConfig, size: int) -> bool:
+        return size <= max_size and (arch.supervolumes or size <= max(arch.max_volume))
+
     total = sum(
-        size**3 * len(rungs)
+        scenario.voxels * len(rungs)
         for arch in archs
-        for size in set(f.size for f in plans[arch.name])
-        if size <= max_size and (arch.supervolumes or size <= max(arch.max_volume))
+        for scenario in dict.fromkeys(f.scenario for f in plans[arch.name])
+        if measurable(arch, max(scenario.volume))
     )
     done = 0
     for arch in archs:
         machine = figure_machine(arch)
         for rung in rungs:
-            runs: dict[int, Any] = {}
+            runs: dict[Scenario, Any] = {}
             for fig in plans[arch.name]:
-                key, value, size = fig.key, fig.value, fig.size
+                key, value, size, scenario = fig.key, fig.value, fig.size, fig.scenario
                 row = FigureRow(
-                    arch.name, key, value, size, rung, "ok", tolerance=fig.tolerance, note=fig.note
+                    arch.name,
+                    key,
+                    value,
+                    size,
+                    rung,
+                    "ok",
+                    tolerance=fig.tolerance,
+                    note=fig.note,
+                    evidence=fig.evidence,
+                    metric=fig.metric,
+                    fitted_from=list(fig.fitted_from),
+                    scenario=scenario.text(),
+                    kind=fig.kind,
+                    source=fig.source,
                 )
                 rows.append(row)
-                if size > max_size or (size > max(arch.max_volume) and not arch.supervolumes):
+                if not measurable(arch, size):
                     row.status = "skipped"
                     why = (
                         f"{size}^3 > --max-size {max_size}"
@@ -219,20 +276,20 @@ def measure_figures(
                     )
                     row.note = "; ".join(filter(None, [why, row.note]))
                     continue
-                if size not in runs:
-                    what = f"{arch.name} {rung} {size}^3"
+                if scenario not in runs:
+                    what = f"{arch.name} {rung} {scenario.text()}"
                     if progress is not None:
                         progress(done, total, what)
 
-                    def advance(d: int, t: int, base=done, work=size**3, what=what) -> None:
+                    def advance(d: int, t: int, base=done, work=scenario.voxels, what=what):
                         if progress is not None and t:
                             progress(base + work * min(d, t) // t, total, what)
 
-                    scene = figure_scene(size)
+                    scene = figure_scene(scenario)
                     if size not in volumes:
                         volumes[size] = load_volume(scene.volume, scene.base_dir)
                     try:
-                        runs[size] = render(
+                        runs[scenario] = render(
                             scene,
                             fidelity=rung,
                             arch=machine,
@@ -244,13 +301,13 @@ def measure_figures(
                             progress=advance,
                         )
                     except NotAvailableError:
-                        runs[size] = None
+                        runs[scenario] = None
                     except HwsimError as exc:  # InputError: the rung refuses the scenario
-                        runs[size] = exc
-                    done += size**3
+                        runs[scenario] = exc
+                    done += scenario.voxels
                     if progress is not None:
                         progress(done, total, what)
-                run = runs[size]
+                run = runs[scenario]
                 if run is None:
                     row.status = "not modelled"
                     continue
@@ -258,21 +315,87 @@ def measure_figures(
                     row.status = "refused" if isinstance(run, InputError) else "failed"
                     row.note = "; ".join(filter(None, [row.note, str(run)]))
                     continue
-                row.simulated = figure_value(key, run)
+                row.simulated = figure_value(fig.metric, run)
+                row.used_cycles = int(run.cycles)
                 period = run.counters.get("frame.period_cycles")
                 if period:
                     row.basis, row.single_frame = "frame period", row.simulated
-                    row.simulated = figure_value(key, run, int(period))
+                    row.simulated = figure_value(fig.metric, run, int(period))
+                    row.used_cycles = int(period)
                     extra = f"{rung}: back-to-back frame period; one frame alone " + (
                         f"{row.single_frame:.4g} ({100 * (row.single_frame / value - 1):+.1f}%)"
                     )
                     row.note = "; ".join(filter(None, [row.note, extra]))
                 row.difference = row.simulated / value - 1.0
                 row.cycles, row.samples = int(run.cycles), int(run.samples)
+                row.host_seconds = host_seconds(run)
                 row.wall_seconds = round(run.wall_seconds, 3)
                 if row.tolerance is not None:
                     row.within = bool(abs(row.difference) <= row.tolerance)
     return rows
+
+
+@dataclass
+class LeaveOneOut:
+    """One figure predicted from another of the same machine and rung: the clock fitted
+    so that the rung's cycles give ``fitted_on`` exactly, then ``figure`` from its own
+    cycles at that clock."""
+
+    arch: str
+    rung: str
+    fitted_on: str
+    fitted_evidence: str
+    clock_hz: float  # the clock that reproduces ``fitted_on``
+    file_clock_hz: float
+    figure: str
+    evidence: str
+    published: float
+    predicted: float
+    difference: float  # predicted / published - 1
+
+
+def leave_one_out(rows: list[FigureRow], clocks: dict[str, float]) -> list[LeaveOneOut]:
+    """Fit the clock on each measured figure in turn and predict the machine's others.
+
+    Every timing parameter of a machine is in clocks, so a rung's cycle count does not
+    depend on the clock and ``seconds = cycles / f + host seconds``: one figure fixes
+    ``f`` and the rest follow with no re-render.  ``clocks`` maps machine -> file clock.
+    """
+    by: dict[tuple[str, str], list[FigureRow]] = {}
+    for r in rows:
+        if r.status == "ok" and r.used_cycles:
+            by.setdefault((r.arch, r.rung), []).append(r)
+    out = []
+    for (arch, rung), group in by.items():
+        if len(group) < 2:
+            continue
+        for fit in group:
+            machine_seconds = _to_seconds(fit.metric, fit.published, fit.samples or 0)
+            machine_seconds -= fit.host_seconds
+            if machine_seconds <= 0:
+                continue
+            clock = fit.used_cycles / machine_seconds
+            for other in group:
+                if other is fit:
+                    continue
+                seconds = other.used_cycles / clock + other.host_seconds
+                predicted = _from_seconds(other.metric, seconds, other.samples or 0)
+                out.append(
+                    LeaveOneOut(
+                        arch,
+                        rung,
+                        fit.figure,
+                        fit.evidence,
+                        clock,
+                        clocks.get(arch, float("nan")),
+                        other.figure,
+                        other.evidence,
+                        other.published,
+                        predicted,
+                        predicted / other.published - 1.0,
+                    )
+                )
+    return out
 
 
 def machine_facts() -> dict[str, Any]:
@@ -287,23 +410,80 @@ def machine_facts() -> dict[str, Any]:
     }
 
 
-def write_figures(rows: list[FigureRow], out_dir: str | Path) -> dict[str, Path]:
-    """``figures.json``, ``figures.csv`` and ``figures.md`` in ``out_dir``."""
+#: What each evidence label means, printed under every figures table.
+EVIDENCE_LEGEND = (
+    "evidence: 'fitted' = a machine parameter was set from this figure (fitted_from names "
+    "it), so the row shows only the modelled overheads; 'peak' = the figure is pipelines x "
+    "clock restated, so the row measures only what the model loses below one sample per "
+    "pipeline per clock; 'prediction' = no parameter came from it. Only prediction rows "
+    "are errors; none of the rows is a validation of the timing."
+)
+
+
+def write_figures(
+    rows: list[FigureRow], out_dir: str | Path, clocks: dict[str, float] | None = None
+) -> dict[str, Path]:
+    """``figures.json``, ``figures.csv`` and ``figures.md`` in ``out_dir``; ``clocks``
+    (machine -> file clock) adds the leave-one-out table."""
     from hwsim.paths import output_folder
 
     out = output_folder(out_dir)
-    data = {"schema": 1, "machine": machine_facts(), "rows": [asdict(r) for r in rows]}
+    loo = leave_one_out(rows, clocks or {})
+    data = {
+        "schema": 2,
+        "machine": machine_facts(),
+        "evidence": EVIDENCE_LEGEND,
+        "rows": [asdict(r) for r in rows],
+        "leave_one_out": [asdict(r) for r in loo],
+    }
     paths = {"json": out / "figures.json", "csv": out / "figures.csv", "md": out / "figures.md"}
     paths["json"].write_text(json.dumps(data, indent=2) + "\n")
     with paths["csv"].open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(asdict(rows[0])) if rows else ["arch"])
         writer.writeheader()
-        writer.writerows(asdict(r) for r in rows)
-    header, body = table(rows)
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in body]
-    paths["md"].write_text("# Published figures\n\n" + "\n".join(lines) + "\n")
+        for r in rows:
+            d = asdict(r)
+            d["fitted_from"] = " ".join(d["fitted_from"] or [])
+            writer.writerow(d)
+    paths["md"].write_text(markdown_tables(data))
     return paths
+
+
+def markdown_tables(data: dict[str, Any]) -> str:
+    """The figures table, its legend and the leave-one-out table as Markdown."""
+    header, body = table(data["rows"])
+    lines = ["# Published figures", "", *_md(header, body), "", data.get("evidence", "")]
+    loo = data.get("leave_one_out") or []
+    if loo:
+        lh, lb = loo_table(loo)
+        lines += ["", "## Leave one out: the clock fitted on one figure, the others predicted"]
+        lines += ["", *_md(lh, lb)]
+    return "\n".join(lines) + "\n"
+
+
+def _md(header: list[str], body: list[list[str]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return lines + ["| " + " | ".join(r) + " |" for r in body]
+
+
+def loo_table(loo: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    header = ["machine", "rung", "fitted on", "clock fitted", "file clock", "predicted"]
+    header += ["published", "predicted value", "error"]
+    body = [
+        [
+            d["arch"],
+            d["rung"],
+            f"{d['fitted_on']} ({d['fitted_evidence']})",
+            f"{d['clock_hz'] / 1e6:.4g} MHz",
+            f"{d['file_clock_hz'] / 1e6:.4g} MHz",
+            f"{d['figure']} ({d['evidence']})",
+            _num(d["published"]),
+            _num(d["predicted"]),
+            f"{100 * d['difference']:+.1f}%",
+        ]
+        for d in loo
+    ]
+    return header, body
 
 
 def _num(v: float | None) -> str:
@@ -316,7 +496,7 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
     """The human table: one line per machine and figure, one column per rung."""
     dicts = [asdict(r) if isinstance(r, FigureRow) else r for r in rows]
     rungs = [r for r in TIMING_RUNGS if any(d["rung"] == r for d in dicts)]
-    header = ["machine", "figure", "published", "scenario"]
+    header = ["machine", "figure", "evidence", "published", "scenario"]
     for rung in rungs:
         header += [rung, "diff"]
     header += ["tolerance", "note"]
@@ -326,7 +506,11 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
     body = []
     for (arch, figure), by_rung in grouped.items():
         first = next(iter(by_rung.values()))
-        line = [arch, figure, _num(first["published"]), f"dense head {first['size']}^3"]
+        evidence = first.get("evidence", "?")
+        if first.get("fitted_from"):
+            evidence += " (" + ", ".join(first["fitted_from"]) + ")"
+        scenario = first.get("scenario") or f"dense head {first['size']}^3"
+        line = [arch, figure, evidence, _num(first["published"]), scenario]
         for rung in rungs:
             d = by_rung.get(rung)
             if d is None or d["status"] != "ok":
@@ -337,6 +521,8 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
         tol = first["tolerance"]
         parts = (part for d in by_rung.values() for part in d["note"].split("; ") if part)
         notes = list(dict.fromkeys(parts))
+        if first.get("source"):
+            notes.append(f"{first.get('kind', 'stated')}: {first['source']}")
         line += ["-" if tol is None else f"±{100 * tol:g}%", "; ".join(notes)]
         body.append(line)
     return header, body
@@ -357,7 +543,7 @@ def figures_command(args, progress_bar: Any) -> int:
     rungs = tuple(r.strip() for r in args.rungs.split(",")) if args.rungs else TIMING_RUNGS
     with progress_bar(args.quiet, "figures", unit="voxel") as progress:
         rows = measure_figures(archs, rungs, max_size=args.max_size, progress=progress)
-    paths = write_figures(rows, args.out)
+    paths = write_figures(rows, args.out, {a.name: a.clock_hz for a in archs})
     if not args.quiet:
         print(paths["md"].read_text())
         print(f"wrote {paths['json']}, {paths['csv'].name}, {paths['md'].name}")

@@ -141,43 +141,30 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 
 def _published(run: RunRecord) -> list[list[str]]:
     from hwsim.fidelity import builtin_archs
+    from hwsim.figures import published_figures
 
     s = run.stats
     arch = builtin_archs().get(s["arch"] or "")
     if arch is None or not arch.published:
         return []
     fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+    sps = s.get("samples_per_second")
     rows = []
-    for key, value in arch.published.items():
-        if not isinstance(value, (int, float)):
-            continue
-        if key == "samples_per_second":
-            sim = s.get("samples_per_second")
-            rows.append(
-                [
-                    key,
-                    _fmt(float(value)),
-                    _fmt(sim),
-                    _fmt(sim / value if sim else None, ".3f"),
-                    "this run's samples / simulated frame time",
-                ]
-            )
-        elif key.startswith("fps_") and key[4:].isdigit():
-            n = int(key[4:])
-            sps = s.get("samples_per_second")
-            scaled = sps / n**3 if sps else None
-            rows.append(
-                [
-                    key,
-                    _fmt(float(value)),
-                    _fmt(scaled),
-                    _fmt(scaled / value if scaled else None, ".3f"),
-                    f"this run's simulated samples/s over {n}^3 (one sample per voxel); "
-                    f"this volume itself: {_fmt(fps)} fps",
-                ]
+    for fig in published_figures(arch):
+        evidence = fig.evidence + (f" ({', '.join(fig.fitted_from)})" if fig.fitted_from else "")
+        if fig.metric == "samples_per_second":
+            sim, how = sps, "this run's samples / simulated frame time"
+        elif fig.metric == "fps" and fig.scenario.dense:
+            n = fig.size
+            sim = sps / n**3 if sps else None
+            how = (
+                f"this run's simulated samples/s over {n}^3 (one sample per voxel); "
+                f"this volume itself: {_fmt(fps)} fps"
             )
         else:
-            rows.append([key, _fmt(value), "-", "-", "context"])
+            sim, how = None, f"on its own scenario ({fig.scenario.text()}): hwsim figures"
+        ratio = _fmt(sim / fig.value if sim else None, ".3f")
+        rows.append([fig.key, evidence, _fmt(fig.value), _fmt(sim) if sim else "-", ratio, how])
     return rows
 
 
@@ -286,7 +273,7 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
         blocks.append(
             (
                 "table",
-                ["figure", "published", "simulated", "simulated / published", "how"],
+                ["figure", "evidence", "published", "simulated", "simulated / published", "how"],
                 published,
             )
         )
@@ -480,22 +467,30 @@ SHIPPED_FIGURES = (
 
 
 def _figures_blocks(path: Path) -> list[Block]:
-    from hwsim.figures import table
+    from hwsim.figures import EVIDENCE_LEGEND, loo_table, table
 
     data = json.loads(path.read_text())
     m = data.get("machine", {})
     header, body = table(data["rows"])
-    return [
+    blocks: list[Block] = [
         ("h2", "Published figures of every machine"),
         (
             "p",
-            f"Each machine's published figure against hwsim's at every timing rung, on the "
-            f"dense scenario (docs/figures.md); from {path}, measured {m.get('measured', '?')} "
+            f"Each machine's published figure against hwsim's at every timing rung, on its "
+            f"scenario (docs/figures.md); from {path}, measured {m.get('measured', '?')} "
             f"with hwsim {m.get('hwsim', '?')}. 'diff' is simulated / published - 1; "
             "'OUT' marks a row beyond its acceptance band.",
         ),
         ("table", header, body),
+        ("p", data.get("evidence") or EVIDENCE_LEGEND),
     ]
+    if data.get("leave_one_out"):
+        lh, lb = loo_table(data["leave_one_out"])
+        blocks += [
+            ("h3", "Leave one out: the clock fitted on one figure, the others predicted"),
+            ("table", lh, lb),
+        ]
+    return blocks
 
 
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:

@@ -28,6 +28,7 @@ seconds_16 = 1.0
 samples_per_second = 1.5e6
 tolerance = {{ fps_8 = 0.01 }}
 notes = {{ seconds_16 = "a note" }}
+evidence = {{ fps_8 = "prediction", seconds_16 = "prediction", samples_per_second = "prediction" }}
 """
 
 
@@ -44,7 +45,7 @@ def test_figure_sizes_follow_the_keys():
     assert figure_size(vp1000, "samples_per_second") == 256  # the smallest scenario
     assert figure_size(builtin_archs()["cube4-teramac"], "seconds_128") == 128
     assert figure_size(vp1000, "voxels_per_axis") is None
-    assert figure_size(builtin_archs()["vizard2"], "samples_per_second") == 256
+    assert figure_size(builtin_archs()["vizard2"], "samples_per_second") is None  # none there
 
 
 @pytest.mark.parametrize("name", sorted(builtin_archs()))
@@ -84,7 +85,10 @@ def test_progress_counts_the_planned_voxels_up_to_the_total(tiny):
     done = [d for d, _, _ in calls]
     assert {t for _, t, _ in calls} == {2 * 8**3}
     assert done == sorted(done) and done[-1] == 2 * 8**3 and 0 < done[len(done) // 2] < 2 * 8**3
-    assert {w for _, _, w in calls} == {"tiny-cube4 functional 8^3", "tiny-cube4 cycle 8^3"}
+    assert {w for _, _, w in calls} == {
+        "tiny-cube4 functional dense head 8^3",
+        "tiny-cube4 cycle dense head 8^3",
+    }
 
 
 def test_a_figure_inside_or_outside_its_band(tmp_path):
@@ -111,7 +115,7 @@ def test_cli_writes_the_table_and_the_report_shows_it(tiny, tmp_path):
     assert {r["rung"] for r in data["rows"]} == {"functional", "cycle"}
     assert (out / "figures.csv").read_text().startswith("arch,figure,published")
     md = (out / "figures.md").read_text()
-    assert "| tiny-cube4 | fps_8 | 100 | dense head 8^3 |" in md
+    assert "| tiny-cube4 | fps_8 | prediction | 100 | dense head 8^3 |" in md
     run = tmp_path / "run"
     render_args = ["render", "--phantom", "head:size=12", "--image", "12", "--quiet"]
     assert main([*render_args, "--fidelity", "functional", "--out", str(run)]) == 0
@@ -138,7 +142,7 @@ def test_timing_rungs_report_the_back_to_back_period_where_they_time_one(tmp_pat
     body = Path(archs()["volumepro500"].source).read_text()
     body = re.sub(
         r"\[published\].*?\n\[memory\]",
-        "[published]\nfps_16 = 1000.0\n\n[memory]",
+        '[published]\nfps_16 = 1000.0\nevidence = { fps_16 = "prediction" }\n\n[memory]',
         body,
         flags=re.S,
     )
