@@ -28,6 +28,11 @@ def test_the_table_checks_one_and_two_workers_against_one_process(volume, tmp_pa
     report = json.loads(out.read_text())
     (check,) = report["checks"]
     assert check["identical"] and check["compared"] == ["one process", "1 workers", "2 workers"]
+    # The image's equality is evidence, the cycles' and counters' holds by construction:
+    # the check keeps them apart and says which is which.
+    assert check["image_identical"] and check["cycles_and_counters_identical"]
+    assert check["independence"]["image"].startswith("evidence")
+    assert check["independence"]["cycles_and_counters"].startswith("by construction")
     rows = report["rows"]
     assert [(r["workers"], r["phase"]) for r in rows] == [
         (None, "one process"),
