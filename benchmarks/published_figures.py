@@ -9,7 +9,9 @@ Usage::
 For each machine whose arch file sets acceptance bands (``[published] tolerance``: the
 VolumePro family) its figures at ``--size`` are measured on the cycle rung, from its
 mechanisms only (pipelines, clock, SDRAM timing, buffers, pixel bus, latency; no
-efficiency factor), on the scenario ``hwsim figures`` uses (:mod:`hwsim.figures`: the
+efficiency factor).  Those figures are ``peak`` or ``fitted`` (pipelines x clock was set
+from them: docs/figures.md), so each row measures the modelled overheads, not the
+machine's timing; on the scenario ``hwsim figures`` uses (:mod:`hwsim.figures`: the
 dense head phantom, one sample per voxel, the widest voxels).  The published values and
 tolerances are read from the arch files: this script holds no figure of its own.
 
@@ -91,12 +93,15 @@ def measure(arch: str, n: int = 256) -> dict[str, Any]:
     period = c["frame.period_cycles"]
     figures = []
     for fig in published_figures(base):
-        if fig.size != n:
+        if fig.size != n or not fig.scenario.dense:
             continue
-        value, single = figure_value(fig.key, result, period), figure_value(fig.key, result)
+        value = figure_value(fig.metric, result, period)
+        single = figure_value(fig.metric, result)
         figures.append(
             {
                 "key": fig.key,
+                "evidence": fig.evidence,
+                "fitted_from": list(fig.fitted_from),
                 "published": fig.value,
                 "tolerance": fig.tolerance,
                 "note": fig.note,
