@@ -54,7 +54,13 @@ from typing import Any
 
 from hwsim.arch import ArchConfig
 from hwsim.errors import HwsimError, InputError, NotAvailableError
-from hwsim.published import DEFAULT_SIZE, PublishedFigure, Scenario, parse_published
+from hwsim.published import (
+    DEFAULT_SIZE,
+    TIME_METRICS,
+    PublishedFigure,
+    Scenario,
+    parse_published,
+)
 from hwsim.scene import Scene, VolumeSpec, load_scene
 
 __all__ = [
@@ -315,6 +321,11 @@ def measure_figures(
                     row.status = "refused" if isinstance(run, InputError) else "failed"
                     row.note = "; ".join(filter(None, [row.note, str(run)]))
                     continue
+                row.cycles, row.samples = int(run.cycles), int(run.samples)
+                row.wall_seconds = round(run.wall_seconds, 3)
+                if fig.metric not in TIME_METRICS:
+                    _counter_figure(row, run, value)
+                    continue
                 row.simulated = figure_value(fig.metric, run)
                 row.used_cycles = int(run.cycles)
                 period = run.counters.get("frame.period_cycles")
@@ -327,9 +338,7 @@ def measure_figures(
                     )
                     row.note = "; ".join(filter(None, [row.note, extra]))
                 row.difference = row.simulated / value - 1.0
-                row.cycles, row.samples = int(run.cycles), int(run.samples)
                 row.host_seconds = host_seconds(run)
-                row.wall_seconds = round(run.wall_seconds, 3)
                 if row.tolerance is not None:
                     row.within = bool(abs(row.difference) <= row.tolerance)
     return rows
@@ -396,6 +405,19 @@ def leave_one_out(rows: list[FigureRow], clocks: dict[str, float]) -> list[Leave
                     )
                 )
     return out
+
+
+def _counter_figure(row: FigureRow, run, value: float) -> None:
+    """A figure read off the rung's counters (the block cache's hit rate)."""
+    lookups = run.counters.get("cache.lookups")
+    if not lookups:
+        row.status = "not modelled"
+        row.note = "; ".join(filter(None, [row.note, f"no block cache at the {row.rung} rung"]))
+        return
+    row.simulated = run.counters["cache.hits"] / lookups
+    row.difference = row.simulated / value - 1.0
+    if row.tolerance is not None:
+        row.within = bool(abs(row.difference) <= row.tolerance)
 
 
 def machine_facts() -> dict[str, Any]:

@@ -41,14 +41,18 @@ __all__ = [
     "METRICS",
     "PublishedFigure",
     "Scenario",
+    "TIME_METRICS",
     "parse_published",
     "restates_peak",
 ]
 
 #: The kinds of evidence a figure can be (docs/figures.md).
 EVIDENCE = ("fitted", "peak", "prediction")
-#: What a figure measures.
-METRICS = ("fps", "seconds", "samples_per_second")
+#: What a figure measures: a frame's time, or the fraction of block-cache lookups that hit
+#: (a measured memory figure, from the rung's ``cache.hits`` / ``cache.lookups``).
+METRICS = ("fps", "seconds", "samples_per_second", "cache_hit_rate")
+#: The metrics that are a frame's time (what pipelines x clock can restate).
+TIME_METRICS = METRICS[:3]
 #: Scenario side used for ``samples_per_second`` when the file names no size.
 DEFAULT_SIZE = 256
 #: Relative closeness at which a figure counts as ``P x f`` restated.
@@ -140,6 +144,8 @@ class PublishedFigure:
 def restates_peak(metric: str, value: float, scenario: Scenario, peak: float) -> bool:
     """Whether ``value`` is ``peak`` samples/s restated on ``scenario`` (within 1 %): one
     sample per voxel at ``P x f``, or the rate itself."""
+    if metric not in TIME_METRICS:
+        return False
     if scenario.supersampling != 1.0 or scenario.early_termination < 1.0:
         return False
     n = scenario.voxels
@@ -220,9 +226,10 @@ def _measured(
         raise t.error("name", f"{name!r} is already a figure of this file", "a new name")
     given = [m for m in METRICS if t.has(m)]
     if len(given) != 1:
-        raise t.error("fps", "give exactly one of fps, seconds, samples_per_second", "one")
+        raise t.error("fps", f"give exactly one of {', '.join(METRICS)}", "one")
     metric = given[0]
-    value = t.number(metric, lo=0.0, lo_open=True)
+    hi = 1.0 if metric == "cache_hit_rate" else None
+    value = t.number(metric, lo=0.0, hi=hi, lo_open=True)
     volume = tuple(int(v) for v in t.vector("volume", 3, lo=2, hi=1 << 12))
     if any(float(v) != int(v) for v in t.data["volume"]) or len(set(volume)) != 1:
         raise t.error("volume", f"invalid {t.data['volume']!r}", "[n, n, n] whole voxels")
