@@ -168,3 +168,50 @@ def test_back_to_back_frames_only_where_a_machine_times_them():
         render(scene, fidelity="functional", arch="volumepro500", steady_state=True)
     with pytest.raises(InputError, match="cube4 .slice-parallel order. times single frames"):
         render(scene, fidelity="cycle", arch="cube4", steady_state=True)
+
+
+def test_a_cache_hit_rate_figure_is_read_off_the_rungs_counters(tmp_path):
+    """A [[published.measured]] figure of the block cache: the cycle and transaction
+    rungs' own cache.hits / cache.lookups; the functional rung has no cache."""
+    import re
+    from pathlib import Path
+
+    body = Path(builtin_archs()["vizard2"].source).read_text()
+    body = body[: body.index("[published]")] + (
+        '[published]\n[[published.measured]]\nname = "hits"\ncache_hit_rate = 0.98\n'
+        'volume = [16, 16, 16]\nkind = "simulated"\nsource = "[V] a paper"\n'
+    )
+    body = re.sub(r'name = "vizard2"', 'name = "v2-16"', body)
+    path = tmp_path / "v2-16.toml"
+    path.write_text(body)
+    arch = resolve_arch(str(path))
+    rows = {r.rung: r for r in measure_figures([arch], ("functional", "cycle"), max_size=16)}
+    assert rows["functional"].status == "not modelled"
+    cycle = rows["cycle"]
+    from hwsim.figures import figure_machine
+    from hwsim.published import Scenario
+
+    direct = render(
+        figure_scene(Scenario((16, 16, 16))), fidelity="cycle", arch=figure_machine(arch)
+    )
+    hits, lookups = direct.counters["cache.hits"], direct.counters["cache.lookups"]
+    assert lookups > 0 and cycle.status == "ok"
+    assert cycle.simulated == pytest.approx(hits / lookups)
+    assert cycle.difference == pytest.approx(hits / lookups / 0.98 - 1)
+    assert cycle.evidence == "prediction" and cycle.kind == "simulated"
+
+
+def test_leave_one_out_fits_the_clock_on_one_figure_and_predicts_the_other(tiny):
+    """Cycles do not depend on the clock: fitting f on fps_8 predicts samples_per_second
+    at 8^3 as (its cycles) at that clock, by the rung's own counts."""
+    from hwsim.figures import leave_one_out
+
+    arch = resolve_arch(str(tiny))
+    rows = measure_figures([arch], ("cycle",), max_size=8)
+    loo = leave_one_out(rows, {arch.name: arch.clock_hz})
+    fit = next(r for r in loo if r.fitted_on == "fps_8" and r.figure == "samples_per_second")
+    fps8 = next(r for r in rows if r.figure == "fps_8")
+    assert fit.clock_hz == pytest.approx(100.0 * fps8.used_cycles)  # 100 fps = f / cycles
+    assert fit.predicted == pytest.approx(8**3 * fit.clock_hz / fps8.used_cycles)
+    assert fit.difference == pytest.approx(fit.predicted / 1.5e6 - 1)
+    assert all(r.figure != "seconds_16" for r in loo)  # skipped rows predict nothing
