@@ -50,14 +50,26 @@ def format_ladder(rows: list[dict[str, Any]]) -> str:
             f"{fmt_cell(r['cycles'], ',d', 11)}"
             f"{psnr_cell(r, 'numerical', 9)}"
             f"{psnr_cell(r, 'algorithmic', 9)}"
-            f"{fmt_cell(r.get('cycle_error'), '.1%', 8)}  {r['status']}"
+            f"{_cycle_error_cell(r, 8)}  {r['status']}"
         )
     lines.append(
         "num PSNR: against golden at the same sample positions; alg PSNR: golden at the "
-        "machine's positions against the ideal ray caster; cyc err: against the cycle rung\n"
-        + EXACT_LEGEND
+        "machine's positions against the ideal ray caster; cyc err: against the cycle rung "
+        "(shared: a consistency check, both rungs time the frame with the same functions, "
+        "cycle_independence in the files names them; ref: the cycle rung itself)\n" + EXACT_LEGEND
     )
     return "\n".join(lines)
+
+
+def _cycle_error_cell(row: dict[str, Any], width: int) -> str:
+    """The ``cyc err`` cell: the error, or ``shared`` where both sides share the code
+    that sets the count (no measurement), ``ref`` for the cycle rung itself."""
+    independence = row.get("cycle_independence") or ""
+    if independence == "reference":
+        return f"{'ref':>{width}}"
+    if independence.startswith("shared"):
+        return f"{'shared':>{width}}"
+    return fmt_cell(row.get("cycle_error"), ".1%", width)
 
 
 def _widths(args: argparse.Namespace, progress_bar: Any) -> int:

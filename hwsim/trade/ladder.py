@@ -13,7 +13,10 @@ rung of :data:`hwsim.fidelity.FIDELITIES`:
   image against the ideal ray caster);
 * every other rung gives the **numerical** error (its image against golden at the same
   positions), the wall time, simulated samples per wall second, and, when the ``cycle``
-  rung ran for that case, the relative cycle-count error against it.
+  rung ran for that case, the relative cycle-count error against it, with what the two
+  sides share for it (``cycle_independence``, :mod:`hwsim.trade.independence`): on the
+  Cube-4 family the transaction rung times frames with the cycle rung's own functions, so
+  its ``cycle_error`` is a consistency check, not a measurement.
 
 Rows are written as ``trade.csv`` / ``trade.json``; ``trade.png`` is the Pareto plot
 (wall seconds against error, both log scale, the non-dominated points joined).
@@ -205,6 +208,7 @@ def ladder_trade(
                 if run.cycles is not None and cycle is not None and cycle.cycles:
                     row["cycle_error"] = (run.cycles - cycle.cycles) / cycle.cycles
                     row["cycle_reference"] = "cycle"
+                    row["cycle_independence"] = _cycle_independence(rung, arch)
                 elif run.cycles is not None:
                     row["cycle_reference"] = "cycle rung not available"
                 pending.append(row)
@@ -237,6 +241,7 @@ _COLUMNS = (
     "total_match",
     "cycle_error",
     "cycle_reference",
+    "cycle_independence",
     "elaborated_units",
     "elided_units",
     "elision_saving",
@@ -245,6 +250,16 @@ _COLUMNS = (
     "extensions",
     "note",
 )
+
+
+def _cycle_independence(rung: str, arch: str) -> str:
+    """What ``rung``'s cycle count shares with the cycle rung's on ``arch``: a verdict with
+    the shared code (``shared (cube4_latency, ...)``), or ``reference`` for the cycle rung."""
+    from hwsim.fidelity import resolve_arch
+    from hwsim.trade.independence import cycle_comparison
+
+    comparison = cycle_comparison(rung, resolve_arch(arch))
+    return "reference" if comparison is None else comparison.label
 
 
 def _empty(case: TradeCase, arch: str, rung: str, status: str, note: str = "") -> dict[str, Any]:
