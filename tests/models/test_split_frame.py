@@ -9,6 +9,15 @@ cycles and every counter must be equal, for 1, 2, 3 and 5 bands, over views alon
 principal axis, perspective, anisotropic voxels, every mode, crop and cut planes, early
 termination, P = 3 and Teramac, and every data fault a band can reproduce; what it
 cannot is refused.  (Dask itself: tests/system/test_split_frame_cli.py.)
+
+What the equality shows (docs/distributed-frames.md): the image's is evidence -- each
+band computes its own halo, rows, skewed stream (``band_stream``) and band-sized routing,
+where the one-process frame uses the host write and the whole slice.  The cycles' and the
+timing counters' is a consistency check: both sides share ``Cube4Machine.frame``, which
+times the whole frame from the whole plan in the driver (slice reads,
+``cube4_pixel_pushes``, ``freezing_fifo``, ``cube4_latency``); the bands add only
+per-step busy sums over disjoint rays, so the cycles equal by construction whenever the
+bands partition the rays.
 """
 
 from __future__ import annotations
@@ -109,6 +118,10 @@ def assert_same_frame(a, b):
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_a_frame_split_into_bands_is_the_one_process_frame(case):
+    """The image (and the data-dependent counters: samples dropped after termination,
+    transparent samples skipped) is evidence of the bands' halo, stream and routing; the
+    cycles and timing counters are a consistency check: both sides share
+    ``Cube4Machine.frame``, which times the whole plan (module docstring)."""
     name, scene, faults = CASES[case]
     arch = _arch(name)
     reference = one_process(scene, arch, faults)
@@ -117,6 +130,24 @@ def test_a_frame_split_into_bands_is_the_one_process_frame(case):
         result, reports = split_frame(scene, arch, bands, faults)
         assert_same_frame(result, reference)
         assert sum(r.samples for r in reports) == reference.samples
+
+
+def test_the_cycles_do_not_see_the_bands_the_image_does():
+    """Why the cycles' equality is by construction (docs/distributed-frames.md): the
+    driver times the frame from the whole plan, so combining one band of three leaves a
+    parallel view's cycles as they are while the image loses two thirds of its rays."""
+    name, scene, _ = CASES["oblique"]
+    arch = _arch(name)
+    reference = one_process(scene, arch)
+    parts = volume_parts(scene.volume)
+    volume = parts.volume()
+    frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), arch)
+    split = BandSplit(frame)
+    first = split.bands(3)[0]
+    partial = split.combine([sweep_band(frame, parts, first, 0)[0]])
+    assert partial.cycles == reference.cycles
+    assert not np.array_equal(partial.image, reference.image)
+    assert partial.samples < reference.samples
 
 
 def test_each_band_reads_a_part_of_every_slice():
@@ -132,6 +163,8 @@ def test_each_band_reads_a_part_of_every_slice():
 
 
 def test_bands_cut_the_rays_in_equal_samples_and_never_share_one():
+    """The bands partition the rays: what makes the split frame's cycles the one-process
+    frame's by construction (each band's busy sums cover disjoint rays)."""
     scene = _scene(az=35, el=25)
     volume = volume_parts(scene.volume).volume()
     frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), resolve_arch("cube4"))
