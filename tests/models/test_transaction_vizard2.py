@@ -6,6 +6,13 @@ SDRAM transaction port; early ray termination comes from the functional rung's
 termination steps, its speculative rounds estimated with stall-free rounds.  Without a
 termination threshold it follows the machine's rules exactly (the same lookups, fills,
 bursts and cycles as the cycle rung); with one, it stays within the 2 % contract.
+
+Partly shared (``hwsim.trade.independence``): both rungs call the cycle-exact
+``SdramController``, ``BlockLayout.bursts``, ``FEEDBACK``/``FILL_WRITE``, the cache
+geometry (``parse_buffers``), ``interp_taps`` and the leaping helpers; the packet
+schedule, the tag-only cache (``_resolve``, the update rule of ``BlockCache.fetch``
+written again) and the termination estimate are the model's own.  So the equal counts
+below test those parts, not the SDRAM timing or the burst layout.
 """
 
 from __future__ import annotations
@@ -31,7 +38,8 @@ from models.transaction import transaction_timing
 
 pytestmark = pytest.mark.model
 
-#: What the model resolves exactly as the machine does when no ray stops early.
+#: What the model resolves exactly as the machine does when no ray stops early (its own
+#: packet schedule and tag-only cache; the bursts per fill come from the shared layout).
 EXACT = ("cache.lookups", "cache.fills", "memory.bursts", "frame.issued_samples")
 
 

@@ -4,6 +4,11 @@ The event model times the VolumePro-family rules of docs/cycle.md at beam-group
 granularity over the shared SDRAM model (``SdramTransactionPort``).  The cycle rung
 models the same machines, and the counts are compared against the 2 % contract; the
 mechanism tests below also hold the model to the machine's rules.
+
+Partly shared (``hwsim.trade.independence``): the SDRAM controller, the mini-block
+layout, ``pipeline_latency`` and ``slab_buffers`` are one copy for both rungs, so the
+comparison measures the event model's own chunk schedule, sections and pixel bus, not
+the SDRAM timing.
 """
 
 from __future__ import annotations

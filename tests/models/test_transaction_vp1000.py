@@ -6,6 +6,11 @@ termination step from the functional rung and each slice's live cells from the p
 times the frame at beam-group / mini-block-beam-chunk granularity over the shared SDRAM
 transaction port.  These tests hold it to the cycle rung (docs/cycle.md rule 6) within
 the 2 % contract, and check that its inputs (beams, bursts, clocks) are the machine's.
+
+Partly shared (``hwsim.trade.independence``): both rungs call the SDRAM controller, the
+mini-block layout, ``pipeline_latency``, ``slab_buffers``, ``mini_blocks_read`` and the
+leaping helpers; the per-beam clock groups (``beam_skips``, from the plan's positions)
+and the chunk-granular schedule are the model's own.
 """
 
 from __future__ import annotations
@@ -31,7 +36,9 @@ from models.transaction import render_transaction, transaction_timing
 pytestmark = pytest.mark.model
 
 #: Counters the event model's inputs must share with the cycle rung exactly: rule 6 is
-#: decided per beam and per mini-block, not estimated.
+#: decided per beam and per mini-block, not estimated.  Partly a consistency check: the
+#: clock groups are computed apart, the mini-blocks read through the shared
+#: ``mini_blocks_read``.
 EXACT = ("memory.bursts", "memory.mbb_reads", "pipeline.beams_processed", "pipeline.beam_cycles")
 
 
