@@ -7,7 +7,8 @@
 The compositors push finished rays into a :class:`simpy.Container` (the pixel FIFO) in
 batches; the bus process sends them one pixel per clock, in batches of at most one
 base-plane row or an eighth of the FIFO, and a batch holds its slots until its last pixel
-has left.  Shared by the VolumePro-family and VIZARD II event models (the Cube-4 event model uses the cycle rung's freezing_fifo).
+has left.  Shared by the VolumePro-family and VIZARD II event models (the Cube-4 event
+model uses the cycle rung's ``freezing_fifo``).
 """
 
 from __future__ import annotations
