@@ -123,12 +123,13 @@ class Cube4Top(wiring.Component):
         ``vmem_data``; ``vmem_en`` low: hold the read data (the core is frozen).
     start : In(1)
         Pulse: render one frame with the registers below.
-    n_kp, n_a, n_b, nx, ny, cx, kp, forward, c, t, overhead, latency, width, height, mip,
-    ert_enable, ert_threshold : In
+    n_kp, n_a, n_b, nx, ny, cx, kp, forward, c, fifo_depth, width, height, mip, ert_enable,
+    ert_threshold : In
         Frame registers: slice and in-slice sizes, the volume's ``nx``, ``ny`` and
         ``ceil(nx / P)``, the principal axis (0 z, 1 y, 2 x), slice order (1: increasing
-        index), ``C``, ``T``, slice overhead and pipeline latency (clocks), the pixel
-        FIFO's depth (rule 4), base-plane width and height, MIP mode, early termination.
+        index), ``C``, the pixel FIFO's usable depth (rule 4), base-plane width and height,
+        MIP mode, early termination.  No timing value: the period ``T = n_a C`` is computed
+        here, latencies are the pipeline's own.
     lit, modulate, gm_scale, ratio, ka, kd, ks, light, half, intensity : In
         Shading on, gradient-magnitude opacity modulation on and its UQ0.24 index scale,
         the gradient's ``to_world`` ratios (3 x UQ1.12, x first), the Phong coefficients
@@ -165,10 +166,7 @@ class Cube4Top(wiring.Component):
                 "kp": In(2),
                 "forward": In(1),
                 "c": In(ab),
-                "t": In(bit_length(geo.t_max)),
-                "overhead": In(16),
                 "fifo_depth": In(32),
-                "latency": In(8),
                 "width": In(bit_length(2 * geo.max_axis)),
                 "height": In(bit_length(2 * geo.max_axis)),
                 "mip": In(1),
