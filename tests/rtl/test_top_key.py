@@ -1,3 +1,4 @@
+# amaranth: UnusedElaboratable=no
 """The RTL top's build key (rtl/top_key.py, rtl/rung.py) follows everything that reaches
 its Verilog: a constant or a model file the generator imports changes the build folder, a
 file it does not import leaves it alone.  No Verilog is written (the key is computed
