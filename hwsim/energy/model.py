@@ -27,10 +27,12 @@ from typing import Any
 from hwsim.energy.synth import INDEPENDENCE, unit_datapath, unit_silicon
 from hwsim.energy.technology import Technology
 from models.machines.common.silicon import Silicon, counter_sum
-from models.units.ops import Op, unit_ops
+from models.units.ops import SHARED, Features, Op, unit_ops
 
 __all__ = [
     "DATAPATH",
+    "RTL_FEATURES",
+    "arch_features",
     "estimate",
     "machine_area",
     "op_area_um2",
@@ -73,8 +75,11 @@ def op_area_um2(op: Op, tech: Technology) -> float:
     return tech.storage_um2(int(op.a * op.instances))  # registers: flip-flops
 
 
-def unit_inventory(unit: str, dp, silicon: Silicon, lights: int, shading: str) -> list[Op]:
-    """``unit``'s operators per sample on datapath ``dp``."""
+def unit_inventory(
+    unit: str, dp, silicon: Silicon, lights: int, shading: str, features: Features = SHARED
+) -> list[Op]:
+    """``unit``'s operators per sample on datapath ``dp`` (``features``: the machine's
+    hardware beyond the shared datapath, :func:`arch_features`)."""
     return unit_ops(
         unit,
         voxel_bits=dp.voxel_bits,
@@ -91,7 +96,40 @@ def unit_inventory(unit: str, dp, silicon: Silicon, lights: int, shading: str) -
         spec_table_entries=dp.shade.spec_table_entries,
         map_size=dp.shade.map_size,
         acc_frac_bits=dp.composite.acc_frac_bits,
+        gm_entries=dp.classify.gm_entries,
+        xray_frac_bits=dp.composite.xray_frac_bits,
+        xray_acc_bits=dp.composite.xray_acc_bits,
+        features=features,
     )
+
+
+def arch_features(arch, scene=None) -> Features:
+    """What ``arch``'s datapath holds beyond the shared one, from its ``[features]``: its
+    other compositing modes and blend orders, early termination, gradient-magnitude
+    illumination, cut planes; with ``scene``, the blend its samples use and its planes
+    (the operators of the others are built but do not act)."""
+    blends = {m for m in arch.modes if m != "composite"}
+    blends |= {b for b in arch.blend_orders if b != "front-to-back"}
+    used: dict[str, Any] = {}
+    if scene is not None:
+        mode = scene.render.mode
+        blend = scene.render.blend_order if mode == "composite" else mode
+        blends.add(blend)  # a what-if extension performs what the frame asks
+        blends.discard("front-to-back")
+        used = {"blend": blend, "planes_used": len(scene.cut_planes)}
+    return Features(
+        blends=frozenset(blends),
+        early_termination=arch.early_termination,
+        gradient_illumination=arch.gradient_illumination,
+        cut_planes=arch.cut_planes,
+        **used,
+    )
+
+
+#: What the synthesised RTL builds beyond the shared datapath (rtl/*.py module docs): the
+#: compositor's MIP and early-termination compare (rtl/composite.py); no illumination
+#: modulation (rtl/classify.py, rtl/shade.py); no crop unit.
+RTL_FEATURES = Features(blends=frozenset({"mip"}), early_termination=True)
 
 
 def _unit_actions(counters: Mapping[str, int], unit: str) -> int:
@@ -102,11 +140,12 @@ def _unit_actions(counters: Mapping[str, int], unit: str) -> int:
 
 def rtl_width_inventory(unit: str, silicon: Silicon, params: dict[str, Any]) -> list[Op]:
     """``unit``'s operator inventory at the synthesised RTL's widths ``params`` (its
-    default widths; the RTL's interp unit is trilinear, the shader has one light)."""
+    default widths; the RTL's interp unit is trilinear, the shader has one light) and
+    with the features it builds (:data:`RTL_FEATURES`)."""
     same = dataclasses.replace(silicon, lerps=7)
     return unit_inventory(
         unit, unit_datapath(unit, params), same, params.get("lights", 1),
-        params.get("method", "phong"),
+        params.get("method", "phong"), RTL_FEATURES,
     )  # fmt: skip
 
 
@@ -160,8 +199,9 @@ def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
     silicon = machine_for(arch).silicon(arch, dp)
     P = arch.pipelines
     unit_area = {}
+    features = arch_features(arch)
     for u in _units_of(arch):
-        inventory = unit_inventory(u, dp, silicon, 1, dp.shade.method)
+        inventory = unit_inventory(u, dp, silicon, 1, dp.shade.method, features)
         per = sum(op_area_um2(op, tech) for op in inventory)
         unit_area[u] = {
             "mm2": P * per / _UM2_PER_MM2,
@@ -196,9 +236,10 @@ def unit_joules_per_sample(arch, dp, scene, units: list[str], tech: Technology) 
 
     silicon = machine_for(arch).silicon(arch, dp)
     lights = max(1, len(scene.lights)) if scene.lit else 0
+    features = arch_features(arch, scene)
     out = {}
     for u in (u for u in _units_of(arch) if u in units):
-        inventory = unit_inventory(u, dp, silicon, lights, dp.shade.method)
+        inventory = unit_inventory(u, dp, silicon, lights, dp.shade.method, features)
         out[u] = sum(op_energy_pj(op, tech) for op in inventory) * _PJ
     return out
 

@@ -15,13 +15,15 @@ What is independent and what is not (docs/energy.md, "Area two ways"):
 The logic band is argued, not fitted: Yosys' generic techmap (no ABC) builds each operator
 larger than Horowitz's optimised one.  Built alone through the units' own flow
 (``operator_gate_equivalents``), the table's price is 0.45-0.61 of Yosys' cells for every
-operator the inventories use (adders 8-48 bits 0.48-0.57, multipliers 8x8 to 24x24
+operator the inventories use (adders 8-48 bits 0.48-0.57, multipliers 8 x 8 to 24 x 24
 0.45-0.51, enabled flip-flops with reset 0.61; ``test_the_band_is_the_operators_price_ratio``
-checks it).  A unit whose inventory lists what its RTL builds is a weighted mean of those,
-so it lands in :data:`LOGIC_BAND`.  Four units do not: their RTL builds logic the
-inventory does not list (named in :data:`KNOWN_UNLISTED`, measured by
-``test_what_the_inventory_lists_of_each_units_rtl``); they are strict xfails until the
-inventory (models/units/ops.py) lists it.
+checks it) but two small adders (5 and 7 bits: 0.68, 0.63), which make under 1 % of any
+unit's listed logic.  A unit whose inventory lists what its RTL builds is a weighted
+mean of those, so it lands in :data:`LOGIC_BAND`.  The inventories are read from the
+units' bit-exact models (models/units/ops.py), not from the RTL.  One unit does not land
+in the band: classify, whose RTL builds a wider multiply than the model's values need
+(:data:`KNOWN_UNLISTED`, measured by ``test_what_the_inventory_lists_of_each_units_rtl``);
+it is a strict xfail.
 """
 
 from __future__ import annotations
@@ -51,46 +53,33 @@ from models.units.ops import Op
 #: Table logic / RTL logic of a unit whose inventory lists what its RTL builds: the range
 #: of the table's operator prices over Yosys' cells for the same operators (module doc).
 LOGIC_BAND = (0.45, 0.61)
-#: Units whose RTL builds logic the inventory does not list: the cause, and the share of
-#: the RTL's logic the inventory's operators make when built by Yosys (its coverage,
-#: measured by ``test_what_the_inventory_lists_of_each_units_rtl``; docs/energy.md).
+#: Units whose RTL builds logic the inventory (read from the model) does not list: the
+#: cause, and the share of the RTL's logic the inventory's operators make when built by
+#: Yosys (its coverage, measured by ``test_what_the_inventory_lists_of_each_units_rtl``;
+#: docs/energy.md).
 KNOWN_UNLISTED = {
     "classify": (
-        "the inventory lists only the LUT read and pipeline registers; the RTL also builds "
-        "gradient-magnitude modulation (a 19 x 32 index multiply, ~5.6 k GE, and a 13 x 13 "
-        "alpha multiply, ~1.5 k GE) and four unorm -> UQ1.12 reciprocal-multiply expansions",
-        0.10,
-    ),
-    "shade": (
-        "the inventory lists the Phong combine as six 12 x 12 products; the RTL's "
-        "reflectance-map addressing (three |N|, the major-axis compare, two 7-step "
-        "dividers, the cell index) and output clamps are not listed, and its products are "
-        "three 12 x 13 (ambient) and three 20 x 13 (the UQ8.12 diffuse map)",
-        0.55,
-    ),
-    "composite": (
-        "not listed: the (1 - A) subtraction, rounding adds, four saturations, four clamps "
-        "(colours, the ROM address), the MIP and early-termination compares, and the "
-        "accumulators, colours and MIP carried through all three stages (351 flip-flops "
-        "against 204 register bits listed)",
-        0.73,
-    ),
-    "gradient": (
-        "not listed: to_world scaling (three 17 x 13 multiplies), the normaliser's "
-        "leading-one detector and shifters, each restoring root and divider step's compare "
-        "and multiplexer besides its subtraction (the inventory counts one adder a step), "
-        "the normals' signs and clamps",
-        0.65,
+        "the RTL's gradient-magnitude index multiply is 19 x 32 bits (its magnitude port "
+        "B + S + 3 bits, its gm_scale port 32) where the model's operands have 17 and 24 "
+        "(|g| < sqrt(3) 2**16 after to_world; gm_scale is UQ0.24): the inventory lists "
+        "17 x 24 (~3.8 k GE built alone, against ~5.6 k for 19 x 32)",
+        0.83,
     ),
 }
-#: Bits the RTL stores that the inventory does not count (each named).
-UNLISTED_BITS = {
-    # the gradient-magnitude modulation table: gm_entries words of UQ1.12 (13 bits)
-    "classify": lambda params: params["gm_entries"] * 13,
-    # the opacity-correction ROM's words are 13 bits in RTL (1.0 = 4096 must fit), 12 in
-    # the inventory: one bit of each of its 4097 entries
-    "composite": lambda params: 4097,
+#: Each unit's coverage: the listed operators, each built alone by Yosys, over the unit's
+#: RTL logic (measured by ``test_what_the_inventory_lists_of_each_units_rtl``;
+#: docs/energy.md).  Above 1 mostly because a rounding adds a constant half, listed as an
+#: adder of its width, which Yosys builds in the unit as an incrementer (~0.4 of it).
+COVERAGE = {
+    "interp": 1.10,  # seven roundings: 1.4 k GE as adders, ~0.5 k as incrementers
+    "gradient": 1.02,
+    "classify": KNOWN_UNLISTED["classify"][1],
+    "shade": 0.99,
+    "composite": 1.03,
 }
+#: Adders whose table / Yosys price lies above the band (small Brent-Kung adders are
+#: cheap in Yosys), and the largest share of a unit's listed table logic they may make.
+SMALL_ADDERS, SMALL_SHARE = 8, 0.01
 UNITS = [u for u in DATAPATH if u in synthesised()["units"]]
 
 
@@ -144,13 +133,11 @@ def test_table_logic_is_the_techmap_price_ratio_of_the_rtl_logic(unit):
 
 @pytest.mark.parametrize("unit", UNITS)
 def test_storage_bits_are_counted_alike_on_both_sides(unit):
-    """The table's tables (LUT, ROM, maps: models/units/ops.py) and the RTL's memories
-    hold the same bits, but for the named ones the inventory does not count.  Their area
-    is NOT compared: both sides price bits with the same ``Technology.storage_um2``."""
+    """The table's tables (LUT, magnitude table, ROM, maps: models/units/ops.py, read from
+    the models) and the RTL's memories hold the same bits.  Their area is NOT compared:
+    both sides price bits with the same ``Technology.storage_um2``."""
     syn = _synthesized(unit)
-    params = synthesised()["units"][unit]["params"]
-    unlisted = UNLISTED_BITS[unit](params) if unit in UNLISTED_BITS else 0
-    assert syn["memory_bits"] - syn["table_storage_bits"] == unlisted, syn
+    assert syn["memory_bits"] == syn["table_storage_bits"], syn
     tech = load_technology("cmos45")
     assert syn["storage_mm2"] == pytest.approx(tech.storage_um2(syn["memory_bits"]) / 1e6)
     assert syn["independence"] == INDEPENDENCE and "shared" in INDEPENDENCE
@@ -179,7 +166,9 @@ def test_fmax_is_an_estimate_from_the_longest_path_at_the_nodes_gate_delay():
 @pytest.mark.synth
 def test_the_band_is_the_operators_price_ratio():
     """The premise of :data:`LOGIC_BAND`: every operator the inventories use, at their
-    widths, priced by the table over Yosys' cells for it alone, lies in the band."""
+    widths, priced by the table over Yosys' cells for it alone, lies in the band; adders
+    below :data:`SMALL_ADDERS` bits may lie above it, and make under :data:`SMALL_SHARE`
+    of every unit's listed logic."""
     _need_yosys()
     tech = load_technology("cmos45")
     ops = {(op.kind, op.a, op.b) for u in UNITS for op in _inventory(u) if op.kind != "table"}
@@ -188,7 +177,15 @@ def test_the_band_is_the_operators_price_ratio():
     for kind, a, b in sorted(ops):
         table = op_area_um2(Op(kind, a, b), tech) / tech.gate_um2(1.0)
         ratio = table / operator_gate_equivalents(kind, a, b)
-        assert lo <= ratio <= hi, (kind, a, b, ratio)
+        small = kind == "add" and a < SMALL_ADDERS
+        assert lo <= ratio <= hi or (small and ratio > hi), (kind, a, b, ratio)
+    for unit in UNITS:
+        inventory = [op for op in _inventory(unit) if op.kind != "table"]
+        small = [op for op in inventory if op.kind == "add" and op.a < SMALL_ADDERS]
+        share = sum(op_area_um2(op, tech) for op in small) / sum(
+            op_area_um2(op, tech) for op in inventory
+        )
+        assert share < SMALL_SHARE, (unit, share)
 
 
 @pytest.mark.synth
@@ -196,8 +193,8 @@ def test_the_band_is_the_operators_price_ratio():
 def test_what_the_inventory_lists_of_each_units_rtl(unit):
     """Table logic / RTL logic = (the table's price over Yosys' for the listed operators)
     x (the listed operators built by Yosys over the unit's RTL logic).  The first is in
-    the band for every unit; the second, the coverage, is ~1 where the logic agrees and is
-    the documented share where the RTL builds logic the inventory does not list."""
+    the band for every unit; the second, the coverage, is as measured (:data:`COVERAGE`):
+    ~1 where the inventory read from the model lists what the RTL builds."""
     _need_yosys()
     syn = _synthesized(unit)
     listed = listed_gate_equivalents(_inventory(unit))
@@ -206,8 +203,7 @@ def test_what_the_inventory_lists_of_each_units_rtl(unit):
     coverage = listed / syn["gate_equivalents"]
     lo, hi = LOGIC_BAND
     assert lo <= price <= hi, (unit, price)
-    expected = KNOWN_UNLISTED[unit][1] if unit in KNOWN_UNLISTED else 1.0
-    assert coverage == pytest.approx(expected, abs=0.02), (unit, coverage)
+    assert coverage == pytest.approx(COVERAGE[unit], abs=0.02), (unit, coverage)
 
 
 @pytest.mark.synth
