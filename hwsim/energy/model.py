@@ -168,11 +168,11 @@ def synthesized_unit(unit: str, silicon: Silicon, tech: Technology, arch) -> dic
     it, and whether its longest path meets ``arch``'s clock (an estimate).
 
     Logic and storage are kept apart: only the logic is priced independently on the two
-    sides (operator table vs Yosys cells); storage is counted in bits on each side but
-    priced by the same :meth:`Technology.storage_um2`, so its agreement is by
-    construction (``independence``).  ``logic_table_over_synthesized`` is the comparison
-    that tests the table; ``table_over_synthesized`` (totals) mostly repeats the shared
-    SRAM price where tables dominate."""
+    sides (operator table from the unit models vs Yosys cells of the RTL); storage is
+    counted in bits on each side but priced by the same :meth:`Technology.storage_um2`, so
+    its agreement is by construction (``independence``).  ``logic_table_over_synthesized``
+    is the comparison that tests the table; ``table_over_synthesized`` (totals) mostly
+    repeats the shared SRAM price where tables dominate."""
     syn = unit_silicon(unit, tech, arch.clock_hz)
     if syn is None:
         return None

@@ -65,8 +65,8 @@ GATE_EQUIVALENTS = {
 _DATA = "units_synth.json"
 #: What "area two ways" compares independently, and what it shares (docs/energy.md).
 INDEPENDENCE = (
-    "logic: independent (operator table vs Yosys cells); storage: bits counted "
-    "independently, priced by the same SRAM model (shared)"
+    "logic: independent (operator table from the unit models vs Yosys cells of the RTL); "
+    "storage: bits counted independently, priced by the same SRAM model (shared)"
 )
 
 
