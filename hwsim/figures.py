@@ -304,6 +304,10 @@ def measure_figures(
                             steady_state=rung in ("cycle", "transaction")
                             and times_back_to_back(arch)
                             and size <= max(arch.max_volume),
+                            # A figure needs the event model's cycles, not its image (the
+                            # same cycles and counters: tests/models/test_timing_only.py);
+                            # a supervolume's host blend needs the bricks' images.
+                            timing_only=rung == "transaction" and size <= max(arch.max_volume),
                             progress=advance,
                         )
                     except NotAvailableError:
