@@ -10,7 +10,9 @@ the 2 % contract, and check that its inputs (beams, bursts, clocks) are the mach
 Partly shared (``hwsim.trade.independence``): both rungs call the SDRAM controller, the
 mini-block layout, ``pipeline_latency``, ``slab_buffers``, ``mini_blocks_read`` and the
 leaping helpers; the per-beam clock groups (``beam_skips``, from the plan's positions)
-and the chunk-granular schedule are the model's own.
+and the chunk-granular schedule are the model's own.  The memory timing, which the 2 %
+does not see, is compared on its own (``tests/memory/memory_timing.py``): the SDRAM's
+counters equal, and the memory stall at the model's finest granularity.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import dataclasses
 import numpy as np
 import pytest
 import rungs
+from memory_timing import FINEST_GROUPS, assert_memory_timing_agrees, memory_regime
 
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.fidelity import render, resolve_arch
@@ -27,6 +30,7 @@ from hwsim.golden import make_plan
 from hwsim.scene import ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
+from hwsim.volumes.volume import Volume
 from models import cycle as cycle_module
 from models.frame import frame_of
 from models.functional import NEVER, render_functional
@@ -57,6 +61,15 @@ def phantoms():
     return rungs.phantom_set(40, 40, 41)
 
 
+def assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, arch):
+    """The memory comparisons of ``memory_timing``: the SDRAM's counters of the rung as
+    rendered, and with the stall, of the event model at its finest granularity."""
+    assert_memory_timing_agrees(exact.counters, approx.counters, stall=False)
+    arch, tf, plan = rungs.prepared(scene, volume, arch)
+    finest = transaction_timing(frame_of(scene, volume, tf, arch, plan), groups=FINEST_GROUPS)
+    return assert_memory_timing_agrees(exact.counters, finest.counters)
+
+
 @rungs.skipping_grid
 def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
     volume = phantoms[phantom]
@@ -65,6 +78,8 @@ def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, project
     rungs.assert_within_contract(exact.cycles, approx.cycles)
     rungs.assert_counters_equal(exact, approx, EXACT)
     assert np.array_equal(approx.image, exact.image)  # functional = cycle image
+    assert memory_regime(exact.counters) == "unthrottled"
+    assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, machine(leaping))
 
 
 @pytest.mark.parametrize("view", [(0, 0), (150, -30), (90, 45)])
@@ -72,6 +87,41 @@ def test_other_views_within_the_contract(phantoms, view):
     scene = scene_of("head", *view, image=48, ert=0.95)
     exact, approx = rungs.cycle_and_transaction(scene, phantoms["head"], machine(True))
     rungs.assert_within_contract(exact.cycles, approx.cycles)
+    assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, phantoms["head"], machine(True))
+
+
+def in_32_bit_containers(volume):
+    """``volume``'s values (shifted to start at 0) as the 12-bit field of 32-bit
+    containers: two SDRAM words, so two bursts, per voxel (docs/cycle.md)."""
+    data = (volume.data.astype(np.int64) - int(volume.data.min())).astype(np.uint32)
+    wide = Volume(data=data, name=f"{volume.name}32", spacing=volume.spacing)
+    return wide.field(0, 12, "value")
+
+
+#: Frames where the memory sets the pace: (32-bit voxels, space leaping, modules,
+#: supersampling, scene options).
+MEMORY_BOUND = {
+    "32-bit voxels": (True, False, 4, 1.0, {}),
+    "32-bit voxels, ERT and leaping": (True, True, 4, 1.0, {"ert": 0.95}),
+    "32-bit voxels, perspective": (True, False, 4, 1.0, {"projection": "perspective"}),
+    "2 modules, ERT": (False, False, 2, 1.0, {"ert": 0.95}),
+    "32-bit voxels, supersampling 2": (True, False, 4, 2.0, {}),
+}
+
+
+@pytest.mark.parametrize("case", list(MEMORY_BOUND))
+def test_memory_timing_equals_the_cycle_rungs_where_the_memory_sets_the_pace(phantoms, case):
+    """Two bursts a voxel, half the modules, supersampling: frames where the memory is
+    the bottleneck, which the 2 % on frame cycles sees least (memory_timing)."""
+    wide, leaping, modules, ss, options = MEMORY_BOUND[case]
+    volume = in_32_bit_containers(phantoms["head"]) if wide else phantoms["head"]
+    arch = machine(leaping)
+    arch = dataclasses.replace(arch, memory={**arch.memory, "modules": modules})
+    scene = scene_of(image=40, **options)
+    scene = scene.replace(render=dataclasses.replace(scene.render, supersampling=ss))
+    exact, approx = rungs.cycle_and_transaction(scene, volume, arch)
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, arch)
 
 
 def test_termination_and_leaping_save_cycles_beams_and_bursts(phantoms):
@@ -172,6 +222,8 @@ def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, proje
     exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
     rungs.assert_within_contract(exact.cycles, approx.cycles)
     rungs.assert_counters_equal(exact, approx, EXACT)
+    assert memory_regime(exact.counters) in ("unthrottled", "backlogged")
+    assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, machine(leaping))
 
 
 def test_embedded_geometry_stops_rays_as_termination_does():
