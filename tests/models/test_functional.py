@@ -1,23 +1,26 @@
 """The functional rung: fixed point at an architecture's sample positions vs float64 golden.
 
-Design section 3: golden at the same positions isolates the numerical error; the issue's
-requirement is PSNR >= 40 dB on composite + Phong renders on volumepro500 defaults.
+Design section 3: golden at the same positions isolates the numerical error.  The pass
+criterion is the per-pixel bound derived from the datapath's formats
+(``numeric_bound.pixel_bound``, docs/numerics.md "End to end"): golden rendered with the
+machine's algorithms (gradient source, reflectance maps) may differ from the functional
+image by no more than the formats allow, pixel by pixel.  PSNR is recorded beside it
+(``record_property``, and in every failure message); it is not the criterion: at 40 dB it
+let a 10 % error in golden's ambient term through.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
+from numeric_bound import agreement, golden_at_machine, machine_pair
 
-from hwsim.fidelity import render, resolve_arch
-from hwsim.golden import make_plan, render_golden
-from hwsim.numerics import psnr
+from hwsim.fidelity import render
 from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
 from hwsim.volumes import load_volume, make_phantom, read_volume
-from models.frame import frame_of
-from models.functional import pipeline_latency, render_functional
-from models.units.interp import InterpConfig, error_bound
+from models.functional import pipeline_latency
 
 pytestmark = pytest.mark.model
 
@@ -25,13 +28,19 @@ VIEWS = [(0, 0), (45, 0), (30, 20), (0, 90), (180, 0), (-60, -35)]
 
 
 def pair(scene: Scene, volume, arch="volumepro500"):
-    machine = resolve_arch(arch)
-    tf = resolve_transfer(scene.transfer, volume)
-    plan = make_plan(scene, volume, machine.order)
-    fixed = render_functional(frame_of(scene, volume, tf, machine, plan))
-    # leap=False: the modelled machines visit every position, so sample counts compare.
-    golden = render_golden(scene, volume, tf, sampling=machine.order, leap=False)
-    return golden, fixed
+    """``(golden, functional, bound)``: golden with the machine's algorithms at its
+    positions, every position planned (``leap=False``: sample counts compare)."""
+    return machine_pair(scene, volume, arch)
+
+
+def assert_within_bound(golden, fixed, bound, record_property=None):
+    """The derived bound holds at every pixel and channel; PSNR is recorded."""
+    result = agreement(golden.image, fixed.image, bound)
+    if record_property is not None:
+        record_property("psnr_db", round(result.psnr, 2))
+        record_property("bound_ratio", round(result.ratio, 3))
+    assert result.ok, str(result)
+    return result
 
 
 def head_scene(az, el, size=64, **render) -> Scene:
@@ -49,55 +58,86 @@ def head64():
 
 
 @pytest.mark.parametrize(("az", "el"), VIEWS)
-def test_composite_phong_head_is_within_40_db_of_golden_at_the_same_positions(head64, az, el):
-    golden, fixed = pair(head_scene(az, el), head64)
+def test_composite_phong_head_is_within_the_derived_bound_of_golden(
+    head64, az, el, record_property
+):
+    golden, fixed, bound = pair(head_scene(az, el), head64)
     assert fixed.image.shape == golden.image.shape
     assert fixed.samples == golden.samples
-    assert psnr(golden.image, fixed.image) >= 40.0
+    assert_within_bound(golden, fixed, bound, record_property)
 
 
 @pytest.mark.parametrize("arch", ["volumepro500", "volumepro1000", "cube4"])
 @pytest.mark.parametrize(("az", "el"), [(30, 20), (90, 0)])
-def test_every_processing_order_meets_40_db(head64, arch, az, el):
-    golden, fixed = pair(head_scene(az, el), head64, arch)
-    assert psnr(golden.image, fixed.image) >= 40.0
+def test_every_processing_order_is_within_the_derived_bound(head64, arch, az, el, record_property):
+    assert_within_bound(*pair(head_scene(az, el), head64, arch), record_property)
 
 
-def test_marschner_lobb_and_ball_meet_40_db():
-    for name, preset in (("marschner-lobb", "ramp"), ("ball", "auto")):
-        volume = make_phantom(name, size=40)
-        scene = Scene(
-            transfer=TransferSpec(preset=preset),
-            view=ViewSpec(azimuth=25, elevation=15, width=64, height=64),
-        )
-        golden, fixed = pair(scene, volume)
-        assert psnr(golden.image, fixed.image) >= 40.0, name
+@pytest.mark.parametrize(("name", "preset"), [("marschner-lobb", "ramp"), ("ball", "auto")])
+def test_marschner_lobb_and_ball_are_within_the_derived_bound(name, preset, record_property):
+    """Float phantoms: the voxels' linear map onto 12 bits adds half a raw step."""
+    volume = make_phantom(name, size=40)
+    scene = Scene(
+        transfer=TransferSpec(preset=preset),
+        view=ViewSpec(azimuth=25, elevation=15, width=64, height=64),
+    )
+    assert_within_bound(*pair(scene, volume), record_property)
 
 
 @pytest.mark.parametrize(("az", "el"), [(180, 0), (90, 0), (30, 20)])
-def test_real_ct_meets_40_db(shared_data, az, el):
+def test_real_ct_is_within_the_derived_bound(shared_data, az, el, record_property):
     ct = read_volume(shared_data / "ct_cranium.nrrd")
     scene = Scene(
         transfer=TransferSpec(preset="ct"),
         view=ViewSpec(azimuth=az, elevation=el, width=96, height=96, zoom=1.2),
     )
-    golden, fixed = pair(scene, ct)
-    assert psnr(golden.image, fixed.image) >= 40.0
+    assert_within_bound(*pair(scene, ct), record_property)
 
 
 @pytest.mark.parametrize("mode", ["mip", "minip", "xray", "iso"])
-def test_scalar_modes_track_golden(head64, mode):
-    golden, fixed = pair(head_scene(30, 20, mode=mode, iso_value=300.0), head64)
-    if mode in ("mip", "minip"):
-        # A sample's error is bounded by interp.error_bound for the cell's spread (HU map
-        # 1:1 onto 12-bit voxels); the volume's full spread bounds every cell's.
-        spread = float(np.ptp(head64.data))
-        assert np.abs(golden.image - fixed.image).max() <= error_bound(spread, InterpConfig())
-    elif mode == "xray":
-        rel = np.abs(golden.image - fixed.image).max() / np.abs(golden.image).max()
-        assert rel < 1e-3
-    else:
-        assert psnr(golden.image, fixed.image) >= 30.0  # a first hit may move by one sample
+@pytest.mark.parametrize("arch", ["volumepro500", "volumepro1000"])
+def test_scalar_modes_are_within_the_derived_bound(head64, mode, arch):
+    """MIP / MinIP: each ray's largest sample error (volume units); X-ray: the samples'
+    errors and the UQ8.12 step weight's; iso: the hit's shading where the first hit is
+    the same sample on both sides, else anything (a hit may move by one sample)."""
+    golden, fixed, bound = pair(head_scene(30, 20, mode=mode, iso_value=300.0), head64, arch)
+    result = assert_within_bound(golden, fixed, bound)
+    if mode == "iso":  # most rays' first hit is certain: the bound is not 1 everywhere
+        assert np.mean(bound[..., :3] >= 1.0) < 0.01, result
+
+
+#: The headline frame's golden with one shading coefficient 10 % high: the derived bound
+#: must see it where the 40 dB floor did not (ambient: 44.1 dB; specular: 57.9 dB).
+SHADING_ERRORS = {"ambient": 1.1, "diffuse": 1.1, "specular": 1.1}
+
+
+@pytest.mark.parametrize("coefficient", list(SHADING_ERRORS))
+def test_the_bound_sees_a_10_percent_shading_coefficient_error(head64, coefficient):
+    """Golden alone given the changed material (what a coefficient 10 % off in golden's
+    ``phong`` does); the functional image and the bound keep the scene's."""
+    scene = head_scene(30, 20)
+    golden, fixed, bound = pair(scene, head64)
+    assert agreement(golden.image, fixed.image, bound).ok  # control
+    value = getattr(scene.material, coefficient) * SHADING_ERRORS[coefficient]
+    wrong = scene.replace(material=dataclasses.replace(scene.material, **{coefficient: value}))
+    _, mutated = golden_at_machine(wrong, head64, "volumepro500")
+    result = agreement(mutated.image, fixed.image, bound)
+    assert not result.ok, str(result)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=AssertionError,
+    reason="finding: shininess 24 -> 25 moves a pixel by at most 0.0032-0.0039 (one 8-bit "
+    "output step), where the SQ1.10 normal's error times n x^(n-1) allows 0.012-0.02",
+)
+def test_the_bound_sees_the_shininess_one_higher(head64):
+    scene = head_scene(30, 20)
+    golden, fixed, bound = pair(scene, head64)
+    shininess = scene.material.shininess + 1
+    wrong = scene.replace(material=dataclasses.replace(scene.material, shininess=shininess))
+    _, mutated = golden_at_machine(wrong, head64, "volumepro500")
+    assert not agreement(mutated.image, fixed.image, bound).ok
 
 
 def test_functional_is_deterministic(head64):
