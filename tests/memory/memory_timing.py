@@ -34,7 +34,10 @@ Tolerances, by regime (read off the cycle rung's counters, the reference):
     (``memory.sdram.stall_arrival_cycles == 0``): a freed slot is an arrival cycle the
     controller is already past, in the cycle rung when the last beam needing a
     mini-block beam ends and in the event model when its pair ends (one beam later), so
-    the schedule is still the backlogged stream's: everything equal as above.
+    the schedule is still the backlogged stream's: everything equal as above.  (Were the
+    backlog at a freed slot ever under one beam, the event model's own
+    ``stall_arrival_cycles`` would turn positive and the check fail naming it: the
+    freeing granularity, not the SDRAM timing.  Not seen on any frame measured.)
 ``waiting``
     the SDRAM waited for requests (the buffer, freed one beam later in the event model,
     sets the arrival cycles): only what does not depend on them is compared: bursts and
