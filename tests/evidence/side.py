@@ -16,8 +16,9 @@ result here is what those tests would compare:
   shallower pixel FIFO (``tests/cosim/test_top_cosim.py``);
 * ``golden`` / ``functional``: the frame at a machine's sample positions, golden with
   ``leap=False`` (``tests/models/test_functional.py``, ``pair``);
-* ``vp_cycle`` / ``vp_transaction``: a VolumePro-family frame's cycles at the cycle rung
-  and the transaction rung's event model (``tests/models/test_transaction_volumepro.py``);
+* ``vp_cycle`` / ``vp_transaction``: a VolumePro-family frame's cycles and counters at
+  the cycle rung and the transaction rung's event model, optionally at a chunk size
+  ``groups`` (``tests/models/test_transaction_volumepro.py``, ``tests/memory/memory_timing.py``);
 * ``split``: a Cube-4 cycle frame cut into bands of rays, each band run as a worker runs
   it, combined (``tests/models/test_split_frame.py``); ``bands = 0`` is the one-process
   frame.
@@ -136,16 +137,27 @@ def job_vp_cycle(spec: dict) -> dict:
 
     *_, frame = _machine_frame(spec)
     result = render_cycle(frame)
-    return {"cycles": result.cycles, "samples": result.samples}
+    return {"cycles": result.cycles, "samples": result.samples, "counters": _plain(result)}
 
 
 def job_vp_transaction(spec: dict) -> dict:
     from models.transaction import transaction_timing
 
     *_, frame = _machine_frame(spec)
-    timing = transaction_timing(frame)
-    keep = ("memory.sdram.row_misses", "memory.sdram.row_conflicts", "memory.stall_cycles")
-    return {"cycles": timing.cycles, "counters": {k: timing.counters.get(k) for k in keep}}
+    # ``groups``: the event model's chunk size (tests/memory/memory_timing.py compares the
+    # memory stall at its finest, one mini-block beam per chunk).
+    options = {"groups": spec["groups"]} if "groups" in spec else {}
+    timing = transaction_timing(frame, **options)
+    return {"cycles": timing.cycles, "counters": _plain(timing)}
+
+
+def _plain(run) -> dict:
+    """A run's numeric and text counters, JSON-ready."""
+    return {
+        k: v if isinstance(v, str) else int(v)
+        for k, v in run.counters.items()
+        if isinstance(v, (str, int, float, np.integer, np.floating))
+    }
 
 
 def job_split(spec: dict) -> dict:

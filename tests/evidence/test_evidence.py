@@ -293,6 +293,32 @@ def test_transaction_t_rcd_one_clock_long_breaks_the_2_percent_contract(original
     assert abs(_error(mutated, exact)) > CONTRACT
 
 
+@pytest.mark.parametrize(
+    ("change", "what"),
+    [
+        ("t_rcd=sdram.t_rcd + 1", "t_rcd one clock long"),
+        ("cas_latency=sdram.cas_latency + 1", "CAS latency one clock long"),
+        ("t_refi=sdram.t_refi // 2", "refresh twice as often"),
+    ],
+)
+def test_transaction_sdram_timing_breaks_the_memory_timing_check(original, mutant, change, what):
+    """transaction vs cycle, the memory timing (tests/memory/memory_timing.py: the SDRAM
+    counters and the pipelines' memory stall, the event model at its finest chunks), sees
+    what the 2 % frame contract does not: one SDRAM parameter of the transaction rung's
+    ports off by a clock (or refresh twice as often).  Shared: the SDRAM controller
+    itself, so equal counters check what each rung hands it (its burst stream, arrival
+    cycles and device parameters, each rung's own); the stall is computed apart (SimPy
+    waits against the cycle rung's beam recurrence)."""
+    from memory_timing import FINEST_GROUPS, memory_timing_mismatches
+
+    exact = original.run("vp_cycle", **VP500)
+    control = original.run("vp_transaction", groups=FINEST_GROUPS, **VP500)
+    assert memory_timing_mismatches(exact["counters"], control["counters"]) == []  # control
+    mutated = mutant(_sdram_edit(change)).run("vp_transaction", groups=FINEST_GROUPS, **VP500)
+    assert abs(_error(mutated, exact)) <= CONTRACT, what  # the frame contract is blind to it
+    assert memory_timing_mismatches(exact["counters"], mutated["counters"]), what
+
+
 # ---------------------------------------------------------------- split frame vs one process
 
 #: A frame of tests/models/test_split_frame.py's kind: head 28^3, 32 x 32, view along z,
