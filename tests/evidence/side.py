@@ -116,11 +116,19 @@ def _machine_frame(spec: dict):
 
 
 def job_golden(spec: dict) -> dict:
-    """Golden at the machine's sample positions, every position planned (no leaping)."""
+    """Golden at the machine's sample positions and with its algorithms (its gradient
+    source, its reflectance maps), every position planned (no leaping): as
+    ``tests/models/numeric_bound.py`` ``golden_at_machine`` renders it."""
+    from hwsim.fidelity import algorithms
     from hwsim.golden import render_golden
 
     scene, volume, transfer, machine, _ = _machine_frame(spec)
-    result = render_golden(scene, volume, transfer, sampling=machine.order, leap=False)
+    chosen = algorithms(machine)
+    scene = scene.replace(render=dataclasses.replace(scene.render, gradient=chosen.gradient))
+    maps = chosen.map_size if chosen.shading == "reflectance-map" else None
+    result = render_golden(
+        scene, volume, transfer, sampling=machine.order, leap=False, reflectance_map=maps
+    )
     return {"image": result.image, "samples": result.samples}
 
 
