@@ -5,15 +5,17 @@
 
 Cube-4's datapath is local: a sample reads the voxels of its own cell, the cells one
 voxel away and the same cell on the slices ahead and behind, and a band of a slice's
-beams routed through the ring links and beam FIFOs on its own delivers every cell whose
-two beams lie in the band exactly what the whole slice delivers
+beams routed through the ring links and beam FIFOs on its own delivers every corner of a
+cell whose beams lie in the band exactly as the whole slice does
 (``tests/arch/test_slice_datapath_locality.py``).  So a frame splits as the rays do:
 
 1. :func:`split_rays` cuts the plan's rays into bands along the beam axis ``a`` (by the
    ray's position at its middle sample; equal samples per band);
 2. :func:`sweep_band` (on a worker) reads, for every slice, only the beams its rays'
-   cells need -- plus two cells of halo for the gradient's neighbours, the slices ahead
-   and behind at the same rows -- from a :class:`~hwsim.volumes.parts.VolumeParts`
+   cells need -- plus the halo the datapath reads around them, proved in
+   :func:`_band_origins` (one cell below, one above, and above that what a shortened
+   beam FIFO reaches), for the steps that read the slice -- from a
+   :class:`~hwsim.volumes.parts.VolumeParts`
    (never the whole volume), builds their skewed stream by the memory's schedule, routes
    it through a band-sized :class:`SliceDatapath` and runs
    :meth:`Cube4Machine.sample_pass` over its rays only;
@@ -55,11 +57,13 @@ __all__ = [
     "split_rays",
     "sweep_band",
     "BandReport",
+    "beam_fifo_reach",
 ]
 
-#: Cells of halo around a band's sample cells: the gradient's neighbours one voxel away
-#: (``floor(p +- 1.0)``, which float rounding can move by one more).
-HALO_CELLS = 2
+#: Cells of halo below and above a band's sample cells: the gradient's neighbours one
+#: voxel away.  One is enough and needed (the proof: :func:`_band_origins`); a shortened
+#: beam FIFO adds :func:`beam_fifo_reach` above.
+HALO_CELLS = 1
 
 
 def check_splittable(faults: Faults | None, *, trace: bool = False) -> None:
@@ -177,14 +181,83 @@ class BandSlices:
         return {k: self._cache[k] for k in wanted}
 
 
+def beam_fifo_reach(C: int, adjust: int) -> int:
+    """Beams past a cell's own that its corner ``(a, b)`` is read from through a beam FIFO
+    ``adjust <= 0`` entries off its depth ``C + 1``: the FIFO of depth ``C + 1 + adjust``
+    hands cell ``(a, b)`` the stream slot ``a C + b div P - adjust``, which for the beam's
+    last group (``b div P = C - 1``) lies ``(C - 1 - adjust) div C`` beams on: 0 for the
+    machine's FIFO, 1 for ``-C <= adjust <= -1``, 2 for a FIFO of depth 0.  (Deeper FIFOs
+    reach back into the beam before; :func:`check_splittable` refuses them.)"""
+    return (C - 1 - adjust) // C
+
+
 def _band_origins(m: Cube4Machine) -> tuple[np.ndarray, int]:
     """Per slice, the first beam ``a0`` of the band its steps read (-1: no step reads
     it), and the band's height ``H`` (the same for every slice, so one datapath serves).
 
-    A step's samples need cells ``floor(p_a) -+ HALO_CELLS``; a slice is read by its own
-    step and, with the slice FIFOs, by the steps before and after it; a cell ``c`` needs
-    beams ``c`` and ``c + 1``.  Cells before the first beam and after the last are the
-    edge's replicas: a band holding them starts at beam 0 or ends at the last beam.
+    A slice ``q`` is read by its own step and, with gradients (``m.need_slices``), by the
+    steps before and after it; ``first``/``last`` are the least and greatest sample cell
+    ``floor(p_a)`` along the beam axis over the band's samples of those steps.  The band
+    reads beams ``first - HALO_CELLS .. last + 1 + HALO_CELLS + r`` (``r``:
+    :func:`beam_fifo_reach`), clipped to the slice.  That is exactly what the datapath
+    reads, with ``HALO_CELLS = 1``:
+
+    1. *Which cells a sample reads.*  A sample at ``p`` (``p_a``, float64; ``c =
+       floor(p_a)``) reads its own cell ``c`` on its slice and, for its gradient, the
+       same cell (same weight) on the slices ahead and behind, and on its slice the cells
+       of ``fl(p_a - 1.0)`` and ``fl(p_a + 1.0)`` (rounded as float64, each weight
+       quantised from its own fraction; ``HardwareSource.gradient``, the slice kernel).
+       Neighbours along ``b`` change no beam: a band holds whole beams.  Rounding to
+       nearest is monotone and leaves the integers ``c - 1`` and ``c + 2`` where they are,
+       and ``c - 1 <= p_a - 1 < c``, ``c + 1 <= p_a + 1 < c + 2``; so the down neighbour's
+       cell is ``c - 1`` or ``c``, and the up neighbour's ``c + 1``, or ``c + 2`` exactly
+       when ``p_a + 1`` rounds up onto the integer ``c + 2``: then its fraction, and its
+       weight, is 0.  That happens where ``p_a`` is the last float below a power of two
+       or lies in ``[-2^-54, 0)``, and views make it: a beam-axis shear that is
+       trigonometric noise (azimuth 270, along -x: ``cos(270 deg) = -1.8e-16``) puts
+       whole rows of samples at ``16 - 2^-49``, ``8 - 2^-50``, ...
+    2. *Which beams a cell's corners come from.*  Cell ``c``'s corner ``(c, b)`` arrives
+       through the beam FIFO from beams ``c .. c + r``; ``(c, b + 1)`` over the ring from
+       beam ``c`` (in the far column it is ``(c, b)``'s replica: ``c .. c + r``); ``(c +
+       1, b)`` and ``(c + 1, b + 1)`` one beam later, from beam ``c + 1``
+       (``models/machines/common/slices.py``; ``tests/arch/
+       test_slice_datapath_locality.py`` checks each corner's reach, and that it is no
+       shorter).  A lerp with weight 0 returns its first operand exactly, in every
+       rounding mode: a cell read with weight 0 along ``a`` uses only its corners on beam
+       ``c``'s side (beams ``c .. c + r``); otherwise beams ``c .. c + max(1, r)``.  (A
+       sample's own cell is read whole either way: the transparent-cell shortcut looks at
+       its four corners.)
+    3. *So a step whose sample cells span* ``[f, l]`` reads beams ``f - 1 ..`` (the down
+       neighbour ``c - 1``) ``.. max(l + 1 + max(1, r), l + 2 + r) = l + 2 + r`` on its
+       slice (the up neighbour, ``c + 1`` with any weight or ``c + 2`` with weight 0), and
+       ``f .. l + max(1, r)`` on the slices ahead and behind: inside ``first - 1 .. last +
+       2 + r``.  Outside the slice, cells below 0 replicate beam 0 and beams past the last
+       read the flush's zeros, in a band starting at beam 0 or ending at the last beam as
+       in the whole slice (the clip, and ``a0 = min(bottom, n_a - H)`` keeps a band that
+       needs the last beam ending there).  A band of beams ``a0 .. e`` delivers exactly
+       what the whole slice delivers for every corner whose beams lie in it (the locality
+       test), and ``H`` is the tallest slice's height, so every slice's band holds its
+       beams.
+    4. *Neither bound is loose.*  Below: a view along an axis puts samples on integers,
+       ``p_a - 1`` is the integer ``c - 1``, and the down neighbour, cell ``c - 1`` at
+       fraction 0, reads beam ``c - 1`` alone (``HALO_CELLS = 0`` changes the image at
+       every band count:
+       ``test_split_frame.py::test_the_halo_below_a_band_is_read_at_every_band_count``).
+       Above: an up neighbour ``c + 1`` with a non-zero weight reads beam ``c + 2`` (one
+       above, without the reach, fails the x-principal and stuck-module frames of
+       ``test_a_frame_split_into_bands_is_the_one_process_frame``); through a shortened
+       FIFO an up neighbour ``c + 2`` at weight 0 reads beam ``c + 2 + r`` in a beam's
+       last group (``test_a_shortened_beam_fifo_reads_past_the_halo``: without the reach
+       the image differs, and for a FIFO of depth 0 so it did with the fixed halo of 2
+       this replaced).  ``test_every_cell_a_band_reads_lies_in_its_rows`` checks every
+       read against the band's rows over a sweep of views, shapes, P, faults and cuts.
+
+    Nothing else widens it: rays are assigned to bands by their middle sample, but
+    ``first``/``last`` are taken over every sample of every step, so a ray that drifts
+    across beams (oblique and perspective views) widens the band, not the halo; the
+    gradient's neighbours are one index unit away whatever the voxel spacing; Cube-4
+    takes one sample per slice (supersampling is refused); the band's height being the
+    tallest slice's only adds beams.
     """
     plan, n_a = m.plan, m.n_a
     lo = np.full(plan.n_steps, np.iinfo(np.int64).max, dtype=np.int64)
@@ -203,8 +276,9 @@ def _band_origins(m: Cube4Machine) -> tuple[np.ndarray, int]:
         np.minimum.at(first, q[ok], lo[ok])
         np.maximum.at(last, q[ok], hi[ok])
     used = first <= last
+    above = HALO_CELLS + beam_fifo_reach(m.C, m.faults.beam_fifo_adjust)
     bottom = np.clip(first - HALO_CELLS, 0, n_a - 1)
-    top = np.clip(last + HALO_CELLS + 1, 0, n_a - 1)
+    top = np.clip(last + 1 + above, 0, n_a - 1)
     H = int((top - bottom + 1)[used].max(initial=0))
     a0 = np.where(used, np.minimum(bottom, n_a - H), -1)
     return a0, H
