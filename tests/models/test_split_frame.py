@@ -10,6 +10,12 @@ principal axis, perspective, anisotropic voxels, every mode, crop and cut planes
 termination, P = 3 and Teramac, and every data fault a band can reproduce; what it
 cannot is refused.  (Dask itself: tests/system/test_split_frame_cli.py.)
 
+The halo (``_band_origins`` proves it: one cell below and above a band's sample cells,
+plus a shortened beam FIFO's reach above) has tests of its own: frames of a noise volume
+where a band reading one wrong beam changes the image -- one fails at every band count
+without the cell below, four without the reach -- and a sweep checking every read of
+every band against its rows over views, shapes, P, faults and band cuts.
+
 What the equality shows (docs/distributed-frames.md): the image's is evidence -- each
 band computes its own halo, rows, skewed stream (``band_stream``) and band-sized routing,
 where the one-process frame uses the host write and the whole slice.  The cycles' and the
@@ -33,10 +39,11 @@ from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, Vie
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.parts import volume_parts
+from models.backend import Backend
 from models.cycle import render_cycle
 from models.frame import frame_of
-from models.machines.cube4.bands import BandSplit, split_rays, sweep_band
-from models.machines.cube4.cycle import Faults
+from models.machines.cube4.bands import BandSplit, _band_origins, split_rays, sweep_band
+from models.machines.cube4.cycle import Cube4Machine, Faults
 
 pytestmark = pytest.mark.model
 
@@ -116,6 +123,22 @@ def assert_same_frame(a, b):
     assert a.counters == b.counters
 
 
+#: Every sample of every voxel value visible and lit, none near opaque: a band reading one
+#: wrong voxel anywhere changes the image.
+FAINT = TransferSpec(
+    preset=None, points=((0.0, 0.2, 0.4, 0.6, 0.04), (4095.0, 1.0, 0.8, 0.5, 0.08))
+)
+
+
+@pytest.fixture(scope="module")
+def noise(tmp_path_factory) -> VolumeSpec:
+    """28^3 voxels of uniform noise in a ``.npy`` (read a box at a time, as any file): every
+    voxel differs from its neighbours."""
+    path = tmp_path_factory.mktemp("noise") / "noise.npy"
+    np.save(path, np.random.default_rng(1).integers(0, 4096, size=(28, 28, 28)).astype(np.uint16))
+    return VolumeSpec(path=str(path))
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_a_frame_split_into_bands_is_the_one_process_frame(case):
     """The image (and the data-dependent counters: samples dropped after termination,
@@ -151,14 +174,18 @@ def test_the_cycles_do_not_see_the_bands_the_image_does():
 
 
 def test_each_band_reads_a_part_of_every_slice():
-    """Two bands of a view along z read about half the beams each (plus the halo), never
-    the whole volume; one band reads every beam the frame needs."""
+    """Two bands of a view along z read half the beams each plus two, never the whole
+    volume; one band reads every beam the frame needs."""
     scene = _scene(az=0, el=0, volume=VolumeSpec(phantom="head", params=(("size", 48),)))
     arch = resolve_arch("cube4")
     (_, whole), (_, halves) = (split_frame(scene, arch, k) for k in (1, 2))
+    assert whole[0].rows == 48 * 48
     assert len(halves) == 2
     for report in halves:
-        assert report.rows < 0.62 * whole[0].rows  # half the beams + 2 x 2 of halo
+        # 26 beams of each of 48 slices: below, sample cells 0-23, their top cell's
+        # second beam and a cell of halo; above, cells 23-47 (the cut falls just before
+        # row 23's last ray) and a cell of halo.
+        assert report.rows == 48 * (24 + 2)
         assert report.rays > 0 and report.peak_rss_bytes > 0
 
 
@@ -221,3 +248,156 @@ def test_a_file_read_a_box_at_a_time_gives_the_loaded_files_frame(kind, tmp_path
     reference = one_process(scene, arch)
     result, _ = split_frame(scene, arch, 2)
     assert_same_frame(result, reference)
+
+
+# ---------------------------------------------------------------- the halo (bands.py
+# _band_origins proves it: one cell below a band's sample cells, one above, and above that
+# the beam FIFO's reach when a fault shortens it)
+
+
+@pytest.mark.parametrize("bands", [2, 3, 5, 8])
+def test_the_halo_below_a_band_is_read_at_every_band_count(noise, bands):
+    """``HALO_CELLS = 1`` is needed.  Along z every sample sits on integers: its gradient's
+    down neighbour is cell ``c - 1`` at fraction 0, so it reads beam ``c - 1`` alone, one
+    below the band's lowest sample cell, on every slice (no slice is taller to hide it).
+    With ``HALO_CELLS = 0`` every band count's image differs (9, 68, 136 and 165 pixels)."""
+    scene = _scene(az=0, el=0, volume=noise, transfer=FAINT, size=40)
+    arch = resolve_arch("cube4")
+    result, _ = split_frame(scene, arch, bands)
+    assert_same_frame(result, one_process(scene, arch))
+
+
+#: ``(arch, beam_fifo_adjust, elevation, bands)``, each looking along -x (azimuth 270).
+SHORT_FIFOS = {
+    "P=32-short": ("cube4:32", -1, 43, 12),
+    "P=32-depth-0": ("cube4:32", -2, 43, 12),
+    "P=4-short": ("cube4", -1, -35, 12),
+    "P=4-depth-0": ("cube4", -8, -35, 12),
+}
+
+
+@pytest.mark.parametrize("case", list(SHORT_FIFOS))
+def test_a_shortened_beam_fifo_reads_past_the_halo(noise, case):
+    """The halo above grows by ``beam_fifo_reach``.  Azimuth 270 gives the beam axis z a
+    shear of ``cos(270 deg) = -1.8e-16`` per slice: rows of samples at ``16 - 2^-49`` (cell
+    15), whose gradient's up neighbour ``fl(p + 1.0) = 17.0`` is cell 17 at fraction 0;
+    through a beam FIFO shortened by ``-C <= adjust <= -1`` (depth 0) that cell's corner
+    ``(17, b)`` comes from beam 18 (19) in a beam's last group -- every column at P = 32,
+    where C = 1 -- and 12 bands put such a row at a band's top on a slice as tall as the
+    band.  Without the reach the image differs (P = 32: 12 and 165 pixels; P = 4: 2 and
+    34); a FIFO of depth 0 also beats the halo of 2 the split had before (P = 32: 10
+    pixels; P = 4: 2)."""
+    name, adjust, el, bands = SHORT_FIFOS[case]
+    scene = _scene(az=270, el=el, volume=noise, transfer=FAINT)
+    arch, faults = _arch(name), Faults(beam_fifo_adjust=adjust)
+    result, _ = split_frame(scene, arch, bands, faults)
+    assert_same_frame(result, one_process(scene, arch, faults))
+
+
+def _reads_outside_the_band(frame, rays: np.ndarray, faults: Faults | None) -> list:
+    """Every read of band ``rays``'s sample pass whose corners come from beams the band
+    does not hold (or, past the slice's edges, from a band that does not reach them):
+    ``(step, slice, lowest beam, highest beam, band's first beam, band's last beam)``.
+
+    Worked out from the datapath, not from the halo: the cells ``HardwareSource`` reads
+    (its own cell whole, for the transparent-cell shortcut; with gradients the same cell
+    on the slices ahead and behind and, on its slice, the cells of ``fl(p +- 1.0)``), and
+    the beams each corner comes from (``tests/arch/test_slice_datapath_locality.py``:
+    the beam-FIFO side ``c .. c + r``, the other ``c + 1``; a weight of 0 along the beam
+    axis reads only the first, a weight of one only the second)."""
+    plan = frame.plan.subset(np.isin(np.arange(frame.plan.ray_ids.size), rays))
+    backend = Backend(dataclasses.replace(frame, plan=plan), compiled=False)
+    m = Cube4Machine(backend, faults=faults)
+    if not plan.ray_ids.size:
+        return []
+    a0, H = _band_origins(m)
+    r = (m.C - 1 - m.faults.beam_fifo_adjust) // m.C  # restated: mutate bands.py, not this
+    one = 1 << m.dp.interp.weight_bits
+    outside = []
+    for j, step in enumerate(plan.steps()):
+        if not step.rays.size:
+            continue
+        q, p = m.slice_of(j), step.zyx[:, m.a_ax]
+        own = m.cell(p)
+        c = own[0]
+        reads = [(q, c, c + max(1, r))]
+        if m.need_slices:
+            reads += [(k, c, c + max(1, r)) for k in (min(q + 1, m.n_kp - 1), max(q - 1, 0))]
+            for cell, weight, _ in (m.cell(p + 1.0, own), m.cell(p - 1.0, own)):
+                lo = np.where(weight == one, cell + 1, cell)
+                hi = np.where(weight == 0, cell + r, cell + np.where(weight == one, 1, max(1, r)))
+                reads.append((q, lo, hi))
+        for k, lo, hi in reads:
+            end = a0[k] + H - 1
+            bad = (a0[k] < 0) | (np.maximum(lo, 0) < a0[k]) | (np.minimum(hi, m.n_a - 1) > end)
+            if bad.any():
+                outside.append((j, k, int(lo[bad].min()), int(hi[bad].max()), int(a0[k]), int(end)))
+    return outside
+
+
+def _halo_frames(kind: str):
+    """``(label, frame, faults, bands)`` of the halo sweep.  ``rounding``: views along -x
+    and +-y whose beam-axis shear is trigonometric noise (samples just below powers of
+    two: the up neighbour two cells on), P = 4 and 32, every beam-FIFO reach.
+    ``random``: a seeded draw of 40 views (a third perspective), volume sizes 10-30 with
+    cubic or 1.5-thick voxels, P = 3, 4, 5, 32 and beam-FIFO adjustments 0, -1, -C,
+    -(C + 1).  Bands: ``split_rays``' own for 3 and 12 bands, and runs of 24 thin bands
+    merged at random cuts (the halo's proof holds for any set of rays)."""
+    rng = np.random.default_rng(20)
+    if kind == "rounding":
+        views = [(270, el, 28, 1.0, False) for el in (-35, 0, 43)]
+        views += [(-270, 20, 24, 1.0, False), (180, 90, 28, 1.0, False), (270, 10, 28, 1.5, False)]
+        draws = [(*v, P, adj) for v in views for P in (4, 32) for adj in ("0", "-1", "-C-1")]
+    else:
+        draws = []
+        for _ in range(40):
+            view = (
+                float(rng.uniform(-360, 360)),
+                float(rng.uniform(-89, 89)),
+                int(rng.integers(10, 31)),
+                float(rng.choice([1.0, 1.5])),
+                bool(rng.random() < 1 / 3),
+            )
+            draws.append(
+                (*view, int(rng.choice([3, 4, 5, 32])), str(rng.choice(["0", "-1", "-C", "-C-1"])))
+            )
+    for az, el, size, z_spacing, perspective, P, adj in draws:
+        params = (("size", size),) + ((("z_spacing", z_spacing),) if z_spacing != 1.0 else ())
+        volume_spec = VolumeSpec(phantom="head", params=params)
+        scene = _scene(
+            az=az,
+            el=el,
+            volume=volume_spec,
+            projection="perspective" if perspective else "parallel",
+        )
+        volume = volume_parts(volume_spec).volume()
+        arch = dataclasses.replace(resolve_arch("cube4"), pipelines=P)
+        frame = frame_of(scene, volume, resolve_transfer(scene.transfer, volume), arch)
+        machine = BandSplit(frame).machine
+        a_ax, C = machine.a_ax, machine.C
+        adjust = {"0": 0, "-1": -1, "-C": -C, "-C-1": -C - 1}[adj]
+        plan = frame.plan
+        bands = [*split_rays(plan, 3, a_ax), *split_rays(plan, 12, a_ax)]
+        thin = split_rays(plan, 24, a_ax)
+        cuts = sorted(rng.choice(np.arange(1, 24), size=int(rng.integers(1, 6)), replace=False))
+        runs = zip([0, *cuts], [*cuts, 24], strict=True)
+        bands += [np.sort(np.concatenate(thin[i:j])) for i, j in runs]
+        label = (
+            f"az={az:.1f} el={el:.1f} {size}^3 z={z_spacing} persp={perspective} P={P} adj={adj}"
+        )
+        yield label, frame, Faults(beam_fifo_adjust=adjust), bands
+
+
+@pytest.mark.parametrize("kind", ["rounding", "random"])
+def test_every_cell_a_band_reads_lies_in_its_rows(kind):
+    """The halo's property, checked read by read over a sweep of views, volume shapes,
+    pipeline counts, beam-FIFO faults and band cuts (``_halo_frames``): no band's sample
+    pass reads a corner from a beam its rows do not hold.  A halo one cell smaller
+    (``HALO_CELLS = 0``), or one without the beam FIFO's reach, fails it."""
+    failures = []
+    for label, frame, faults, bands in _halo_frames(kind):
+        for rays in bands:
+            outside = _reads_outside_the_band(frame, rays, faults)
+            if outside:
+                failures.append((label, int(rays.size), outside[:2]))
+    assert not failures, failures[:5]
