@@ -359,8 +359,9 @@ def test_split_frame_without_halo_is_seen_in_the_image(original, mutant):
     """split vs one-process frame, image bit for bit.  Mutated: the split alone
     (models/machines/cube4/bands.py ``HALO_CELLS`` 1 -> 0: a band reads only the beams of
     its own cells, not their gradient neighbours'; 1 is the proven halo,
-    docs/distributed-frames.md).  Shared: everything but how a band's voxels reach its datapath (the same Cube4Machine sample pass and frame assembly run
-    on both sides, so a fault in those would not show)."""
+    docs/distributed-frames.md).  Shared: everything but how a band's voxels reach its
+    datapath (the same Cube4Machine sample pass and frame assembly run on both sides, so
+    a fault in those would not show)."""
     whole = original.run("split", bands=0, **SPLIT)
     split = original.run("split", bands=3, **SPLIT)
     assert np.array_equal(split.image, whole.image) and split.cycles == whole.cycles  # control
