@@ -186,6 +186,8 @@ def _metric(key: str) -> str:
 
 
 def _from_seconds(key: str, seconds: float, samples: int) -> float:
+    """A frame time as the figure ``key`` measures it.  The map is its own inverse
+    (``1 / x``, ``x``, ``samples / x``), so it also turns a figure back into seconds."""
     metric = _metric(key)
     if metric == "fps":
         return 1.0 / seconds
@@ -194,13 +196,7 @@ def _from_seconds(key: str, seconds: float, samples: int) -> float:
     return samples / seconds
 
 
-def _to_seconds(key: str, value: float, samples: int) -> float:
-    metric = _metric(key)
-    if metric == "fps":
-        return 1.0 / value
-    if metric == "seconds":
-        return value
-    return samples / value
+_to_seconds = _from_seconds
 
 
 def figure_machine(arch: ArchConfig) -> ArchConfig:
