@@ -35,7 +35,8 @@ from models import cycle as cycle_module
 from models.frame import frame_of
 from models.functional import NEVER, render_functional
 from models.machines.volumepro import cycle as volumepro_module
-from models.transaction import render_transaction, transaction_timing
+from models.machines.volumepro.vp1000_transaction import Vp1000Transaction
+from models.transaction import render_transaction, timing_only, transaction_timing
 
 pytestmark = pytest.mark.model
 
@@ -88,6 +89,86 @@ def test_other_views_within_the_contract(phantoms, view):
     exact, approx = rungs.cycle_and_transaction(scene, phantoms["head"], machine(True))
     rungs.assert_within_contract(exact.cycles, approx.cycles)
     assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, phantoms["head"], machine(True))
+
+
+#: Magnified perspective (rays denser than voxels: slices stretch to their busiest
+#: pipeline): (head size, image, view, zoom, ERT threshold, space leaping, pipelines).
+#: Each was 2.1-4.7 % short while the model split a slice's live samples evenly over the
+#: lanes instead of counting each sample's lane (docs/transaction.md).
+MAGNIFIED = {
+    "40^3, image 80": (40, 80, (30, 20), 1.2, 1.0, False, 8),
+    "40^3, image 80, ERT and leaping": (40, 80, (30, 20), 1.2, 0.95, True, 8),
+    "24^3, image 72, view -35,10, ERT": (24, 72, (-35, 10), 1.2, 0.95, False, 8),
+    "32^3, image 64, zoom 2, leaping": (32, 64, (30, 20), 2.0, 1.0, True, 8),
+    "32^3, image 64, zoom 2, ERT and leaping": (32, 64, (30, 20), 2.0, 0.95, True, 8),
+    "40^3, image 40, zoom 2.5, ERT and leaping": (40, 40, (30, 20), 2.5, 0.95, True, 8),
+    "40^3, image 80, 16 pipelines": (40, 80, (30, 20), 1.2, 1.0, False, 16),
+}
+
+
+def magnified(case):
+    """(scene, volume, machine) of a ``MAGNIFIED`` case."""
+    size, image, view, zoom, ert, leaping, pipelines = MAGNIFIED[case]
+    scene = scene_of("head", *view, image=image, ert=ert, projection="perspective")
+    scene = scene.replace(view=dataclasses.replace(scene.view, zoom=zoom))
+    arch = dataclasses.replace(machine(leaping), pipelines=pipelines)
+    return scene, make_phantom("head", size=size), arch
+
+
+@pytest.mark.parametrize("case", list(MAGNIFIED))
+def test_magnified_perspective_within_the_contract(case):
+    """An image denser than the volume: a slice's live samples outnumber its beams'
+    clocks on some pipeline, and the slice stretches to that pipeline's count (rule 4).
+    The model counts each live sample's lane (its nearest voxel's module), so the stretch
+    equals the cycle rung's; the memory stall is then compared with no allowance."""
+    scene, volume, arch = magnified(case)
+    exact, approx = rungs.cycle_and_transaction(scene, volume, arch)
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    rungs.assert_counters_equal(exact, approx, EXACT)
+    stretch = exact.counters["pipeline.slice_stretch_cycles"]
+    assert stretch > 0 and approx.counters["pipelines.stretch_cycles"] == stretch
+    assert np.array_equal(approx.image, exact.image)
+    assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, arch)
+
+
+def test_magnified_slices_load_the_lanes_unevenly():
+    """Why an even split of the live samples over the ``P`` lanes is short: on a
+    magnified view the busiest lane of some slice holds more than ``ceil(live / P)``,
+    and the stretch (beyond the beams' clocks) follows the busiest lane."""
+    scene, volume, arch = magnified("40^3, image 80, ERT and leaping")
+    arch_, tf, plan = rungs.prepared(scene, volume, arch)
+    model = Vp1000Transaction(frame_of(scene, volume, tf, arch_, plan))
+    model.run()
+    sk, P = model.skips, arch.pipelines
+    even = -(-sk.live // P)
+    assert (sk.busiest >= even).all() and (sk.busiest > even).any()
+    beams = sk.cost.sum(axis=1)
+    assert (np.maximum(sk.busiest - beams, 0) > np.maximum(even - beams, 0)).any()
+
+
+def test_magnified_timing_only_gives_the_image_runs_cycles():
+    """The timing-only path (the unlit termination pass) times a magnified frame as the
+    image run does: the lane counts depend on the rays' ends, found the same way."""
+    scene, volume, arch = magnified("24^3, image 72, view -35,10, ERT")
+    tf = resolve_transfer(scene.transfer, volume)
+    full = render_transaction(frame_of(scene, volume, tf, arch))
+    alone = timing_only(frame_of(scene, volume, tf, arch))
+    assert alone.image is None and alone.cycles == full.cycles
+    assert alone.counters["pipelines.stretch_cycles"] == full.counters["pipelines.stretch_cycles"]
+
+
+def test_the_plain_slab_model_counts_the_lanes_of_a_shear_image_plan():
+    """The same lane count without beam skipping (``SlabTransaction``, all samples): a
+    VolumePro 500 in shear-image order with a magnified parallel view stretches its slices
+    as the cycle rung does (an even split was 136 stretch clocks short here, -0.18 %)."""
+    arch = dataclasses.replace(resolve_arch("volumepro500"), order="shear-image")
+    scene = scene_of("head", image=80).replace(
+        view=ViewSpec(azimuth=30, elevation=20, width=80, height=80, zoom=1.5)
+    )
+    exact, approx = rungs.cycle_and_transaction(scene, make_phantom("head", size=40), arch)
+    stretch = exact.counters["pipeline.slice_stretch_cycles"]
+    assert stretch > 0 and approx.counters["pipelines.stretch_cycles"] == stretch
+    rungs.assert_within_contract(exact.cycles, approx.cycles)
 
 
 def in_32_bit_containers(volume):

@@ -18,8 +18,10 @@ as cooperating SimPy processes at *beam-group* granularity:
   beams, ``C = ceil(n_b / P)`` clocks per beam; a group starts when the chunks its rows'
   trilinear windows need (voxel slices ``i0 - 1 .. i0 + 2``, rows ``a - 2 .. a + 2``)
   are ready, and frees the chunks no later group needs; after a slice come the
-  per-slice overhead, the perspective stretch (the slice's samples shared evenly over
-  the pipelines, as the Cube-4 model) and the pixel FIFO (:class:`PixelBus`).
+  per-slice overhead, the stretch of a slice whose busiest pipeline owes more samples
+  than its beams have clocks (rays denser than voxels: a magnified shear-image view;
+  each sample's pipeline is its nearest voxel's module, :func:`sample_lanes`) and the
+  pixel FIFO (:class:`PixelBus`).
 
 With ``[overheads] section_width`` the slices' beams are processed band by band
 (:mod:`models.machines.common.sections`): each band re-reads the mbbs of its rows, pays the
@@ -59,7 +61,7 @@ from models.units import classify, composite, crop, gradient, interp, shade
 if TYPE_CHECKING:
     from models.machines.volumepro.vp1000_transaction import BeamSkips
 
-__all__ = ["SlabTransaction", "miniblock_layout"]
+__all__ = ["SlabTransaction", "busiest_lanes", "miniblock_layout", "sample_lanes"]
 
 _PIPELINE_UNITS = (interp, gradient, classify, shade, composite, crop)
 
@@ -75,6 +77,43 @@ def miniblock_layout(memory: MemoryConfig, n: int, x, y, z):
             allowed="miniblock, block",
         )
     return layout(memory, n, x, y, z)
+
+
+def sample_lanes(zyx: np.ndarray, axes: tuple[int, int, int], shape, pipelines: int):
+    """The pipeline evaluating each sample of one step at positions ``zyx``: the module
+    ``(q + a + b) mod P`` of the skewed memory holding its nearest voxel, where ``q`` is
+    the voxel slice nearest the step's sample slice and ``(a, b)`` the in-slice voxel
+    nearest the sample (``cell + (fraction >= 1/2)``), each clamped to the volume;
+    ``axes``: ``(k, a, b)``.  The cycle rung's rule (``SlabMachine._lanes``) written
+    again from the plan's positions; a slice lasts at least its busiest pipeline's
+    sample count (docs/cycle.md, the VolumePro family, rule 4)."""
+    kp, a_ax, b_ax = axes
+    if not len(zyx):
+        return np.zeros(0, dtype=np.int64)
+    pk = float(zyx[0, kp])  # every sample of a step lies on its sample slice
+    q = int(min(max(np.floor(pk + 0.5), 0), shape[kp] - 1))
+    near = []
+    for ax in (a_ax, b_ax):
+        p = zyx[:, ax]
+        c = np.floor(p)
+        near.append(np.clip(c.astype(np.int64) + (p - c >= 0.5), 0, shape[ax] - 1))
+    return (q + near[0] + near[1]) % pipelines
+
+
+def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
+    """Samples of the busiest pipeline at each step of ``plan``, every planned sample
+    counted with :func:`sample_lanes` at its position (the compiled walker's,
+    :func:`models.fused_steps.plan_positions`): a shear-image plan's rays are not one per
+    voxel column, so its lanes are not loaded evenly."""
+    from models import fused_steps  # imports numba: only for the frames that need it
+
+    kp = plan.principal_axis
+    axes = (kp, *(ax for ax in range(3) if ax != kp))
+    out = np.zeros(plan.n_steps, dtype=np.int64)
+    for j, zyx, _ in fused_steps.plan_positions(plan):
+        lanes = sample_lanes(zyx, axes, plan.volume.shape, pipelines)
+        out[j] = np.bincount(lanes, minlength=pipelines).max()
+    return out
 
 
 class SlabTransaction:
@@ -239,6 +278,15 @@ class SlabTransaction:
             samples = sk.live  # samples of live rays: what the lanes work on (rule 6)
         # Clocks of each slice's beams (the stretch's reference): n_a C, less when skipping.
         beam_clocks = np.full(n_steps, self.n_a * self.C) if sk is None else sk.cost.sum(axis=1)
+        # Samples of each slice's busiest pipeline (a slice lasts at least that long),
+        # counted lane by lane: rays denser than voxels load the lanes unevenly.  A
+        # shear-warp plan has one ray per voxel column, spread evenly by the skew.
+        if sk is not None:
+            busiest = sk.busiest  # live samples only (rule 6)
+        elif self.plan.kind == "shear-image":
+            busiest = busiest_lanes(self.plan, self.P)
+        else:
+            busiest = -(-samples // self.P)
         by_band, parked = band_loads(self.plan, self.bands, self.n_a, finishing)
         chunks, groups, free_after = self._schedule(n_steps)
         cap = self.capacity_mbbs // self.U
@@ -247,7 +295,7 @@ class SlabTransaction:
                 f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
             )
         stats, bus, ports = self._simulate(
-            chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=1
+            chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=1
         )
         M = self.memory.modules
         end = max(stats["pipe_end"], bus.end)
@@ -283,20 +331,20 @@ class SlabTransaction:
         )
         if self.steady_state:  # rule 9: the cycles between two back-to-back frames' ends
             twice, _, _ = self._simulate(
-                chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, frames=2
+                chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=2
             )
             counters["frame.period_cycles"] = twice["pipe_ends"][1] - twice["pipe_ends"][0]
             counters["transaction.timing_seconds"] = time.perf_counter() - start
         return TxnTiming(int(cycles), counters)
 
     def _simulate(
-        self, chunks, groups, free_after, cap, samples, beam_clocks, by_band, parked, *, frames
+        self, chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, *, frames
     ):
         """Run the memory and the pipelines over ``frames`` identical frames back to back
         (the same controllers, buffer and pixel FIFO carry on); returns the statistics
         (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
         SDRAM ports."""
-        sk, n_steps = self.skips, len(samples)
+        sk, n_steps = self.skips, len(busiest)
         nc, ng = len(chunks), len(groups)
         # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
         free_after = np.concatenate(
@@ -368,7 +416,7 @@ class SlabTransaction:
                     continue  # more beam groups of this slice
                 # Sections are parallel-only, where a slice never has more samples than
                 # voxels: the perspective stretch applies to the unsectioned frame.
-                stretch = max(0, -(-int(samples[j]) // self.P) - int(beam_clocks[j]))
+                stretch = max(0, int(busiest[j]) - int(beam_clocks[j]))
                 stretch = stretch if single else 0
                 stats["stretch"] += stretch
                 extra = self.arch.slice_overhead_cycles + stretch
