@@ -169,8 +169,9 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         ),
         own={
             _TXN: "per-beam clock groups and mini-blocks needed from the plan's positions "
-            "(vp1000_transaction.beam_skips), then the chunk-granular event model as "
-            "VolumePro 500",
+            "(vp1000_transaction.beam_skips), each slice's busiest lane from them by the "
+            "cycle rung's lane rule written again (transaction.sample_lanes, the same rule "
+            "as SlabMachine._lanes), then the chunk-granular event model as VolumePro 500",
             _CYCLE: "live cells from its data pass (SlabMachine._live_cells), then the "
             "beam-by-beam recurrence as VolumePro 500",
         },

@@ -46,8 +46,9 @@ Tolerances, by regime (read off the cycle rung's counters, the reference):
     976 clocks, is far longer than the one beam by which a last arrival can move).
 
 The stall's tolerance is the difference in the pipelines' own clocks between the rungs
-(slice stretch, pixel-FIFO stalls), one for one (0 wherever they agree: every frame but
-magnified perspective on VolumePro 1000, whose busiest lane the event model estimates);
+(slice stretch, pixel-FIFO stalls), one for one (0 wherever they agree: every frame
+measured, magnified perspective included since the event model counts each slice's
+busiest lane by the cycle rung's lane rule, ``sample_lanes``);
 sectioned frames (``section.count > 1``) compare the SDRAM counters only: the bands are
 each rung's own (the cycle rung stretches a band's slices by its busiest lane, the
 event model does not) and a band starting on an odd row splits a group's mini-block
