@@ -107,80 +107,78 @@ def shown_error(comparison: Comparison, error: float | None, fmt: str = "+.3%") 
 _CYCLE = "cycle rung"
 _TXN = "transaction rung"
 
+
+def _transaction(verdict: str, shared: tuple[str, ...], txn: str, cycle: str) -> Comparison:
+    """A transaction-vs-cycle comparison on frame cycles; ``txn`` and ``cycle``: what
+    each side computes on its own."""
+    return Comparison(
+        sides=(_TXN, _CYCLE),
+        quantity="frame cycles",
+        verdict=verdict,
+        shared=shared,
+        own={_TXN: txn, _CYCLE: cycle},
+    )
+
+
+#: What VolumePro 500's event model shares with its cycle rung (VolumePro 1000's adds to it).
+_VOLUMEPRO_SHARED = (
+    "hwsim.memory.SdramController (via SdramTransactionPort)",
+    "models.machines.volumepro.memory.layout",
+    "models.machines.volumepro.memory.mini_block_bursts",
+    "models.machines.volumepro.slab_timing.pipeline_latency",
+    "models.machines.volumepro.slab_timing.slab_buffers",
+)
+
 #: The transaction rung's event model against the cycle rung, on frame cycles, per family
 #: (``volumepro-skipping``: VolumePro 1000's :class:`Vp1000Transaction`).
 TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
-    "cube4": Comparison(
-        sides=(_TXN, _CYCLE),
-        quantity="frame cycles",
-        verdict=SHARED,
-        shared=(
+    "cube4": _transaction(
+        SHARED,
+        (
             "models.machines.cube4.timing.cube4_latency",
             "models.machines.cube4.timing.cube4_pixel_pushes",
             "hwsim.engine.fifo.freezing_fifo",
             "models.machines.cube4.timing.cube4_lanes",
             "models.machines.cube4.frame.cube4_buffers",
         ),
-        own={
-            _TXN: "the slice period T + slice_cycles + max(0, busiest - T) restated as two "
-            "SimPy processes (Cube4Transaction.run); samples per slice from the plan's ray "
-            "ranges (slice_loads) and the busiest lane from the compiled walker's positions "
-            "(busiest_lanes) -- the same rule and lane function as the cycle rung's",
-            _CYCLE: "the lanes of the samples it evaluates (HardwareSource positions) and "
-            "the period sum in Cube4Machine.frame; latency, pixel pushes and the FIFO are "
-            "the shared functions",
-        },
+        txn="the slice period T + slice_cycles + max(0, busiest - T) restated as two "
+        "SimPy processes (Cube4Transaction.run); samples per slice from the plan's ray "
+        "ranges (slice_loads) and the busiest lane from the compiled walker's positions "
+        "(busiest_lanes) -- the same rule and lane function as the cycle rung's",
+        cycle="the lanes of the samples it evaluates (HardwareSource positions) and "
+        "the period sum in Cube4Machine.frame; latency, pixel pushes and the FIFO are "
+        "the shared functions",
     ),
-    "volumepro": Comparison(
-        sides=(_TXN, _CYCLE),
-        quantity="frame cycles",
-        verdict=PARTLY_SHARED,
-        shared=(
-            "hwsim.memory.SdramController (via SdramTransactionPort)",
-            "models.machines.volumepro.memory.layout",
-            "models.machines.volumepro.memory.mini_block_bursts",
-            "models.machines.volumepro.slab_timing.pipeline_latency",
-            "models.machines.volumepro.slab_timing.slab_buffers",
-        ),
-        own={
-            _TXN: "chunk-granular readiness, freeing and buffer occupancy "
-            "(SlabTransaction._schedule, _simulate), sections (common.sections.bands_of, "
-            "band_loads), the pixel bus (common.pixel_bus.PixelBus)",
-            _CYCLE: "per-mini-block-beam deliveries and the beam-by-beam recurrence "
-            "(volumepro.timing.timing_inputs, slab_timing.run_timing) from the data pass's "
-            "records, sections (SlabMachine._sections), the pixel FIFO "
-            "(hwsim.engine.DrainFifo)",
-        },
+    "volumepro": _transaction(
+        PARTLY_SHARED,
+        _VOLUMEPRO_SHARED,
+        txn="chunk-granular readiness, freeing and buffer occupancy "
+        "(SlabTransaction._schedule, _simulate), sections (common.sections.bands_of, "
+        "band_loads), the pixel bus (common.pixel_bus.PixelBus)",
+        cycle="per-mini-block-beam deliveries and the beam-by-beam recurrence "
+        "(volumepro.timing.timing_inputs, slab_timing.run_timing) from the data pass's "
+        "records, sections (SlabMachine._sections), the pixel FIFO "
+        "(hwsim.engine.DrainFifo)",
     ),
-    "volumepro-skipping": Comparison(
-        sides=(_TXN, _CYCLE),
-        quantity="frame cycles",
-        verdict=PARTLY_SHARED,
-        shared=(
-            "hwsim.memory.SdramController (via SdramTransactionPort)",
-            "models.machines.volumepro.memory.layout",
-            "models.machines.volumepro.memory.mini_block_bursts",
-            "models.machines.volumepro.slab_timing.pipeline_latency",
-            "models.machines.volumepro.slab_timing.slab_buffers",
+    "volumepro-skipping": _transaction(
+        PARTLY_SHARED,
+        _VOLUMEPRO_SHARED
+        + (
             "models.machines.volumepro.timing.mini_blocks_read",
             "models.backend.Backend.occupied_blocks",
             "hwsim.golden.occupancy.occupancy_from_ranges",
             "models.backend.Backend (the rays' termination steps)",
         ),
-        own={
-            _TXN: "per-beam clock groups and mini-blocks needed from the plan's positions "
-            "(vp1000_transaction.beam_skips), each slice's busiest lane from them by the "
-            "cycle rung's lane rule written again (transaction.sample_lanes, the same rule "
-            "as SlabMachine._lanes), then the chunk-granular event model as VolumePro 500",
-            _CYCLE: "live cells from its data pass (SlabMachine._live_cells), then the "
-            "beam-by-beam recurrence as VolumePro 500",
-        },
+        txn="per-beam clock groups and mini-blocks needed from the plan's positions "
+        "(vp1000_transaction.beam_skips), each slice's busiest lane from them by the "
+        "cycle rung's lane rule written again (transaction.sample_lanes, the same rule "
+        "as SlabMachine._lanes), then the chunk-granular event model as VolumePro 500",
+        cycle="live cells from its data pass (SlabMachine._live_cells), then the "
+        "beam-by-beam recurrence as VolumePro 500",
     ),
-    "vizard2": Comparison(
-        sides=(_TXN, _CYCLE),
-        quantity="frame cycles",
-        verdict=PARTLY_SHARED,
-        shared=(
+    "vizard2": _transaction(
+        PARTLY_SHARED,
+        (
             "hwsim.memory.SdramController",
             "models.machines.vizard2.memory.BlockLayout.bursts",
             "models.machines.vizard2.config.FEEDBACK",
@@ -191,15 +189,13 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
             "hwsim.golden.positions.SamplePlan.leap",
             "models.backend.Backend (the rays' termination steps)",
         ),
-        own={
-            _TXN: "the packet issue schedule (SimPy), a tag-only direct-mapped cache "
-            "(VizardTransaction._resolve: the same update rule as BlockCache.fetch, written "
-            "again), lookups from block-straddle masks (_lookups), early termination's "
-            "speculative rounds estimated with unloaded fill times (_last_rounds), the "
-            "pixel bus (PixelBus)",
-            _CYCLE: "round-by-round issue with the real stalls, BlockCache.fetch (tags and "
-            "data), the pixel FIFO (hwsim.engine.DrainFifo)",
-        },
+        txn="the packet issue schedule (SimPy), a tag-only direct-mapped cache "
+        "(VizardTransaction._resolve: the same update rule as BlockCache.fetch, written "
+        "again), lookups from block-straddle masks (_lookups), early termination's "
+        "speculative rounds estimated with unloaded fill times (_last_rounds), the "
+        "pixel bus (PixelBus)",
+        cycle="round-by-round issue with the real stalls, BlockCache.fetch (tags and "
+        "data), the pixel FIFO (hwsim.engine.DrainFifo)",
     ),
 }
 
