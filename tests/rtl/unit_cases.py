@@ -66,6 +66,34 @@ def _concat(*parts: dict) -> dict:
     return {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in parts[0]}
 
 
+def _unit_case(
+    name: str,
+    build: Callable,
+    timing,
+    rtl_module,
+    in_args: tuple,
+    stimulus: Callable,
+    model: Callable,
+    out_args: tuple | None = None,
+    **rest,
+) -> UnitCase:
+    """A :class:`UnitCase` whose latency and II are ``timing``'s and whose layouts are
+    ``rtl_module``'s ``input_layout(*in_args)`` and ``output_layout(*out_args)``
+    (``out_args`` defaults to ``in_args``); ``rest``: the other fields by name."""
+    out_args = in_args if out_args is None else out_args
+    return UnitCase(
+        name,
+        build,
+        timing.LATENCY,
+        timing.II,
+        rtl_module.input_layout(*in_args),
+        rtl_module.output_layout(*out_args),
+        stimulus,
+        model,
+        **rest,
+    )
+
+
 # ------------------------------------------------------------------------------- skew
 
 
@@ -92,16 +120,8 @@ def skew_case(cfg=None, n: int = 200) -> UnitCase:
             "vp_address": va,
         }
 
-    return UnitCase(
-        "skew",
-        lambda: skew.Skew(cfg),
-        skew_model.LATENCY,
-        skew_model.II,
-        skew.input_layout(cfg),
-        skew.output_layout(cfg),
-        stimulus,
-        model,
-        {"n": n},
+    return _unit_case(
+        "skew", lambda: skew.Skew(cfg), skew_model, skew, (cfg,), stimulus, model, statics={"n": n}
     )
 
 
@@ -144,13 +164,12 @@ def interp_case(cfg=None, voxel_bits: int = 12, signed_input: bool = False) -> U
         taps = interp_model.InterpTaps(idx, v["frac"].T)
         return {"sample": interp_model.interpolate(flat, taps, cfg)}
 
-    return UnitCase(
+    return _unit_case(
         "interp",
         lambda: interp.Interp(cfg, voxel_bits, signed_input),
-        interp_model.LATENCY,
-        interp_model.II,
-        interp.input_layout(cfg, voxel_bits, signed_input),
-        interp.output_layout(cfg, voxel_bits, signed_input),
+        interp_model,
+        interp,
+        (cfg, voxel_bits, signed_input),
         stimulus,
         model,
     )
@@ -196,13 +215,12 @@ def slice_interp_case(cfg=None, voxel_bits: int = 12) -> UnitCase:
             "col": np.stack(cols, axis=1),
         }
 
-    return UnitCase(
+    return _unit_case(
         "slice_interp",
         lambda: slice_interp.SliceInterp(cfg, voxel_bits),
-        slice_interp.LATENCY,
-        slice_interp.II,
-        slice_interp.input_layout(cfg, voxel_bits),
-        slice_interp.output_layout(cfg, voxel_bits),
+        slice_interp,
+        slice_interp,
+        (cfg, voxel_bits),
         stimulus,
         model,
     )
@@ -252,16 +270,15 @@ def gradient_case(cfg=None, sample_bits: int = 16, spacing_zyx=(1.0, 0.7, 1.3)) 
         return {"normal": gradient_model.normals(g, cfg), "magnitude": gradient_model.magnitude(g)}
 
     statics = {"ratio": sum(int(r) << (13 * k) for k, r in enumerate(ratio))}
-    return UnitCase(
+    return _unit_case(
         "gradient",
         lambda: gradient.Gradient(cfg, sample_bits),
-        gradient_model.LATENCY,
-        gradient_model.II,
-        gradient.input_layout(cfg, sample_bits),
-        gradient.output_layout(cfg, sample_bits),
+        gradient_model,
+        gradient,
+        (cfg, sample_bits),
         stimulus,
         model,
-        statics,
+        statics=statics,
     )
 
 
@@ -338,18 +355,18 @@ def classify_case(
             )
         return {"rgb": rgb12, "alpha": alpha12}
 
-    return UnitCase(
+    return _unit_case(
         "classify",
         lambda: classify.Classify(cfg, voxel_bits, sample_frac_bits),
-        classify_model.LATENCY,
-        classify_model.II,
-        classify.input_layout(sample_bits),
-        classify.output_layout(),
+        classify_model,
+        classify,
+        (sample_bits,),
         stimulus,
         model,
-        {"gm_scale": scale, "modulate": int(modulate)},
-        ll,
-        loads,
+        out_args=(),
+        statics={"gm_scale": scale, "modulate": int(modulate)},
+        load_layout=ll,
+        loads=loads,
     )
 
 
@@ -428,18 +445,18 @@ def shade_case(cfg=None, lights: int = 2) -> UnitCase:
     def model(v):
         return {"rgb": shade_model.shade(sh, v["rgb"], v["normal"])}
 
-    return UnitCase(
+    return _unit_case(
         "shade",
         lambda: shade.Shade(cfg, lights),
-        shade_model.LATENCY,
-        shade_model.II,
-        shade.input_layout(cfg),
-        shade.output_layout(),
+        shade_model,
+        shade,
+        (cfg,),
         stimulus,
         model,
-        statics,
-        ll,
-        loads,
+        out_args=(),
+        statics=statics,
+        load_layout=ll,
+        loads=loads,
     )
 
 
@@ -496,18 +513,17 @@ def composite_case(
         return {"acc": acc, "mip": mip, "terminated": term.astype(np.int64)}
 
     statics = {"ert_threshold": thr if enable else 0, "ert_enable": int(enable)}
-    return UnitCase(
+    return _unit_case(
         "composite",
         lambda: composite.Composite(cfg, sample_bits),
-        composite_model.LATENCY,
-        composite_model.II,
-        composite.input_layout(cfg, sample_bits),
-        composite.output_layout(cfg, sample_bits),
+        composite_model,
+        composite,
+        (cfg, sample_bits),
         stimulus,
         model,
-        statics,
-        ll,
-        loads,
+        statics=statics,
+        load_layout=ll,
+        loads=loads,
     )
 
 
