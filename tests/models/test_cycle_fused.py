@@ -241,40 +241,32 @@ def _same(fast, ref):
     assert fast.counters == ref.counters
 
 
-@pytest.mark.parametrize("case", list(CASES))
-def test_compiled_cycle_frames_equal_the_unit_chain(case, volumes, monkeypatch):
-    arch, changes, volume, scene, overrides, faults = CASES[case]
+def _compiled_equals_unit_chain(kernel, case, volumes, monkeypatch):
+    """``case`` rendered with ``kernel`` (counted: it must run) equals the unit chain."""
+    arch, changes, volume, scene, overrides, faults = case
     runs = []
-    original = slice_kernel.SliceKernel.run
+    original = kernel.run
 
     def counted(self, src, step, factor, state, table):
         runs.append(step.rays.size)
         return original(self, src, step, factor, state, table)
 
-    monkeypatch.setattr(slice_kernel.SliceKernel, "run", counted)
+    monkeypatch.setattr(kernel, "run", counted)
     fast = _render(arch, changes, volumes[volume], scene, overrides, faults)
     assert sum(runs) > 0, "the kernel did not run"
     ref = _render(arch, changes, volumes[volume], scene, overrides, faults, compiled=False)
     _same(fast, ref)
     assert ref.image[..., 3].max() > 0.05  # something was composited
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_compiled_cycle_frames_equal_the_unit_chain(case, volumes, monkeypatch):
+    _compiled_equals_unit_chain(slice_kernel.SliceKernel, CASES[case], volumes, monkeypatch)
 
 
 @pytest.mark.parametrize("case", list(SLAB_CASES))
 def test_compiled_slab_frames_equal_the_unit_chain(case, volumes, monkeypatch):
-    arch, changes, volume, scene, overrides, faults = SLAB_CASES[case]
-    runs = []
-    original = slab_kernel.SlabKernel.run
-
-    def counted(self, src, step, factor, state, table):
-        runs.append(step.rays.size)
-        return original(self, src, step, factor, state, table)
-
-    monkeypatch.setattr(slab_kernel.SlabKernel, "run", counted)
-    fast = _render(arch, changes, volumes[volume], scene, overrides, faults)
-    assert sum(runs) > 0, "the kernel did not run"
-    ref = _render(arch, changes, volumes[volume], scene, overrides, faults, compiled=False)
-    _same(fast, ref)
-    assert ref.image[..., 3].max() > 0.05  # something was composited
+    _compiled_equals_unit_chain(slab_kernel.SlabKernel, SLAB_CASES[case], volumes, monkeypatch)
 
 
 def test_threads_split_steps_into_runs_with_the_same_bits(volumes, monkeypatch):
