@@ -42,7 +42,7 @@ from models.units.cursor import CursorTable
 from models.units.multilut import MultiLut
 from models.units.voxel import convert_values, converted_volume
 
-__all__ = ["Backend", "RayState", "SampleSource", "subset_step", "ONE"]
+__all__ = ["Backend", "RayState", "SampleSource", "run_compiled", "subset_step", "ONE"]
 
 ONE = 1 << 12  # 1.0 in UQ1.12
 
@@ -74,6 +74,17 @@ class RayState:
     dt_sum: np.ndarray | None = None
     samples: int = 0
     extra: dict = field(default_factory=dict)
+
+
+def run_compiled(kernel, step: Step, factor: np.ndarray | None, state, *source) -> bool:
+    """A source's ``composite_fused``: run the back end's composite stage on ``step`` with
+    the compiled ``kernel`` (``kernel.run(*source, step, factor, state, table)``) when the
+    frame allows it (a kernel with a table for ``step.dt``); False: use the unit chain."""
+    table = None if kernel is None else kernel.table(step.dt)
+    if table is None:
+        return False
+    kernel.run(*source, step, factor, state, table)
+    return True
 
 
 def subset_step(step: Step, keep: np.ndarray) -> Step:

@@ -35,7 +35,7 @@ from hwsim.golden.positions import SamplePlan, Step
 from hwsim.numerics import SATURATIONS
 from hwsim.scene import Scene
 from models import fused_steps, leap
-from models.backend import Backend, RayState
+from models.backend import Backend, RayState, run_compiled
 from models.datapath import units_needed
 from models.frame import Frame
 from models.units import classify as classify_unit
@@ -119,12 +119,7 @@ class TapSource:
     def composite_fused(self, step: Step, factor: np.ndarray | None, state: RayState) -> bool:
         """Run the back end's composite stage on ``step`` in one compiled pass
         (:mod:`models.fused`) when the frame allows it; False: use the unit chain."""
-        kernel = self.rung.kernel
-        table = None if kernel is None else kernel.table(step.dt)
-        if table is None:
-            return False
-        kernel.run(step, factor, state, table)
-        return True
+        return run_compiled(self.rung.kernel, step, factor, state)
 
     def gradient(self, sel: np.ndarray) -> np.ndarray:
         rung, t = self.rung, self.taps

@@ -36,7 +36,7 @@ import numpy as np
 
 from hwsim.engine import Channel, Clock, Counters, DelayLine, Stage, VcdTrace, freezing_fifo
 from hwsim.golden.positions import SamplePlan, Step
-from models.backend import Backend
+from models.backend import Backend, run_compiled
 from models.machines.common.results import (
     UNITS,
     CycleResult,
@@ -106,12 +106,7 @@ class HardwareSource:
         """Run the back end's composite stage on ``step`` in one compiled pass
         (:mod:`models.machines.cube4.slice_kernel`) when the frame allows it; False: use
         the unit chain."""
-        kernel = self.m.kernel
-        table = None if kernel is None else kernel.table(step.dt)
-        if table is None:
-            return False
-        kernel.run(self, step, factor, state, table)
-        return True
+        return run_compiled(self.m.kernel, step, factor, state, self)
 
     def maybe_visible(self) -> np.ndarray | None:
         """False where every corner of a sample's cell classifies to opacity 0."""

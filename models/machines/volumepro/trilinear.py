@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hwsim.golden.positions import Step
+from models.backend import run_compiled
 from models.units import interp as interp_unit
 
 if TYPE_CHECKING:
@@ -72,12 +73,7 @@ class TrilinearSource:
         """Run the back end's composite stage on ``step`` in two compiled passes
         (:mod:`models.machines.volumepro.slab_kernel`) when the frame allows it; False:
         use the unit chain."""
-        kernel = self.m.kernel
-        table = None if kernel is None else kernel.table(step.dt)
-        if table is None:
-            return False
-        kernel.run(self, step, factor, state, table)
-        return True
+        return run_compiled(self.m.kernel, step, factor, state, self)
 
     def maybe_visible(self) -> np.ndarray | None:
         """False where every voxel of a sample's two cells classifies to opacity 0."""
