@@ -220,9 +220,7 @@ def _sources(features: Table) -> dict[str, str]:
 def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     """Validate parsed TOML into an :class:`ArchConfig`."""
     top = Table(data, source)
-    schema = top.integer("schema", SCHEMA)
-    if schema != SCHEMA:
-        raise top.error("schema", f"unsupported schema {schema}", str(SCHEMA))
+    top.schema(SCHEMA)
     p = top.table("pipeline", required=True)
     limits = top.table("limits")
     features = top.table("features")

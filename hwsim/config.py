@@ -158,6 +158,12 @@ class Table:
             raise self.error(name, "must not be the zero vector", "any non-zero [x, y, z]")
         return value
 
+    def schema(self, version: int) -> None:
+        """Read the ``schema`` key (absent: ``version``); any other version is refused."""
+        schema = self.integer("schema", version)
+        if schema != version:
+            raise self.error("schema", f"unsupported schema {schema}", str(version))
+
     def finish(self) -> None:
         """Refuse keys nobody asked for (typos must not pass silently)."""
         unknown = sorted(set(self.data) - self._seen)

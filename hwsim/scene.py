@@ -297,9 +297,7 @@ def load_scene(name_or_path: str | Path | None = None) -> Scene:
 def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "scene") -> Scene:
     """Validate parsed TOML into a :class:`Scene`."""
     top = Table(data, source)
-    schema = top.integer("schema", SCHEMA)
-    if schema != SCHEMA:
-        raise top.error("schema", f"unsupported schema {schema}", str(SCHEMA))
+    top.schema(SCHEMA)
     top.string("description", "")
     scene = Scene(
         name=top.string("name", name),

@@ -143,9 +143,7 @@ class Technology:
 
 def _parse(data: dict, source: str, base: Technology | None) -> Technology:
     top = Table(data, source)
-    schema = top.integer("schema", SCHEMA)
-    if schema != SCHEMA:
-        raise top.error("schema", f"unsupported schema {schema}", str(SCHEMA))
+    top.schema(SCHEMA)
     t = top.table("technology", required=True)
     name = t.string("name")
     node = t.number("node_nm", lo=1.0, hi=10000.0)

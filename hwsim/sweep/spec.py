@@ -97,9 +97,7 @@ def load_sweep(path: str | Path) -> Sweep:
 def parse_sweep(data: dict[str, Any], *, source: str, base_dir: str | Path) -> Sweep:
     """Validate parsed sweep TOML; every run is built once here so bad values fail early."""
     top = Table(data, source)
-    schema = top.integer("schema", SCHEMA)
-    if schema != SCHEMA:
-        raise top.error("schema", f"unsupported schema {schema}", str(SCHEMA))
+    top.schema(SCHEMA)
     table = top.table("sweep", required=True)
     top.finish()
     raw = dict(table.data)
