@@ -113,6 +113,14 @@ def cycle_and_transaction(scene, volume, arch):
     return exact, render_transaction(frame_of(scene, volume, tf, arch, plan))
 
 
+def within_contract(scene, volume, arch):
+    """:func:`cycle_and_transaction`, asserting the transaction rung's frame cycles are
+    within the contract of the cycle rung's."""
+    exact, approx = cycle_and_transaction(scene, volume, arch)
+    assert_within_contract(exact.cycles, approx.cycles)
+    return exact, approx
+
+
 def assert_identical(fixed, cycle, *, samples=True):
     """The cycle image is the functional image, bit for bit (and so are the sample counts
     where the machine counts samples the same way)."""

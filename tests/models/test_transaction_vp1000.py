@@ -75,8 +75,7 @@ def assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, arch):
 def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, projection, ert, leaping):
     volume = phantoms[phantom]
     scene = scene_of(phantom, image=volume.shape[0], ert=ert, projection=projection)
-    exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
-    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    exact, approx = rungs.within_contract(scene, volume, machine(leaping))
     rungs.assert_counters_equal(exact, approx, EXACT)
     assert np.array_equal(approx.image, exact.image)  # functional = cycle image
     assert memory_regime(exact.counters) == "unthrottled"
@@ -86,8 +85,7 @@ def test_cycles_within_the_contract_of_the_cycle_rung(phantoms, phantom, project
 @pytest.mark.parametrize("view", [(0, 0), (150, -30), (90, 45)])
 def test_other_views_within_the_contract(phantoms, view):
     scene = scene_of("head", *view, image=48, ert=0.95)
-    exact, approx = rungs.cycle_and_transaction(scene, phantoms["head"], machine(True))
-    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    exact, approx = rungs.within_contract(scene, phantoms["head"], machine(True))
     assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, phantoms["head"], machine(True))
 
 
@@ -122,8 +120,7 @@ def test_magnified_perspective_within_the_contract(case):
     The model counts each live sample's lane (its nearest voxel's module), so the stretch
     equals the cycle rung's; the memory stall is then compared with no allowance."""
     scene, volume, arch = magnified(case)
-    exact, approx = rungs.cycle_and_transaction(scene, volume, arch)
-    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    exact, approx = rungs.within_contract(scene, volume, arch)
     rungs.assert_counters_equal(exact, approx, EXACT)
     stretch = exact.counters["pipeline.slice_stretch_cycles"]
     assert stretch > 0 and approx.counters["pipelines.stretch_cycles"] == stretch
@@ -200,8 +197,7 @@ def test_memory_timing_equals_the_cycle_rungs_where_the_memory_sets_the_pace(pha
     arch = dataclasses.replace(arch, memory={**arch.memory, "modules": modules})
     scene = scene_of(image=40, **options)
     scene = scene.replace(render=dataclasses.replace(scene.render, supersampling=ss))
-    exact, approx = rungs.cycle_and_transaction(scene, volume, arch)
-    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    exact, approx = rungs.within_contract(scene, volume, arch)
     assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, arch)
 
 
@@ -300,8 +296,7 @@ def test_what_the_model_refuses(phantoms):
 def test_real_volumes_within_the_contract(shared_data, name, ert, leaping, projection):
     volume = read_volume(shared_data / name)
     scene = scene_of(image=64, ert=ert, projection=projection)
-    exact, approx = rungs.cycle_and_transaction(scene, volume, machine(leaping))
-    rungs.assert_within_contract(exact.cycles, approx.cycles)
+    exact, approx = rungs.within_contract(scene, volume, machine(leaping))
     rungs.assert_counters_equal(exact, approx, EXACT)
     assert memory_regime(exact.counters) in ("unthrottled", "backlogged")
     assert_memory_timing_is_the_cycle_rungs(exact, approx, scene, volume, machine(leaping))
