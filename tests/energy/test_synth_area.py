@@ -28,9 +28,6 @@ it is a strict xfail.
 
 from __future__ import annotations
 
-import os
-import shutil
-
 import pytest
 
 from hwsim.energy import load_technology
@@ -98,14 +95,6 @@ def _inventory(unit: str) -> list[Op]:
     return rtl_width_inventory(unit, machine_for(arch).silicon(arch, dp), params)
 
 
-def _need_yosys():
-    if shutil.which("yosys") is None:
-        reason = "yosys not on PATH (./dev test installs it)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(reason)
-        pytest.skip(reason)
-
-
 def test_every_stored_cell_has_a_gate_equivalent():
     for unit, entry in synthesised()["units"].items():
         assert gate_equivalents(entry["cells_by_type"]) > entry["flip_flops"] * 5, unit
@@ -164,12 +153,11 @@ def test_fmax_is_an_estimate_from_the_longest_path_at_the_nodes_gate_delay():
 
 
 @pytest.mark.synth
-def test_the_band_is_the_operators_price_ratio():
+def test_the_band_is_the_operators_price_ratio(yosys):
     """The premise of :data:`LOGIC_BAND`: every operator the inventories use, at their
     widths, priced by the table over Yosys' cells for it alone, lies in the band; adders
     below :data:`SMALL_ADDERS` bits may lie above it, and make under :data:`SMALL_SHARE`
     of every unit's listed logic."""
-    _need_yosys()
     tech = load_technology("cmos45")
     ops = {(op.kind, op.a, op.b) for u in UNITS for op in _inventory(u) if op.kind != "table"}
     ops |= {("add", 8, 0), ("add", 48, 0), ("mult", 8, 8), ("mult", 24, 24)}
@@ -190,12 +178,11 @@ def test_the_band_is_the_operators_price_ratio():
 
 @pytest.mark.synth
 @pytest.mark.parametrize("unit", UNITS)
-def test_what_the_inventory_lists_of_each_units_rtl(unit):
+def test_what_the_inventory_lists_of_each_units_rtl(unit, yosys):
     """Table logic / RTL logic = (the table's price over Yosys' for the listed operators)
     x (the listed operators built by Yosys over the unit's RTL logic).  The first is in
     the band for every unit; the second, the coverage, is as measured (:data:`COVERAGE`):
     ~1 where the inventory read from the model lists what the RTL builds."""
-    _need_yosys()
     syn = _synthesized(unit)
     listed = listed_gate_equivalents(_inventory(unit))
     tech = load_technology("cmos45")
@@ -208,8 +195,7 @@ def test_what_the_inventory_lists_of_each_units_rtl(unit):
 
 @pytest.mark.synth
 @pytest.mark.parametrize("unit", ["composite", "classify", "interp"])
-def test_the_stored_synthesis_is_what_yosys_makes_of_the_rtl(unit, tmp_path):
-    _need_yosys()
+def test_the_stored_synthesis_is_what_yosys_makes_of_the_rtl(unit, tmp_path, yosys):
     from rtl.build import build
 
     fresh = build([unit], tmp_path, {})["units"][unit]

@@ -2,8 +2,6 @@
 bit-width trade priced in gates (a narrower datapath has fewer cells)."""
 
 import json
-import os
-import shutil
 
 import pytest
 
@@ -13,16 +11,7 @@ from rtl.build import UNITS, build, parse_settings
 pytestmark = pytest.mark.synth
 
 
-def _require_yosys():
-    if shutil.which("yosys") is None:
-        reason = "yosys not on PATH (./dev test installs it)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(reason)
-        pytest.skip(reason)
-
-
-def test_build_all_writes_verilog_and_cells_for_every_unit(tmp_path, capsys):
-    _require_yosys()
+def test_build_all_writes_verilog_and_cells_for_every_unit(tmp_path, capsys, yosys):
     assert main(["rtl", "build", "all", "--out", str(tmp_path), "--quiet"]) == 0
     report = json.loads((tmp_path / "synth.json").read_text())
     assert report["schema"] == 1 and set(report["units"]) == set(UNITS)
@@ -42,8 +31,7 @@ def test_build_all_writes_verilog_and_cells_for_every_unit(tmp_path, capsys):
     ("unit", "key", "wide", "narrow"),
     [("interp", "weight_bits", 8, 4), ("skew", "max_size", 1024, 64)],
 )
-def test_a_narrower_width_costs_fewer_cells(tmp_path, unit, key, wide, narrow):
-    _require_yosys()
+def test_a_narrower_width_costs_fewer_cells(tmp_path, unit, key, wide, narrow, yosys):
     cells = {}
     for bits in (wide, narrow):
         report = build([unit], tmp_path / str(bits), parse_settings([f"{unit}.{key}={bits}"]))
