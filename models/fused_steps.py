@@ -50,7 +50,7 @@ from hwsim.threads import frame_threads
 from hwsim.threads import pool as thread_pool
 from models.backend import Backend, RayState
 
-__all__ = ["applies", "plan_positions", "run_steps_compiled"]
+__all__ = ["applies", "busiest_lanes", "plan_positions", "run_steps_compiled"]
 
 
 def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None) -> bool:
@@ -309,3 +309,13 @@ def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray, np.ndarr
         m = walk.step(j, alive)
         if m:
             yield j, walk.zyx[:m], walk.rays[:m]
+
+
+def busiest_lanes(plan: SamplePlan, pipelines: int, lanes_of) -> np.ndarray:
+    """Samples of the busiest of ``pipelines`` lanes at each step of ``plan``, every
+    planned sample counted (:func:`plan_positions`): ``lanes_of(zyx)``, the lanes of a
+    step's sample positions by the machine's lane rule."""
+    out = np.zeros(plan.n_steps, dtype=np.int64)
+    for j, zyx, _ in plan_positions(plan):
+        out[j] = np.bincount(lanes_of(zyx), minlength=pipelines).max()
+    return out

@@ -87,12 +87,12 @@ def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
     kp = plan.principal_axis
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
     shape = plan.volume.shape
-    out = np.zeros(plan.n_steps, dtype=np.int64)
-    for j, zyx, _ in fused_steps.plan_positions(plan):
+
+    def lanes_of(zyx: np.ndarray) -> np.ndarray:
         q = int(zyx[0, kp])  # every sample of a step lies on its slice
-        lanes = cube4_lanes(q, zyx[:, a_ax], zyx[:, b_ax], shape[a_ax], shape[b_ax], pipelines)
-        out[j] = np.bincount(lanes, minlength=pipelines).max()
-    return out
+        return cube4_lanes(q, zyx[:, a_ax], zyx[:, b_ax], shape[a_ax], shape[b_ax], pipelines)
+
+    return fused_steps.busiest_lanes(plan, pipelines, lanes_of)
 
 
 class Cube4Transaction:

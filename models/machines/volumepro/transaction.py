@@ -109,11 +109,9 @@ def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
 
     kp = plan.principal_axis
     axes = (kp, *(ax for ax in range(3) if ax != kp))
-    out = np.zeros(plan.n_steps, dtype=np.int64)
-    for j, zyx, _ in fused_steps.plan_positions(plan):
-        lanes = sample_lanes(zyx, axes, plan.volume.shape, pipelines)
-        out[j] = np.bincount(lanes, minlength=pipelines).max()
-    return out
+    return fused_steps.busiest_lanes(
+        plan, pipelines, lambda zyx: sample_lanes(zyx, axes, plan.volume.shape, pipelines)
+    )
 
 
 class SlabTransaction:
