@@ -25,6 +25,22 @@ from models.frame import frame_of
 from models.functional import render_functional
 from models.transaction import render_transaction
 
+#: Format overrides of the compiled-kernel tests (test_cycle_fused, test_functional_fused):
+#: a narrow interpolator rounding to nearest-even, and a wide datapath that truncates.
+NARROW_NEAREST_EVEN = {
+    "interp.weight_bits": 5,
+    "interp.rounding": "nearest-even",
+    "interp.sample_frac_bits": 2,
+}
+WIDE_TRUNCATE = {
+    "interp.weight_bits": 16,
+    "interp.sample_frac_bits": 12,
+    "interp.rounding": "truncate",
+    "gradient.normal_frac_bits": 4,
+    "composite.acc_frac_bits": 12,
+    "classify.entries": 256,
+}
+
 #: Issue 5: transaction cycle counts within 2 % of the cycle rung.
 CONTRACT = 0.02
 

@@ -18,6 +18,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
@@ -49,170 +50,94 @@ def _scene(az=30, el=20, size=32, transfer=None, **kw):
 MODULATED = TransferSpec(preset="ct", gradient_opacity=((100.0, 0.0), (1500.0, 1.0)))
 CUT = (CutPlane(normal=(0.3, 0.2, 1.0), offset=1.0, thickness=6, falloff=3),)
 
-#: (machine, changes to it, volume, scene, format overrides, faults); every one runs the
-#: kernel.
+
+def _case(arch, scene, volume="head", overrides=None, faults=None, **changes):
+    """(machine, changes to it, volume, scene, format overrides, faults)."""
+    return arch, changes, volume, scene, overrides or {}, faults
+
+
+#: :func:`_case` of each frame; every one runs the kernel.
 CASES = {
-    "cube4": ("cube4", {}, "head", _scene(), {}, None),
-    "cube4-axis": ("cube4", {}, "head", _scene(az=0, el=0), {}, None),
-    "cube4-45-45": ("cube4", {}, "head", _scene(az=45, el=45), {}, None),
-    "cube4-back": ("cube4", {}, "head", _scene(az=180, el=-35), {}, None),
-    "cube4-x-principal": ("cube4", {}, "head-z", _scene(az=95, el=-5), {}, None),
-    "cube4-anisotropic": ("cube4", {}, "head-z", _scene(az=-60, el=30), {}, None),
-    "cube4-modulated-ert": (
-        "cube4",
-        {},
-        "head",
-        _scene(transfer=MODULATED, render={"early_termination": 0.7}),
-        {},
-        None,
+    "cube4": _case("cube4", _scene()),
+    "cube4-axis": _case("cube4", _scene(az=0, el=0)),
+    "cube4-45-45": _case("cube4", _scene(az=45, el=45)),
+    "cube4-back": _case("cube4", _scene(az=180, el=-35)),
+    "cube4-x-principal": _case("cube4", _scene(az=95, el=-5), volume="head-z"),
+    "cube4-anisotropic": _case("cube4", _scene(az=-60, el=30), volume="head-z"),
+    "cube4-modulated-ert": _case(
+        "cube4", _scene(transfer=MODULATED, render={"early_termination": 0.7})
     ),
-    "cube4-crop-cut": (
+    "cube4-crop-cut": _case("cube4", _scene(crop=CropSpec(y=(4, 15), invert=True), cut_planes=CUT)),
+    "cube4-unlit": _case("cube4", _scene(render={"lighting": False})),
+    "cube4-two-lights": _case(
         "cube4",
-        {},
-        "head",
-        _scene(crop=CropSpec(y=(4, 15), invert=True), cut_planes=CUT),
-        {},
-        None,
-    ),
-    "cube4-unlit": ("cube4", {}, "head", _scene(render={"lighting": False}), {}, None),
-    "cube4-two-lights": (
-        "cube4",
-        {},
-        "head",
         _scene(lights=(Light(direction=(-0.4, 0.5, 1.0)), Light(direction=(0.7, -0.2, 0.5)))),
-        {},
-        None,
     ),
-    "cube4-P3": ("cube4", {"pipelines": 3}, "head", _scene(az=-25, el=15), {}, None),
-    "cube4-teramac": ("cube4-teramac", {}, "head", _scene(az=70, el=-20), {}, None),
-    "narrow-nearest-even": (
+    "cube4-P3": _case("cube4", _scene(az=-25, el=15), pipelines=3),
+    "cube4-teramac": _case("cube4-teramac", _scene(az=70, el=-20)),
+    "narrow-nearest-even": _case(
         "cube4",
-        {},
-        "head",
         _scene(az=-70, el=25),
-        {"interp.weight_bits": 5, "interp.rounding": "nearest-even", "interp.sample_frac_bits": 2},
-        None,
+        overrides=rungs.NARROW_NEAREST_EVEN,
     ),
-    "wide-truncate": (
+    "wide-truncate": _case(
         "cube4",
-        {},
-        "head",
         _scene(transfer=MODULATED),
-        {
-            "interp.weight_bits": 16,
-            "interp.sample_frac_bits": 12,
-            "interp.rounding": "truncate",
-            "gradient.normal_frac_bits": 4,
-            "composite.acc_frac_bits": 12,
-            "classify.entries": 256,
-        },
-        None,
+        overrides=rungs.WIDE_TRUNCATE,
     ),
-    "stuck-module": ("cube4", {}, "head", _scene(), {}, Faults(stuck_module=(1, 4095))),
-    "dropped-link": ("cube4", {}, "head", _scene(), {}, Faults(dropped_link=2)),
-    "dropped-handoff": ("cube4", {}, "head", _scene(), {}, Faults(dropped_handoff=0)),
-    "short-beam-fifo": ("cube4", {}, "head", _scene(), {}, Faults(beam_fifo_adjust=-1)),
-    "short-slice-fifo": ("cube4", {}, "head", _scene(), {}, Faults(slice_fifo_adjust=-1)),
-    "tiny-pixel-fifo": ("cube4", {}, "head", _scene(), {}, Faults(pixel_fifo_depth=1)),
+    "stuck-module": _case("cube4", _scene(), faults=Faults(stuck_module=(1, 4095))),
+    "dropped-link": _case("cube4", _scene(), faults=Faults(dropped_link=2)),
+    "dropped-handoff": _case("cube4", _scene(), faults=Faults(dropped_handoff=0)),
+    "short-beam-fifo": _case("cube4", _scene(), faults=Faults(beam_fifo_adjust=-1)),
+    "short-slice-fifo": _case("cube4", _scene(), faults=Faults(slice_fifo_adjust=-1)),
+    "tiny-pixel-fifo": _case("cube4", _scene(), faults=Faults(pixel_fifo_depth=1)),
 }
 
 
 #: The VolumePro family: trilinear samples, sample or voxel gradients, supersampling.
 SLAB_CASES = {
-    "vp500": ("volumepro500", {}, "head", _scene(), {}, None),
-    "vp500-axis": ("volumepro500", {}, "head", _scene(az=0, el=0), {}, None),
-    "vp500-45-45": ("volumepro500", {}, "head", _scene(az=45, el=45), {}, None),
-    "vp500-back": ("volumepro500", {}, "head", _scene(az=180, el=-35), {}, None),
-    "vp500-y-principal": ("volumepro500", {}, "head", _scene(az=10, el=80), {}, None),
-    "vp500-x-principal": ("volumepro500", {}, "head-z", _scene(az=95, el=-5), {}, None),
-    "vp500-anisotropic": ("volumepro500", {}, "head-z", _scene(az=-60, el=30), {}, None),
-    "vp500-modulated": ("volumepro500", {}, "head", _scene(transfer=MODULATED), {}, None),
-    "vp500-crop": (
-        "volumepro500",
-        {},
-        "head",
-        _scene(crop=CropSpec(y=(4, 15), invert=True)),
-        {},
-        None,
-    ),
-    "vp500-supersampled": (
-        "volumepro500",
-        {},
-        "head",
-        _scene(az=20, el=50, render={"supersampling": 2.0}),
-        {},
-        None,
+    "vp500": _case("volumepro500", _scene()),
+    "vp500-axis": _case("volumepro500", _scene(az=0, el=0)),
+    "vp500-45-45": _case("volumepro500", _scene(az=45, el=45)),
+    "vp500-back": _case("volumepro500", _scene(az=180, el=-35)),
+    "vp500-y-principal": _case("volumepro500", _scene(az=10, el=80)),
+    "vp500-x-principal": _case("volumepro500", _scene(az=95, el=-5), volume="head-z"),
+    "vp500-anisotropic": _case("volumepro500", _scene(az=-60, el=30), volume="head-z"),
+    "vp500-modulated": _case("volumepro500", _scene(transfer=MODULATED)),
+    "vp500-crop": _case("volumepro500", _scene(crop=CropSpec(y=(4, 15), invert=True))),
+    "vp500-supersampled": _case(
+        "volumepro500", _scene(az=20, el=50, render={"supersampling": 2.0})
     ),
     # Sample slices between voxel slices along each principal axis: the trilinear paths.
-    "vp500-supersampled-x": (
-        "volumepro500",
-        {},
-        "head-z",
-        _scene(az=95, el=-5, render={"supersampling": 2.0}),
-        {},
-        None,
+    "vp500-supersampled-x": _case(
+        "volumepro500", _scene(az=95, el=-5, render={"supersampling": 2.0}), volume="head-z"
     ),
-    "vp500-supersampled-y": (
-        "volumepro500",
-        {},
-        "head",
-        _scene(az=10, el=80, render={"supersampling": 2.0}),
-        {},
-        None,
+    "vp500-supersampled-y": _case(
+        "volumepro500", _scene(az=10, el=80, render={"supersampling": 2.0})
     ),
-    "vp1000-supersampled-x": (
-        "volumepro1000",
-        {},
-        "head-z",
-        _scene(az=95, el=-5, render={"supersampling": 2.0}),
-        {},
-        None,
+    "vp1000-supersampled-x": _case(
+        "volumepro1000", _scene(az=95, el=-5, render={"supersampling": 2.0}), volume="head-z"
     ),
-    "vp500-unlit": ("volumepro500", {}, "head", _scene(render={"lighting": False}), {}, None),
-    "vp500-narrow": (
+    "vp500-unlit": _case("volumepro500", _scene(render={"lighting": False})),
+    "vp500-narrow": _case(
         "volumepro500",
-        {},
-        "head",
         _scene(az=-70, el=25),
-        {"interp.weight_bits": 5, "interp.rounding": "nearest-even", "interp.sample_frac_bits": 2},
-        None,
+        overrides=rungs.NARROW_NEAREST_EVEN,
     ),
-    "em-cube": ("em-cube", {}, "head", _scene(az=100, el=10), {}, None),
-    "vp1000-voxel-gradients": ("volumepro1000", {}, "head", _scene(az=-20, el=60), {}, None),
-    "vp1000-x-principal": ("volumepro1000", {}, "head-z", _scene(az=95, el=-5), {}, None),
-    "vp1000-supersampled-cut": (
-        "volumepro1000",
-        {},
-        "head",
-        _scene(cut_planes=CUT, render={"supersampling": 3.0}),
-        {},
-        None,
+    "em-cube": _case("em-cube", _scene(az=100, el=10)),
+    "vp1000-voxel-gradients": _case("volumepro1000", _scene(az=-20, el=60)),
+    "vp1000-x-principal": _case("volumepro1000", _scene(az=95, el=-5), volume="head-z"),
+    "vp1000-supersampled-cut": _case(
+        "volumepro1000", _scene(cut_planes=CUT, render={"supersampling": 3.0})
     ),
-    "vp500-stuck-module": (
-        "volumepro500",
-        {},
-        "head",
-        _scene(),
-        {},
-        SlabFaults(stuck_module=(1, 4095)),
+    "vp500-stuck-module": _case(
+        "volumepro500", _scene(), faults=SlabFaults(stuck_module=(1, 4095))
     ),
-    "vp500-dropped-link": ("volumepro500", {}, "head", _scene(), {}, SlabFaults(dropped_link=2)),
-    "vp500-stuck-bank": (
-        "volumepro500",
-        {},
-        "head",
-        _scene(),
-        {},
-        SlabFaults(stuck_bank=(0, 1, 3000)),
-    ),
-    "vp500-lost-handoff": ("volumepro500", {}, "head", _scene(), {}, SlabFaults(dropped_handoff=1)),
-    "vp500-short-beam-fifo": (
-        "volumepro500",
-        {},
-        "head",
-        _scene(),
-        {},
-        SlabFaults(beam_fifo_adjust=-1),
+    "vp500-dropped-link": _case("volumepro500", _scene(), faults=SlabFaults(dropped_link=2)),
+    "vp500-stuck-bank": _case("volumepro500", _scene(), faults=SlabFaults(stuck_bank=(0, 1, 3000))),
+    "vp500-lost-handoff": _case("volumepro500", _scene(), faults=SlabFaults(dropped_handoff=1)),
+    "vp500-short-beam-fifo": _case(
+        "volumepro500", _scene(), faults=SlabFaults(beam_fifo_adjust=-1)
     ),
 }
 

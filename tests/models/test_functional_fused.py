@@ -20,6 +20,7 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
@@ -295,21 +296,13 @@ CASES = {
         "volumepro500",
         "head",
         _scene(az=-70, el=25),
-        {"interp.weight_bits": 5, "interp.rounding": "nearest-even", "interp.sample_frac_bits": 2},
+        rungs.NARROW_NEAREST_EVEN,
     ),
     "int64-lerps-truncate": (
         "volumepro500",
         "head",
         _scene(transfer=TransferSpec(preset="ct", gradient_opacity=GRADIENT_OPACITY)),
-        {
-            "interp.weight_bits": 16,
-            "interp.sample_frac_bits": 12,
-            "interp.rounding": "truncate",
-            "gradient.normal_frac_bits": 4,
-            "composite.acc_frac_bits": 12,
-            "classify.entries": 256,
-            "shade.spec_table_entries": 16,
-        },
+        {**rungs.WIDE_TRUNCATE, "shade.spec_table_entries": 16},
     ),
 }
 
