@@ -13,7 +13,6 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,6 +21,13 @@ from hwsim.arch import ArchConfig, load_arch_file
 from hwsim.budget import SAMPLE_ENV_VAR, require_fits, sample_budget
 from hwsim.errors import InputError, NotAvailableError
 from hwsim.machine_features import IDEAL, Algorithms, Extension, require_machine
+from hwsim.render_request import (  # noqa: F401  (re-exported: callers import them from here)
+    DEFAULT_ARCH,
+    FIDELITIES,
+    MAX_WORKERS,
+    SAMPLINGS,
+    RenderRequest,
+)
 from hwsim.scene import Scene
 from hwsim.supervolume import oversize, refuse_supervolume, render_bricks
 from hwsim.transfer import TransferFunction, resolve_transfer
@@ -31,22 +37,12 @@ from hwsim.volumes.volume import Volume
 __all__ = [
     "FIDELITIES",
     "SAMPLINGS",
+    "RenderRequest",
     "RenderRun",
     "render",
     "builtin_archs",
     "resolve_arch",
 ]
-
-FIDELITIES = ("golden", "functional", "transaction", "cycle", "rtl")
-#: Most workers (and bands) one frame is split across.
-MAX_WORKERS = 256
-#: The machine a timed rung models when no --arch is given.
-DEFAULT_ARCH = "volumepro500"
-SAMPLINGS = ("ray", "shear-warp", "shear-image", "slice-parallel")
-
-#: Pipeline units, in order; elaboration keeps only those a scene needs.
-
-Progress = Callable[[int, int], None]
 
 
 @dataclass(kw_only=True)
@@ -256,276 +252,266 @@ def check_work(scene: Scene, volume: Volume, *, whole_volume: bool = True) -> No
     require_fits(nbytes, what=f"a {scene.view.width}x{scene.view.height} frame", key="view")
 
 
-def render(
-    scene: Scene,
-    *,
-    fidelity: str = "golden",
-    arch: str | ArchConfig | None = None,
-    sampling: str = "ray",
-    volume: Volume | None = None,
-    progress: Progress | None = None,
-    trace: str | Path | None = None,
-    elaborate_all: bool = False,
-    steady_state: bool = False,
-    simulator: str | None = None,
-    extend: bool = False,
-    timing_only: bool = False,
-    technology: str | None = None,
-    workers: int | None = None,
-    scheduler: str | None = None,
-    bands: int | None = None,
-) -> RenderRun:
-    """Render ``scene`` at ``fidelity``.
+def render(scene: Scene, request: RenderRequest | None = None, **keywords: Any) -> RenderRun:
+    """Render ``scene`` as ``request`` asks, or as ``keywords`` do (the fields of
+    :class:`~hwsim.render_request.RenderRequest`, which says what each means; given both,
+    the keywords replace the request's fields): ``render(scene, fidelity="cycle",
+    arch="cube4")`` is ``render(scene, RenderRequest(fidelity="cycle", arch="cube4"))``.
 
-    Parameters
-    ----------
-    scene : Scene
-        The validated scene.
-    fidelity : str
-        One of :data:`FIDELITIES`.
-    arch : str or ArchConfig, optional
-        Architecture name, file or config (a sweep's overrides).  At the golden rung
-        it selects the machine's sample positions (so golden vs. a timed rung differs
-        only numerically).
-    sampling : str
-        Sample positions of the golden rung without ``arch``: the ideal ``ray`` caster
-        or an architecture's (``shear-warp``, ``shear-image``, ``slice-parallel``).
-    volume : Volume, optional
-        An already loaded volume (skips loading ``scene.volume``).
-    progress : callable, optional
-        ``progress(done, total)`` called as the render advances.
-    trace : path, optional
-        ``cycle`` and ``rtl`` rungs: write a VCD waveform of the modelled hardware there.
-    elaborate_all : bool
-        ``cycle`` rung only: simulate every unit, even those the scene does not use (the
-        reference that elision is measured against; same image and cycles).
-    steady_state : bool
-        ``cycle`` and ``transaction`` rungs, VolumePro family: also time the next frame
-        back to back (``frame.period_cycles`` in the counters: the continuous frame rate).
-    simulator : str, optional
-        ``rtl`` rung only: ``verilator`` (the default) or ``icarus``.
-    extend : bool
-        Render a scene outside the machine's declared features as a what-if (listed in
-        ``extensions``) instead of refusing it (:mod:`hwsim.machine_features`).
-    timing_only : bool
-        ``transaction`` rung only: time the frame without its image (``image`` is None;
-        :func:`models.transaction.timing_only`).
-    technology : str, optional
-        ``cycle`` and ``transaction`` rungs: price the frame's actions and the machine's
-        area in this technology (a built-in name or a TOML file; default: the machine's
-        ``[silicon] technology``), :mod:`hwsim.energy`.
-    workers, scheduler, bands : optional
-        ``cycle`` rung: split the frame across a local Dask cluster of ``workers``
-        processes, or the cluster at ``scheduler``, in ``bands`` bands of rays (default:
-        one per worker), reading the volume in parts (:mod:`hwsim.frame_split`); the same
-        image, cycles and counters as one process.  What the split did is ``split``.
+    The request is refused before any work if no rung renders it; then the machine, the
+    volume and the transfer function are resolved (:func:`_prepare`) and the first of
+    :data:`EXECUTIONS` that applies renders the frame.
     """
-    if fidelity not in FIDELITIES:
-        raise InputError(
-            f"unknown fidelity {fidelity!r}", key="--fidelity", allowed=", ".join(FIDELITIES)
-        )
-    if steady_state and fidelity not in ("cycle", "transaction"):
-        raise InputError(
-            "only the cycle and transaction rungs time back-to-back frames",
-            key="steady_state",
-            allowed="cycle, transaction",
-        )
-    if timing_only and fidelity != "transaction":
-        raise InputError(
-            "only the transaction rung times a frame without its image",
-            key="--timing-only",
-            allowed="--fidelity transaction",
-        )
-    if elaborate_all and fidelity != "cycle":
-        raise InputError("only the cycle rung elaborates units", key="elaborate_all")
-    if trace is not None and fidelity not in ("cycle", "rtl"):
-        raise InputError(
-            "a waveform needs --fidelity cycle or rtl", key="--trace", allowed="cycle, rtl"
-        )
-    if simulator is not None and fidelity != "rtl":
-        raise InputError(
-            "an HDL simulator runs the rtl rung only", key="--simulator", allowed="rtl"
-        )
-    split = workers is not None or scheduler is not None
-    if split:
-        _check_split(fidelity, volume, workers, scheduler, bands, elaborate_all, steady_state)
-    if arch is None and fidelity != "golden":
-        arch = DEFAULT_ARCH
-    if isinstance(arch, ArchConfig):
-        machine: ArchConfig | None = arch
-    else:
-        machine = resolve_arch(arch) if arch is not None else None
-    if technology is not None:  # a bad technology is refused before the frame is computed
-        from hwsim.energy import load_technology
-
-        load_technology(technology)
-    extensions = []
-    chosen = IDEAL  # the ideal renderer's shading (its gradients: the scene's, or voxel)
-    if machine is not None:
-        extensions = check_scene_fits(scene, machine, extend=extend)
-        chosen = algorithms(machine)
-        if scene.render.gradient is None:  # golden follows the machine's algorithm too
-            gradient = chosen.gradient
-            scene = scene.replace(render=dataclasses.replace(scene.render, gradient=gradient))
-        if sampling not in ("ray", machine.order):
-            raise InputError(
-                f"{machine.name} samples in {machine.order} order",
-                key="--sampling",
-                allowed=f"{machine.order} (or omit it)",
-            )
-        sampling = machine.order
-    if sampling not in SAMPLINGS:
-        raise InputError(
-            f"unknown sampling {sampling!r}", key="--sampling", allowed=", ".join(SAMPLINGS)
-        )
-    from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
-
-    if split:
-        from hwsim.volumes.parts import volume_parts
-
-        volume = volume_parts(scene.volume, scene.base_dir).volume()
-    elif volume is None:
-        volume = load_volume(scene.volume, scene.base_dir)
-    volume = value_path_volume(scene, volume, machine)
-    check_work(scene, volume, whole_volume=not split)
-    bricked = False
-    if machine is not None and oversize(volume, machine):
-        if not (machine.supervolumes or extend):
-            check_volume_fits(volume, machine)  # refuses, naming limits.max_volume
-        if not machine.supervolumes:
-            extensions.append(_supervolume_extension(volume, machine))
-        if fidelity != "golden":  # golden renders the whole volume at the machine's positions
-            refuse_supervolume(
-                scene,
-                machine,
-                fidelity,
-                trace=trace,
-                steady_state=steady_state,
-                elaborate_all=elaborate_all,
-            )
-            bricked = True
-    transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
-    used, elided = elaboration(scene, transfer)
-    cycles = clock = None
-    silicon = split_info = None
-    derived: dict[str, Any] = {}
-    if fidelity == "golden" and machine is not None:  # the machine's refusals hold here too
-        from models.frame import frame_of
-
-        check_family(frame_of(scene, volume, transfer, machine))
+    request = RenderRequest.of(request, **keywords)
+    job = _prepare(scene, request)
+    _, execute = choose_execution(job)
     start = time.perf_counter()
-    if fidelity == "golden":
-        maps = chosen.map_size if chosen.shading == "reflectance-map" else None
-        result = render_golden(
-            scene, volume, transfer, sampling=sampling, progress=progress, reflectance_map=maps
-        )
-        counters = {"golden.samples": int(result.samples), "golden.rays": int(result.rays)}
-    else:
-        from models.frame import frame_of
-
-        if timing_only and bricked:
-            raise InputError(
-                "a supervolume's host blend needs its bricks' images",
-                key="--timing-only",
-                allowed=f"a volume of at most {' x '.join(map(str, machine.max_volume))}",  # type: ignore[union-attr]
-            )
-        if timing_only:
-            from models.transaction import timing_only as time_frame
-
-            frame = frame_of(scene, volume, transfer, machine)
-            check_family(frame)
-            result = time_frame(frame, steady_state=steady_state)
-        elif split:
-            from hwsim.frame_split import split_frame
-
-            if bricked:
-                raise InputError(
-                    "a supervolume's bricks are frames of their own",
-                    key="--workers",
-                    allowed=f"a volume of at most {' x '.join(map(str, machine.max_volume))}",  # type: ignore[union-attr]
-                )
-            frame = frame_of(scene, volume, transfer, machine)
-            check_family(frame)
-            result, split_info = split_frame(
-                frame,
-                workers=workers,
-                scheduler=scheduler,
-                bands=bands,
-                progress=progress,
-                trace=trace is not None,
-            )
-        elif bricked:
-
-            def one_brick(frame):
-                return _render_machine(frame, fidelity, None, None, False, False, None)
-
-            result = render_bricks(scene, volume, transfer, machine, one_brick, frame_of, progress)
-        else:
-            frame = frame_of(scene, volume, transfer, machine)
-            result = _render_machine(
-                frame, fidelity, progress, trace, elaborate_all, steady_state, simulator
-            )
-        cycles, clock, counters = result.cycles, machine.clock_hz, result.counters
-        if fidelity in ("cycle", "transaction") or bricked:
-            derived = result.derived
-        if fidelity in ("cycle", "rtl"):
-            used, elided = result.elaborated_units, result.elided_units
-        if fidelity in ("cycle", "transaction") and not bricked:
-            from hwsim.energy import estimate_frame
-
-            silicon = estimate_frame(frame, counters, used, cycles, technology)
+    result, facts = execute(job)
     wall = time.perf_counter() - start
+    fields: dict[str, Any] = {
+        "elaborated_units": job.used,
+        "elided_units": job.elided,
+        **facts,
+    }
     return RenderRun(
-        scene=scene,
-        volume=volume,
-        transfer=transfer,
-        fidelity=fidelity,
-        arch=machine.name if machine else None,
-        sampling=sampling,
+        scene=job.scene,
+        volume=job.volume,
+        transfer=job.transfer,
+        fidelity=request.fidelity,
+        arch=job.machine.name if job.machine else None,
+        sampling=job.sampling,
         image=result.image,
         samples=int(result.samples),
         rays=int(result.rays),
         wall_seconds=wall,
-        cycles=cycles,
-        clock_hz=clock,
-        elaborated_units=used,
-        elided_units=elided,
-        counters=counters,
-        derived=derived,
-        extensions=[e.describe() for e in extensions],
-        shading=chosen.describe_shading() if scene.lit else None,
-        silicon=silicon,
-        split=split_info,
+        extensions=[e.describe() for e in job.extensions],
+        shading=job.chosen.describe_shading() if job.scene.lit else None,
+        **fields,
     )
 
 
-def _check_split(fidelity, volume, workers, scheduler, bands, elaborate_all, steady_state) -> None:
-    """Refuse, before any work, what a frame split across workers cannot be."""
-    if fidelity != "cycle":
-        raise InputError(
-            f"the {fidelity} rung renders a frame in one process",
-            key="--workers",
-            allowed="--fidelity cycle",
-        )
-    if workers is not None and scheduler is not None:
-        raise InputError(
-            "give a worker count or a scheduler, not both", key="--workers", allowed="one of them"
-        )
-    if workers is not None and not (isinstance(workers, int) and 1 <= workers <= MAX_WORKERS):
-        raise InputError(
-            f"{workers!r} is out of range", key="--workers", allowed=f"1 .. {MAX_WORKERS}"
-        )
-    if bands is not None and not (isinstance(bands, int) and 1 <= bands <= MAX_WORKERS):
-        raise InputError(f"{bands!r} is out of range", key="--bands", allowed=f"1 .. {MAX_WORKERS}")
-    if volume is not None:
-        raise InputError(
-            "a frame split across workers reads its volume in parts, not a loaded volume",
-            key="volume",
-            allowed="the scene's volume file or phantom",
-        )
-    for flag, given in (("--elaborate-all", elaborate_all), ("--steady-state", steady_state)):
-        if given:
-            raise InputError("renders in one process", key=flag, allowed="no --workers")
+@dataclass(frozen=True, kw_only=True)
+class RenderJob:
+    """A request resolved against its scene: the machine, the loaded volume and transfer
+    function, the sample order, and whether the volume is rendered in bricks."""
+
+    scene: Scene  # with the machine's gradient source where the scene names none
+    request: RenderRequest
+    machine: ArchConfig | None
+    chosen: Algorithms  # the machine's shading (or the ideal renderer's)
+    extensions: list[Extension]
+    sampling: str
+    volume: Volume
+    transfer: TransferFunction
+    used: list[str]
+    elided: list[str]
+    bricked: bool
+
+    def frame(self):
+        """The :class:`models.frame.Frame` of the whole volume on the machine."""
+        from models.frame import frame_of
+
+        return frame_of(self.scene, self.volume, self.transfer, self.machine)
+
+
+def _prepare(scene: Scene, request: RenderRequest) -> RenderJob:
+    """Resolve ``request`` for ``scene``, refusing (before any rendering) what the
+    machine, the technology, the sample order or the volume rule out."""
+    wanted = request.machine
+    if isinstance(wanted, ArchConfig):
+        machine: ArchConfig | None = wanted
+    else:
+        machine = resolve_arch(wanted) if wanted is not None else None
+    if request.technology is not None:  # a bad technology is refused before the frame
+        from hwsim.energy import load_technology
+
+        load_technology(request.technology)
+    extensions = []
+    chosen = IDEAL  # the ideal renderer's shading (its gradients: the scene's, or voxel)
+    if machine is not None:
+        extensions = check_scene_fits(scene, machine, extend=request.extend)
+        chosen = algorithms(machine)
+        if scene.render.gradient is None:  # golden follows the machine's algorithm too
+            gradient = chosen.gradient
+            scene = scene.replace(render=dataclasses.replace(scene.render, gradient=gradient))
+    sampling = request.refuse_order(machine)
+    volume = _load_volume(scene, request, machine)
+    bricked = _bricks_of(scene, request, machine, volume, extensions)
+    transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
+    used, elided = elaboration(scene, transfer)
+    return RenderJob(
+        scene=scene,
+        request=request,
+        machine=machine,
+        chosen=chosen,
+        extensions=extensions,
+        sampling=sampling,
+        volume=volume,
+        transfer=transfer,
+        used=used,
+        elided=elided,
+        bricked=bricked,
+    )
+
+
+def _load_volume(scene: Scene, request: RenderRequest, machine: ArchConfig | None) -> Volume:
+    """The volume the value path reads, refused if the frame is over the budgets."""
+    if request.split:
+        from hwsim.volumes.parts import volume_parts
+
+        volume = volume_parts(scene.volume, scene.base_dir).volume()
+    elif request.volume is None:
+        volume = load_volume(scene.volume, scene.base_dir)
+    else:
+        volume = request.volume
+    volume = value_path_volume(scene, volume, machine)
+    check_work(scene, volume, whole_volume=not request.split)
+    return volume
+
+
+def _bricks_of(
+    scene: Scene,
+    request: RenderRequest,
+    machine: ArchConfig | None,
+    volume: Volume,
+    extensions: list[Extension],
+) -> bool:
+    """Whether ``volume`` is rendered in bricks (a supervolume over the machine's
+    ``max_volume``); refuses what the bricks cannot model, and lists the what-if."""
+    if machine is None or not oversize(volume, machine):
+        return False
+    if not (machine.supervolumes or request.extend):
+        check_volume_fits(volume, machine)  # refuses, naming limits.max_volume
+    if not machine.supervolumes:
+        extensions.append(_supervolume_extension(volume, machine))
+    if request.fidelity == "golden":  # the whole volume at the machine's positions
+        return False
+    refuse_supervolume(
+        scene,
+        machine,
+        request.fidelity,
+        trace=request.trace,
+        steady_state=request.steady_state,
+        elaborate_all=request.elaborate_all,
+    )
+    request.refuse_bricks(machine)
+    return True
+
+
+#: What an execution returns: the rung's result (image, samples, rays) and the
+#: :class:`RenderRun` fields it sets beyond those every render has.
+Executed = tuple[Any, dict[str, Any]]
+
+
+def _golden(job: RenderJob) -> Executed:
+    """The golden rung, at the machine's sample positions and shading if one is named
+    (after the machine's own refusals)."""
+    from hwsim.golden import render_golden  # deferred: keeps `hwsim scenes` fast
+
+    if job.machine is not None:
+        check_family(job.frame())
+    chosen = job.chosen
+    maps = chosen.map_size if chosen.shading == "reflectance-map" else None
+    result = render_golden(
+        job.scene,
+        job.volume,
+        job.transfer,
+        sampling=job.sampling,
+        progress=job.request.progress,
+        reflectance_map=maps,
+    )
+    counters = {"golden.samples": int(result.samples), "golden.rays": int(result.rays)}
+    return result, {"counters": counters}
+
+
+def _timing_only(job: RenderJob) -> Executed:
+    """The transaction rung's timing without the image."""
+    from models.transaction import timing_only as time_frame
+
+    frame = job.frame()
+    check_family(frame)
+    result = time_frame(frame, steady_state=job.request.steady_state)
+    return result, _machine_facts(job, result, frame)
+
+
+def _split(job: RenderJob) -> Executed:
+    """The cycle rung, one band of rays per task across workers."""
+    from hwsim.frame_split import split_frame
+
+    request = job.request
+    frame = job.frame()
+    check_family(frame)
+    result, split = split_frame(
+        frame,
+        workers=request.workers,
+        scheduler=request.scheduler,
+        bands=request.bands,
+        progress=request.progress,
+        trace=request.trace is not None,
+    )
+    return result, {**_machine_facts(job, result, frame), "split": split}
+
+
+def _bricks(job: RenderJob) -> Executed:
+    """A supervolume: each brick a frame of the rung, blended as the host did."""
+    from models.frame import frame_of
+
+    plain = RenderRequest(fidelity=job.request.fidelity)  # a brick: no trace, no progress
+
+    def one_brick(frame):
+        return _render_machine(frame, plain)
+
+    result = render_bricks(
+        job.scene, job.volume, job.transfer, job.machine, one_brick, frame_of, job.request.progress
+    )
+    return result, _machine_facts(job, result, None)
+
+
+def _one_process(job: RenderJob) -> Executed:
+    """A machine rung (functional, transaction, cycle, rtl) in this process."""
+    frame = job.frame()
+    result = _render_machine(frame, job.request)
+    return result, _machine_facts(job, result, frame)
+
+
+def _machine_facts(job: RenderJob, result, frame) -> dict[str, Any]:
+    """What a machine rung's ``result`` sets: cycles, clock and counters; derived figures
+    (timed rungs, bricks); the units simulated (cycle, rtl); energy and area (timed
+    rungs, one frame of the whole volume)."""
+    fidelity = job.request.fidelity
+    facts: dict[str, Any] = {
+        "cycles": result.cycles,
+        "clock_hz": job.machine.clock_hz,  # type: ignore[union-attr]
+        "counters": result.counters,
+    }
+    if fidelity in ("cycle", "transaction") or job.bricked:
+        facts["derived"] = result.derived
+    used = job.used
+    if fidelity in ("cycle", "rtl"):
+        used = facts["elaborated_units"] = result.elaborated_units
+        facts["elided_units"] = result.elided_units
+    if fidelity in ("cycle", "transaction") and not job.bricked:
+        from hwsim.energy import estimate_frame
+
+        technology = job.request.technology
+        facts["silicon"] = estimate_frame(frame, result.counters, used, result.cycles, technology)
+    return facts
+
+
+#: How a frame is executed: the first entry whose test holds for the job renders it.  A
+#: new way of executing a frame is a function and an entry here, not a branch in render.
+EXECUTIONS: tuple[tuple[str, Callable[[RenderJob], bool], Callable[[RenderJob], Executed]], ...] = (
+    ("golden", lambda job: job.request.fidelity == "golden", _golden),
+    ("timing-only", lambda job: job.request.timing_only, _timing_only),
+    ("split", lambda job: job.request.split, _split),
+    ("bricks", lambda job: job.bricked, _bricks),
+    ("one process", lambda job: True, _one_process),
+)
+
+
+def choose_execution(job: RenderJob) -> tuple[str, Callable[[RenderJob], Executed]]:
+    """The name and function of the first of :data:`EXECUTIONS` that applies to ``job``."""
+    return next((name, run) for name, applies, run in EXECUTIONS if applies(job))
 
 
 def check_family(frame) -> None:
@@ -541,10 +527,11 @@ def check_family(frame) -> None:
         family.check_frame(frame)
 
 
-def _render_machine(frame, fidelity, progress, trace, elaborate_all, steady_state, simulator):
-    """``frame`` at ``fidelity``, one of the machine rungs (imported on use: each pulls in
-    its models), after the family's own refusals (the same for every rung)."""
+def _render_machine(frame, request: RenderRequest):
+    """``frame`` at ``request.fidelity``, one of the machine rungs (imported on use: each
+    pulls in its models), after the family's own refusals (the same for every rung)."""
     check_family(frame)
+    fidelity, progress, trace = request.fidelity, request.progress, request.trace
     if fidelity == "cycle":
         from models.cycle import render_cycle
 
@@ -552,17 +539,17 @@ def _render_machine(frame, fidelity, progress, trace, elaborate_all, steady_stat
             frame,
             trace=trace,
             progress=progress,
-            elaborate_all=elaborate_all,
-            steady_state=steady_state,
+            elaborate_all=request.elaborate_all,
+            steady_state=request.steady_state,
         )
     if fidelity == "transaction":
         from models.transaction import render_transaction
 
-        return render_transaction(frame, progress=progress, steady_state=steady_state)
+        return render_transaction(frame, progress=progress, steady_state=request.steady_state)
     if fidelity == "rtl":
         from rtl.rung import render_rtl
 
-        return render_rtl(frame, simulator=simulator or "verilator", trace=trace)
+        return render_rtl(frame, simulator=request.simulator or "verilator", trace=trace)
     from models.functional import render_functional
 
     return render_functional(frame, progress=progress)
