@@ -26,6 +26,8 @@ counters.
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -137,14 +139,10 @@ def _corners(plane, row, wa, wb, w_bits, w_code):
     )
 
 
-_KERNEL = None
-
-
+@functools.cache
 def _kernel():
-    global _KERNEL
-    if _KERNEL is None:
-        _KERNEL = _make_kernel(STAGE_HASH)
-    return _KERNEL
+    """The compiled kernel(s), made once per process on first use."""
+    return _make_kernel(STAGE_HASH)
 
 
 class SliceKernel(StageConstants):

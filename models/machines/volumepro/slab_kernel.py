@@ -27,6 +27,8 @@ integers.  Scope: :func:`models.fused_stage.eligible`, steps with an opacity-cor
 
 from __future__ import annotations
 
+import functools
+
 import numba
 import numpy as np
 
@@ -184,14 +186,10 @@ def _make_kernels(stage_hash: str):
     return jit(values), jit(finish)
 
 
-_KERNELS = None
-
-
+@functools.cache
 def _kernels():
-    global _KERNELS
-    if _KERNELS is None:
-        _KERNELS = _make_kernels(STAGE_HASH)
-    return _KERNELS
+    """The compiled kernel(s), made once per process on first use."""
+    return _make_kernels(STAGE_HASH)
 
 
 class SlabKernel(StageConstants):
