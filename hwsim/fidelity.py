@@ -4,7 +4,10 @@
 requested rung and returns a :class:`RenderRun` holding the image and the raw numbers
 ``stats.json`` is written from.  A rung that does not model the machine (no family in
 the registry, ``models.machines``, has it at that rung) raises
-:class:`~hwsim.errors.NotAvailableError` (exit status 2 at the CLI).
+:class:`~hwsim.errors.NotAvailableError` (exit status 2 at the CLI).  The options are one
+:class:`~hwsim.render_request.RenderRequest` (or its fields as keywords), refused when it
+is made; :data:`EXECUTIONS` chooses how the frame runs (golden, one process, timing only,
+split across workers, bricks of a supervolume).
 """
 
 from __future__ import annotations
