@@ -199,6 +199,24 @@ def _fitted_from(
     return tuple(value)
 
 
+def _labels(
+    evidence: str,
+    arch_keys: set[str] | None,
+    fitted_from: tuple[Table, str],
+    tolerance: tuple[Table, str],
+    note: tuple[Table, str],
+) -> dict[str, Any]:
+    """A figure's ``fitted_from``, ``tolerance`` and ``note``, each read from its
+    ``(table, key)``: the figure's own table (``[[published.measured]]``) or the file's
+    label table keyed by the figure (a headline figure)."""
+    (tol_t, tol_key), (note_t, note_key) = tolerance, note
+    return {
+        "fitted_from": _fitted_from(*fitted_from, evidence, arch_keys),
+        "tolerance": tol_t.number(tol_key, None, 0.0, 10.0) if tol_t.has(tol_key) else None,
+        "note": note_t.string(note_key, ""),
+    }
+
+
 def _check_label(
     table: Table, name: str, fig: PublishedFigure, peak: float | None
 ) -> PublishedFigure:
@@ -253,9 +271,7 @@ def _measured(
         metric=metric,
         scenario=scenario,
         evidence=evidence,
-        fitted_from=_fitted_from(t, "fitted_from", evidence, arch_keys),
-        tolerance=t.number("tolerance", None, 0.0, 10.0) if t.has("tolerance") else None,
-        note=t.string("note", ""),
+        **_labels(evidence, arch_keys, (t, "fitted_from"), (t, "tolerance"), (t, "note")),
         source=t.string("source"),
         kind=t.choice("kind", ("measured", "simulated", "stated")),
     )
@@ -301,15 +317,9 @@ def parse_published(
         metric, scenario = parsed
         value = top.number(key, lo=0.0, lo_open=True)
         evidence = evidence_t.choice(key, EVIDENCE)
+        labels = _labels(evidence, arch_keys, (fitted_t, key), (tolerance, key), (notes, key))
         fig = PublishedFigure(
-            key=key,
-            value=value,
-            metric=metric,
-            scenario=scenario,
-            evidence=evidence,
-            fitted_from=_fitted_from(fitted_t, key, evidence, arch_keys),
-            tolerance=tolerance.number(key, None, 0.0, 10.0) if tolerance.has(key) else None,
-            note=notes.string(key, ""),
+            key=key, value=value, metric=metric, scenario=scenario, evidence=evidence, **labels
         )
         out.append(_check_label(evidence_t, key, fig, peak_samples_per_second))
     keys = {f.key for f in out}
