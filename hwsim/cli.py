@@ -29,11 +29,16 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from hwsim.fidelity import FIDELITIES, SAMPLINGS
-
     parser = _Parser(prog="hwsim", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=_version())
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add_subparser in _SUBPARSERS:
+        add_subparser(sub)
+    return parser
+
+
+def _add_render_parser(sub) -> None:
+    from hwsim.fidelity import FIDELITIES, SAMPLINGS
 
     r = sub.add_parser("render", help="render a scene at a fidelity; writes image + stats.json")
     add_scene_options(r)
@@ -76,6 +81,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="cycle and transaction rungs: price energy and area in this technology "
         "(cmos45, cmos250, cmos350 or a file; default: the machine's era node)",
     )
+    _add_render_cluster_options(r)
+    _add_render_output_options(r)
+
+
+def _add_render_cluster_options(r: argparse.ArgumentParser) -> None:
+    """render's split-frame options: a local or remote Dask cluster, cut into bands."""
     r.add_argument(
         "--workers",
         type=int,
@@ -96,6 +107,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --workers/--scheduler: bands of rays the frame is cut into (default: "
         "one per worker)",
     )
+
+
+def _add_render_output_options(r: argparse.ArgumentParser) -> None:
+    """render's options for what is written: timing only, a turntable, the folder."""
     r.add_argument(
         "--timing-only",
         action="store_true",
@@ -120,12 +135,18 @@ def build_parser() -> argparse.ArgumentParser:
     _add_max_memory(r)
     r.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
+
+def _add_convert_parser(sub) -> None:
     c = sub.add_parser(
         "convert", help="rewrite a volume uncompressed (.nrrd or .npy): readable in parts"
     )
     c.add_argument("volume", metavar="IN", help="volume file or DICOM folder")
     c.add_argument("out", metavar="OUT", help="OUT.nrrd (raw, keeps spacing and units) or .npy")
     _add_max_memory(c)
+
+
+def _add_listing_parsers(sub) -> None:
+    """The listings: scenes, phantoms, archs."""
     sub.add_parser("scenes", help="list built-in scenes")
     sub.add_parser("phantoms", help="list built-in phantoms and their parameters")
     a = sub.add_parser("archs", help="list built-in architectures")
@@ -134,6 +155,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="each machine's declared features and their sources",
     )
+
+
+def _add_trade_parser(sub) -> None:
     t = sub.add_parser("trade", help="measure the fidelity ladder (speed vs error), or --widths")
     t.add_argument(
         "--widths",
@@ -156,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--out", metavar="DIR", required=True)
     _add_max_memory(t)
     t.add_argument("--quiet", action="store_true")
+
+
+def _add_sweep_parser(sub) -> None:
     w = sub.add_parser("sweep", help="design-space sweep on Dask; rows in SQLite")
     w.add_argument("file", metavar="SWEEP.toml", help="sweep file (docs/sweeps.md)")
     where = w.add_mutually_exclusive_group()
@@ -166,11 +193,17 @@ def build_parser() -> argparse.ArgumentParser:
     w.add_argument("--retry-failed", action="store_true", help="rerun runs recorded as failed")
     _add_max_memory(w)
     w.add_argument("--quiet", action="store_true")
+
+
+def _add_report_parser(sub) -> None:
     rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
     runs_help = "render, sweep --out or trade folders, or a sweep's runs.db"
     rp.add_argument("runs", metavar="RUN_DIR", nargs="+", help=runs_help)
     rp.add_argument("--out", metavar="DIR", required=True)
     rp.add_argument("--quiet", action="store_true")
+
+
+def _add_figures_parser(sub) -> None:
     f = sub.add_parser("figures", help="published figures of each machine vs every timing rung")
     _add_repeatable(
         f, "--arch", "NAME|FILE.toml", "machines (default every built-in with [published] figures)"
@@ -182,6 +215,9 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", metavar="DIR", required=True, help="writes figures.json/.csv/.md")
     _add_max_memory(f)
     f.add_argument("--quiet", action="store_true")
+
+
+def _add_bench_parser(sub) -> None:
     b = sub.add_parser("bench", help="speed of every rung and the goal ratios, as JSON")
     b.add_argument("--size", metavar="N", type=int, default=64, help="head phantom side (64)")
     b.add_argument("--image", metavar="N", type=int, default=128, help="image side (128)")
@@ -193,6 +229,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="skip the Dask ratios: the 1 vs 2 worker sweep and split frame",
     )
+    _add_bench_table_options(b)
+    b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
+    b.add_argument("--quiet", action="store_true")
+
+
+def _add_bench_table_options(b: argparse.ArgumentParser) -> None:
+    """bench's speed-table options: which rows, at which volume sides."""
     b.add_argument(
         "--rows",
         metavar="ROW",
@@ -219,8 +262,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="head phantom side of the rtl row and cycle_vs_rtl (64; the first run of a size "
         "class builds its Verilator model, minutes)",
     )
-    b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
-    b.add_argument("--quiet", action="store_true")
+
+
+def _add_rtl_parsers(sub) -> None:
+    """rtl's own subcommands (rtl.cli) and its diff against the cycle rung."""
     from rtl.cli import add_parser as add_rtl_parser
 
     rtl_actions = add_rtl_parser(sub)
@@ -232,7 +277,20 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--arch", metavar="NAME|FILE.toml", default="cube4")
     d.add_argument("--simulator", choices=("verilator", "icarus"), default="verilator")
     d.add_argument("--quiet", action="store_true")
-    return parser
+
+
+# One builder per subcommand, in the order ``hwsim --help`` lists them.
+_SUBPARSERS = (
+    _add_render_parser,
+    _add_convert_parser,
+    _add_listing_parsers,
+    _add_trade_parser,
+    _add_sweep_parser,
+    _add_report_parser,
+    _add_figures_parser,
+    _add_bench_parser,
+    _add_rtl_parsers,
+)
 
 
 def _add_repeatable(parser: argparse.ArgumentParser, flag: str, metavar: str, what: str) -> None:
