@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from hwsim.cli_progress import progress_bar
 from hwsim.cli_scene import apply_overrides
 from hwsim.errors import InputError
 from hwsim.threads import using as using_threads
+
+if TYPE_CHECKING:
+    from hwsim.scene import Scene
 
 __all__ = ["DEFAULT_RENDER_OUT", "cmd_render", "cmd_convert"]
 
@@ -37,6 +41,21 @@ def _render_command(args: argparse.Namespace) -> int:
     output_folder(out_dir)  # every output checked before the work starts
     if args.trace:
         output_file(args.trace, "--trace")
+    options = _render_options(args)
+    if args.frames != 1 or args.turn is not None:
+        _check_turntable(args, options)
+        return _turntable(scene, args, out_dir, options)
+    with progress_bar(args.quiet, "render") as progress:
+        run = render(scene, progress=progress, **options)
+    paths = write_render(run, out_dir)
+    if not args.quiet:
+        _print_render(scene, run, paths, replacing)
+    return 0
+
+
+def _render_options(args: argparse.Namespace) -> dict[str, Any]:
+    """``render``'s keyword arguments from the command line (the split-frame ones only
+    with ``--workers`` or ``--scheduler``)."""
     options = {
         "fidelity": args.fidelity,
         "arch": args.arch,
@@ -53,64 +72,66 @@ def _render_command(args: argparse.Namespace) -> int:
         raise InputError(
             "cuts a frame split across workers", key="--bands", allowed="with --workers"
         )
-    if args.frames != 1 or args.turn is not None:
-        if "workers" in options:
-            raise InputError(
-                "a turntable renders its frames one after another in this process",
-                key="--workers",
-                allowed="one frame (no --frames or --turn)",
-            )
-        if args.timing_only:
-            raise InputError(
-                "a turntable writes its frames' images",
-                key="--timing-only",
-                allowed="one frame (no --frames or --turn)",
-            )
-        return _turntable(scene, args, out_dir, options)
-    with progress_bar(args.quiet, "render") as progress:
-        run = render(scene, progress=progress, **options)
-    paths = write_render(run, out_dir)
-    if not args.quiet:
-        for e in run.extensions:
-            print(f"  what-if: {e['asked']} ({e['feature']}; {run.arch} has {e['machine']})")
-        vol = run.volume
-        image = "timed without its image"
-        if run.image is not None:
-            image = f"image {run.image.shape[1]}x{run.image.shape[0]}"
-        print(
-            f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
-            f"{scene.render.mode}, {run.fidelity}/{run.sampling}, {image}"
+    return options
+
+
+def _check_turntable(args: argparse.Namespace, options: dict[str, Any]) -> None:
+    """A turntable renders whole frames in this process: no split frame, no timing only."""
+    if "workers" in options:
+        raise InputError(
+            "a turntable renders its frames one after another in this process",
+            key="--workers",
+            allowed="one frame (no --frames or --turn)",
         )
-        print(
-            f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
-            f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"
+    if args.timing_only:
+        raise InputError(
+            "a turntable writes its frames' images",
+            key="--timing-only",
+            allowed="one frame (no --frames or --turn)",
         )
-        if run.cycles is not None:
-            fps = run.clock_hz / run.cycles if run.cycles else 0.0
-            print(
-                f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
-                f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
-                f"{run.samples / run.cycles:.2f} samples/cycle"
-            )
-        if run.split is not None:
-            peaks = [b["peak_rss_bytes"] for b in run.split["bands"]]
-            print(
-                f"  split across {run.split['workers']} workers in {len(peaks)} bands: peak "
-                f"memory {max(peaks) / 2**30:.2f} GB per worker, "
-                f"{run.split['driver_peak_rss_bytes'] / 2**30:.2f} GB here"
-            )
-        if run.silicon is not None:
-            e, a = run.silicon["energy"], run.silicon["area"]
-            watts = f", {e['average_watts']:.2f} W at this frame rate" if e["average_watts"] else ""
-            print(
-                f"  energy {e['total_joules'] * 1e3:.3f} mJ/frame "
-                f"({(e['per_sample_joules'] or 0) * 1e9:.2f} nJ/sample{watts}), area "
-                f"{a['total_mm2']:.1f} mm^2 in {run.silicon['technology']['name']}"
-            )
-        note = " (no --out given: replaced the previous render there)" if replacing else ""
-        names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
-        print(f"  wrote {', '.join([*names, str(paths['stats'].name)])}{note}")
-    return 0
+
+
+def _print_render(scene: Scene, run: Any, paths: dict[str, Path], replacing: bool) -> None:
+    """The summary of one rendered frame: what, how fast, and where it was written."""
+    for e in run.extensions:
+        print(f"  what-if: {e['asked']} ({e['feature']}; {run.arch} has {e['machine']})")
+    vol = run.volume
+    image = "timed without its image"
+    if run.image is not None:
+        image = f"image {run.image.shape[1]}x{run.image.shape[0]}"
+    print(
+        f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
+        f"{scene.render.mode}, {run.fidelity}/{run.sampling}, {image}"
+    )
+    print(
+        f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
+        f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"
+    )
+    if run.cycles is not None:
+        fps = run.clock_hz / run.cycles if run.cycles else 0.0
+        print(
+            f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
+            f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
+            f"{run.samples / run.cycles:.2f} samples/cycle"
+        )
+    if run.split is not None:
+        peaks = [b["peak_rss_bytes"] for b in run.split["bands"]]
+        print(
+            f"  split across {run.split['workers']} workers in {len(peaks)} bands: peak "
+            f"memory {max(peaks) / 2**30:.2f} GB per worker, "
+            f"{run.split['driver_peak_rss_bytes'] / 2**30:.2f} GB here"
+        )
+    if run.silicon is not None:
+        e, a = run.silicon["energy"], run.silicon["area"]
+        watts = f", {e['average_watts']:.2f} W at this frame rate" if e["average_watts"] else ""
+        print(
+            f"  energy {e['total_joules'] * 1e3:.3f} mJ/frame "
+            f"({(e['per_sample_joules'] or 0) * 1e9:.2f} nJ/sample{watts}), area "
+            f"{a['total_mm2']:.1f} mm^2 in {run.silicon['technology']['name']}"
+        )
+    note = " (no --out given: replaced the previous render there)" if replacing else ""
+    names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
+    print(f"  wrote {', '.join([*names, str(paths['stats'].name)])}{note}")
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
