@@ -224,9 +224,6 @@ def measure_figures(
     ``progress(done, total, what)`` counts voxels of the planned renders (a render's
     work grows with its voxels), advancing within each render as it reports.
     """
-    from hwsim.fidelity import render, times_back_to_back
-    from hwsim.volumes import load_volume
-
     unknown = [r for r in rungs if r not in TIMING_RUNGS]
     if unknown:
         raise InputError(
@@ -235,15 +232,11 @@ def measure_figures(
     rows: list[FigureRow] = []
     volumes: dict[int, Any] = {}
     plans = {arch.name: published_figures(arch) for arch in archs}
-
-    def measurable(arch: ArchConfig, size: int) -> bool:
-        return size <= max_size and (arch.supervolumes or size <= max(arch.max_volume))
-
     total = sum(
         scenario.voxels * len(rungs)
         for arch in archs
         for scenario in dict.fromkeys(f.scenario for f in plans[arch.name])
-        if measurable(arch, max(scenario.volume))
+        if _measurable(arch, max(scenario.volume), max_size)
     )
     done = 0
     for arch in archs:
@@ -251,97 +244,133 @@ def measure_figures(
         for rung in rungs:
             runs: dict[Scenario, Any] = {}
             for fig in plans[arch.name]:
-                key, value, size, scenario = fig.key, fig.value, fig.size, fig.scenario
-                row = FigureRow(
-                    arch.name,
-                    key,
-                    value,
-                    size,
-                    rung,
-                    "ok",
-                    tolerance=fig.tolerance,
-                    note=fig.note,
-                    evidence=fig.evidence,
-                    metric=fig.metric,
-                    fitted_from=list(fig.fitted_from),
-                    scenario=scenario.text(),
-                    kind=fig.kind,
-                    source=fig.source,
-                )
+                row = _planned_row(arch, rung, fig)
                 rows.append(row)
-                if not measurable(arch, size):
+                if not _measurable(arch, fig.size, max_size):
                     row.status = "skipped"
                     why = (
-                        f"{size}^3 > --max-size {max_size}"
-                        if size > max_size
-                        else f"{size}^3 exceeds limits.max_volume"
+                        f"{fig.size}^3 > --max-size {max_size}"
+                        if fig.size > max_size
+                        else f"{fig.size}^3 exceeds limits.max_volume"
                     )
                     row.note = "; ".join(filter(None, [why, row.note]))
                     continue
-                if scenario not in runs:
-                    what = f"{arch.name} {rung} {scenario.text()}"
-                    if progress is not None:
-                        progress(done, total, what)
-
-                    def advance(d: int, t: int, base=done, work=scenario.voxels, what=what):
-                        if progress is not None and t:
-                            progress(base + work * min(d, t) // t, total, what)
-
-                    scene = figure_scene(scenario)
-                    if size not in volumes:
-                        volumes[size] = load_volume(scene.volume, scene.base_dir)
-                    try:
-                        runs[scenario] = render(
-                            scene,
-                            fidelity=rung,
-                            arch=machine,
-                            volume=volumes[size],
-                            # A supervolume's bricks are timed one frame each.
-                            steady_state=rung in ("cycle", "transaction")
-                            and times_back_to_back(arch)
-                            and size <= max(arch.max_volume),
-                            # A figure needs the event model's cycles, not its image (the
-                            # same cycles and counters: tests/models/test_timing_only.py);
-                            # a supervolume's host blend needs the bricks' images.
-                            timing_only=rung == "transaction" and size <= max(arch.max_volume),
-                            progress=advance,
-                        )
-                    except NotAvailableError:
-                        runs[scenario] = None
-                    except HwsimError as exc:  # InputError: the rung refuses the scenario
-                        runs[scenario] = exc
-                    done += scenario.voxels
-                    if progress is not None:
-                        progress(done, total, what)
-                run = runs[scenario]
-                if run is None:
-                    row.status = "not modelled"
-                    continue
-                if isinstance(run, HwsimError):
-                    row.status = "refused" if isinstance(run, InputError) else "failed"
-                    row.note = "; ".join(filter(None, [row.note, str(run)]))
-                    continue
-                row.cycles, row.samples = int(run.cycles), int(run.samples)
-                row.wall_seconds = round(run.wall_seconds, 3)
-                if fig.metric not in TIME_METRICS:
-                    _counter_figure(row, run, value)
-                    continue
-                row.simulated = figure_value(fig.metric, run)
-                row.used_cycles = int(run.cycles)
-                period = run.counters.get("frame.period_cycles")
-                if period:
-                    row.basis, row.single_frame = "frame period", row.simulated
-                    row.simulated = figure_value(fig.metric, run, int(period))
-                    row.used_cycles = int(period)
-                    extra = f"{rung}: back-to-back frame period; one frame alone " + (
-                        f"{row.single_frame:.4g} ({100 * (row.single_frame / value - 1):+.1f}%)"
+                if fig.scenario not in runs:
+                    runs[fig.scenario] = _render_scenario(
+                        arch, machine, rung, fig.scenario, volumes, progress, done, total
                     )
-                    row.note = "; ".join(filter(None, [row.note, extra]))
-                row.difference = row.simulated / value - 1.0
-                row.host_seconds = host_seconds(run)
-                if row.tolerance is not None:
-                    row.within = bool(abs(row.difference) <= row.tolerance)
+                    done += fig.scenario.voxels
+                _fill_row(row, fig, runs[fig.scenario])
     return rows
+
+
+def _measurable(arch: ArchConfig, size: int, max_size: int) -> bool:
+    """Whether a ``size``^3 scenario is within ``--max-size`` and what ``arch`` addresses."""
+    return size <= max_size and bool(arch.supervolumes or size <= max(arch.max_volume))
+
+
+def _planned_row(arch: ArchConfig, rung: str, fig: PublishedFigure) -> FigureRow:
+    """The row of one published figure at one rung, before it is measured."""
+    return FigureRow(
+        arch.name,
+        fig.key,
+        fig.value,
+        fig.size,
+        rung,
+        "ok",
+        tolerance=fig.tolerance,
+        note=fig.note,
+        evidence=fig.evidence,
+        metric=fig.metric,
+        fitted_from=list(fig.fitted_from),
+        scenario=fig.scenario.text(),
+        kind=fig.kind,
+        source=fig.source,
+    )
+
+
+def _render_scenario(
+    arch: ArchConfig,
+    machine: Any,
+    rung: str,
+    scenario: Scenario,
+    volumes: dict[int, Any],
+    progress: Callable[[int, int, str], None] | None,
+    done: int,
+    total: int,
+) -> Any:
+    """One render of ``scenario`` at ``rung``: its result, ``None`` if the rung is not
+    modelled, or the ``HwsimError`` it failed with.  ``volumes`` caches each size's
+    volume; progress runs from ``done`` to ``done`` plus the scenario's voxels."""
+    from hwsim.fidelity import render, times_back_to_back
+    from hwsim.volumes import load_volume
+
+    size = max(scenario.volume)
+    what = f"{arch.name} {rung} {scenario.text()}"
+    if progress is not None:
+        progress(done, total, what)
+
+    def advance(d: int, t: int, base=done, work=scenario.voxels, what=what):
+        if progress is not None and t:
+            progress(base + work * min(d, t) // t, total, what)
+
+    scene = figure_scene(scenario)
+    if size not in volumes:
+        volumes[size] = load_volume(scene.volume, scene.base_dir)
+    try:
+        run = render(
+            scene,
+            fidelity=rung,
+            arch=machine,
+            volume=volumes[size],
+            # A supervolume's bricks are timed one frame each.
+            steady_state=rung in ("cycle", "transaction")
+            and times_back_to_back(arch)
+            and size <= max(arch.max_volume),
+            # A figure needs the event model's cycles, not its image (the
+            # same cycles and counters: tests/models/test_timing_only.py);
+            # a supervolume's host blend needs the bricks' images.
+            timing_only=rung == "transaction" and size <= max(arch.max_volume),
+            progress=advance,
+        )
+    except NotAvailableError:
+        run = None
+    except HwsimError as exc:  # InputError: the rung refuses the scenario
+        run = exc
+    if progress is not None:
+        progress(done + scenario.voxels, total, what)
+    return run
+
+
+def _fill_row(row: FigureRow, fig: PublishedFigure, run: Any) -> None:
+    """Fill ``row`` from ``run`` (a result, ``None`` or an ``HwsimError``)."""
+    if run is None:
+        row.status = "not modelled"
+        return
+    if isinstance(run, HwsimError):
+        row.status = "refused" if isinstance(run, InputError) else "failed"
+        row.note = "; ".join(filter(None, [row.note, str(run)]))
+        return
+    row.cycles, row.samples = int(run.cycles), int(run.samples)
+    row.wall_seconds = round(run.wall_seconds, 3)
+    if fig.metric not in TIME_METRICS:
+        _counter_figure(row, run, fig.value)
+        return
+    row.simulated = figure_value(fig.metric, run)
+    row.used_cycles = int(run.cycles)
+    period = run.counters.get("frame.period_cycles")
+    if period:
+        row.basis, row.single_frame = "frame period", row.simulated
+        row.simulated = figure_value(fig.metric, run, int(period))
+        row.used_cycles = int(period)
+        extra = f"{row.rung}: back-to-back frame period; one frame alone " + (
+            f"{row.single_frame:.4g} ({100 * (row.single_frame / fig.value - 1):+.1f}%)"
+        )
+        row.note = "; ".join(filter(None, [row.note, extra]))
+    row.difference = row.simulated / fig.value - 1.0
+    row.host_seconds = host_seconds(run)
+    if row.tolerance is not None:
+        row.within = bool(abs(row.difference) <= row.tolerance)
 
 
 @dataclass
