@@ -170,44 +170,58 @@ def _published(run: RunRecord) -> list[list[str]]:
 
 def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) -> list[Block]:
     s = run.stats
-    blocks: list[Block] = [("h2", f"Run {index}: {run.title}")]
-    fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
-    blocks.append(
-        (
-            "table",
-            ["quantity", "value"],
-            [
-                ["folder", str(run.folder)],
-                [
-                    "volume",
-                    f"{s['volume']['name']} {'x'.join(map(str, s['volume']['shape_zyx']))} "
-                    f"{s['volume']['dtype']}",
-                ],
-                ["mode", s["scene"]["render"]["mode"]],
-                ["fidelity / sampling", f"{s['fidelity']} / {s['sampling']}"],
-                ["architecture", s["arch"] or "none (ideal ray caster)"],
-                ["samples", _fmt(s["samples"])],
-                [
-                    "cycles",
-                    _fmt(s.get("cycles"))
-                    if s["fidelity"] != "golden"
-                    else "none: golden has no timing",
-                ],
-                ["clock", _fmt(s.get("clock_hz"))],
-                ["simulated frame time (s)", _fmt(s.get("frame_seconds"))],
-                ["simulated fps", _fmt(fps)],
-                ["simulated samples/s", _fmt(s.get("samples_per_second"))],
-                ["wall seconds", _fmt(s.get("wall_seconds"))],
-                ["elaborated units", ", ".join(s.get("elaborated_units", [])) or "-"],
-                ["elided units", ", ".join(s.get("elided_units", [])) or "none"],
-                [
-                    "architecture overrides (sweep)",
-                    ", ".join(f"{k} = {v}" for k, v in run.overrides.items()) or "none",
-                ],
-            ],
-        )
-    )
+    blocks: list[Block] = [("h2", f"Run {index}: {run.title}"), _summary_table(run)]
     blocks += _split_blocks(s)
+    blocks += _image_blocks(run, runs, out, index)
+    blocks += _unit_blocks(s, out, index)
+    blocks += _bandwidth_blocks(s, out, index)
+    blocks += energy_blocks(s, out, index, NOT_RECORDED)
+    blocks += _published_blocks(run)
+    return blocks
+
+
+def _summary_table(run: RunRecord) -> Block:
+    """The run's quantities at a glance: what was rendered, how, and how fast."""
+    s = run.stats
+    fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+    return (
+        "table",
+        ["quantity", "value"],
+        [
+            ["folder", str(run.folder)],
+            [
+                "volume",
+                f"{s['volume']['name']} {'x'.join(map(str, s['volume']['shape_zyx']))} "
+                f"{s['volume']['dtype']}",
+            ],
+            ["mode", s["scene"]["render"]["mode"]],
+            ["fidelity / sampling", f"{s['fidelity']} / {s['sampling']}"],
+            ["architecture", s["arch"] or "none (ideal ray caster)"],
+            ["samples", _fmt(s["samples"])],
+            [
+                "cycles",
+                _fmt(s.get("cycles"))
+                if s["fidelity"] != "golden"
+                else "none: golden has no timing",
+            ],
+            ["clock", _fmt(s.get("clock_hz"))],
+            ["simulated frame time (s)", _fmt(s.get("frame_seconds"))],
+            ["simulated fps", _fmt(fps)],
+            ["simulated samples/s", _fmt(s.get("samples_per_second"))],
+            ["wall seconds", _fmt(s.get("wall_seconds"))],
+            ["elaborated units", ", ".join(s.get("elaborated_units", [])) or "-"],
+            ["elided units", ", ".join(s.get("elided_units", [])) or "none"],
+            [
+                "architecture overrides (sweep)",
+                ", ".join(f"{k} = {v}" for k, v in run.overrides.items()) or "none",
+            ],
+        ],
+    )
+
+
+def _image_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) -> list[Block]:
+    """The image beside its golden reference and their difference, with the error."""
+    s = run.stats
     if s["fidelity"] == "golden" and not s["arch"]:
         reference, origin = None, "this run is the ideal golden reference"
     else:
@@ -218,9 +232,11 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
         else ("golden, same positions", f"{s['fidelity']} on {s['arch']}")
     )
     png = plots.plot_images(run.image, reference, out / f"run{index}-images.png", titles)
-    blocks.append(("h3", "Images"))
-    blocks.append(("p", f"Reference: {origin}."))
-    blocks.append(("img", png, f"golden, {s['fidelity']} and difference"))
+    blocks: list[Block] = [
+        ("h3", "Images"),
+        ("p", f"Reference: {origin}."),
+        ("img", png, f"golden, {s['fidelity']} and difference"),
+    ]
     if reference is not None and reference.shape == run.image.shape:
         from hwsim.trade.ladder import image_error
 
@@ -233,8 +249,13 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
                 f"max abs error {_fmt(err['max_abs'])} (peak {err['peak']:g}).",
             )
         )
+    return blocks
+
+
+def _unit_blocks(s: dict[str, Any], out: Path, index: int) -> list[Block]:
+    """Per-unit utilisation and stall plots, or why there are none."""
     units = plots.unit_counters(s.get("counters", {}))
-    blocks.append(("h3", "Unit utilisation and stalls"))
+    blocks: list[Block] = [("h3", "Unit utilisation and stalls")]
     util = plots.plot_utilisation(units, s.get("cycles") or 0, out / f"run{index}-utilisation.png")
     stalls = plots.plot_stalls(units, out / f"run{index}-stalls.png")
     if util is None and stalls is None:
@@ -244,7 +265,12 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
     for path, alt in ((util, "utilisation"), (stalls, "stalls")):
         if path is not None:
             blocks.append(("img", path, alt))
-    blocks.append(("h3", "Memory bandwidth"))
+    return blocks
+
+
+def _bandwidth_blocks(s: dict[str, Any], out: Path, index: int) -> list[Block]:
+    """The memory bandwidth plot, or why there is none."""
+    blocks: list[Block] = [("h3", "Memory bandwidth")]
     memory = plots.memory_counters(s.get("counters", {}))
     bw = plots.plot_bandwidth(
         memory, s.get("frame_seconds") or 0.0, out / f"run{index}-bandwidth.png"
@@ -255,9 +281,14 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
         )
     else:
         blocks.append(("img", bw, "memory bandwidth"))
-    blocks += energy_blocks(s, out, index, NOT_RECORDED)
+    return blocks
+
+
+def _published_blocks(run: RunRecord) -> list[Block]:
+    """The machine's published figures against this run's simulated ones."""
+    s = run.stats
     published = _published(run)
-    blocks.append(("h3", "Published figures"))
+    blocks: list[Block] = [("h3", "Published figures")]
     if run.overrides:
         changed = ", ".join(f"{k} = {v}" for k, v in run.overrides.items())
         blocks.append(
