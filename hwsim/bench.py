@@ -285,26 +285,49 @@ def run_bench(
     log(f"rungs: head {size}^3 -> {image}x{image} on {arch}")
     rungs = rung_speeds(size, image, arch, repeats, rtl_size)
     report["rungs"] = rungs
+    report.update(_table_report(rows, vtk, table_sizes, memory_size, repeats, log))
+    report["ratios"] = {
+        "cycle_vs_rtl": _cycle_vs_rtl(rungs),
+        "sweep_2_vs_1_workers": _sweep_ratio(sweep, sweep_size, log),
+        "split_frame_2_vs_1_workers": _split_frame_ratio(sweep, split_size, log),
+    }
+    report["machine"]["load_average_after"] = machine_info()["load_average"]
+    return report
+
+
+def _table_report(
+    rows: Sequence[str] | None,
+    vtk: bool,
+    table_sizes: Sequence[int],
+    memory_size: int,
+    repeats: int,
+    log: Callable[[str], None],
+) -> dict[str, Any]:
+    """The speed table's rows (``benchmarks/speed_table.py``): ``{"table": [...]}``, with a
+    ``table_note`` when the harness is not there; ``vtk`` false skips the VTK rows."""
     table = _harness("speed_table")
     if table is None:
-        report["table"] = []
-        report["table_note"] = "benchmarks/ folder not found (run from a clone)"
-    else:
-        chosen = list(table.ROWS if rows is None else rows)
-        skipped = [r for r in chosen if r.startswith("golden_vs_vtk")] if not vtk else []
-        report["table"] = table.run(
-            [r for r in chosen if r not in skipped],
-            sizes=table_sizes,
-            memory_size=memory_size,
-            repeats=repeats,
-            log=log,
-        )
-        for name in skipped:
-            report["table"].append({"row": name, "status": "skipped (--no-vtk)", "goal_met": None})
-    ratios: dict[str, Any] = {}
+        return {"table": [], "table_note": "benchmarks/ folder not found (run from a clone)"}
+    chosen = list(table.ROWS if rows is None else rows)
+    skipped = [r for r in chosen if r.startswith("golden_vs_vtk")] if not vtk else []
+    measured = table.run(
+        [r for r in chosen if r not in skipped],
+        sizes=table_sizes,
+        memory_size=memory_size,
+        repeats=repeats,
+        log=log,
+    )
+    for name in skipped:
+        measured.append({"row": name, "status": "skipped (--no-vtk)", "goal_met": None})
+    return {"table": measured}
+
+
+def _cycle_vs_rtl(rungs: dict[str, Any]) -> dict[str, Any]:
+    """The cycle rung's speed against the rtl rung's: measured on the same frame when the
+    rtl rung ran, else against the Verilator model's recorded clocks per second."""
     if rungs["rtl"]["status"] == "ok":
         rtl, cyc = rungs["rtl"], rungs["rtl"]["cycle_same_scene"]
-        ratios["cycle_vs_rtl"] = _ratio(
+        return _ratio(
             "cycle_vs_rtl",
             rtl["seconds"] / cyc["seconds"],
             "rtl seconds / cycle seconds, same frame (" + rtl["note"] + ")",
@@ -315,51 +338,49 @@ def run_bench(
             rtl_simulated_cycles_per_second=rtl["simulated_cycles_per_second"],
             same_cycles=rtl["cycles"] == cyc["cycles"],
         )
-    elif rungs["cycle"]["status"] == "ok":
-        ratios["cycle_vs_rtl"] = _ratio(
+    if rungs["cycle"]["status"] == "ok":
+        return _ratio(
             "cycle_vs_rtl",
             rungs["cycle"]["simulated_cycles_per_second"] / RTL_MEASURED_CLOCKS_PER_SECOND,
             "cycle-rung simulated cycles/s / the Verilator model's 190 k clocks/s "
             "(docs/rtl.md; no HDL simulator here to run the rtl rung)",
         )
-    else:
-        ratios["cycle_vs_rtl"] = _from_rungs(rungs, "cycle_vs_rtl", "rtl", "cycle")
+    return _from_rungs(rungs, "cycle_vs_rtl", "rtl", "cycle")
+
+
+def _sweep_ratio(sweep: bool, sweep_size: int, log: Callable[[str], None]) -> dict[str, Any]:
+    """A 24-run sweep on 1 and 2 Dask workers (``benchmarks/bench_sweep.py``)."""
     scaling = _harness("bench_sweep") if sweep else None
     if scaling is None:
         why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
-        ratios["sweep_2_vs_1_workers"] = _ratio("sweep_2_vs_1_workers", None, "", note=why)
-    else:
-        log(f"sweep scaling, 24 runs at {sweep_size}^3 (benchmarks/bench_sweep.py)")
-        sweep_report = scaling.run(sweep_size, (1, 2), repeats=2)
-        ratios["sweep_2_vs_1_workers"] = _ratio(
-            "sweep_2_vs_1_workers",
-            sweep_report["speedup_2_workers"],
-            "1-worker seconds / 2-worker seconds, 24-run sweep",
-            cases=sweep_report["cases"],
-        )
+        return _ratio("sweep_2_vs_1_workers", None, "", note=why)
+    log(f"sweep scaling, 24 runs at {sweep_size}^3 (benchmarks/bench_sweep.py)")
+    sweep_report = scaling.run(sweep_size, (1, 2), repeats=2)
+    return _ratio(
+        "sweep_2_vs_1_workers",
+        sweep_report["speedup_2_workers"],
+        "1-worker seconds / 2-worker seconds, 24-run sweep",
+        cases=sweep_report["cases"],
+    )
+
+
+def _split_frame_ratio(sweep: bool, split_size: int, log: Callable[[str], None]) -> dict[str, Any]:
+    """One cube4 cycle frame split across 1 and 2 Dask workers
+    (``benchmarks/split_frame.py``)."""
     split = _harness("split_frame") if sweep else None
     if split is None:
         why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
-        ratios["split_frame_2_vs_1_workers"] = _ratio(
-            "split_frame_2_vs_1_workers", None, "", note=why
-        )
-    else:
-        log(
-            f"a cube4 cycle frame on 1 and 2 Dask workers, {split_size}^3 "
-            "(benchmarks/split_frame.py)"
-        )
-        split_report = split.run((split_size,), (1, 2), reference_max=0, log=log)
-        ratios["split_frame_2_vs_1_workers"] = _ratio(
-            "split_frame_2_vs_1_workers",
-            split_report["speedup_2_vs_1"].get(f"{split_size}^3 warm"),
-            "1-worker s / 2-worker s, one cube4 cycle frame of the dense scenario on a "
-            "running local cluster (second frame)",
-            rows=split_report["rows"],
-            identical=all(c["identical"] for c in split_report["checks"]),
-        )
-    report["ratios"] = ratios
-    report["machine"]["load_average_after"] = machine_info()["load_average"]
-    return report
+        return _ratio("split_frame_2_vs_1_workers", None, "", note=why)
+    log(f"a cube4 cycle frame on 1 and 2 Dask workers, {split_size}^3 (benchmarks/split_frame.py)")
+    split_report = split.run((split_size,), (1, 2), reference_max=0, log=log)
+    return _ratio(
+        "split_frame_2_vs_1_workers",
+        split_report["speedup_2_vs_1"].get(f"{split_size}^3 warm"),
+        "1-worker s / 2-worker s, one cube4 cycle frame of the dense scenario on a "
+        "running local cluster (second frame)",
+        rows=split_report["rows"],
+        identical=all(c["identical"] for c in split_report["checks"]),
+    )
 
 
 def format_bench(report: dict[str, Any]) -> str:
