@@ -33,10 +33,11 @@ from typing import Any
 import numpy as np
 
 from hwsim.errors import InputError, NotAvailableError
-from hwsim.numerics import EXACT_MATCHES, agreement, max_abs_error, per_channel, psnr, rmse
+from hwsim.numerics import agreement, max_abs_error, per_channel, psnr, rmse
 from hwsim.paths import output_folder
 from hwsim.scene import Scene, ViewSpec, VolumeSpec, load_scene
 from hwsim.trade.files import write_rows
+from hwsim.trade.ladder_plot import pareto_front, plot_ladder
 from hwsim.volumes.volume import Volume
 
 __all__ = [
@@ -160,61 +161,90 @@ def ladder_trade(
         rows.append(reference)
         tick()
         for arch in arch_names:
-            runs: dict[str, Any] = {}
-            pending: list[dict[str, Any]] = []
-            for rung in rung_names:
-                try:
-                    runs[rung] = render(
-                        case.scene, fidelity=rung, arch=arch, volume=case.volume, extend=extend
-                    )
-                except NotAvailableError as exc:  # the rung does not model this machine yet
-                    pending.append(_empty(case, arch, rung, "not available", note=exc.message))
-                    tick()
-                    continue
-                except InputError as exc:  # the machine refuses the scene, as the hardware did
-                    pending.append(_empty(case, arch, rung, "unsupported", note=exc.message))
-                    tick()
-                    continue
-                tick()
-            golden = runs.get("golden")
-            cycle = runs.get("cycle")
-            full = None
-            if cycle is not None:  # measured elision: the same frame with every unit
-                full = render(
-                    case.scene,
-                    fidelity="cycle",
-                    arch=arch,
-                    volume=case.volume,
-                    elaborate_all=True,
-                    extend=extend,
-                )
-            for rung, run in runs.items():
-                row = _row(case, arch, run, status="ok")
-                total = image_error(ideal.image, run.image)
-                row["total_rmse"], row["total_match"] = total["rmse"], total["match"]
-                if golden is not None:
-                    row.update(
-                        _error_columns("algorithmic", image_error(ideal.image, golden.image))
-                    )
-                    if rung != "golden":
-                        num = image_error(golden.image, run.image)
-                        row.update(_error_columns("numerical", num))
-                        row["numerical_per_channel"] = num["per_channel"]
-                if rung == "cycle" and full is not None:
-                    row["elision_speedup"] = full.wall_seconds / run.wall_seconds
-                    row["elision_exact"] = bool(
-                        np.array_equal(full.image, run.image) and full.cycles == run.cycles
-                    )
-                if run.cycles is not None and cycle is not None and cycle.cycles:
-                    row["cycle_error"] = (run.cycles - cycle.cycles) / cycle.cycles
-                    row["cycle_reference"] = "cycle"
-                    row["cycle_independence"] = _cycle_independence(rung, arch)
-                elif run.cycles is not None:
-                    row["cycle_reference"] = "cycle rung not available"
-                pending.append(row)
-            order = {r: i for i, r in enumerate(rung_names)}
-            rows.extend(sorted(pending, key=lambda r: order[r["rung"]]))
+            rows.extend(_arch_rows(case, arch, rung_names, ideal, tick, extend=extend))
     return rows
+
+
+def _arch_rows(
+    case: TradeCase,
+    arch: str,
+    rung_names: list[str],
+    ideal: Any,
+    tick: Callable[[], None],
+    *,
+    extend: bool,
+) -> list[dict[str, Any]]:
+    """One machine's rows of ``case``, one per rung in ``rung_names`` order: each rung's
+    render measured against ``ideal``, the machine's golden and its cycle rung."""
+    from hwsim.fidelity import render
+
+    runs: dict[str, Any] = {}
+    pending: list[dict[str, Any]] = []
+    for rung in rung_names:
+        try:
+            runs[rung] = render(
+                case.scene, fidelity=rung, arch=arch, volume=case.volume, extend=extend
+            )
+        except NotAvailableError as exc:  # the rung does not model this machine yet
+            pending.append(_empty(case, arch, rung, "not available", note=exc.message))
+            tick()
+            continue
+        except InputError as exc:  # the machine refuses the scene, as the hardware did
+            pending.append(_empty(case, arch, rung, "unsupported", note=exc.message))
+            tick()
+            continue
+        tick()
+    cycle = runs.get("cycle")
+    full = None
+    if cycle is not None:  # measured elision: the same frame with every unit
+        full = render(
+            case.scene,
+            fidelity="cycle",
+            arch=arch,
+            volume=case.volume,
+            elaborate_all=True,
+            extend=extend,
+        )
+    for rung, run in runs.items():
+        pending.append(_measured_row(case, arch, rung, run, ideal, runs, full))
+    order = {r: i for i, r in enumerate(rung_names)}
+    return sorted(pending, key=lambda r: order[r["rung"]])
+
+
+def _measured_row(
+    case: TradeCase,
+    arch: str,
+    rung: str,
+    run: Any,
+    ideal: Any,
+    runs: dict[str, Any],
+    full: Any,
+) -> dict[str, Any]:
+    """The row of one rendered rung: its errors against the ideal ray caster (total), the
+    machine's golden (numerical) and golden against ideal (algorithmic); the cycle rung's
+    elision against ``full`` (every unit elaborated); its cycles against the cycle rung's."""
+    golden, cycle = runs.get("golden"), runs.get("cycle")
+    row = _row(case, arch, run, status="ok")
+    total = image_error(ideal.image, run.image)
+    row["total_rmse"], row["total_match"] = total["rmse"], total["match"]
+    if golden is not None:
+        row.update(_error_columns("algorithmic", image_error(ideal.image, golden.image)))
+        if rung != "golden":
+            num = image_error(golden.image, run.image)
+            row.update(_error_columns("numerical", num))
+            row["numerical_per_channel"] = num["per_channel"]
+    if rung == "cycle" and full is not None:
+        row["elision_speedup"] = full.wall_seconds / run.wall_seconds
+        row["elision_exact"] = bool(
+            np.array_equal(full.image, run.image) and full.cycles == run.cycles
+        )
+    if run.cycles is not None and cycle is not None and cycle.cycles:
+        row["cycle_error"] = (run.cycles - cycle.cycles) / cycle.cycles
+        row["cycle_reference"] = "cycle"
+        row["cycle_independence"] = _cycle_independence(rung, arch)
+    elif run.cycles is not None:
+        row["cycle_reference"] = "cycle rung not available"
+    return row
 
 
 _COLUMNS = (
@@ -293,97 +323,12 @@ def _row(case: TradeCase, arch: str, run: Any, *, status: str, note: str = "") -
     return row
 
 
-def pareto_front(points: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
-    """The non-dominated points (lower seconds and lower error are better), by seconds."""
-    front: list[tuple[float, float]] = []
-    for x, y in sorted(points):
-        if not front or y < front[-1][1]:
-            front.append((x, y))
-    return front
-
-
 def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[str, Path]:
     """Write ``trade.csv``, ``trade.json`` and the Pareto plot ``trade.png``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     out = output_folder(out_dir)
     paths = {"csv": out / "trade.csv", "json": out / "trade.json", "png": out / "trade.png"}
     flat = [{k: v for k, v in r.items() if k != "numerical_per_channel"} for r in rows]
     write_rows(flat, paths["csv"], None)
     write_rows(rows, None, paths["json"])
-    scenes = list(dict.fromkeys(r["scene"] for r in rows))
-    rungs = list(dict.fromkeys(r["rung"] for r in rows))
-    archs = list(dict.fromkeys(r["arch"] for r in rows))
-    markers = dict(zip(archs, "o^sDvP*Xh<>", strict=False))
-    colours = {r: plt.cm.tab10(i) for i, r in enumerate(rungs)}
-    from matplotlib.ticker import (
-        FixedFormatter,
-        FixedLocator,
-        FormatStrFormatter,
-        LogLocator,
-        NullFormatter,
-        NullLocator,
-    )
-
-    ncols = min(len(scenes), 3)
-    nrows = -(-len(scenes) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.6 * nrows + 0.8), squeeze=False)
-    for ax in axes.flat[len(scenes) :]:
-        ax.set_visible(False)
-    for ax, scene in zip(axes.flat, scenes, strict=False):
-        measured = [r for r in rows if r["scene"] == scene and r["status"] == "ok"]
-        pts = []
-        errors = [r["total_rmse"] for r in measured if r["total_match"] == "differs"]
-        floor = min(errors) / 10 if errors else 1e-6
-        for r in measured:
-            err = r["total_rmse"]
-            if err is None:
-                continue
-            if r["total_match"] in EXACT_MATCHES:
-                err = 0.0
-            y = max(err, floor)
-            pts.append((r["wall_seconds"], y))
-            ax.scatter(
-                r["wall_seconds"],
-                y,
-                color=colours[r["rung"]],
-                marker=markers.get(r["arch"], "o"),
-                s=28,
-                zorder=3,
-            )
-        front = pareto_front(pts)
-        ax.plot([p[0] for p in front], [p[1] for p in front], "k--", lw=0.8, zorder=2)
-        ax.axhline(floor, color="grey", lw=0.5, ls=":")
-        all_exact = all(y == floor for _, y in pts)
-        if all_exact:  # no error to scale: one row of points on the floor, labelled so
-            ax.set_ylim(floor / 3, floor * 3)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        if all_exact:
-            ax.yaxis.set_major_locator(FixedLocator([floor]))
-            ax.yaxis.set_major_formatter(FixedFormatter(["exact"]))
-            ax.yaxis.set_minor_locator(NullLocator())
-        ax.set_title(scene, fontsize=10)
-        ax.set_xlabel("wall seconds per frame (log)")
-        ax.set_ylabel("RMSE vs ideal golden (log; dotted: exact)")
-        xs = [p[0] for p in pts]
-        if xs and max(xs) < 10 * min(xs):  # within a decade: label the minor ticks
-            ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 3.0, 5.0)))  # none beside 10^k
-            ax.xaxis.set_minor_formatter(FormatStrFormatter("%.2g"))
-            ax.tick_params(axis="x", which="minor", labelsize=7, labelrotation=45)
-        else:
-            ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.grid(True, which="major", lw=0.3, alpha=0.5)
-    handles = [
-        plt.Line2D([], [], color=c, marker="o", ls="", label=f"rung {r}")
-        for r, c in colours.items()
-        if any(x["rung"] == r and x["status"] == "ok" for x in rows)
-    ] + [plt.Line2D([], [], color="k", marker=m, ls="", label=a) for a, m in markers.items()]
-    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 6), fontsize=7)
-    fig.tight_layout(rect=(0, 0.8 / (3.6 * nrows + 0.8), 1, 1))
-    fig.savefig(paths["png"], dpi=110)
-    plt.close(fig)
+    plot_ladder(rows, paths["png"])
     return paths
