@@ -126,69 +126,24 @@ def render_bricks(
     rung), ``frame_of(scene, brick_volume, transfer, arch, plan)`` building its frame."""
     whole = make_plan(scene, volume, arch.order)
     bricks = split_bricks(volume.shape, arch.max_volume, HALO)
-    mode = scene.render.mode
-    n_pix = whole.shape[0] * whole.shape[1]
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    samples = cycles = 0
-    counters: dict[str, Any] = {}
-    per_brick = []
-    result = None
-    bits = 0
+    tally = _BrickTally()
     for i, brick in enumerate(bricks):
         part = volume.brick(brick.lo, brick.hi, brick.label)
         plan = BrickPlan(whole, brick, part)
         if not plan.ray_ids.size:
-            per_brick.append(
+            tally.per_brick.append(
                 {"index": list(brick.index), "shape": list(brick.shape), "samples": 0, "cycles": 0}
             )
             continue
         frame = frame_of(scene, part, transfer, arch, plan)
-        result = render_frame(frame)
-        bits = frame.datapath.composite.output_bits
-        image = result.image.reshape(n_pix, -1)[plan.ray_ids]
-        if mode == "composite":
-            image = np.floor(image * ((1 << bits) - 1) + 0.5).astype(np.int64)
-        key = plan.first_step if not whole.back_to_front else -plan.first_step
-        parts.append((plan.ray_ids, key, image))
-        brick_cycles = int(getattr(result, "cycles", 0) or 0)  # the functional rung: none
-        samples += int(result.samples)
-        cycles += brick_cycles
-        _add_counters(counters, getattr(result, "counters", {}) or {})
-        per_brick.append(
-            {
-                "index": list(brick.index),
-                "shape": list(brick.shape),
-                "samples": int(result.samples),
-                "cycles": brick_cycles,
-            }
-        )
+        tally.add(brick, plan, whole, frame, render_frame(frame), scene.render.mode)
         if progress is not None:
             progress(i + 1, len(bricks))
-    base, touched = _blend(parts, n_pix, mode, bits, volume.value_range)
-    if mode == "composite":
-        base = base.astype(np.float64) / ((1 << bits) - 1)
-        background = 0.0
-    else:
-        background = volume.value_range[0 if mode == "mip" else 1]
-    image = whole.to_image(base, background)
-    pixels = sum(p[0].size for p in parts)
-    host_bytes = pixels * PIXEL_BYTES
-    host_seconds = (
-        host_bytes / arch.host_bus_bytes_per_second if arch.host_bus_bytes_per_second else 0.0
-    )
-    machine_seconds = cycles / arch.clock_hz
-    info = {
-        "bricks": len(bricks),
-        "halo": HALO,
-        "per_brick": per_brick,
-        "host_bytes": host_bytes,
-        "host_seconds": host_seconds,
-        "machine_seconds": machine_seconds,
-        "frame_seconds": machine_seconds + host_seconds,
-        "frames_per_second": 1.0 / (machine_seconds + host_seconds) if cycles else 0.0,
-    }
+    image, touched = _blend_image(whole, tally, scene.render.mode, volume)
+    counters, cycles, samples, result = tally.counters, tally.cycles, tally.samples, tally.result
     counters["supervolume.bricks"] = len(bricks)
-    counters["supervolume.host_bytes"] = host_bytes
+    info = _host_info(arch, len(bricks), tally)
+    counters["supervolume.host_bytes"] = info["host_bytes"]
     derived = derive(
         counters, cycles=cycles, samples=samples, pipelines=arch.pipelines, clock_hz=arch.clock_hz
     )
@@ -203,6 +158,80 @@ def render_bricks(
         elaborated_units=list(getattr(result, "elaborated_units", []) or []),
         elided_units=list(getattr(result, "elided_units", []) or []),
     )
+
+
+@dataclass
+class _BrickTally:
+    """The bricks' renders so far: each brick's rays and pixels, and their sums."""
+
+    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list)
+    per_brick: list[dict[str, Any]] = field(default_factory=list)
+    counters: dict[str, Any] = field(default_factory=dict)
+    samples: int = 0
+    cycles: int = 0
+    bits: int = 0  # the composite output width of the last brick rendered
+    result: Any = None  # the last brick's result (its unit lists)
+
+    def add(
+        self, brick: Any, plan: BrickPlan, whole: Any, frame: Any, result: Any, mode: str
+    ) -> None:
+        """Add one rendered brick: its rays' pixels (composite: as output integers), keyed
+        by where its rays first step so ``_blend`` orders the bricks along each ray."""
+        self.result = result
+        self.bits = bits = frame.datapath.composite.output_bits
+        n_pix = whole.shape[0] * whole.shape[1]
+        image = result.image.reshape(n_pix, -1)[plan.ray_ids]
+        if mode == "composite":
+            image = np.floor(image * ((1 << bits) - 1) + 0.5).astype(np.int64)
+        key = plan.first_step if not whole.back_to_front else -plan.first_step
+        self.parts.append((plan.ray_ids, key, image))
+        brick_cycles = int(getattr(result, "cycles", 0) or 0)  # the functional rung: none
+        self.samples += int(result.samples)
+        self.cycles += brick_cycles
+        _add_counters(self.counters, getattr(result, "counters", {}) or {})
+        self.per_brick.append(
+            {
+                "index": list(brick.index),
+                "shape": list(brick.shape),
+                "samples": int(result.samples),
+                "cycles": brick_cycles,
+            }
+        )
+
+
+def _blend_image(
+    whole: Any, tally: _BrickTally, mode: str, volume: Volume
+) -> tuple[np.ndarray, np.ndarray]:
+    """The host's blend of the bricks' pixels into the frame, and which rays it touched."""
+    n_pix = whole.shape[0] * whole.shape[1]
+    base, touched = _blend(tally.parts, n_pix, mode, tally.bits, volume.value_range)
+    if mode == "composite":
+        base = base.astype(np.float64) / ((1 << tally.bits) - 1)
+        background = 0.0
+    else:
+        background = volume.value_range[0 if mode == "mip" else 1]
+    return whole.to_image(base, background), touched
+
+
+def _host_info(arch: ArchConfig, n_bricks: int, tally: _BrickTally) -> dict[str, Any]:
+    """The ``supervolume`` block of the derived figures: the bricks, and the frame's time
+    as the machine's cycles plus the host bus moving the bricks' pixels."""
+    pixels = sum(p[0].size for p in tally.parts)
+    host_bytes = pixels * PIXEL_BYTES
+    host_seconds = (
+        host_bytes / arch.host_bus_bytes_per_second if arch.host_bus_bytes_per_second else 0.0
+    )
+    machine_seconds = tally.cycles / arch.clock_hz
+    return {
+        "bricks": n_bricks,
+        "halo": HALO,
+        "per_brick": tally.per_brick,
+        "host_bytes": host_bytes,
+        "host_seconds": host_seconds,
+        "machine_seconds": machine_seconds,
+        "frame_seconds": machine_seconds + host_seconds,
+        "frames_per_second": 1.0 / (machine_seconds + host_seconds) if tally.cycles else 0.0,
+    }
 
 
 def _blend(parts, n_pix: int, mode: str, bits: int, value_range) -> tuple[np.ndarray, np.ndarray]:
