@@ -17,13 +17,28 @@ import pytest
 from hwsim.arch import ArchConfig
 from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of
 from models.functional import render_functional
 from models.transaction import render_transaction
+
+#: The scene features a machine's cycle rung keeps bit-identical to the functional rung
+#: (test id -> :func:`scene_of` extras); a machine's test may replace or add entries.
+FEATURE_VARIANTS = {
+    "pre-classified": {"transfer": TransferSpec(preset="ct", order="pre")},
+    "crop": {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(0.0, 12.5))},
+    "cut-plane": {
+        "cut_planes": (CutPlane(normal=(1.0, 0.3, 0.2), offset=0.5, thickness=4.0, falloff=2.0),)
+    },
+    "gm-modulation": {
+        "transfer": TransferSpec(preset="ct", gradient_opacity=((0.0, 0.2), (200.0, 1.0)))
+    },
+    "unlit": {"render": {"lighting": False}},
+    "ert": {"render": {"early_termination": 0.9}},
+}
 
 #: Format overrides of the compiled-kernel tests (test_cycle_fused, test_functional_fused):
 #: a narrow interpolator rounding to nearest-even, and a wide datapath that truncates.

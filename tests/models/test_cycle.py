@@ -15,7 +15,7 @@ import rungs
 from rungs import assert_identical, functional_and_cycle, scene_of
 
 from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import CropSpec, CutPlane, TransferSpec
+from hwsim.scene import TransferSpec
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 from models.machines.cube4.cycle import UNITS
@@ -69,16 +69,7 @@ def test_non_cubic_anisotropic_volume(rng):
 
 
 @pytest.mark.parametrize(
-    "extra",
-    [
-        {"transfer": TransferSpec(preset="ct", order="pre")},
-        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(0.0, 12.5))},
-        {"cut_planes": (CutPlane(normal=(1.0, 0.3, 0.2), offset=0.5, thickness=4.0, falloff=2.0),)},
-        {"transfer": TransferSpec(preset="ct", gradient_opacity=((0.0, 0.2), (200.0, 1.0)))},
-        {"render": {"lighting": False}},
-        {"render": {"early_termination": 0.9}},
-    ],
-    ids=["pre-classified", "crop", "cut-plane", "gm-modulation", "unlit", "ert"],
+    "extra", list(rungs.FEATURE_VARIANTS.values()), ids=list(rungs.FEATURE_VARIANTS)
 )
 def test_scene_features_stay_bit_identical(head, extra):
     assert_identical(*functional_and_cycle(scene_of(40, 15, **extra), head, "cube4")[:2])

@@ -16,7 +16,7 @@ import rungs
 
 from hwsim.errors import InputError
 from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import CropSpec, CutPlane, TransferSpec
+from hwsim.scene import CropSpec, TransferSpec
 from hwsim.volumes import make_phantom
 from models.machines.vizard2.config import BLOCK, FEEDBACK
 from models.machines.vizard2.cycle import UNITS
@@ -67,20 +67,18 @@ def test_cycle_equals_functional_bit_for_bit_perspective(head, mode, az, el):
     assert_identical(*both(scene, head)[:2])
 
 
-@pytest.mark.parametrize(
-    "extra",
-    [
-        {"transfer": TransferSpec(preset="ct", order="pre")},
-        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 16.0), z=(0.0, 12.5))},
-        {"cut_planes": (CutPlane(normal=(1.0, 0.3, 0.2), offset=0.5, thickness=4.0, falloff=2.0),)},
-        {"transfer": TransferSpec(preset="ct", gradient_opacity=((0.0, 0.2), (200.0, 1.0)))},
-        {"render": {"lighting": False}},
-        {"render": {"early_termination": 0.8}},
-        {"render": {"supersampling": 2.0}},
-        {"render": {"supersampling": 0.5}},
-    ],
-    ids=["pre-classified", "crop", "cut-plane", "gm-modulation", "unlit", "ert", "ss2", "ss0.5"],
-)
+#: :data:`rungs.FEATURE_VARIANTS` with Vizard II's crop and early termination, and
+#: supersampling both ways.
+FEATURE_VARIANTS = {
+    **rungs.FEATURE_VARIANTS,
+    "crop": {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 16.0), z=(0.0, 12.5))},
+    "ert": {"render": {"early_termination": 0.8}},
+    "ss2": {"render": {"supersampling": 2.0}},
+    "ss0.5": {"render": {"supersampling": 0.5}},
+}
+
+
+@pytest.mark.parametrize("extra", list(FEATURE_VARIANTS.values()), ids=list(FEATURE_VARIANTS))
 def test_scene_features_stay_bit_identical(head, extra):
     assert_identical(*both(scene_of(40, 15, **extra), head)[:2])
 
