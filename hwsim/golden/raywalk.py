@@ -69,19 +69,70 @@ def walk(
     renderer, progress: Callable[[int, int], None] | None = None
 ) -> tuple[np.ndarray, int, int]:
     """Composite every ray of ``renderer``'s plan: ``(acc (n_rays, 4), samples, rays)``."""
+    plan = renderer.plan
+    args = _kernel_args(renderer)
+    acc = np.zeros((plan.n_rays, 4))
+    taken = np.zeros(plan.ray_ids.size, dtype=np.int64)
+    chunks = _tiles(plan.ray_ids, plan.shape[1])
+    threads = min(frame_threads(), max(1, len(chunks)))
+    if threads == 1:
+        for k, sel in enumerate(chunks):
+            _walk(sel, *args, acc, taken)
+            if progress is not None:
+                progress(plan.n_steps * (k + 1) // len(chunks), plan.n_steps)
+    else:
+        _walk_threaded(chunks, threads, args, acc, taken, plan.n_steps, progress)
+    return acc, int(taken.sum()), int(np.count_nonzero(taken))
+
+
+def _walk_threaded(chunks, threads, args, acc, taken, n_steps, progress) -> None:
+    """``_walk`` over ``chunks`` on ``threads`` threads: each takes the next tile as it
+    finishes one (tiles differ in cost)."""
+    tiles = iter(chunks)
+    lock = threading.Lock()
+    done = [0]
+
+    def work() -> None:
+        while True:
+            with lock:
+                sel = next(tiles, None)
+            if sel is None:
+                return
+            _walk(sel, *args, acc, taken)
+            with lock:
+                done[0] += 1
+
+    jobs = [pool(threads).submit(work) for _ in range(threads)]
+    while futures.wait(jobs, timeout=0.2).not_done:
+        if progress is not None:
+            progress(n_steps * done[0] // len(chunks), n_steps)
+    for job in jobs:
+        job.result()
+    if progress is not None:
+        progress(n_steps, n_steps)
+
+
+def _lights(renderer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The lights' directions, intensities and (a parallel view's) half vectors."""
+    r, plan = renderer, renderer.plan
+    if not r.scene.lit:
+        return np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
+    directions = np.array([d for d, _ in r.lights], dtype=np.float64).reshape(-1, 3)
+    intensities = np.array([i for _, i in r.lights], dtype=np.float64)
+    # The half vectors of a parallel view, as phong makes them (one per light).
+    halves = np.zeros_like(directions)
+    if plan._view.ndim != 2:
+        for k, direction in enumerate(directions):
+            halves[k] = unit_vector(plan._view + direction)
+    return directions, intensities, halves
+
+
+def _kernel_args(renderer) -> tuple:
+    """``_walk``'s arguments after the tile's rays and before the outputs."""
     r, plan, tf = renderer, renderer.plan, renderer.transfer
     material = r.scene.material
     per_ray_view = plan._view.ndim == 2
-    if r.scene.lit:
-        directions = np.array([d for d, _ in r.lights], dtype=np.float64).reshape(-1, 3)
-        intensities = np.array([i for _, i in r.lights], dtype=np.float64)
-        # The half vectors of a parallel view, as phong makes them (one per light).
-        halves = np.zeros_like(directions)
-        if not per_ray_view:
-            for k, direction in enumerate(directions):
-                halves[k] = unit_vector(plan._view + direction)
-    else:
-        directions, intensities, halves = np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
+    directions, intensities, halves = _lights(renderer)
     empty = np.zeros((0, 2))
     gp = tf.gradient_points if tf.gradient_points is not None else empty
     ip = tf.illumination_points if tf.illumination_points is not None else empty
@@ -89,7 +140,7 @@ def walk(
     d = plan._d.reshape(-1, 3)
     view = plan._view.reshape(-1, 3)
     dt = float(plan._dt)
-    args = (
+    return (
         np.ascontiguousarray(plan._o),
         np.ascontiguousarray(d),
         float(plan.k_first),
@@ -121,39 +172,6 @@ def walk(
         dt / r.ref,
         float(r.scene.render.early_termination),
     )
-    acc = np.zeros((plan.n_rays, 4))
-    taken = np.zeros(plan.ray_ids.size, dtype=np.int64)
-    chunks = _tiles(plan.ray_ids, plan.shape[1])
-    threads = min(frame_threads(), max(1, len(chunks)))
-    if threads == 1:
-        for k, sel in enumerate(chunks):
-            _walk(sel, *args, acc, taken)
-            if progress is not None:
-                progress(plan.n_steps * (k + 1) // len(chunks), plan.n_steps)
-    else:  # threads take the next tile as they finish one (tiles differ in cost)
-        tiles = iter(chunks)
-        lock = threading.Lock()
-        done = [0]
-
-        def work() -> None:
-            while True:
-                with lock:
-                    sel = next(tiles, None)
-                if sel is None:
-                    return
-                _walk(sel, *args, acc, taken)
-                with lock:
-                    done[0] += 1
-
-        jobs = [pool(threads).submit(work) for _ in range(threads)]
-        while futures.wait(jobs, timeout=0.2).not_done:
-            if progress is not None:
-                progress(plan.n_steps * done[0] // len(chunks), plan.n_steps)
-        for job in jobs:
-            job.result()
-        if progress is not None:
-            progress(plan.n_steps, plan.n_steps)
-    return acc, int(taken.sum()), int(np.count_nonzero(taken))
 
 
 def _tiles(ray_ids: np.ndarray, width: int) -> list[np.ndarray]:
