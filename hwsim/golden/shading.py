@@ -25,6 +25,7 @@ from hwsim.scene import CropSpec, CutPlane, Material
 __all__ = [
     "magnitude",
     "normals",
+    "cube_face",
     "cube_map_normals",
     "phong",
     "unit_vector",
@@ -47,14 +48,22 @@ def normals(g: np.ndarray) -> np.ndarray:
     return g * scale[:, None]
 
 
-def cube_map_normals(n: np.ndarray, size: int) -> np.ndarray:
-    """Unit normals ``(n, 3)`` moved to the centre of their cube-map cell (``size`` cells
-    per face edge); zero normals stay zero."""
+def cube_face(n: np.ndarray):
+    """The cube-map face of each normal ``(n, 3)``: ``(a, axis, rows, major, others)`` --
+    ``|n|`` per component, the major axis (the face), the row indices, ``|n|`` on the
+    major axis and the two other axes (the face's coordinates) of each row."""
     a = np.abs(n)
     axis = np.argmax(a, axis=1)
     rows = np.arange(n.shape[0])
     major = a[rows, axis]
     others = np.array([[1, 2], [0, 2], [0, 1]])[axis]
+    return a, axis, rows, major, others
+
+
+def cube_map_normals(n: np.ndarray, size: int) -> np.ndarray:
+    """Unit normals ``(n, 3)`` moved to the centre of their cube-map cell (``size`` cells
+    per face edge); zero normals stay zero."""
+    _, axis, rows, major, others = cube_face(n)
     out = np.zeros_like(n)
     out[rows, axis] = np.sign(n[rows, axis])
     safe = np.where(major > _TINY, major, 1.0)

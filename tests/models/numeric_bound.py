@@ -44,6 +44,7 @@ import numpy as np
 
 from hwsim.fidelity import algorithms, resolve_arch
 from hwsim.golden import make_plan, render_golden
+from hwsim.golden.shading import cube_face
 from hwsim.numerics import psnr
 from hwsim.scene import Light
 from hwsim.transfer import resolve_transfer
@@ -521,11 +522,7 @@ class _Bound:
         cell's radius ``sqrt(2) / size`` on the functional side plus ``rho`` plus golden's
         own distance to its centre."""
         size = self.maps
-        a = np.abs(normal)
-        axis = np.argmax(a, axis=1)
-        rows = np.arange(normal.shape[0])
-        major = a[rows, axis]
-        others = np.array([[1, 2], [0, 2], [0, 1]])[axis]
+        a, axis, rows, major, others = cube_face(normal)  # golden's face rule
         centre = np.zeros_like(normal)
         centre[rows, axis] = np.sign(normal[rows, axis])
         inside = major - rho > np.max(np.where(np.arange(3) == axis[:, None], 0.0, a), axis=1) + rho
