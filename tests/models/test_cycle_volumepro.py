@@ -17,7 +17,7 @@ from rungs import assert_identical, functional_and_cycle, machine, scene_of
 
 from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, CutPlane, TransferSpec
+from hwsim.scene import CropSpec, TransferSpec
 from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
@@ -99,33 +99,24 @@ def test_supersampling_costs_pipeline_time_in_proportion(head):
     assert 3.0 < four.cycles / one.cycles < 4.0
 
 
-@pytest.mark.parametrize(
-    "extra",
-    [
-        {"transfer": TransferSpec(preset="ct", order="pre")},
-        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(0.0, 12.5))},
-        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(4.0, 12.5), invert=True)},
-        {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(4.0, 12.5), mode="cross")},
-        {"crop": CropSpec(x=(3.0, 9.0), y=(2.0, 8.0), z=(4.0, 6.5), mode="fence", invert=True)},
-        {"cut_planes": (CutPlane(normal=(1.0, 0.3, 0.2), offset=0.5, thickness=4.0, falloff=2.0),)},
-        {"transfer": TransferSpec(preset="ct", gradient_opacity=((0.0, 0.2), (200.0, 1.0)))},
-        {"render": {"lighting": False}},
-        {"render": {"early_termination": 0.9}},
-        {"render": {"supersampling": 2.0, "early_termination": 0.8}},
-    ],
-    ids=[
-        "pre-classified",
-        "crop-slabs",
-        "crop-inverted",
-        "crop-cross",
-        "crop-inverted-fence",
-        "thick-cut-plane",
-        "gm-modulation",
-        "unlit",
-        "ert",
-        "supersampled-ert",
-    ],
-)
+#: :data:`rungs.FEATURE_VARIANTS` with the slab machines' crop modes and supersampling.
+FEATURE_VARIANTS = {
+    "pre-classified": rungs.FEATURE_VARIANTS["pre-classified"],
+    "crop-slabs": rungs.FEATURE_VARIANTS["crop"],
+    "crop-inverted": {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(4.0, 12.5), invert=True)},
+    "crop-cross": {"crop": CropSpec(x=(3.0, 15.0), y=(2.0, 18.0), z=(4.0, 12.5), mode="cross")},
+    "crop-inverted-fence": {
+        "crop": CropSpec(x=(3.0, 9.0), y=(2.0, 8.0), z=(4.0, 6.5), mode="fence", invert=True)
+    },
+    "thick-cut-plane": rungs.FEATURE_VARIANTS["cut-plane"],
+    "gm-modulation": rungs.FEATURE_VARIANTS["gm-modulation"],
+    "unlit": rungs.FEATURE_VARIANTS["unlit"],
+    "ert": rungs.FEATURE_VARIANTS["ert"],
+    "supersampled-ert": {"render": {"supersampling": 2.0, "early_termination": 0.8}},
+}
+
+
+@pytest.mark.parametrize("extra", list(FEATURE_VARIANTS.values()), ids=list(FEATURE_VARIANTS))
 @pytest.mark.parametrize("arch", ["volumepro500", "volumepro1000"])
 def test_volumepro_features_stay_bit_identical(head, arch, extra):
     assert_identical(*functional_and_cycle(scene_of(40, 15, **extra), head, arch)[:2])
