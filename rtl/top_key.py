@@ -157,6 +157,8 @@ def _parse(name: str, path: Path, text: bytes):
     rebound: set[str] = set()
 
     def visit(node: ast.AST, in_function: bool) -> None:
+        if not in_function and isinstance(node, ast.FunctionDef) and node.name in _LAZY:
+            return  # a package's lazy re-exports (PEP 562): run only on attribute access
         if isinstance(node, ast.If) and _is_type_checking(node.test):
             for child in node.orelse:
                 visit(child, in_function)
@@ -183,6 +185,13 @@ def _parse(name: str, path: Path, text: bytes):
     visit(ast.parse(text), False)
     _PARSED[digest] = frozenset(every), frozenset(eager), frozenset(rebound)
     return _PARSED[digest]
+
+
+#: Module-level functions whose imports the generator never runs: ``hwsim/__init__.py``
+#: imports the whole API inside ``__getattr__`` (``hwsim.render`` on first use); the
+#: generator reads no such attribute, so following them would key every build on the
+#: whole application.
+_LAZY = frozenset({"__getattr__", "__dir__"})
 
 
 def _is_type_checking(test: ast.expr) -> bool:
