@@ -46,11 +46,11 @@ import time
 from functools import partial
 
 from benchmarks.report_io import write_report
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import psnr
-from hwsim.scene import Scene, TransferSpec, ViewSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 
 __all__ = ["GOAL_RATIO", "run", "main"]

@@ -40,8 +40,8 @@ if __package__ in (None, ""):  # run as a script: make `benchmarks` and `hwsim` 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.scene import Light, Material, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import TransferFunction, resolve_transfer
+from hwsim.spec.scene import Light, Material, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.spec.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import Volume, make_phantom
 
 __all__ = [
@@ -136,7 +136,7 @@ def _golden() -> Callable[..., Any] | None:
 def machine_info() -> dict[str, Any]:
     """CPU model, cores, Python/NumPy/VTK versions and how VTK renders here."""
     from benchmarks.vtk_reference import vtk_environment
-    from hwsim.bench import machine_info as host
+    from hwsim.studies.bench import machine_info as host
 
     env = vtk_environment()
     return {

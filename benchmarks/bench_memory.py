@@ -33,7 +33,6 @@ if __package__ in (None, ""):
 import simpy
 
 from benchmarks.report_io import write_report
-from hwsim.fidelity import resolve_arch
 from hwsim.memory import (
     MemoryConfig,
     SdramConfig,
@@ -43,6 +42,7 @@ from hwsim.memory import (
     schedule_bursts,
     simulate_events,
 )
+from hwsim.run.fidelity import resolve_arch
 from models.memory_streams import module_streams
 
 __all__ = ["run", "main"]

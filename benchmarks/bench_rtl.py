@@ -34,12 +34,12 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import median_seconds, write_report
-from hwsim.bench import machine_info
-from hwsim.fidelity import resolve_arch
+from hwsim.core.threads import using
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.threads import using
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.studies.bench import machine_info
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of

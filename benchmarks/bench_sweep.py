@@ -31,8 +31,8 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.bench import machine_info
-from hwsim.sweep import RunsDB, load_sweep, local_client, run_sweep
+from hwsim.studies.bench import machine_info
+from hwsim.studies.sweep import RunsDB, load_sweep, local_client, run_sweep
 
 __all__ = ["GOAL_SPEEDUP", "SWEEP_TOML", "run", "main"]
 
@@ -67,7 +67,7 @@ def _time_once(sweep, n: int, db_path: Path) -> dict[str, Any]:
 
 def _run_share(sweep_file: str, start: int, step: int) -> int:
     """Render every ``step``-th run of the sweep from ``start``, in this process."""
-    from hwsim.sweep.runner import execute_run
+    from hwsim.studies.sweep.runner import execute_run
 
     runs = load_sweep(sweep_file).runs[start::step]
     for r in runs:

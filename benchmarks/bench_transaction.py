@@ -35,12 +35,12 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import median_seconds, write_report
-from hwsim.bench import machine_info
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import Scene, TransferSpec, ViewSpec
-from hwsim.trade.independence import shown_error, transaction_vs_cycle
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.studies.bench import machine_info
+from hwsim.studies.trade.independence import shown_error, transaction_vs_cycle
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of
@@ -89,7 +89,7 @@ def measure(n: int, projection: str, repeats: int, arch_name: str = "cube4") -> 
         "cycle_cycles": cycle.cycles,
         "transaction_cycles": txn.cycles,
         "cycle_error": (txn.cycles - cycle.cycles) / cycle.cycles,
-        # What the two rungs share for the cycles compared (hwsim.trade.independence):
+        # What the two rungs share for the cycles compared (hwsim.studies.trade.independence):
         # Cube-4's are the same timing functions, so its error is a consistency check.
         "independence": comparison.verdict,
         "error_shown": shown_error(comparison, (txn.cycles - cycle.cycles) / cycle.cycles),

@@ -36,14 +36,14 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.bench import machine_info
+from hwsim.core.threads import using
 from hwsim.energy import estimate_frame, load_technology
 from hwsim.energy.model import DATAPATH, rtl_width_inventory, synthesized_unit
 from hwsim.energy.synth import INDEPENDENCE, fmax_basis, listed_gate_equivalents
-from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import Scene, TransferSpec, ViewSpec
-from hwsim.threads import using
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.studies.bench import machine_info
 from hwsim.volumes import make_phantom
 from models.frame import frame_of
 

@@ -34,7 +34,7 @@ WALL_CLOCK_SUFFIX = "_seconds"
 
 def random_scene(rng: np.random.Generator):
     """One small random scene and a short description of it."""
-    from hwsim.scene import VolumeSpec, load_scene
+    from hwsim.spec.scene import VolumeSpec, load_scene
 
     base = load_scene("head")
     phantom = str(rng.choice(PHANTOMS))
@@ -65,8 +65,8 @@ def random_scene(rng: np.random.Generator):
 
 
 def fingerprint(scene, fidelity: str, arch: str) -> dict:
-    from hwsim.errors import HwsimError
-    from hwsim.fidelity import render
+    from hwsim.core.errors import HwsimError
+    from hwsim.run.fidelity import render
 
     try:  # what-ifs included: a refactor must keep those bits too
         run = render(scene, fidelity=fidelity, arch=arch, extend=True)
@@ -84,7 +84,7 @@ def fingerprint(scene, fidelity: str, arch: str) -> dict:
 
 
 def main() -> None:
-    from hwsim.fidelity import builtin_archs
+    from hwsim.run.fidelity import builtin_archs
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=300, help="renders in all")

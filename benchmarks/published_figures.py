@@ -11,7 +11,7 @@ VolumePro family) its figures at ``--size`` are measured on the cycle rung, from
 mechanisms only (pipelines, clock, SDRAM timing, buffers, pixel bus, latency; no
 efficiency factor).  Those figures are ``peak`` or ``fitted`` (pipelines x clock was set
 from them: docs/figures.md), so each row measures the modelled overheads, not the
-machine's timing; on the scenario ``hwsim figures`` uses (:mod:`hwsim.figures`: the
+machine's timing; on the scenario ``hwsim figures`` uses (:mod:`hwsim.studies.figures`: the
 dense head phantom, one sample per voxel, the widest voxels).  The published values and
 tolerances are read from the arch files: this script holds no figure of its own.
 
@@ -47,11 +47,11 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.fidelity import builtin_archs, render, resolve_arch
-from hwsim.figures import figure_machine, figure_scene, figure_value, published_figures
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import builtin_archs, render, resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.studies.figures import figure_machine, figure_scene, figure_value, published_figures
 from hwsim.volumes import load_volume, make_phantom, read_volume
 from models.frame import frame_of
 

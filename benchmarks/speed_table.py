@@ -56,8 +56,8 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.bench import TABLE_GOALS as GOALS
-from hwsim.threads import using as using_threads
+from hwsim.core.threads import using as using_threads
+from hwsim.studies.bench import TABLE_GOALS as GOALS
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -97,7 +97,7 @@ def _median(times: dict[str, list[float]]) -> dict[str, float]:
 
 def _ct_scene(image: int):
     from benchmarks.vtk_reference import VTK_EARLY_TERMINATION
-    from hwsim.scene import VolumeSpec, load_scene
+    from hwsim.spec.scene import VolumeSpec, load_scene
 
     head = load_scene("head")
     return dataclasses.replace(
@@ -128,7 +128,7 @@ def _missing_ct_or_vtk() -> str | None:
 def golden_vs_vtk_first(repeats: int, image: int = 256) -> dict[str, Any]:
     """First frames, golden (file read + render) and VTK (pipeline + first render)."""
     from hwsim.golden import render_golden
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import load_volume
 
     scene = _ct_scene(image)
@@ -164,7 +164,7 @@ def golden_vs_vtk_first(repeats: int, image: int = 256) -> dict[str, Any]:
 def golden_vs_vtk_rotation(frames: int, image: int = 256) -> dict[str, Any]:
     """Later frames of a rotation: the median of frames 2..N of each renderer."""
     from hwsim.golden import render_golden
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import load_volume
 
     scene = _ct_scene(image)
@@ -240,10 +240,10 @@ def functional_vs_volpack(frames: int, repeats: int) -> dict[str, Any]:
 
 
 def _machine_case(arch_name: str, n: int, image: int | None = None):
-    from hwsim.fidelity import resolve_arch
     from hwsim.golden import make_plan
-    from hwsim.scene import Scene, TransferSpec, ViewSpec
-    from hwsim.transfer import resolve_transfer
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.spec.scene import Scene, TransferSpec, ViewSpec
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import make_phantom
     from models.frame import frame_of
 
@@ -318,7 +318,7 @@ def cycle_and_timing_only(sizes: Sequence[int], repeats: int) -> tuple[dict, dic
 _MEMORY_SCRIPT = """
 import sys; sys.path.insert(0, {root!r})
 from benchmarks.speed_table import _machine_case
-from hwsim.fidelity import render
+from hwsim.run.fidelity import render
 arch, volume, scene, tf, frame = _machine_case({arch!r}, {n}, {image})
 with open('/proc/self/clear_refs', 'w') as f:
     f.write('5')  # VmHWM from here: the frame, not building the phantom
@@ -330,7 +330,7 @@ print(volume.data.nbytes, hwm, run.samples, run.cycles)
 
 def cycle_512_peak(n: int, image: int | None = None) -> dict[str, Any]:
     """Peak resident set of one ``n^3`` cycle frame per machine, each in a new process
-    (``VmHWM`` reset after the phantom is built; ``hwsim.fidelity.render``, so VolumePro
+    (``VmHWM`` reset after the phantom is built; ``hwsim.run.fidelity.render``, so VolumePro
     500 renders a supervolume as its boards did)."""
     cases = []
     for arch_name in MACHINES:
@@ -369,7 +369,7 @@ def threads_2_vs_1(repeats: int) -> dict[str, Any]:
     """One frame on one thread and on two, alternating: golden (CT 256^2 when present,
     else the head phantom), functional and cycle (VolumePro 500, head 128^3 to 256^2)."""
     from hwsim.golden import render_golden
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import load_volume, make_phantom
     from models.cycle import render_cycle
     from models.functional import render_functional
@@ -502,7 +502,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
-    from hwsim.bench import machine_info
+    from hwsim.studies.bench import machine_info
 
     rows = run(
         args.rows,

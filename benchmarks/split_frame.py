@@ -7,8 +7,8 @@ Usage::
         [--out benchmarks/results/split-frame.json]
 
 Each (size, workers) starts a local Dask cluster of that many single-thread worker
-processes (``hwsim.cluster.local_client``, as ``hwsim render --workers`` does) and renders
-the dense scenario (``hwsim.figures.figure_scene``: the head scene's transfer function,
+processes (``hwsim.core.cluster.local_client``, as ``hwsim render --workers`` does) and renders
+the dense scenario (``hwsim.studies.figures.figure_scene``: the head scene's transfer function,
 light and material on an ``N^3`` volume viewed along an axis, one sample per voxel) at
 cycle fidelity through ``--scheduler`` on that cluster, twice: the first frame pays the
 workers' imports and kernel loads (``cold``), the second is what every later frame on a
@@ -97,8 +97,8 @@ def resample_ct(n: int, folder: Path) -> Path:
 
 
 def scene_for(n: int, volume: str, scratch: Path):
-    from hwsim.figures import figure_scene
-    from hwsim.scene import VolumeSpec
+    from hwsim.spec.scene import VolumeSpec
+    from hwsim.studies.figures import figure_scene
 
     scene = figure_scene(n)
     if volume == "ct":
@@ -107,8 +107,8 @@ def scene_for(n: int, volume: str, scratch: Path):
 
 
 def frame(scene, arch, scheduler: str | None) -> tuple[Any, float, int]:
-    from hwsim.cluster import peak_rss_bytes, reset_peak_rss
-    from hwsim.fidelity import render
+    from hwsim.core.cluster import peak_rss_bytes, reset_peak_rss
+    from hwsim.run.fidelity import render
 
     reset_peak_rss()
     start = time.perf_counter()
@@ -128,8 +128,8 @@ def run(
     log=lambda line: print(line, file=sys.stderr, flush=True),
 ) -> dict[str, Any]:
     """The scaling table (see the module docstring) as a JSON-ready report."""
-    from hwsim.cluster import local_client
-    from hwsim.fidelity import resolve_arch
+    from hwsim.core.cluster import local_client
+    from hwsim.run.fidelity import resolve_arch
 
     arch = resolve_arch("cube4")
     if pipelines:
@@ -179,7 +179,7 @@ def run(
     return {
         "schema": 1,
         "benchmark": "split-frame",
-        "scene": f"dense scenario (hwsim.figures.figure_scene), volume {volume}",
+        "scene": f"dense scenario (hwsim.studies.figures.figure_scene), volume {volume}",
         "machine": {"arch": arch.name, "pipelines": arch.pipelines, "clock_hz": arch.clock_hz},
         "rows": rows,
         "checks": checks,

@@ -14,7 +14,7 @@ transaction rung's event model times it; the relative error
 ``(transaction - cycle) / cycle`` is written per case, with the worst per architecture
 family and per kind of view.
 
-Every case also names its **independence** (:mod:`hwsim.trade.independence`, read from
+Every case also names its **independence** (:mod:`hwsim.studies.trade.independence`, read from
 the code): on the Cube-4 family both rungs time the frame with the same functions
 (``cube4_latency``, ``cube4_pixel_pushes``, ``freezing_fifo``, ``cube4_lanes``), so its
 error is a consistency check, shown as ``consistency check (shared code: ...)``, not a
@@ -44,17 +44,17 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.bench import machine_info
-from hwsim.errors import NotAvailableError
-from hwsim.fidelity import resolve_arch
-from hwsim.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.trade.independence import SHARED as SHARED_CODE
-from hwsim.trade.independence import (
+from hwsim.core.errors import NotAvailableError
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.studies.bench import machine_info
+from hwsim.studies.trade.independence import SHARED as SHARED_CODE
+from hwsim.studies.trade.independence import (
     TRANSACTION_VS_CYCLE,
     shown_error,
     transaction_family,
 )
-from hwsim.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models.cycle import render_cycle
 from models.frame import frame_of
@@ -417,7 +417,7 @@ def _summary(report: dict[str, Any]) -> dict[str, Any]:
 def annotate(report: dict[str, Any], archs: dict[str, Any] | None = None) -> dict[str, Any]:
     """An existing report with the independence columns added from its numbers (no case
     is re-measured): each case's comparison from its architecture (``archs``: case name
-    to :class:`~hwsim.arch.ArchConfig`, default the cases of this script), its verdict and
+    to :class:`~hwsim.spec.arch.ArchConfig`, default the cases of this script), its verdict and
     the error as shown, and the summary recomputed."""
     if archs is None:
         archs = {c["name"]: c["arch"] for c in cases(quick=False)}

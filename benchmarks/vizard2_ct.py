@@ -29,10 +29,10 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import read_volume
 from models.frame import frame_of
 

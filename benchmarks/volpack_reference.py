@@ -111,8 +111,8 @@ def hwsim_frame_seconds(
     """The functional rung's seconds per frame over the same kind of rotation."""
     import dataclasses
 
-    from hwsim.fidelity import render, resolve_arch
-    from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+    from hwsim.run.fidelity import render, resolve_arch
+    from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
     from hwsim.volumes import load_volume
 
     spec = VolumeSpec(path=str(path))

@@ -8,7 +8,7 @@ imported unless the caller already chose a window class (``vtkOSMesaRenderWindow
 the other headless choice).  The ray casting itself runs on the CPU, threaded by
 ``vtkMultiThreader``; OpenGL only draws the finished image as a texture.
 
-Conventions (matching hwsim, see ``hwsim/scene.py`` ``ViewSpec``):
+Conventions (matching hwsim, see ``hwsim/spec/scene.py`` ``ViewSpec``):
 
 * ``data_zyx`` has axis order ``(z, y, x)``; voxel centres sit at ``index * spacing``
   (VTK point data with origin 0), so the volume centre is ``(shape - 1) / 2 * spacing``.

@@ -2,10 +2,10 @@
 
 ``import hwsim`` re-exports these names (``hwsim.render``, ``hwsim.load_scene``, ...);
 docs/api.md is their reference.  Each function is a thin layer over the library calls
-the command line makes (:mod:`hwsim.cli_scene` for the scene overrides,
-:func:`hwsim.fidelity.render`, :func:`hwsim.output.write_render`, the sweep runner and the
+the command line makes (:mod:`hwsim.cli.scene` for the scene overrides,
+:func:`hwsim.run.fidelity.render`, :func:`hwsim.run.output.write_render`, the sweep runner and the
 ladder trade), so a script and the CLI produce the same images, stats and files.  Bad
-input raises :class:`~hwsim.errors.InputError`, one line naming the key: the keyword's
+input raises :class:`~hwsim.core.errors.InputError`, one line naming the key: the keyword's
 name where the CLI's would name its flag (``view``, not ``--view``).
 """
 
@@ -19,12 +19,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 
 if TYPE_CHECKING:
-    from hwsim.arch import ArchConfig
-    from hwsim.fidelity import RenderRun
-    from hwsim.scene import Scene
+    from hwsim.run.fidelity import RenderRun
+    from hwsim.spec.arch import ArchConfig
+    from hwsim.spec.scene import Scene
     from hwsim.volumes.volume import Volume
 
 __all__ = [
@@ -41,7 +41,7 @@ __all__ = [
 
 #: Keywords of :func:`load_scene`: the ``hwsim render`` scene flags.
 SCENE_OVERRIDES = ("volume", "phantom", "shape", "dtype", "mode", "view", "image", "projection")
-#: Keywords of :func:`render` besides ``fidelity`` and ``arch`` (hwsim.fidelity.render's,
+#: Keywords of :func:`render` besides ``fidelity`` and ``arch`` (hwsim.run.fidelity.render's,
 #: plus ``threads`` and ``max_memory``, which the CLI sets around a render).
 RENDER_OPTIONS = (
     "sampling",
@@ -102,7 +102,7 @@ def _budget(max_memory: str | int | None) -> Iterator[None]:
     if max_memory is None:
         yield
         return
-    from hwsim.budget import memory_budget_of, parse_size
+    from hwsim.core.budget import memory_budget_of, parse_size
 
     if isinstance(max_memory, bool) or not isinstance(max_memory, (str, int)):
         raise InputError(f"expected e.g. '2G' or bytes, got {max_memory!r}", key="max_memory")
@@ -129,9 +129,9 @@ def load_scene(name_or_path: str | Path | Scene | None = None, **overrides: Any)
     ``"head:size=64"``), ``phantom``, ``shape`` and ``dtype`` (a ``.raw`` file), ``mode``,
     ``view=(azimuth, elevation)``, ``image=N`` or ``(width, height)``, ``projection``.
     None: the default scene (``head``); a Scene: that scene, overridden."""
-    from hwsim.cli_scene import apply_overrides
-    from hwsim.scene import MODES, PROJECTIONS, Scene
-    from hwsim.scene import load_scene as load
+    from hwsim.cli.scene import apply_overrides
+    from hwsim.spec.scene import MODES, PROJECTIONS, Scene
+    from hwsim.spec.scene import load_scene as load
 
     for key in overrides:
         if key not in SCENE_OVERRIDES:
@@ -194,7 +194,7 @@ def load_volume(path_or_phantom_spec: str | Path, **options: Any) -> Volume:
     """A volume: a file (``.npy``, NRRD, NIfTI, ``.raw``) or DICOM folder, with ``shape``,
     ``dtype``, ``byte_order``, ``header_bytes`` (``.raw``) and ``spacing`` (z, y, x); or a
     phantom spec (``"head:size=64"``), its parameters also as keywords (``size=64``)."""
-    from hwsim.scene import VolumeSpec
+    from hwsim.spec.scene import VolumeSpec
     from hwsim.volumes import load_volume as load
     from hwsim.volumes import parse_phantom_spec
 
@@ -224,7 +224,7 @@ class Run:
     ``image`` (NumPy array: ``H x W x 4`` premultiplied RGBA, or ``H x W`` for mip, minip
     and xray; None when timed without it), ``cycles`` (None for golden), ``samples``,
     ``stats`` (the ``stats.json`` dictionary), :meth:`save`, and ``render_run``, the
-    underlying :class:`hwsim.fidelity.RenderRun`.
+    underlying :class:`hwsim.run.fidelity.RenderRun`.
     """
 
     def __init__(self, render_run: RenderRun, threads: int | None = None) -> None:
@@ -256,8 +256,8 @@ class Run:
     def stats(self) -> dict[str, Any]:
         """What ``save`` writes as ``stats.json``, as plain JSON types (computed once)."""
         if self._stats is None:
-            from hwsim.output import image_to_rgb8, stats_plain
-            from hwsim.threads import using
+            from hwsim.core.threads import using
+            from hwsim.run.output import image_to_rgb8, stats_plain
 
             with using(self._threads):  # host.frame_threads: the render's count
                 stats = stats_plain(self.render_run)
@@ -271,8 +271,8 @@ class Run:
         """Write ``image.png``, ``image.npy``, ``stats.json`` and a timed rung's CSVs into
         ``folder`` (created), as ``hwsim render --out folder`` does; returns the paths by
         kind (``png``, ``npy``, ``stats``, ``throughput``, ...)."""
-        from hwsim.output import write_render
-        from hwsim.threads import using
+        from hwsim.core.threads import using
+        from hwsim.run.output import write_render
 
         with using(self._threads):
             return write_render(self.render_run, folder)
@@ -293,9 +293,9 @@ def render(
     """Render ``scene`` (a Scene, or a name or path for :func:`load_scene`) at
     ``fidelity`` on ``arch`` (a name, file or :func:`arch`); ``options`` are
     :data:`RENDER_OPTIONS` (docs/api.md).  Returns a :class:`Run`."""
-    from hwsim import fidelity as ladder
-    from hwsim.scene import Scene
-    from hwsim.threads import using
+    from hwsim.core.threads import using
+    from hwsim.run import fidelity as ladder
+    from hwsim.spec.scene import Scene
 
     _unknown(options, RENDER_OPTIONS, "a render option")
     if not isinstance(scene, Scene):
@@ -313,7 +313,7 @@ def render(
                 key="volume",
             )
     if options.get("trace") is not None:
-        from hwsim.paths import output_file
+        from hwsim.core.paths import output_file
 
         output_file(options["trace"], "trace")  # checked before the work starts
     threads = options.pop("threads", None)
@@ -327,8 +327,8 @@ def render(
 
 
 def archs() -> dict[str, ArchConfig]:
-    """The built-in machines (``hwsim archs``), name -> :class:`hwsim.arch.ArchConfig`."""
-    from hwsim.fidelity import builtin_archs
+    """The built-in machines (``hwsim archs``), name -> :class:`hwsim.spec.arch.ArchConfig`."""
+    from hwsim.run.fidelity import builtin_archs
 
     return builtin_archs()
 
@@ -338,14 +338,14 @@ def arch(name_or_path: str | Path, **overrides: Any) -> ArchConfig:
     """A built-in machine by name or an architecture file, with ``pipelines``,
     ``clock_hz`` and ``formats={"interp.weight_bits": 6, ...}`` overridden and checked
     as a sweep file's are."""
-    from hwsim.fidelity import resolve_arch
+    from hwsim.run.fidelity import resolve_arch
 
     _unknown(overrides, ARCH_OVERRIDES, "an architecture override")
     ref = str(name_or_path)
     config = resolve_arch(ref)
     if not overrides:
         return config
-    from hwsim.sweep.spec import build_run, parse_sweep
+    from hwsim.studies.sweep.spec import build_run, parse_sweep
 
     table: dict[str, Any] = {"arch": [ref], "fidelity": ["functional"]}
     for key in ("pipelines", "clock_hz"):
@@ -402,11 +402,11 @@ def sweep(
 ) -> SweepResult:
     """Run a sweep (``hwsim sweep``): a sweep TOML file, or its content as a dict (the
     ``[sweep]`` table alone or the whole file); runs already in ``db`` are skipped."""
-    from hwsim.cluster import check_address, connect, local_client
-    from hwsim.paths import output_file, output_folder
-    from hwsim.sweep.db import RunsDB, check_ours
-    from hwsim.sweep.runner import run_sweep
-    from hwsim.sweep.spec import load_sweep, parse_sweep, run_key
+    from hwsim.core.cluster import check_address, connect, local_client
+    from hwsim.core.paths import output_file, output_folder
+    from hwsim.studies.sweep.db import RunsDB, check_ours
+    from hwsim.studies.sweep.runner import run_sweep
+    from hwsim.studies.sweep.spec import load_sweep, parse_sweep, run_key
 
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
         raise InputError(f"{workers!r} is out of range", key="workers", allowed="1 .. 256")
@@ -461,7 +461,7 @@ def trade(
 ) -> list[dict[str, Any]]:
     """The fidelity-ladder trade (``hwsim trade``), or with ``widths`` the bit-width trade
     (``hwsim trade --widths``): its rows; written to ``out`` as the CLI does when given."""
-    from hwsim.paths import output_folder
+    from hwsim.core.paths import output_folder
 
     vols = [str(volumes)] if isinstance(volumes, (str, Path)) else [str(v) for v in volumes]
     machines = [archs] if isinstance(archs, str) else list(archs or [])
@@ -474,8 +474,8 @@ def trade(
         output_folder(out)
     with _budget(max_memory):
         if widths:
-            from hwsim.fidelity import resolve_arch
-            from hwsim.trade.widths import default_cases, width_trade, write_width_trade
+            from hwsim.run.fidelity import resolve_arch
+            from hwsim.studies.trade.widths import default_cases, width_trade, write_width_trade
 
             if len(machines) > 1:
                 raise InputError("widths measures one machine", key="archs", allowed="one")
@@ -484,7 +484,7 @@ def trade(
             if out is not None:
                 write_width_trade(rows, out)
             return rows
-        from hwsim.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade
+        from hwsim.studies.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade
 
         cases = ladder_cases(vols, image, size)
         rows = ladder_trade(cases, machines or None, rungs, progress=progress, extend=extend)

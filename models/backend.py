@@ -25,11 +25,11 @@ from typing import Protocol
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden import geometry, occupancy
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import Step
-from hwsim.scene_features import VALUE_FIELD, check_machine
+from hwsim.spec.scene_features import VALUE_FIELD, check_machine
 from models.datapath import units_needed
 from models.frame import Frame
 from models.units import classify as classify_unit
@@ -147,7 +147,7 @@ class Backend:
             per_unit = self.vmap.scale / (2.0 * (1 << self.S) * self.ref)
             self.gm_scale = classify_unit.gm_scale(per_unit, self.gm_max, dp.classify)
         if scene.lit or exercise_unused:
-            from hwsim.scene import Light
+            from hwsim.spec.scene import Light
 
             lights = [
                 (plan.camera.light_to_world(light.direction, light.space), light.intensity)
@@ -233,7 +233,7 @@ class Backend:
             factor = crop_unit.cut_factor(
                 index_to_world(zyx, self.scene_volume),
                 self.scene.cut_planes,
-                # The machine's plane count; a what-if beyond it (hwsim.machine_features)
+                # The machine's plane count; a what-if beyond it (hwsim.spec.machine_features)
                 # gets a unit as wide as the scene asks.
                 crop_unit.CutConfig(
                     max_planes=max(1, self.arch.cut_planes, len(self.scene.cut_planes))

@@ -6,7 +6,7 @@
 The machine is the family the registry (:mod:`models.machines`) holds for the
 architecture's processing order: the Cube-4 family (``slice-parallel``), the VolumePro
 family (``shear-warp``, ``shear-image``) and VIZARD II (``ray``).  An order no family
-models at this rung raises :class:`~hwsim.errors.NotAvailableError` naming those that are.
+models at this rung raises :class:`~hwsim.core.errors.NotAvailableError` naming those that are.
 """
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from hwsim.arch import ArchConfig
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.engine import VcdTrace
-from hwsim.errors import InputError, NotAvailableError
+from hwsim.spec.arch import ArchConfig
 from models.backend import Backend
 from models.frame import Frame
 from models.machines import families, machine_for

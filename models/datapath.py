@@ -15,9 +15,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from hwsim.arch import ArchConfig
-from hwsim.config import flatten_table
-from hwsim.errors import InputError
+from hwsim.core.config import flatten_table
+from hwsim.core.errors import InputError
+from hwsim.spec.arch import ArchConfig
 from models.units.classify import ClassifyConfig
 from models.units.composite import CompositeConfig
 from models.units.gradient import GradientConfig

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hwsim.arch import ArchConfig
 from hwsim.golden.positions import SamplePlan, make_plan
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
+from hwsim.spec.arch import ArchConfig
+from hwsim.spec.scene import Scene
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.datapath import Datapath
 

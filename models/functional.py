@@ -33,7 +33,7 @@ import numpy as np
 
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.numerics import SATURATIONS
-from hwsim.scene import Scene
+from hwsim.spec.scene import Scene
 from models import fused_steps, leap
 from models.backend import Backend, RayState, run_compiled
 from models.datapath import units_needed

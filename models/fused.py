@@ -51,8 +51,8 @@ import weakref
 import numba
 import numpy as np
 
+from hwsim.core.threads import THREADS_ENV_VAR
 from hwsim.numerics import round_shift_raw
-from hwsim.threads import THREADS_ENV_VAR
 from models.fused_stage import (
     _FROM_VOXELS,
     _GM_ENTRIES,

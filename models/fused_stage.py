@@ -26,9 +26,9 @@ import numba
 import numpy as np
 from numba.extending import register_jitable
 
+from hwsim.core.threads import frame_threads
+from hwsim.core.threads import pool as thread_pool
 from hwsim.numerics import ROUNDING_CODES, SATURATIONS, round_scaled, round_shift_raw
-from hwsim.threads import frame_threads
-from hwsim.threads import pool as thread_pool
 from models.datapath import Datapath
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit

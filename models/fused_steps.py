@@ -44,10 +44,10 @@ from collections.abc import Callable, Iterator
 import numba
 import numpy as np
 
+from hwsim.core.threads import frame_threads
+from hwsim.core.threads import pool as thread_pool
 from hwsim.golden.occupancy import Occupancy
 from hwsim.golden.positions import SamplePlan
-from hwsim.threads import frame_threads
-from hwsim.threads import pool as thread_pool
 from models.backend import Backend, RayState
 
 __all__ = ["applies", "busiest_lanes", "plan_positions", "run_steps_compiled"]
@@ -255,7 +255,7 @@ def run_steps_compiled(
     fills ``stopped`` as :meth:`models.functional._Functional._run_leapt` does and
     returns the samples simulated.
 
-    With :func:`~hwsim.threads.frame_threads` above one the plan's rays are dealt to the
+    With :func:`~hwsim.core.threads.frame_threads` above one the plan's rays are dealt to the
     threads in interleaved blocks of :data:`_RAY_BLOCK`; each thread walks every step for
     its own rays (a ray's samples stay in order, in one thread), so the frame is the
     same bits for any thread count, and the threads meet only at the end."""

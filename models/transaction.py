@@ -12,7 +12,7 @@ model is the one the registry (:mod:`models.machines`) holds for the architectur
 processing order: the Cube-4 family's slices and beams, the VolumePro family's SDRAM-fed
 slabs (sections, and beam skipping on VolumePro 1000, which reads each ray's termination
 step from the functional rung's result), VIZARD II's ray packets and block-cache misses.
-Others raise :class:`~hwsim.errors.NotAvailableError` naming what is modelled.
+Others raise :class:`~hwsim.core.errors.NotAvailableError` naming what is modelled.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.engine.metrics import derive
-from hwsim.errors import InputError, NotAvailableError
+from hwsim.spec.arch import ArchConfig
 from models.frame import Frame
 from models.functional import render_functional
 from models.machines import families, machine_for

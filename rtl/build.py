@@ -24,7 +24,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from hwsim.errors import HwsimError, InputError
+from hwsim.core.errors import HwsimError, InputError
 
 __all__ = ["UNITS", "TARGETS", "parse_settings", "build_unit", "synthesize", "build"]
 

@@ -1,17 +1,17 @@
-"""The ``hwsim rtl`` command: argument parser and runner (hooked into hwsim/cli.py)."""
+"""The ``hwsim rtl`` command: argument parser and runner (hooked into hwsim/cli/main.py)."""
 
 from __future__ import annotations
 
 import argparse
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 
 __all__ = ["add_parser", "run"]
 
 
 def add_parser(sub):
     """Add ``rtl build [UNIT|all|top] --out DIR [--set UNIT.KEY=VALUE ...]``; returns the
-    ``rtl`` actions (hwsim/cli.py adds ``rtl diff``, which needs the cycle rung)."""
+    ``rtl`` actions (hwsim/cli/main.py adds ``rtl diff``, which needs the cycle rung)."""
     from rtl.build import UNITS
 
     r = sub.add_parser(
@@ -45,7 +45,7 @@ def add_parser(sub):
 
 def run(args: argparse.Namespace, progress=None) -> int:
     """Build the requested units; print one line per unit."""
-    from hwsim.paths import output_folder
+    from hwsim.core.paths import output_folder
     from rtl.build import TARGETS, UNITS, build, parse_settings
 
     if args.unit != "all" and args.unit not in TARGETS:

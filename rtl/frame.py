@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
-from hwsim.errors import InputError, NotAvailableError
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.golden.positions import SamplePlan
-from hwsim.scene import Scene
-from hwsim.transfer import TransferFunction
+from hwsim.spec.arch import ArchConfig
+from hwsim.spec.scene import Scene
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 from models.backend import Backend
 from models.datapath import Datapath

@@ -28,7 +28,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from hwsim.errors import NotAvailableError
+from hwsim.core.errors import NotAvailableError
 from models.frame import Frame
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare

@@ -6,9 +6,9 @@ import os
 
 import pytest
 
-from hwsim import budget
-from hwsim.cli import main
-from hwsim.errors import InputError
+from hwsim.cli.main import main
+from hwsim.core import budget
+from hwsim.core.errors import InputError
 
 
 @pytest.fixture(autouse=True)

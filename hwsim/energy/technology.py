@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from hwsim.config import Table, read_toml
-from hwsim.errors import InputError
+from hwsim.core.config import Table, read_toml
+from hwsim.core.errors import InputError
 
 __all__ = [
     "FF_GATE_EQUIVALENTS",

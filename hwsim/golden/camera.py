@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.scene import ViewSpec
+from hwsim.spec.scene import ViewSpec
 from hwsim.volumes.volume import Volume
 
 __all__ = ["Camera", "view_vectors", "world_to_index", "index_to_world"]

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hwsim.scene import Scene
-from hwsim.scene_features import VALUE_FIELD, ClassificationSpec
-from hwsim.transfer import TransferFunction, resolve_transfer
+from hwsim.spec.scene import Scene
+from hwsim.spec.scene_features import VALUE_FIELD, ClassificationSpec
+from hwsim.spec.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes.volume import Volume
 
 __all__ = ["FloatClassifier", "field_values", "float_alu"]

@@ -1,7 +1,7 @@
 """Where the 3-D cursor is, and its float64 blend: the reference the cursor unit matches.
 
 # Ref: architectures.md section 3 (VolumePro 500 hardware cursor, [V] vli.h VLICursor);
-#      the scene table: hwsim/scene_cursor.py; fixed point: models/units/cursor.py.
+#      the scene table: hwsim/spec/scene_cursor.py; fixed point: models/units/cursor.py.
 
 A sample at voxel index position ``p`` lies on the cursor's axis-``k`` part when, with
 ``d = p - position`` and the half-open band ``-w/2 <= d < w/2`` (``w`` the width, so a
@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwsim.scene_cursor import CursorSpec
+from hwsim.spec.scene_cursor import CursorSpec
 
 __all__ = ["cursor_parts", "blend_cursor"]
 

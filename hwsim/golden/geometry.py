@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden.camera import Camera, index_to_world
-from hwsim.scene_features import GeometrySpec
+from hwsim.spec.scene_features import GeometrySpec
 from hwsim.volumes.volume import Volume
 
 __all__ = [

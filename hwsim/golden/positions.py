@@ -39,12 +39,12 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden.camera import Camera, world_to_index
 from hwsim.golden.leap_rays import leap_ray_plan
 from hwsim.golden.occupancy import Occupancy
 from hwsim.golden.steps import Step, bilinear_2d, linear_range, run_steps
-from hwsim.scene import Scene
+from hwsim.spec.scene import Scene
 from hwsim.volumes.volume import Volume
 
 __all__ = ["SAMPLINGS", "Step", "SamplePlan", "make_plan"]

@@ -19,7 +19,7 @@ position ``o + t d`` with ``t = (k_first + k_dir j) dt``, the seven lerps of
 function, :func:`~hwsim.golden.shading.phong`, the opacity correction through the shared
 :func:`~hwsim.golden.power.power`; so the image is the step engine's bit for bit (tested
 on every supported feature).  Rays are independent, so a frame's rays are dealt to
-:func:`hwsim.threads.frame_threads` threads tile by tile (square image tiles); the bits do not
+:func:`hwsim.core.threads.frame_threads` threads tile by tile (square image tiles); the bits do not
 depend on the thread count.
 """
 
@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
+from hwsim.core.threads import frame_threads, pool
 from hwsim.golden.power import power_scalar
 from hwsim.golden.shading import unit_vector
-from hwsim.threads import frame_threads, pool
 
 if TYPE_CHECKING:
     from collections.abc import Callable

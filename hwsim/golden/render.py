@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden import geometry as geo
 from hwsim.golden import occupancy as occ
 from hwsim.golden import raywalk
@@ -35,9 +35,9 @@ from hwsim.golden.positions import SamplePlan, Step, make_plan
 from hwsim.golden.power import power
 from hwsim.golden.sampling import interleave, sample, sample_gradients, taps, trilinear_rows
 from hwsim.golden.shading import crop_keep, cut_factor, magnitude, phong
-from hwsim.scene import Scene
-from hwsim.scene_features import VALUE_FIELD, check_features
-from hwsim.transfer import TransferFunction
+from hwsim.spec.scene import Scene
+from hwsim.spec.scene_features import VALUE_FIELD, check_features
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 
 __all__ = ["GoldenResult", "render_golden"]

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from hwsim.golden.power import power
-from hwsim.scene import CropSpec, CutPlane, Material
+from hwsim.spec.scene import CropSpec, CutPlane, Material
 
 __all__ = [
     "magnitude",

@@ -18,7 +18,7 @@ the module count, the skew scheme and the device keys, flat::
     ...
 
 :func:`parse_memory` validates that table; every bad value raises
-:class:`hwsim.errors.InputError` naming the file, the key (``memory.t_rcd``) and the
+:class:`hwsim.core.errors.InputError` naming the file, the key (``memory.t_rcd``) and the
 allowed range.  The model reads only (volume rendering never writes the volume during a
 frame), so write timings (tWR, tWTR) are not parameters.
 """
@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.config import Table
-from hwsim.errors import InputError
+from hwsim.core.config import Table
+from hwsim.core.errors import InputError
 
 __all__ = [
     "PAGE_POLICIES",
@@ -247,7 +247,7 @@ def parse_memory(data: dict[str, Any], *, source: str) -> MemoryConfig:
 
     Raises
     ------
-    hwsim.errors.InputError
+    hwsim.core.errors.InputError
         One line naming ``source``, ``memory.KEY`` and the allowed range.
     """
     table = Table(data, source, "memory")

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.config import flatten_table
-from hwsim.output import image_to_rgb8
+from hwsim.core.config import flatten_table
+from hwsim.run.output import image_to_rgb8
 
 __all__ = [
     "unit_counters",

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.errors import HwsimError, InputError
+from hwsim.core.errors import HwsimError, InputError
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
 from hwsim.report.energy import energy_blocks
-from hwsim.trade.files import EXACT_LEGEND, psnr_cell
+from hwsim.studies.trade.files import EXACT_LEGEND, psnr_cell
 
 __all__ = ["RunRecord", "load_run", "build_report", "write_report"]
 
@@ -76,7 +76,7 @@ def load_run(folder: str | Path) -> RunRecord:
 
 
 def _scene_from_stats(stats: dict[str, Any]):
-    from hwsim.scene import parse_scene
+    from hwsim.spec.scene import parse_scene
 
     def clean(v: Any) -> Any:
         if isinstance(v, dict):
@@ -100,7 +100,7 @@ def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | Non
     golden at a machine's positions with the ideal ray caster (algorithmic error).
     """
     if run.stats["fidelity"] == "golden":
-        from hwsim.fidelity import render
+        from hwsim.run.fidelity import render
 
         try:
             ideal = render(_scene_from_stats(run.stats), fidelity="golden")
@@ -117,7 +117,7 @@ def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | Non
         ):
             return other.image, f"golden run {other.folder.name}"
     try:
-        from hwsim.fidelity import render
+        from hwsim.run.fidelity import render
 
         scene = _scene_from_stats(run.stats)
         arch = run.stats["arch"]
@@ -140,8 +140,8 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 
 
 def _published(run: RunRecord) -> list[list[str]]:
-    from hwsim.fidelity import builtin_archs
-    from hwsim.figures import published_figures
+    from hwsim.run.fidelity import builtin_archs
+    from hwsim.studies.figures import published_figures
 
     s = run.stats
     arch = builtin_archs().get(s["arch"] or "")
@@ -238,7 +238,7 @@ def _image_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) 
         ("img", png, f"golden, {s['fidelity']} and difference"),
     ]
     if reference is not None and reference.shape == run.image.shape:
-        from hwsim.trade.ladder import image_error
+        from hwsim.studies.trade.ladder import image_error
 
         err = image_error(reference, run.image)
         blocks.append(
@@ -399,7 +399,7 @@ def _sweep_blocks(path: Path) -> list[Block]:
     """One row per run of a sweep database (``hwsim sweep --db``)."""
     import sqlite3
 
-    from hwsim.sweep.db import RunsDB
+    from hwsim.studies.sweep.db import RunsDB
 
     try:
         with RunsDB(path, create=False) as db:
@@ -498,7 +498,7 @@ SHIPPED_FIGURES = (
 
 
 def _figures_blocks(path: Path) -> list[Block]:
-    from hwsim.figures import EVIDENCE_LEGEND, loo_table, table
+    from hwsim.studies.figures import EVIDENCE_LEGEND, loo_table, table
 
     data = json.loads(path.read_text())
     m = data.get("machine", {})
@@ -526,7 +526,7 @@ def _figures_blocks(path: Path) -> list[Block]:
 
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:
     """Write ``report.md``, ``report.html`` and the PNG plots into ``out_dir``."""
-    from hwsim.paths import output_folder
+    from hwsim.core.paths import output_folder
 
     if not folders:
         raise InputError("give at least one run folder", key="RUN_DIR")

@@ -1,6 +1,6 @@
 """Volumes: the :class:`Volume` type, file readers and built-in phantoms.
 
-One loader API: :func:`load_volume` takes a scene's :class:`~hwsim.scene.VolumeSpec`
+One loader API: :func:`load_volume` takes a scene's :class:`~hwsim.spec.scene.VolumeSpec`
 (a phantom or a file), :func:`read_volume` reads a file by extension, and
 :func:`make_phantom` builds a phantom.  Axis order is ``(z, y, x)`` everywhere.
 See ``docs/volumes.md``.

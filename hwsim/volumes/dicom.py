@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.budget import require_fits
-from hwsim.errors import InputError
+from hwsim.core.budget import require_fits
+from hwsim.core.errors import InputError
 from hwsim.volumes.readers import make_volume
 from hwsim.volumes.volume import Volume
 

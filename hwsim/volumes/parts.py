@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hwsim.errors import InputError
-from hwsim.scene import VolumeSpec
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import VolumeSpec
 from hwsim.volumes.readers import HU_AIR_THRESHOLD, _nrrd_spacing, _stem, npy_header
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume
 

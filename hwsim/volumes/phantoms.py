@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.budget import require_fits
-from hwsim.errors import InputError
+from hwsim.core.budget import require_fits
+from hwsim.core.errors import InputError
 from hwsim.volumes.volume import Volume
 
 __all__ = [

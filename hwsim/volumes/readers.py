@@ -4,7 +4,7 @@ and DICOM series folders, all returned as a :class:`~hwsim.volumes.volume.Volume
 Every reader returns data in ``(z, y, x)`` order (x fastest) with spacing in the same
 order.  Voxel types outside :data:`~hwsim.volumes.volume.SUPPORTED_DTYPES` are converted
 only when that is lossless; anything a user can get wrong raises
-:class:`~hwsim.errors.InputError` naming the file.  The rules are in ``docs/volumes.md``.
+:class:`~hwsim.core.errors.InputError` naming the file.  The rules are in ``docs/volumes.md``.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.budget import require_fits
-from hwsim.errors import InputError, one_line_warnings
-from hwsim.scene import VolumeSpec
+from hwsim.core.budget import require_fits
+from hwsim.core.errors import InputError, one_line_warnings
+from hwsim.spec.scene import VolumeSpec
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume, require_axes
 
 __all__ = ["EXTENSIONS", "load_volume", "read_volume", "hu_units"]

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 
 __all__ = ["Volume", "SUPPORTED_DTYPES", "SPACING_RANGE", "MAX_ANISOTROPY", "require_axes"]
 

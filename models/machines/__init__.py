@@ -24,8 +24,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from hwsim.arch import ArchConfig
-from hwsim.errors import NotAvailableError
+from hwsim.core.errors import NotAvailableError
+from hwsim.spec.arch import ArchConfig
 
 __all__ = [
     "FAMILIES",
@@ -80,7 +80,7 @@ class Machine:
     steady_state : bool
         Whether the cycle and transaction models time back-to-back frames.
     check_frame : callable or None
-        ``check_frame(frame)`` refuses (:class:`~hwsim.errors.InputError`, key named)
+        ``check_frame(frame)`` refuses (:class:`~hwsim.core.errors.InputError`, key named)
         what the family's models cannot render; asked before every machine rung
         (functional, transaction, cycle, rtl), so they refuse alike.
     rtl_top : str or None
@@ -161,7 +161,7 @@ def orders() -> tuple[str, ...]:
 def machine_for(arch: ArchConfig, rung: str | None = None) -> Machine:
     """The family modelling ``arch``: its ``family`` key, else the first family registered
     for its processing order.  With ``rung`` (``"cycle"`` or ``"transaction"``), a
-    :class:`~hwsim.errors.NotAvailableError` naming what is modelled when the family has
+    :class:`~hwsim.core.errors.NotAvailableError` naming what is modelled when the family has
     no model at that rung."""
     registry = _load()
     if arch.family:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.numerics import round_shift_raw
-from hwsim.transfer import TransferFunction
+from hwsim.spec.transfer import TransferFunction
 
 __all__ = [
     "ClassifyConfig",

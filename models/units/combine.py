@@ -47,7 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.numerics import FixedFormat, uq
-from hwsim.scene_features import FINAL_ONLY, LEAF_OPCODES, OPCODES
+from hwsim.spec.scene_features import FINAL_ONLY, LEAF_OPCODES, OPCODES
 
 __all__ = [
     "OPCODES",

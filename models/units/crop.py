@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.numerics import FixedFormat, round_shift, sq, uq
-from hwsim.scene import CropSpec, CutPlane
+from hwsim.spec.scene import CropSpec, CutPlane
 
 __all__ = [
     "II",

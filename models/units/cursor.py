@@ -25,7 +25,7 @@ import numpy as np
 
 from hwsim.golden.cursor import cursor_parts
 from hwsim.numerics import round_shift, uq
-from hwsim.scene_cursor import CursorSpec
+from hwsim.spec.scene_cursor import CursorSpec
 from models.units.classify import expand
 
 __all__ = ["II", "LATENCY", "RGBA", "CursorTable", "cursor_parts"]

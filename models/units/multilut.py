@@ -24,10 +24,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hwsim.errors import InputError
-from hwsim.scene import Scene
-from hwsim.scene_features import VALUE_FIELD
-from hwsim.transfer import resolve_transfer
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import Scene
+from hwsim.spec.scene_features import VALUE_FIELD
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes.volume import Volume
 from models.units import classify as classify_unit
 from models.units import combine

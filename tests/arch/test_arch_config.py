@@ -6,10 +6,10 @@ import tomllib
 
 import pytest
 
-from hwsim.arch import ORDERS, parse_arch
-from hwsim.errors import InputError
-from hwsim.fidelity import builtin_archs, check_scene_fits, resolve_arch
-from hwsim.scene import RenderSpec, Scene, ViewSpec
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import builtin_archs, check_scene_fits, resolve_arch
+from hwsim.spec.arch import ORDERS, parse_arch
+from hwsim.spec.scene import RenderSpec, Scene, ViewSpec
 
 DESIGN_NAMES = {"cube4", "cube4-teramac", "em-cube", "volumepro500", "volumepro1000", "vizard2"}
 
@@ -68,7 +68,7 @@ def test_perspective_is_refused_on_a_parallel_only_machine():
 
 
 def test_a_machine_refuses_more_cut_planes_than_it_has():
-    from hwsim.scene import CutPlane
+    from hwsim.spec.scene import CutPlane
 
     two = Scene(cut_planes=(CutPlane(), CutPlane(normal=(1.0, 0.0, 0.0))))
     with pytest.raises(InputError, match=r"volumepro500 has no 2 cut plane\(s\) \(cut_planes: 1"):
@@ -79,7 +79,7 @@ def test_a_machine_refuses_more_cut_planes_than_it_has():
 
 
 def test_a_bad_memory_table_is_refused_when_the_file_loads(tmp_path):
-    from hwsim.arch import load_arch_file
+    from hwsim.spec.arch import load_arch_file
 
     path = tmp_path / "bad.toml"
     path.write_text(

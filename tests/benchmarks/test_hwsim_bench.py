@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.bench import GOALS, TABLE_GOALS, run_bench
-from hwsim.cli import main
-from hwsim.fidelity import FIDELITIES
+from hwsim.cli.main import main
+from hwsim.run.fidelity import FIDELITIES
+from hwsim.studies.bench import GOALS, TABLE_GOALS, run_bench
 
 REPO = Path(__file__).resolve().parents[2]
 if str(REPO) not in sys.path:

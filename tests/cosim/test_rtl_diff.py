@@ -11,9 +11,9 @@ from simulators import require
 from top_cases import scene_of
 
 import models.machines.cube4.timing as timing
-from hwsim.cli import main
-from hwsim.fidelity import resolve_arch
-from hwsim.rtl_diff import rtl_diff
+from hwsim.cli.main import main
+from hwsim.run.fidelity import resolve_arch
+from hwsim.studies.rtl_diff import rtl_diff
 from hwsim.volumes import make_phantom
 
 pytestmark = pytest.mark.cosim

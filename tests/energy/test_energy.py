@@ -18,11 +18,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hwsim.core.errors import InputError
 from hwsim.energy import load_technology, units_below_clock
 from hwsim.energy.model import DATAPATH, op_area_um2, unit_inventory
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec
 from hwsim.volumes import make_phantom
 from models.datapath import Datapath
 from models.machines import machine_for

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from hwsim.cli import main
+from hwsim.cli.main import main
 
 pytestmark = pytest.mark.system
 

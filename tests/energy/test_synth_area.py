@@ -41,7 +41,7 @@ from hwsim.energy.synth import (
     synthesised,
     unit_silicon,
 )
-from hwsim.fidelity import resolve_arch
+from hwsim.run.fidelity import resolve_arch
 from hwsim.volumes import make_phantom
 from models.datapath import Datapath
 from models.machines import machine_for

@@ -12,7 +12,7 @@ Every job calls the entry points the existing tests call for the same comparison
 result here is what those tests would compare:
 
 * ``cube4``: a Cube-4 frame of the head phantom at the ``cycle`` or ``rtl`` rung through
-  :func:`hwsim.fidelity.render` (``tests/cosim/test_top_rung.py``), optionally with a
+  :func:`hwsim.run.fidelity.render` (``tests/cosim/test_top_rung.py``), optionally with a
   shallower pixel FIFO (``tests/cosim/test_top_cosim.py``);
 * ``golden`` / ``functional``: the frame at a machine's sample positions, golden with
   ``leap=False`` (``tests/models/test_functional.py``, ``pair``);
@@ -50,7 +50,7 @@ def _check_root(root: Path) -> dict[str, str]:
 
 
 def _head_scene(spec: dict):
-    from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+    from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 
     image = spec.get("image", 12)
     return Scene(
@@ -68,7 +68,7 @@ def _head_scene(spec: dict):
 
 
 def _arch(spec: dict):
-    from hwsim.fidelity import resolve_arch
+    from hwsim.run.fidelity import resolve_arch
 
     arch = resolve_arch(spec.get("arch", "cube4"))
     if "memory" in spec:
@@ -82,7 +82,7 @@ def _arch(spec: dict):
 
 def job_cube4(spec: dict) -> dict:
     """A Cube-4 frame at ``spec["fidelity"]`` (``cycle`` or ``rtl`` on ``simulator``)."""
-    from hwsim.fidelity import render
+    from hwsim.run.fidelity import render
     from hwsim.volumes import make_phantom
 
     fidelity = spec["fidelity"]
@@ -103,7 +103,7 @@ def job_cube4(spec: dict) -> dict:
 
 def _machine_frame(spec: dict):
     from hwsim.golden import make_plan
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import make_phantom
     from models.frame import frame_of
 
@@ -119,8 +119,8 @@ def job_golden(spec: dict) -> dict:
     """Golden at the machine's sample positions and with its algorithms (its gradient
     source, its reflectance maps), every position planned (no leaping): as
     ``tests/models/numeric_bound.py`` ``golden_at_machine`` renders it."""
-    from hwsim.fidelity import algorithms
     from hwsim.golden import render_golden
+    from hwsim.run.fidelity import algorithms
 
     scene, volume, transfer, machine, _ = _machine_frame(spec)
     chosen = algorithms(machine)
@@ -171,8 +171,8 @@ def _plain(run) -> dict:
 def job_split(spec: dict) -> dict:
     """The frame in ``spec["bands"]`` bands as workers run them (no Dask), or in one
     process (``bands = 0``)."""
-    from hwsim.scene import VolumeSpec
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.scene import VolumeSpec
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import load_volume
     from hwsim.volumes.parts import volume_parts
     from models.cycle import render_cycle

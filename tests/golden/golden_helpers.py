@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwsim.scene import Light, RenderSpec, Scene, ViewSpec
-from hwsim.transfer import TransferFunction
+from hwsim.spec.scene import Light, RenderSpec, Scene, ViewSpec
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 
 

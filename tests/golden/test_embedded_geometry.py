@@ -8,15 +8,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
+from hwsim.core.errors import InputError
 from hwsim.golden import render_golden
 from hwsim.golden.camera import Camera
 from hwsim.golden.geometry import depth_range, rasterise, sample_depth
 from hwsim.numerics import psnr
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.scene_features import Box, GeometrySpec, Sphere
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.spec.scene_features import Box, GeometrySpec, Sphere
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.datapath import Datapath
 from models.frame import frame_of

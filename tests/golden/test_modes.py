@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from golden_helpers import flat_tf, gaussian_volume, make_scene
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden import make_plan, render_golden
-from hwsim.scene import CropSpec, CutPlane, Light
-from hwsim.transfer import TransferFunction
+from hwsim.spec.scene import CropSpec, CutPlane, Light
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 

@@ -8,13 +8,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.fidelity import render
+from hwsim.core.errors import InputError
 from hwsim.golden import render_golden
 from hwsim.numerics import psnr
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec, load_scene
-from hwsim.scene_features import AluSpec, ClassificationSpec, LutSpec, VoxelField
-from hwsim.transfer import preset_points, resolve_transfer
+from hwsim.run.fidelity import render
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec, load_scene
+from hwsim.spec.scene_features import AluSpec, ClassificationSpec, LutSpec, VoxelField
+from hwsim.spec.transfer import preset_points, resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 
@@ -195,9 +195,9 @@ def test_declared_fields_need_unsigned_stored_voxels(head):
 def test_cycle_rung_shares_the_features_bit_for_bit(order):
     """The hooks live in the shared back end: a Cube-4 variant given both features (the
     cycle rung models slice-parallel machines) renders the same bits at both rungs."""
-    from hwsim.arch import parse_arch
-    from hwsim.config import read_toml
-    from hwsim.fidelity import resolve_arch
+    from hwsim.core.config import read_toml
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.spec.arch import parse_arch
 
     data = read_toml(resolve_arch("cube4").source)
     data.setdefault("features", {}).update(
@@ -218,7 +218,7 @@ def test_cycle_rung_shares_the_features_bit_for_bit(order):
 
 
 def test_the_combiners_and_depth_test_are_listed_and_timed_when_used():
-    from hwsim.fidelity import elaboration
+    from hwsim.run.fidelity import elaboration
     from models.functional import pipeline_latency
     from models.units import combine, depth
 

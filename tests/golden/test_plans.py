@@ -9,8 +9,8 @@ from scipy import ndimage
 
 from hwsim.golden import make_plan, render_golden
 from hwsim.golden.occupancy import block_ranges, opacity_can_be_positive
-from hwsim.scene import CropSpec, CutPlane, RenderSpec
-from hwsim.transfer import TransferFunction
+from hwsim.spec.scene import CropSpec, CutPlane, RenderSpec
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 
@@ -62,8 +62,8 @@ def test_leaping_is_exact_in_perspective_where_every_ray_has_its_own_step(sampli
     # Regression: the backward pass once used the per-ray steps read before the forward
     # pass had dropped rays with no occupied block, so later rays leapt by another ray's
     # step and skipped visible samples (max difference ~0.008 on this scene).
-    from hwsim.scene import TransferSpec
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.scene import TransferSpec
+    from hwsim.spec.transfer import resolve_transfer
 
     volume = make_phantom("head", size=21)
     tf = resolve_transfer(TransferSpec(preset="ct"), volume, None)

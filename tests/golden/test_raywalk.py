@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from golden_helpers import gaussian_volume, make_scene
 
+from hwsim.core.threads import THREADS_ENV_VAR
 from hwsim.golden import raywalk
 from hwsim.golden import render as golden_render
 from hwsim.golden.sampling import interleave, voxel_gradients
-from hwsim.scene import CropSpec, Light, Material
-from hwsim.threads import THREADS_ENV_VAR
-from hwsim.transfer import TransferFunction
+from hwsim.spec.scene import CropSpec, Light, Material
+from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 

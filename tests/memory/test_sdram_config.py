@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.fidelity import resolve_arch
+from hwsim.core.errors import InputError
 from hwsim.memory import MemoryConfig, SdramConfig, parse_memory
+from hwsim.run.fidelity import resolve_arch
 
 pytestmark = pytest.mark.model
 

@@ -12,8 +12,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hwsim.fidelity import resolve_arch
 from hwsim.memory import MemoryConfig, SdramConfig, parse_memory, schedule_bursts, simulate_events
+from hwsim.run.fidelity import resolve_arch
 from models.memory_streams import module_streams, processing_order
 
 pytestmark = pytest.mark.model

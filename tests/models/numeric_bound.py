@@ -42,12 +42,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.fidelity import algorithms, resolve_arch
 from hwsim.golden import make_plan, render_golden
 from hwsim.golden.shading import cube_face
 from hwsim.numerics import psnr
-from hwsim.scene import Light
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import algorithms, resolve_arch
+from hwsim.spec.scene import Light
+from hwsim.spec.transfer import resolve_transfer
 from models.datapath import Datapath
 from models.frame import frame_of
 from models.functional import render_functional
@@ -120,7 +120,7 @@ def agreement(golden: np.ndarray, fixed: np.ndarray, bound: np.ndarray) -> Agree
 
 def golden_at_machine(scene, volume, arch, transfer=None):
     """Golden at ``arch``'s sample positions *and with its algorithms*, as
-    ``hwsim.fidelity.render(fidelity="golden", arch=...)`` renders it: the machine's
+    ``hwsim.run.fidelity.render(fidelity="golden", arch=...)`` renders it: the machine's
     gradient source where the scene names none, and its reflectance maps where it shades
     by them (``render_golden(..., reflectance_map=map_size)``); every planned position
     (``leap=False``).  Returns ``(scene as rendered, GoldenResult)``: the functional rung

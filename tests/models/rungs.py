@@ -14,11 +14,19 @@ import itertools
 import numpy as np
 import pytest
 
-from hwsim.arch import ArchConfig
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.arch import ArchConfig
+from hwsim.spec.scene import (
+    CropSpec,
+    CutPlane,
+    RenderSpec,
+    Scene,
+    TransferSpec,
+    ViewSpec,
+    VolumeSpec,
+)
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
+from hwsim.core.errors import InputError
 from hwsim.golden import make_plan, render_golden
 from hwsim.golden.render import occupancy_for
-from hwsim.scene import parse_scene
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import parse_scene
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.frame import frame_of
 

@@ -11,12 +11,12 @@ import rungs
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
+from hwsim.core.errors import InputError
 from hwsim.golden.cursor import blend_cursor, cursor_parts
 from hwsim.numerics import psnr
-from hwsim.scene import CropSpec, parse_scene
-from hwsim.scene_cursor import CursorAxis, CursorSpec
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import CropSpec, parse_scene
+from hwsim.spec.scene_cursor import CursorAxis, CursorSpec
 from hwsim.volumes import make_phantom
 from models.units.cursor import CursorTable
 
@@ -137,7 +137,7 @@ def test_disable_crop_draws_the_cursor_where_the_volume_is_cut_away(head, disabl
     ],
 )
 def test_a_malformed_cursor_is_refused_naming_the_key(table, key):
-    from hwsim.scene_features import check_features
+    from hwsim.spec.scene_features import check_features
 
     with pytest.raises(InputError) as info:
         check_features(parse_scene(tomllib.loads(table), source="s.toml"))
@@ -156,7 +156,7 @@ def test_machines_without_the_cursor_refuse_it(head):
 
 
 def test_the_rtl_top_refuses_the_cursor(head):
-    from hwsim.transfer import resolve_transfer
+    from hwsim.spec.transfer import resolve_transfer
     from models.frame import frame_of
     from rtl.frame import prepare
 

@@ -14,8 +14,8 @@ import pytest
 import rungs
 from rungs import assert_identical, functional_and_cycle, scene_of
 
-from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import TransferSpec
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import TransferSpec
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 from models.machines.cube4.cycle import UNITS

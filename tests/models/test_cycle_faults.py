@@ -13,10 +13,10 @@ import pytest
 import rungs
 
 from hwsim.engine import DeadlockError
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import CropSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of
@@ -110,7 +110,7 @@ def test_elided_model_equals_the_full_model_in_image_and_cycles(head, scene, eli
 def test_buffer_capacities_come_from_the_arch_file_and_are_checked(head, tmp_path):
     import dataclasses
 
-    from hwsim.errors import InputError
+    from hwsim.core.errors import InputError
 
     arch = dataclasses.replace(
         resolve_arch("cube4"), buffers={"beam_fifo_entries": 7, "pixel_fifo_entries": 600}

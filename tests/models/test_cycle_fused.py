@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.fidelity import resolve_arch
+from hwsim.core.threads import using
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.threads import using
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models import fused, fused_stage
 from models.cycle import render_cycle

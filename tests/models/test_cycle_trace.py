@@ -7,8 +7,8 @@ import re
 
 import pytest
 
-from hwsim.fidelity import render
-from hwsim.scene import VolumeSpec, load_scene
+from hwsim.run.fidelity import render
+from hwsim.spec.scene import VolumeSpec, load_scene
 
 pytestmark = pytest.mark.model
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import CropSpec, TransferSpec
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import CropSpec, TransferSpec
 from hwsim.volumes import make_phantom
 from models.machines.vizard2.config import BLOCK, FEEDBACK
 from models.machines.vizard2.cycle import UNITS

@@ -13,10 +13,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import read_volume
 from models.cycle import render_cycle
 from models.frame import frame_of

@@ -15,7 +15,7 @@ import pytest
 import rungs
 
 from hwsim.engine import DeadlockError
-from hwsim.fidelity import resolve_arch
+from hwsim.run.fidelity import resolve_arch
 from hwsim.volumes import make_phantom
 from models.machines.vizard2.cycle import VizardFaults
 

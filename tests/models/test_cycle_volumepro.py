@@ -15,10 +15,10 @@ import pytest
 import rungs
 from rungs import assert_identical, functional_and_cycle, machine, scene_of
 
-from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, TransferSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import CropSpec, TransferSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 from models.cycle import has_cycle_model, render_cycle
@@ -321,7 +321,7 @@ def test_sections_park_partial_rays_and_keep_the_image(head, arch):
 
 
 def test_a_volume_too_big_for_the_sdram_is_refused_naming_the_key(head):
-    from hwsim.errors import InputError
+    from hwsim.core.errors import InputError
 
     tiny = machine("volumepro500", memory={**resolve_arch("volumepro500").memory, "rows": 1})
     with pytest.raises(InputError, match=r"volumepro500.toml: memory.rows: .* \(allowed: >= 2"):
@@ -329,7 +329,7 @@ def test_a_volume_too_big_for_the_sdram_is_refused_naming_the_key(head):
 
 
 def test_perspective_refuses_sections(head):
-    from hwsim.errors import InputError
+    from hwsim.core.errors import InputError
 
     scene = scene_of(30, 20, projection="perspective")
     with pytest.raises(InputError, match="overheads.section_width"):
@@ -376,7 +376,7 @@ def test_voxel_gradients_load_slices_one_ahead_not_in_a_chain():
     # gradients included, recursing through every slice (RecursionError at 256^3).
     import sys
 
-    from hwsim.figures import figure_scene
+    from hwsim.studies.figures import figure_scene
 
     scene = figure_scene(40)
     limit = sys.getrecursionlimit()

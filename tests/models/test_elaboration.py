@@ -11,8 +11,8 @@ from __future__ import annotations
 import pytest
 from rungs import scene_of
 
-from hwsim.fidelity import render
-from hwsim.scene import TransferSpec
+from hwsim.run.fidelity import render
+from hwsim.spec.scene import TransferSpec
 from hwsim.volumes import make_phantom
 from models.datapath import DATAPATH_UNITS
 

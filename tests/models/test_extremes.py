@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from numeric_bound import agreement, machine_pair
 
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan, render_golden
-from hwsim.scene import Light, RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.transfer import TransferFunction, resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import Light, RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 from models.frame import frame_of

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim import threads as frame_threads_module
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
+from hwsim.core import threads as frame_threads_module
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import render, resolve_arch
 from hwsim.volumes import make_phantom
 
 pytestmark = pytest.mark.model

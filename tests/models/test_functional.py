@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from numeric_bound import agreement, golden_at_machine, machine_pair
 
-from hwsim.fidelity import render
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.run.fidelity import render
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.volumes import load_volume, make_phantom, read_volume
 from models.functional import pipeline_latency
 
@@ -176,7 +176,7 @@ def test_functional_rung_runs_from_the_library_entry_point(tmp_path):
 
 def test_a_small_image_does_not_shorten_a_slice_order_machine_s_slices():
     """VolumePro 1000 streams every voxel of a slice however few rays the image casts."""
-    from hwsim.fidelity import resolve_arch
+    from hwsim.run.fidelity import resolve_arch
 
     n = 24
     volume = make_phantom("ball", size=n, radius=1.0)

@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.numerics import ROUNDING_CODES, round_scaled, round_shift_raw
-from hwsim.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import CropSpec, CutPlane, Light, RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models import fused, fused_stage, fused_steps
 from models.datapath import Datapath

@@ -17,12 +17,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.numerics import ROUNDINGS, round_shift
-from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 from models import leap

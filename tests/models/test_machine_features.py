@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwsim.cli import main
-from hwsim.errors import InputError
-from hwsim.fidelity import builtin_archs, check_family, check_scene_fits, render, resolve_arch
-from hwsim.scene import CropSpec, CutPlane, Scene, VolumeSpec, load_scene
-from hwsim.scene_cursor import CursorSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.cli.main import main
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import builtin_archs, check_family, check_scene_fits, render, resolve_arch
+from hwsim.spec.scene import CropSpec, CutPlane, Scene, VolumeSpec, load_scene
+from hwsim.spec.scene_cursor import CursorSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 
 pytestmark = pytest.mark.model
@@ -162,7 +162,7 @@ def test_extend_renders_a_what_if_at_every_rung_and_lists_it(head):
 
 
 def test_an_arch_file_may_opt_in_to_what_ifs(tmp_path, head):
-    from hwsim.arch import load_arch_file
+    from hwsim.spec.arch import load_arch_file
 
     text = Path(resolve_arch("cube4").source).read_text()
     path = tmp_path / "cube4-whatif.toml"
@@ -203,7 +203,7 @@ def test_cli_refuses_with_one_line_and_extend_writes_the_extensions(tmp_path, ca
 
 
 def test_the_docs_feature_table_is_the_arch_files():
-    from hwsim.machine_features import features_markdown
+    from hwsim.spec.machine_features import features_markdown
 
     docs = (Path(__file__).parents[2] / "docs" / "architectures.md").read_text()
     table = docs.split("<!-- features:begin -->\n")[1].split("<!-- features:end -->")[0]

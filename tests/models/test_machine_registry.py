@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from hwsim.cli import main
-from hwsim.errors import NotAvailableError
-from hwsim.fidelity import builtin_archs, machine_rungs, render, resolve_arch
+from hwsim.cli.main import main
+from hwsim.core.errors import NotAvailableError
+from hwsim.run.fidelity import builtin_archs, machine_rungs, render, resolve_arch
 from models.functional import render_functional
 from models.machines import Machine, families, machine_for, register, unregister
 from models.machines.common.results import CycleResult
@@ -90,7 +90,7 @@ def test_an_unknown_family_is_refused_naming_the_registered_ones(tmp_path):
 def _scene():
     import dataclasses
 
-    from hwsim.scene import VolumeSpec, load_scene
+    from hwsim.spec.scene import VolumeSpec, load_scene
 
     base = load_scene("head")
     view = dataclasses.replace(base.view, width=12, height=12)

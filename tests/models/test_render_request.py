@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.errors import InputError
-from hwsim.fidelity import choose_execution, render
-from hwsim.render_request import MAX_WORKERS, RenderRequest
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import choose_execution, render
+from hwsim.run.render_request import MAX_WORKERS, RenderRequest
 from hwsim.volumes import make_phantom
 
 pytestmark = pytest.mark.model

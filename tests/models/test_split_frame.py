@@ -33,10 +33,18 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.fidelity import resolve_arch
-from hwsim.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import (
+    CropSpec,
+    CutPlane,
+    RenderSpec,
+    Scene,
+    TransferSpec,
+    ViewSpec,
+    VolumeSpec,
+)
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.parts import volume_parts
 from models.backend import Backend

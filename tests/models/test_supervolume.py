@@ -13,14 +13,14 @@ import rungs
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hwsim.cli import main
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
+from hwsim.cli.main import main
+from hwsim.core.errors import InputError
 from hwsim.golden import make_plan
 from hwsim.golden.bricks import HALO, BrickPlan, split_bricks
 from hwsim.numerics import psnr
-from hwsim.supervolume import blend_unorm, render_bricks
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.run.supervolume import blend_unorm, render_bricks
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.frame import frame_of
 from models.functional import render_functional
@@ -215,8 +215,8 @@ def test_the_cli_reports_the_bricks_and_the_host_time(tmp_path):
 def test_crop_cut_planes_and_the_cursor_stay_where_the_scene_put_them(head):
     """Bricks see their own coordinates; crop, cut planes and the cursor are placed in the
     whole volume, so the bricked image is the one-pass image up to the host blend."""
-    from hwsim.scene import CropSpec, CutPlane
-    from hwsim.scene_cursor import CursorSpec
+    from hwsim.spec.scene import CropSpec, CutPlane
+    from hwsim.spec.scene_cursor import CursorSpec
 
     scene = rungs.scene_of(
         35, 25, size=SIZE, crop=CropSpec(x=(3.0, 19.0)),

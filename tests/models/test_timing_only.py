@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.cli import main
-from hwsim.errors import InputError
-from hwsim.fidelity import resolve_arch
-from hwsim.sweep.runner import execute_run
-from hwsim.sweep.spec import parse_sweep, run_key
-from hwsim.transfer import resolve_transfer
+from hwsim.cli.main import main
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.studies.sweep.runner import execute_run
+from hwsim.studies.sweep.spec import parse_sweep, run_key
 from hwsim.volumes import make_phantom
 from models.frame import frame_of
 from models.functional import render_functional

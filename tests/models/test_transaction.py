@@ -7,7 +7,7 @@ cycle machine.
 
 Consistency checks, not measurements (issue 30): on Cube-4 both rungs time a frame with
 the same functions -- ``cube4_latency``, ``cube4_pixel_pushes``, ``freezing_fifo``,
-``cube4_lanes`` and ``cube4_buffers`` (``hwsim.trade.independence``) -- so the cycle
+``cube4_lanes`` and ``cube4_buffers`` (``hwsim.studies.trade.independence``) -- so the cycle
 comparisons below check the plumbing around that shared code (the slice loop, the plan's
 per-slice samples, the compiled walker's positions giving the cycle rung's lanes); they
 cannot show how far a coarser model is from the machine.  The image's identity with the
@@ -25,12 +25,12 @@ from rungs import CONTRACT
 
 import models.cycle as cycle_module
 import models.machines.cube4.cycle as cube4_module
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.engine.fifo import DeadlockError
-from hwsim.errors import InputError, NotAvailableError
-from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import TransferSpec, VolumeSpec, load_scene
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import TransferSpec, VolumeSpec, load_scene
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models.cycle import render_cycle
 from models.frame import frame_of
@@ -256,8 +256,8 @@ def test_counters_describe_the_frame(phantoms):
 def test_every_order_has_a_transaction_model_and_unmodelled_memories_are_refused(phantoms):
     """Every processing order has an event model (Cube-4, VolumePro 500/1000, EM-Cube,
     VIZARD II); what a model does not cover is refused naming the key, not ignored."""
-    from hwsim.arch import ORDERS
-    from hwsim.fidelity import builtin_archs
+    from hwsim.run.fidelity import builtin_archs
+    from hwsim.spec.arch import ORDERS
     from models.transaction import has_transaction_model, transaction_orders
 
     assert set(ORDERS) <= set(transaction_orders())
@@ -282,9 +282,9 @@ def test_cube4_refusals_hold_at_the_transaction_rung(phantoms):
 def test_a_volume_the_machine_cannot_buffer_is_refused_as_at_the_cycle_rung():
     """One buffer check for both rungs: a Teramac whose beam FIFO holds 128-voxel beams
     (33 entries at P = 4), asked for 136-voxel beams within its max_volume."""
-    from hwsim.errors import InputError
-    from hwsim.fidelity import render
-    from hwsim.scene import VolumeSpec, load_scene
+    from hwsim.core.errors import InputError
+    from hwsim.run.fidelity import render
+    from hwsim.spec.scene import VolumeSpec, load_scene
 
     teramac = resolve_arch("cube4-teramac")
     arch = dataclasses.replace(

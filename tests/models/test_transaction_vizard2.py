@@ -7,7 +7,7 @@ termination steps, its speculative rounds estimated with stall-free rounds.  Wit
 termination threshold it follows the machine's rules exactly (the same lookups, fills,
 bursts and cycles as the cycle rung); with one, it stays within the 2 % contract.
 
-Partly shared (``hwsim.trade.independence``): both rungs call the cycle-exact
+Partly shared (``hwsim.studies.trade.independence``): both rungs call the cycle-exact
 ``SdramController``, ``BlockLayout.bursts``, ``FEEDBACK``/``FILL_WRITE``, the cache
 geometry (``parse_buffers``), ``interp_taps`` and the leaping helpers; the packet
 schedule, the tag-only cache (``_resolve``, the update rule of ``BlockCache.fetch``
@@ -23,11 +23,11 @@ import numpy as np
 import pytest
 import rungs
 
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.engine import DeadlockError
-from hwsim.errors import InputError, NotAvailableError
-from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import read_volume
 from models import cycle as cycle_module
 from models.cycle import render_cycle
@@ -187,7 +187,7 @@ def test_hwsim_render_at_the_transaction_rung(tmp_path, arch):
     cycle rung's, the same image."""
     import json
 
-    from hwsim.cli import main
+    from hwsim.cli.main import main
 
     args = ["render", "--phantom", "head:size=20", "--arch", arch, "--image", "20", "--quiet"]
     assert main([*args, "--fidelity", "transaction", "--out", str(tmp_path / "t")]) == 0

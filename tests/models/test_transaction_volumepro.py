@@ -5,7 +5,7 @@ granularity over the shared SDRAM model (``SdramTransactionPort``).  The cycle r
 models the same machines, and the counts are compared against the 2 % contract; the
 mechanism tests below also hold the model to the machine's rules.
 
-Partly shared (``hwsim.trade.independence``): the SDRAM controller, the mini-block
+Partly shared (``hwsim.studies.trade.independence``): the SDRAM controller, the mini-block
 layout, ``pipeline_latency`` and ``slab_buffers`` are one copy for both rungs, so the
 comparison measures the event model's own chunk schedule, sections and pixel bus, not
 the SDRAM timing.  The 2 % on frame cycles does not see the SDRAM's timing at all (one
@@ -33,13 +33,13 @@ from memory_timing import (
     memory_timing_mismatches,
 )
 
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.engine.fifo import DeadlockError
-from hwsim.errors import InputError, NotAvailableError
-from hwsim.fidelity import render, resolve_arch
 from hwsim.golden import make_plan
 from hwsim.memory import parse_memory
-from hwsim.scene import TransferSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import TransferSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from models.frame import frame_of
 from models.machines.cube4.cycle import UNITS

@@ -7,7 +7,7 @@ times the frame at beam-group / mini-block-beam-chunk granularity over the share
 transaction port.  These tests hold it to the cycle rung (docs/cycle.md rule 6) within
 the 2 % contract, and check that its inputs (beams, bursts, clocks) are the machine's.
 
-Partly shared (``hwsim.trade.independence``): both rungs call the SDRAM controller, the
+Partly shared (``hwsim.studies.trade.independence``): both rungs call the SDRAM controller, the
 mini-block layout, ``pipeline_latency``, ``slab_buffers``, ``mini_blocks_read`` and the
 leaping helpers; the per-beam clock groups (``beam_skips``, from the plan's positions)
 and the chunk-granular schedule are the model's own.  The memory timing, which the 2 %
@@ -24,11 +24,11 @@ import pytest
 import rungs
 from memory_timing import FINEST_GROUPS, assert_memory_timing_agrees, memory_regime
 
-from hwsim.errors import InputError, NotAvailableError
-from hwsim.fidelity import render, resolve_arch
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.golden import make_plan
-from hwsim.scene import ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import ViewSpec, VolumeSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 from models import cycle as cycle_module
@@ -306,7 +306,7 @@ def test_embedded_geometry_stops_rays_as_termination_does():
     """The depth test of embedded geometry ends rays (a stopping test): the functional
     rung reports those stops too, so the beams behind the geometry are skipped as on the
     machine, with no opacity threshold at all."""
-    from hwsim.scene import load_scene
+    from hwsim.spec.scene import load_scene
 
     scene = load_scene("head-vp1000")
     scene = scene.replace(

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.errors import InputError
-from hwsim.fidelity import render, resolve_arch
-from hwsim.scene import parse_scene
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import render, resolve_arch
+from hwsim.spec.scene import parse_scene
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
 

@@ -6,10 +6,10 @@ import json
 
 import pytest
 
-from hwsim.cli import main
-from hwsim.fidelity import resolve_arch
-from hwsim.trade import default_cases, width_trade, write_width_trade
-from hwsim.trade.widths import pareto_front
+from hwsim.cli.main import main
+from hwsim.run.fidelity import resolve_arch
+from hwsim.studies.trade import default_cases, width_trade, write_width_trade
+from hwsim.studies.trade.widths import pareto_front
 
 pytestmark = pytest.mark.model
 

@@ -6,10 +6,10 @@ import json
 
 import pytest
 
-from hwsim.cli import main
-from hwsim.fidelity import builtin_archs, render, resolve_arch
-from hwsim.figures import figure_scene, figure_size, measure_figures
+from hwsim.cli.main import main
 from hwsim.report.report import write_report
+from hwsim.run.fidelity import builtin_archs, render, resolve_arch
+from hwsim.studies.figures import figure_scene, figure_size, measure_figures
 
 pytestmark = pytest.mark.system
 
@@ -137,7 +137,7 @@ def test_timing_rungs_report_the_back_to_back_period_where_they_time_one(tmp_pat
     import re
     from pathlib import Path
 
-    from hwsim.fidelity import builtin_archs as archs
+    from hwsim.run.fidelity import builtin_archs as archs
 
     body = Path(archs()["volumepro500"].source).read_text()
     body = re.sub(
@@ -161,7 +161,7 @@ def test_timing_rungs_report_the_back_to_back_period_where_they_time_one(tmp_pat
 
 
 def test_back_to_back_frames_only_where_a_machine_times_them():
-    from hwsim.errors import InputError
+    from hwsim.core.errors import InputError
 
     scene = figure_scene(8)
     with pytest.raises(InputError, match="steady_state"):
@@ -188,8 +188,8 @@ def test_a_cache_hit_rate_figure_is_read_off_the_rungs_counters(tmp_path):
     rows = {r.rung: r for r in measure_figures([arch], ("functional", "cycle"), max_size=16)}
     assert rows["functional"].status == "not modelled"
     cycle = rows["cycle"]
-    from hwsim.figures import figure_machine
-    from hwsim.published import Scenario
+    from hwsim.spec.published import Scenario
+    from hwsim.studies.figures import figure_machine
 
     direct = render(
         figure_scene(Scenario((16, 16, 16))), fidelity="cycle", arch=figure_machine(arch)
@@ -204,7 +204,7 @@ def test_a_cache_hit_rate_figure_is_read_off_the_rungs_counters(tmp_path):
 def test_leave_one_out_fits_the_clock_on_one_figure_and_predicts_the_other(tiny):
     """Cycles do not depend on the clock: fitting f on fps_8 predicts samples_per_second
     at 8^3 as (its cycles) at that clock, by the rung's own counts."""
-    from hwsim.figures import leave_one_out
+    from hwsim.studies.figures import leave_one_out
 
     arch = resolve_arch(str(tiny))
     rows = measure_figures([arch], ("cycle",), max_size=8)

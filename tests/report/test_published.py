@@ -1,5 +1,5 @@
 """Every published figure says what kind of evidence it is, and a label that the file's own
-arithmetic contradicts is refused when the file is read (hwsim.published)."""
+arithmetic contradicts is refused when the file is read (hwsim.spec.published)."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hwsim.errors import InputError
-from hwsim.fidelity import builtin_archs, resolve_arch
-from hwsim.figures import published_figures
-from hwsim.published import EVIDENCE, Scenario, parse_published, restates_peak
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import builtin_archs, resolve_arch
+from hwsim.spec.published import EVIDENCE, Scenario, parse_published, restates_peak
+from hwsim.studies.figures import published_figures
 
 pytestmark = pytest.mark.system
 

@@ -6,8 +6,8 @@ import re
 
 import pytest
 
-from hwsim.cli import main
-from hwsim.errors import InputError
+from hwsim.cli.main import main
+from hwsim.core.errors import InputError
 from hwsim.report import plots
 from hwsim.report.report import load_run, write_report
 

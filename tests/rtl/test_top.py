@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 from top_cases import scene_of
 
-from hwsim.errors import InputError, NotAvailableError
-from hwsim.fidelity import resolve_arch
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.golden import make_plan
-from hwsim.scene import CropSpec, Light
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import CropSpec, Light
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.frame import frame_of
 from rtl.amaranth_run import run_amaranth
@@ -105,7 +105,7 @@ def test_top_is_not_available_for_other_machines():
 
 
 def test_rtl_build_top_writes_the_tops_verilog(tmp_path):
-    from hwsim.cli import main
+    from hwsim.cli.main import main
 
     argv = ["rtl", "build", "top", "--set", "top.pipelines=2", "--set", "top.max_axis=8"]
     assert main([*argv, "--out", str(tmp_path), "--no-synth", "--quiet"]) == 0
@@ -116,7 +116,7 @@ def test_rtl_build_top_writes_the_tops_verilog(tmp_path):
 
 
 def test_rtl_rung_trace_writes_the_tops_waveform(tmp_path):
-    from hwsim.fidelity import render
+    from hwsim.run.fidelity import render
 
     scene = scene_of(30, 20, "mip", image=8)
     head = make_phantom("head", size=8)

@@ -6,10 +6,10 @@ from __future__ import annotations
 import dataclasses
 from functools import cache
 
-from hwsim.fidelity import resolve_arch
 from hwsim.golden import make_plan
-from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of

@@ -7,8 +7,8 @@ import tomllib
 
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.scene import Scene, parse_scene
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import Scene, parse_scene
 
 
 def parse(text: str) -> Scene:

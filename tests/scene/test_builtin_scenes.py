@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hwsim.fidelity import render
-from hwsim.output import image_to_rgb8
-from hwsim.scene import builtin_scenes, load_scene
+from hwsim.run.fidelity import render
+from hwsim.run.output import image_to_rgb8
+from hwsim.spec.scene import builtin_scenes, load_scene
 
 pytestmark = pytest.mark.system
 

@@ -7,8 +7,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scene_text import error_of, parse
 
-from hwsim.errors import InputError
-from hwsim.scene import (
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import (
     DEFAULT_SCENE,
     MODES,
     builtin_scenes,

@@ -9,11 +9,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scene_text import error_of, parse
 
-from hwsim.arch import parse_arch
-from hwsim.cli import main
-from hwsim.errors import InputError
-from hwsim.fidelity import resolve_arch
-from hwsim.scene import parse_scene
+from hwsim.cli.main import main
+from hwsim.core.errors import InputError
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.arch import parse_arch
+from hwsim.spec.scene import parse_scene
 
 pytestmark = pytest.mark.golden
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.scene import TransferSpec
-from hwsim.transfer import TransferFunction, preset_points, resolve_transfer
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import TransferSpec
+from hwsim.spec.transfer import TransferFunction, preset_points, resolve_transfer
 from hwsim.volumes.volume import Volume
 
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.cli import main
-from hwsim.sweep import RunsDB
+from hwsim.cli.main import main
+from hwsim.studies.sweep import RunsDB
 
 pytestmark = pytest.mark.system
 
@@ -99,7 +99,7 @@ def test_failed_runs_are_recorded_and_do_not_stop_the_sweep(tmp_path, capsys):
 
 
 def test_sweep_on_an_existing_scheduler(tmp_path, capsys):
-    from hwsim.sweep import local_client
+    from hwsim.studies.sweep import local_client
 
     (tmp_path / "s.toml").write_text('[sweep]\nphantom = ["ball:size=16"]\nimage = [16]\n')
     db = tmp_path / "runs.db"

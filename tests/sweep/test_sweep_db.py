@@ -6,8 +6,8 @@ import sqlite3
 
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.sweep import RunsDB
+from hwsim.core.errors import InputError
+from hwsim.studies.sweep import RunsDB
 
 
 def row(key: str, status: str = "ok", **extra) -> dict:

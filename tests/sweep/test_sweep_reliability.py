@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.fidelity import render
-from hwsim.sweep import RunsDB, build_run, load_sweep, local_client, run_key, run_sweep
-from hwsim.sweep.runner import image_digest
+from hwsim.run.fidelity import render
+from hwsim.studies.sweep import RunsDB, build_run, load_sweep, local_client, run_key, run_sweep
+from hwsim.studies.sweep.runner import image_digest
 
 pytestmark = [pytest.mark.system, pytest.mark.slow]
 
@@ -34,7 +34,7 @@ def write_sweep(path: Path, body: str) -> Path:
 def cli(*args: str, new_session: bool = False) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     return subprocess.Popen(
-        [sys.executable, "-m", "hwsim.cli", *args],
+        [sys.executable, "-m", "hwsim.cli.main", *args],
         cwd=REPO,
         env=env,
         stdout=subprocess.PIPE,

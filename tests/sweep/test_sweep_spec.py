@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.sweep import build_run, parse_sweep, run_key
-from hwsim.sweep import spec as spec_module
+from hwsim.core.errors import InputError
+from hwsim.studies.sweep import build_run, parse_sweep, run_key
+from hwsim.studies.sweep import spec as spec_module
 
 REPO = Path(__file__).resolve().parents[2]
 

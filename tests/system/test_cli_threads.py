@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from cli_errors import one_line_error
 
-from hwsim.cli import main
-from hwsim.threads import THREADS_ENV_VAR
+from hwsim.cli.main import main
+from hwsim.core.threads import THREADS_ENV_VAR
 
 pytestmark = pytest.mark.system
 

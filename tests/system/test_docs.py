@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.cli import main
-from hwsim.scene import parse_scene
+from hwsim.cli.main import main
+from hwsim.spec.scene import parse_scene
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 pytestmark = pytest.mark.system

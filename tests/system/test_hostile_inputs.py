@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from cli_errors import one_line_error
 
-import hwsim.fidelity
-from hwsim import budget
-from hwsim.cli import main
+import hwsim.run.fidelity
+from hwsim.cli.main import main
+from hwsim.core import budget
 
 pytestmark = pytest.mark.system
 
@@ -133,7 +133,7 @@ def test_memory_budget_refuses_a_large_image_before_rendering(tmp_path, capsys, 
 def test_image_side_limit(tmp_path, capsys):
     argv = ["render", "--phantom", "ball:size=8", "--image", "4097"]
     assert main([*argv, "--out", str(tmp_path / "o"), "--quiet"]) == 2
-    one_line_error(capsys, "--image", f"1 .. {hwsim.scene.MAX_IMAGE}")
+    one_line_error(capsys, "--image", f"1 .. {hwsim.spec.scene.MAX_IMAGE}")
 
 
 @pytest.fixture

@@ -9,8 +9,8 @@ from __future__ import annotations
 import pytest
 from cli_errors import one_line_error
 
-import hwsim.fidelity
-from hwsim.cli import main
+import hwsim.run.fidelity
+from hwsim.cli.main import main
 
 pytestmark = pytest.mark.system
 
@@ -22,7 +22,7 @@ def no_work(monkeypatch):
     def tripwire(*args, **kwargs):
         raise AssertionError("work started before the outputs were checked")
 
-    monkeypatch.setattr(hwsim.fidelity, "render", tripwire)
+    monkeypatch.setattr(hwsim.run.fidelity, "render", tripwire)
 
 
 @pytest.fixture

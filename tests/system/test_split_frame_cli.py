@@ -15,7 +15,7 @@ import signal
 import numpy as np
 import pytest
 
-from hwsim.cli import main
+from hwsim.cli.main import main
 
 pytestmark = pytest.mark.system
 
@@ -50,11 +50,11 @@ def test_two_workers_render_the_one_process_frame_bit_for_bit(tmp_path, capsys):
 
 
 def test_one_bar_covers_every_band_and_a_killed_worker_s_band_is_rerun(tmp_path):
-    from hwsim.cluster import local_client
-    from hwsim.fidelity import resolve_arch
-    from hwsim.frame_split import split_frame
-    from hwsim.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
-    from hwsim.transfer import resolve_transfer
+    from hwsim.core.cluster import local_client
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.run.frame_split import split_frame
+    from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+    from hwsim.spec.transfer import resolve_transfer
     from hwsim.volumes import load_volume
     from hwsim.volumes.parts import volume_parts
     from models.cycle import render_cycle

@@ -10,10 +10,10 @@ import pytest
 from cli_errors import one_line_error
 from PIL import Image
 
-from hwsim.cli import main
-from hwsim.fidelity import render
-from hwsim.scene import VolumeSpec, load_scene
-from hwsim.turntable import _azimuth, render_turntable
+from hwsim.cli.main import main
+from hwsim.run.fidelity import render
+from hwsim.run.turntable import _azimuth, render_turntable
+from hwsim.spec.scene import VolumeSpec, load_scene
 from hwsim.volumes import make_phantom
 
 pytestmark = pytest.mark.system

@@ -1,4 +1,4 @@
-"""hwsim.trade.independence: every comparison names real code, and the Cube-4 verdict
+"""hwsim.studies.trade.independence: every comparison names real code, and the Cube-4 verdict
 ("shared") still describes what the two rungs import."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import importlib
 
 import pytest
 
-from hwsim.fidelity import resolve_arch
-from hwsim.trade.independence import (
+from hwsim.run.fidelity import resolve_arch
+from hwsim.studies.trade.independence import (
     CYCLE_ESTIMATE_VS_CYCLE,
     INDEPENDENT,
     RTL_VS_CYCLE,

@@ -11,12 +11,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-import hwsim.fidelity as fidelity
-from hwsim.cli import main
+import hwsim.run.fidelity as fidelity
+from hwsim.cli.main import main
 from hwsim.numerics import agreement, rmse
-from hwsim.scene import ViewSpec
-from hwsim.trade import ladder_cases, ladder_trade, write_ladder_trade
-from hwsim.trade.ladder import TradeCase, pareto_front
+from hwsim.spec.scene import ViewSpec
+from hwsim.studies.trade import ladder_cases, ladder_trade, write_ladder_trade
+from hwsim.studies.trade.ladder import TradeCase, pareto_front
 
 pytestmark = pytest.mark.model
 
@@ -133,7 +133,7 @@ def test_transaction_rows_carry_their_cycle_error_against_the_cycle_rung(cases, 
     txn = pick(rows, "head", "cube4", "transaction")
     assert txn["cycle_independence"].startswith("shared (cube4_latency, cube4_pixel_pushes")
     assert vizard["cycle_independence"].startswith("partly shared (SdramController")
-    from hwsim.trade.command import format_ladder
+    from hwsim.studies.trade.command import format_ladder
 
     (line,) = [x for x in format_ladder([txn]).splitlines() if x.startswith("head")]
     assert " shared  ok" in line and "%" not in line
@@ -251,7 +251,7 @@ def test_round_off_shows_as_exact_in_the_table_and_is_named_in_the_files(rows, t
     """The ball through cube4's ray positions: golden reaches the ideal caster's samples in
     another operation order, so the two differ by float64 round-off only (was printed as
     "alg PSNR 327.6 dB"); the table says exact, the files keep the dB and say round-off."""
-    from hwsim.trade.command import format_ladder
+    from hwsim.studies.trade.command import format_ladder
 
     row = pick(rows, "ball", "cube4", "golden")
     assert row["algorithmic_match"] == "round-off" and 250 < row["algorithmic_psnr_db"] < 400

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hwsim.transfer import TransferFunction
+from hwsim.spec.transfer import TransferFunction
 from models.units import classify as cu
 
 pytestmark = pytest.mark.model

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hwsim.golden.classification import float_alu
-from hwsim.scene_features import LEAF_OPCODES
+from hwsim.spec.scene_features import LEAF_OPCODES
 from models.units import combine
 
 pytestmark = pytest.mark.model

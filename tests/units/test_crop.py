@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hwsim.golden import shading
-from hwsim.scene import CropSpec, CutPlane
+from hwsim.spec.scene import CropSpec, CutPlane
 from models.units import crop as cr
 
 pytestmark = pytest.mark.model

@@ -10,9 +10,9 @@ import pickle
 import numpy as np
 import pytest
 
-from hwsim.errors import InputError
-from hwsim.scene import TransferSpec, VolumeSpec
-from hwsim.transfer import resolve_transfer
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import TransferSpec, VolumeSpec
+from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import load_volume, make_phantom
 from hwsim.volumes.parts import is_partial, volume_parts
 from models.units.voxel import converted_volume

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.volumes import PHANTOMS, make_phantom, marschner_lobb, parse_phantom_spec
 from hwsim.volumes.phantoms import BALL_SUBSAMPLES, ML_ALPHA, ML_FM
 

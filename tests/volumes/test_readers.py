@@ -12,8 +12,8 @@ import pytest
 from pydicom.dataset import Dataset, FileMetaDataset
 from pydicom.uid import CTImageStorage, ExplicitVRLittleEndian, generate_uid
 
-from hwsim.errors import InputError
-from hwsim.scene import VolumeSpec
+from hwsim.core.errors import InputError
+from hwsim.spec.scene import VolumeSpec
 from hwsim.volumes import EXTENSIONS, load_volume, read_volume
 
 SHAPE = (3, 4, 5)  # (z, y, x): distinct sizes per axis

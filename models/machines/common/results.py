@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
+from hwsim.core.errors import InputError
 from hwsim.engine import Counters, DrainFifo
 from hwsim.engine.metrics import derive
-from hwsim.errors import InputError
+from hwsim.spec.arch import ArchConfig
 from models.datapath import units_needed
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit

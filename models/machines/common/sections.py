@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden.positions import SamplePlan
 
 __all__ = ["bands_of", "band_loads", "refuse_sections"]

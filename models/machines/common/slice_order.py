@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from models.machines.common.results import elaborate_units
 from models.machines.common.slices import SliceDatapath, SlicePath

@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
-from hwsim.errors import NotAvailableError
+from hwsim.core.errors import NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig
+from hwsim.spec.arch import ArchConfig
 from models.frame import Frame
 
 __all__ = ["ReadsTheFrame", "TxnTiming", "require_pipeline_clock", "slice_loads"]

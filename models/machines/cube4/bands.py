@@ -38,9 +38,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hwsim.cluster import peak_rss_bytes, reset_peak_rss
+from hwsim.core.cluster import peak_rss_bytes, reset_peak_rss
+from hwsim.core.errors import InputError
 from hwsim.engine import Counters
-from hwsim.errors import InputError
 from hwsim.golden.positions import SamplePlan
 from hwsim.volumes.parts import VolumeParts
 from models.backend import Backend

@@ -10,8 +10,8 @@ the registers a driver would, so the RTL never imports the cycle model.
 
 from __future__ import annotations
 
-from hwsim.arch import ArchConfig
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
+from hwsim.spec.arch import ArchConfig
 from models.backend import Backend
 from models.frame import Frame
 from models.machines.common.results import buffer_table
@@ -44,7 +44,7 @@ def check_cube4_frame(frame: Frame) -> None:
 
 class Cube4Frame(SliceOrderMachine):
     """The frame geometry of ``plan`` on ``backend``'s Cube-4 machine (refused with an
-    :class:`~hwsim.errors.InputError` where the machine cannot render it)."""
+    :class:`~hwsim.core.errors.InputError` where the machine cannot render it)."""
 
     def __init__(self, backend: Backend) -> None:
         self.be, self.plan, self.dp = backend, backend.plan, backend.dp

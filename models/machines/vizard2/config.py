@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hwsim.arch import ArchConfig
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.memory import MemoryConfig, parse_memory
+from hwsim.spec.arch import ArchConfig
 from models.frame import Frame
 from models.machines.common.results import UNITS, check_buffer_keys
 from models.machines.common.sections import refuse_sections

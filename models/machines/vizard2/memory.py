@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwsim.errors import InputError
+from hwsim.core.errors import InputError
 from hwsim.memory import MemoryConfig
 from models.machines.vizard2.config import BLOCK
 from models.units import gradient as gradient_unit

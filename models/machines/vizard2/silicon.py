@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from hwsim.arch import ArchConfig
+from hwsim.spec.arch import ArchConfig
 from models.datapath import Datapath
 from models.machines.common.silicon import Access, Silicon, Storage, counter_sum
 from models.machines.vizard2.config import BLOCK, memory_of, parse_buffers

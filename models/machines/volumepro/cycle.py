@@ -32,8 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwsim.core.errors import InputError
 from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
-from hwsim.errors import InputError
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import make_plan
 from hwsim.memory import SdramStats, parse_memory

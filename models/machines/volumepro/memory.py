@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from hwsim.core.errors import InputError
 from hwsim.engine import Counters
-from hwsim.errors import InputError
 from hwsim.memory import MemoryConfig
 from models.machines.common.slices import SliceSchedule, slice_schedule
 from models.units import skew as sk

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from hwsim.arch import ArchConfig
 from hwsim.memory import parse_memory
+from hwsim.spec.arch import ArchConfig
 from models.datapath import Datapath
 from models.machines.common.silicon import Access, Silicon, Storage, counter_sum
 from models.machines.volumepro.slab_timing import slab_buffers

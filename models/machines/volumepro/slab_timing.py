@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwsim.arch import ArchConfig
 from hwsim.engine import Counters, DeadlockError, DrainFifo
 from hwsim.memory import MemoryConfig, SdramController, SdramStats
+from hwsim.spec.arch import ArchConfig
 from models.machines.common.results import UNITS, buffer_table
 from models.units import skew as skew_unit
 

@@ -45,8 +45,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import simpy
 
+from hwsim.core.errors import NotAvailableError
 from hwsim.engine.fifo import DeadlockError
-from hwsim.errors import NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig, SdramStats, SdramTransactionPort, parse_memory
 from models.frame import Frame

@@ -1,0 +1,183 @@
+"""``hwsim render`` (one frame, a turntable, a frame split across workers) and ``hwsim
+convert``: what the command line does with their arguments and what it prints.
+
+``hwsim.cli.main`` builds the parser and dispatches here.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from hwsim.cli.progress import progress_bar
+from hwsim.cli.scene import apply_overrides
+from hwsim.core.errors import InputError
+from hwsim.core.threads import using as using_threads
+
+if TYPE_CHECKING:
+    from hwsim.spec.scene import Scene
+
+__all__ = ["DEFAULT_RENDER_OUT", "cmd_render", "cmd_convert"]
+
+#: Where ``hwsim render`` writes without ``--out`` (the summary says when it replaced a render).
+DEFAULT_RENDER_OUT = "out/render"
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    with using_threads(args.threads):  # read by every frame kernel
+        return _render_command(args)
+
+
+def _render_command(args: argparse.Namespace) -> int:
+    from hwsim.core.paths import output_file, output_folder
+    from hwsim.run.fidelity import render
+    from hwsim.run.output import write_render
+    from hwsim.spec.scene import load_scene
+
+    scene = apply_overrides(load_scene(args.scene), args)
+    out_dir = args.out if args.out is not None else DEFAULT_RENDER_OUT
+    replacing = args.out is None and (Path(out_dir) / "stats.json").is_file()
+    output_folder(out_dir)  # every output checked before the work starts
+    if args.trace:
+        output_file(args.trace, "--trace")
+    options = _render_options(args)
+    if args.frames != 1 or args.turn is not None:
+        _check_turntable(args, options)
+        return _turntable(scene, args, out_dir, options)
+    with progress_bar(args.quiet, "render") as progress:
+        run = render(scene, progress=progress, **options)
+    paths = write_render(run, out_dir)
+    if not args.quiet:
+        _print_render(scene, run, paths, replacing)
+    return 0
+
+
+def _render_options(args: argparse.Namespace) -> dict[str, Any]:
+    """``render``'s keyword arguments from the command line (the split-frame ones only
+    with ``--workers`` or ``--scheduler``)."""
+    options = {
+        "fidelity": args.fidelity,
+        "arch": args.arch,
+        "sampling": args.sampling,
+        "trace": args.trace,
+        "simulator": args.simulator,
+        "extend": args.extend,
+        "timing_only": args.timing_only,
+        "technology": args.technology,
+    }
+    if args.workers is not None or args.scheduler is not None:
+        options.update(workers=args.workers, scheduler=args.scheduler, bands=args.bands)
+    elif args.bands is not None:
+        raise InputError(
+            "cuts a frame split across workers", key="--bands", allowed="with --workers"
+        )
+    return options
+
+
+def _check_turntable(args: argparse.Namespace, options: dict[str, Any]) -> None:
+    """A turntable renders whole frames in this process: no split frame, no timing only."""
+    if "workers" in options:
+        raise InputError(
+            "a turntable renders its frames one after another in this process",
+            key="--workers",
+            allowed="one frame (no --frames or --turn)",
+        )
+    if args.timing_only:
+        raise InputError(
+            "a turntable writes its frames' images",
+            key="--timing-only",
+            allowed="one frame (no --frames or --turn)",
+        )
+
+
+def _print_render(scene: Scene, run: Any, paths: dict[str, Path], replacing: bool) -> None:
+    """The summary of one rendered frame: what, how fast, and where it was written."""
+    for e in run.extensions:
+        print(f"  what-if: {e['asked']} ({e['feature']}; {run.arch} has {e['machine']})")
+    vol = run.volume
+    image = "timed without its image"
+    if run.image is not None:
+        image = f"image {run.image.shape[1]}x{run.image.shape[0]}"
+    print(
+        f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
+        f"{scene.render.mode}, {run.fidelity}/{run.sampling}, {image}"
+    )
+    print(
+        f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
+        f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"
+    )
+    if run.cycles is not None:
+        fps = run.clock_hz / run.cycles if run.cycles else 0.0
+        print(
+            f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
+            f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
+            f"{run.samples / run.cycles:.2f} samples/cycle"
+        )
+    if run.split is not None:
+        peaks = [b["peak_rss_bytes"] for b in run.split["bands"]]
+        print(
+            f"  split across {run.split['workers']} workers in {len(peaks)} bands: peak "
+            f"memory {max(peaks) / 2**30:.2f} GB per worker, "
+            f"{run.split['driver_peak_rss_bytes'] / 2**30:.2f} GB here"
+        )
+    if run.silicon is not None:
+        e, a = run.silicon["energy"], run.silicon["area"]
+        watts = f", {e['average_watts']:.2f} W at this frame rate" if e["average_watts"] else ""
+        print(
+            f"  energy {e['total_joules'] * 1e3:.3f} mJ/frame "
+            f"({(e['per_sample_joules'] or 0) * 1e9:.2f} nJ/sample{watts}), area "
+            f"{a['total_mm2']:.1f} mm^2 in {run.silicon['technology']['name']}"
+        )
+    note = " (no --out given: replaced the previous render there)" if replacing else ""
+    names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
+    print(f"  wrote {', '.join([*names, str(paths['stats'].name)])}{note}")
+
+
+def cmd_convert(args: argparse.Namespace) -> int:
+    """A volume rewritten uncompressed, so that a frame split across workers can read it
+    a part at a time: raw-encoded NRRD (keeps the spacing and HU units) or .npy."""
+    import nrrd
+    import numpy as np
+
+    from hwsim.core.paths import output_file
+    from hwsim.volumes import read_volume
+
+    out = args.out
+    if not out.lower().endswith((".nrrd", ".npy")):
+        raise InputError("unknown output type", source=out, key="OUT", allowed=".nrrd or .npy")
+    output_file(out, "OUT")
+    volume = read_volume(args.volume)
+    data = np.ascontiguousarray(volume.data)
+    if out.lower().endswith(".npy"):
+        np.save(out, data)
+        kept = "spacing not kept: .npy has none"
+    else:
+        header = {"encoding": "raw", "spacings": list(volume.spacing[::-1])}
+        if volume.units == "HU":
+            header["content"] = f"{volume.name} (Hounsfield units)"
+        nrrd.write(out, data, header=header, index_order="C")
+        kept = f"spacing {volume.spacing}"
+    shape = "x".join(map(str, volume.shape))
+    print(f"wrote {out}: {shape} {data.dtype}, {kept}")
+    return 0
+
+
+def _turntable(scene, args: argparse.Namespace, out_dir: str, options: dict) -> int:
+    """``hwsim render --frames N [--turn DEG]``: a turntable (hwsim.run.turntable)."""
+    from hwsim.run.turntable import render_turntable, turntable_stats, write_turntable
+
+    turn = args.turn if args.turn is not None else 360.0 / max(args.frames, 1)
+    with progress_bar(args.quiet, "frames") as progress:
+        runs = render_turntable(scene, args.frames, turn, progress=progress, **options)
+    paths = write_turntable(runs, out_dir, turn)
+    if not args.quiet:
+        stats = turntable_stats(runs, turn)
+        print(
+            f"{scene.name}: {len(runs)} frames, {turn:g} degrees apart, "
+            f"{runs[0].fidelity}/{runs[0].sampling}: first frame "
+            f"{runs[0].wall_seconds:.2f} s, then {stats['median_frame_wall_seconds']:.3f} s "
+            "per frame (median)"
+        )
+        print(f"  wrote {paths['gif']} and {len(runs)} frames in {paths['frames']}")
+    return 0

@@ -1,0 +1,2 @@
+"""The framework's floor: errors, validated TOML, output paths, the memory budget,
+thread counts and Dask clients."""

@@ -1,0 +1,175 @@
+"""Writing one render's outputs: ``image.npy``, ``image.png`` and ``stats.json``.
+
+Derived metrics (``frame_seconds``, ``samples_per_second``) are computed here and only
+here, from the raw counts a rung returns.  Files are written in the order
+``image.npy``, ``image.png``, ``stats.json``, each through a temporary name and an
+atomic rename, so an interrupted write never leaves a half file and never loses what
+was already computed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hwsim import __version__
+from hwsim.core.errors import InputError
+from hwsim.core.paths import output_file, output_folder
+from hwsim.core.threads import frame_threads
+
+if TYPE_CHECKING:
+    from hwsim.run.fidelity import RenderRun
+
+__all__ = [
+    "STATS_SCHEMA",
+    "stats_dict",
+    "stats_plain",
+    "write_render",
+    "image_to_rgb8",
+    "output_folder",
+    "output_file",
+]
+
+STATS_SCHEMA = 1
+
+
+def stats_dict(run: RenderRun) -> dict[str, Any]:
+    """The ``stats.json`` content of a render (design section 9)."""
+    frame_seconds = run.cycles / run.clock_hz if run.cycles is not None and run.clock_hz else None
+    if frame_seconds is not None and "supervolume" in run.derived:
+        # The bricks' frames plus the host's read back of their pixels (hwsim.run.supervolume).
+        frame_seconds += run.derived["supervolume"]["host_seconds"]
+    sps = run.samples / frame_seconds if frame_seconds else None
+    vol = run.volume
+    return {
+        "schema": STATS_SCHEMA,
+        "hwsim_version": __version__,
+        "fidelity": run.fidelity,
+        "arch": run.arch,
+        "sampling": run.sampling,
+        "scene": run.scene.to_dict(),
+        "volume": {
+            "name": vol.name,
+            "source": vol.source,
+            "shape_zyx": list(vol.shape),
+            "spacing_zyx": list(vol.spacing),
+            "dtype": str(vol.data.dtype),
+            "bits": vol.bits,
+            "units": vol.units,
+            "value_range": list(vol.value_range),
+            # A field's volume (value_field): the width of the whole voxels it came from.
+            "container_bits": vol.meta.get("container_bits"),
+        },
+        "image": None
+        if run.image is None
+        else {"shape": list(run.image.shape), "dtype": str(run.image.dtype)},
+        "samples": run.samples,
+        "rays": run.rays,
+        "cycles": run.cycles,
+        "clock_hz": run.clock_hz,
+        "frame_seconds": frame_seconds,
+        "samples_per_second": sps,
+        "wall_seconds": run.wall_seconds,
+        "wall_samples_per_second": run.samples / run.wall_seconds if run.wall_seconds else None,
+        "elaborated_units": run.elaborated_units,
+        "elided_units": run.elided_units,
+        "counters": run.counters,
+        "derived": run.derived,
+        "extensions": run.extensions,  # features outside the machine (a what-if render)
+        "shading": run.shading,
+        # Energy per frame and silicon area (hwsim.energy; None: no actions counted).
+        "technology": run.silicon["technology"] if run.silicon else None,
+        "energy": run.silicon["energy"] if run.silicon else None,
+        "area": run.silicon["area"] if run.silicon else None,
+        # A frame split across workers: each band's rays, seconds and peak memory.
+        "split": run.split,
+        "host": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "machine": platform.machine(),
+            "frame_threads": frame_threads(),  # the frame kernels' threads (--threads)
+        },
+    }
+
+
+def stats_plain(run: RenderRun) -> dict[str, Any]:
+    """:func:`stats_dict` as plain JSON types (NumPy scalars and arrays converted)."""
+    return json.loads(json.dumps(stats_dict(run), default=_json_default))
+
+
+def image_to_rgb8(
+    image: np.ndarray, window: tuple[float, float] | None = None
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """An 8-bit picture of a render and how it was made.
+
+    RGBA images (premultiplied) are shown over black; scalar images (mip, minip, xray)
+    are windowed linearly from their minimum to their maximum, or over ``window``.
+    """
+    if image.ndim == 3:
+        rgb = np.clip(image[..., :3], 0.0, 1.0)
+        return np.round(rgb * 255.0).astype(np.uint8), {"display": "rgb over black"}
+    lo, hi = window if window is not None else (float(image.min()), float(image.max()))
+    scaled = np.clip((image - lo) / (hi - lo), 0.0, 1.0) if hi > lo else np.zeros_like(image)
+    grey = np.round(scaled * 255.0).astype(np.uint8)
+    return np.repeat(grey[..., None], 3, axis=2), {"display": "grey", "window": [lo, hi]}
+
+
+def _atomic_write(path: Path, write) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    write(tmp)
+    os.replace(tmp, path)
+
+
+def write_render(
+    run: RenderRun, out_dir: str | Path, extra: dict[str, Any] | None = None
+) -> dict[str, Path]:
+    """Write ``image.npy``, ``image.png`` and ``stats.json`` (plus ``extra`` blocks, e.g.
+    a turntable's) into ``out_dir``; ``stats.json`` alone for a frame timed without its
+    image."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib import image as mpimage
+
+    out = output_folder(out_dir)
+    paths = {"npy": out / "image.npy", "png": out / "image.png", "stats": out / "stats.json"}
+    try:
+        stats = stats_dict(run)
+        if run.image is None:  # timed without its image: stats only
+            del paths["npy"], paths["png"]
+        else:
+
+            def save_npy(p: Path) -> None:
+                with open(p, "wb") as fh:
+                    np.save(fh, run.image, allow_pickle=False)
+
+            _atomic_write(paths["npy"], save_npy)
+            rgb, display = image_to_rgb8(run.image)
+            _atomic_write(paths["png"], lambda p: mpimage.imsave(p, rgb, format="png"))
+            stats["image"].update(display)
+        stats.update(extra or {})
+        text = json.dumps(stats, indent=2, default=_json_default)
+        _atomic_write(paths["stats"], lambda p: p.write_text(text + "\n"))
+        from hwsim.run.output_csvs import write_csvs
+
+        paths.update(write_csvs(run, out))
+    except OSError as exc:
+        raise InputError(
+            f"cannot write output: {exc.strerror}", source=str(out), key="--out"
+        ) from None
+    return paths
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"cannot serialise {type(value).__name__}")

@@ -1,0 +1,55 @@
+"""``hwsim sweep SWEEP.toml``: load, run on Dask, write rows, print a summary."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from pathlib import Path
+from typing import Any
+
+from hwsim.core.errors import InputError
+
+__all__ = ["sweep_command"]
+
+
+def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
+    """Run the sweep the parsed ``args`` describe; exit status 1 if any run failed."""
+    from hwsim.core.cluster import check_address, connect, local_client
+    from hwsim.core.paths import output_file, output_folder
+    from hwsim.studies.sweep.db import RunsDB, check_ours
+    from hwsim.studies.sweep.runner import run_sweep
+    from hwsim.studies.sweep.spec import load_sweep
+
+    if not 1 <= args.workers <= 256:
+        raise InputError(f"{args.workers} is out of range", key="--workers", allowed="1 .. 256")
+    sweep = load_sweep(args.file)
+    output_file(args.db, "--db")
+    check_ours(Path(args.db))
+    if args.scheduler:
+        check_address(args.scheduler)
+    if args.out:
+        output_folder(args.out)
+    with contextlib.ExitStack() as stack:
+        db = stack.enter_context(RunsDB(args.db))
+        if args.retry_failed:
+            db.delete_failed()
+        if args.scheduler:
+            client = stack.enter_context(connect(args.scheduler))
+        else:
+            client = stack.enter_context(local_client(args.workers))
+        with progress_bar(args.quiet, "sweep") as progress:
+            summary = run_sweep(sweep, db, client, out_dir=args.out, progress=progress)
+    if not args.quiet:
+        print(
+            f"{summary.total} runs: {summary.skipped} already in {summary.db}, "
+            f"{summary.ok} ok, {summary.failed} failed, in {summary.wall_seconds:.1f} s"
+        )
+    if summary.failed:
+        print(
+            f"hwsim: {summary.failed} run(s) failed; their errors are in {summary.db} "
+            "(table runs, column error); --retry-failed reruns them",
+            file=sys.stderr,
+        )
+        return 1
+    return 0

@@ -1,0 +1,95 @@
+"""``hwsim trade``: the fidelity-ladder trade, or ``--widths`` for the bit-width trade."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from hwsim.core.errors import InputError
+from hwsim.studies.trade.files import EXACT_LEGEND, fmt_cell, psnr_cell
+
+__all__ = ["trade_command"]
+
+
+def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
+    """Run the trade ``args`` asks for, write its files and print its table."""
+    from hwsim.core.paths import output_folder
+
+    if not 8 <= args.image <= 1024:
+        raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")
+    output_folder(args.out)
+    if args.widths:
+        return _widths(args, progress_bar)
+    from hwsim.studies.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade
+
+    if not 8 <= args.size <= 512:
+        raise InputError(f"{args.size} is out of range", key="--size", allowed="8 .. 512")
+    rungs = [r.strip() for r in args.rungs.split(",")] if args.rungs else None
+    cases = ladder_cases(args.volume, args.image, args.size)
+    with progress_bar(args.quiet, "trade") as progress:
+        rows = ladder_trade(cases, args.arch or None, rungs, progress=progress, extend=args.extend)
+    paths = write_ladder_trade(rows, args.out)
+    if not args.quiet:
+        print(format_ladder(rows))
+        print(f"wrote {paths['csv']}, {paths['json'].name}, {paths['png'].name}")
+    return 0
+
+
+def format_ladder(rows: list[dict[str, Any]]) -> str:
+    """The trade table as fixed-width text (one line per scene, architecture and rung)."""
+    lines = [
+        f"{'scene':<15}{'arch':<15}{'rung':<12}{'wall s':>8}{'Msamp/s':>9}{'cycles':>11}"
+        f"{'num PSNR':>9}{'alg PSNR':>9}{'cyc err':>8}  status"
+    ]
+    for r in rows:
+        sps = r["wall_samples_per_second"]
+        lines.append(
+            f"{r['scene'][:14]:<15}{r['arch'][:14]:<15}{r['rung']:<12}"
+            f"{fmt_cell(r['wall_seconds'], '.3f', 8)}"
+            f"{fmt_cell(sps / 1e6 if sps else None, '.2f', 9)}"
+            f"{fmt_cell(r['cycles'], ',d', 11)}"
+            f"{psnr_cell(r, 'numerical', 9)}"
+            f"{psnr_cell(r, 'algorithmic', 9)}"
+            f"{_cycle_error_cell(r, 8)}  {r['status']}"
+        )
+    lines.append(
+        "num PSNR: against golden at the same sample positions; alg PSNR: golden at the "
+        "machine's positions against the ideal ray caster; cyc err: against the cycle rung "
+        "(shared: a consistency check, both rungs time the frame with the same functions, "
+        "cycle_independence in the files names them; ref: the cycle rung itself)\n" + EXACT_LEGEND
+    )
+    return "\n".join(lines)
+
+
+def _cycle_error_cell(row: dict[str, Any], width: int) -> str:
+    """The ``cyc err`` cell: the error, or ``shared`` where both sides share the code
+    that sets the count (no measurement), ``ref`` for the cycle rung itself."""
+    independence = row.get("cycle_independence") or ""
+    if independence == "reference":
+        return f"{'ref':>{width}}"
+    if independence.startswith("shared"):
+        return f"{'shared':>{width}}"
+    return fmt_cell(row.get("cycle_error"), ".1%", width)
+
+
+def _widths(args: argparse.Namespace, progress_bar: Any) -> int:
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.studies.trade.widths import default_cases, width_trade, write_width_trade
+
+    if len(args.arch) > 1:
+        raise InputError("--widths measures one machine", key="--arch", allowed="one NAME|FILE")
+    arch = resolve_arch(args.arch[0] if args.arch else "volumepro500")
+    cases = default_cases(args.volume, args.image)
+    with progress_bar(args.quiet, "widths") as progress:
+        rows = width_trade(cases, arch, progress=progress)
+    paths = write_width_trade(rows, args.out)
+    if not args.quiet:
+        print(f"{'knob':<26} {'value':>6} " + " ".join(f"{c.label[:14]:>14}" for c in cases))
+        for knob_value in dict.fromkeys((r["knob"], r["value"]) for r in rows):
+            cells = [r["psnr_db"] for r in rows if (r["knob"], r["value"]) == knob_value]
+            print(
+                f"{knob_value[0]:<26} {knob_value[1]:>6} "
+                + " ".join(f"{c:>11.1f} dB" for c in cells)
+            )
+        print(f"wrote {paths['csv']}, {paths['json'].name}, {paths['png'].name}")
+    return 0
