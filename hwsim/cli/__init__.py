@@ -5,7 +5,7 @@ def __getattr__(name: str):
     # The console script's entry point, imported on first use (the CLI's modules import
     # this package; importing main here eagerly would import them all in a circle).
     if name == "main":
-        from hwsim.cli.main import main
+        from hwsim.cli.commands import main
 
         return main
     raise AttributeError(f"module 'hwsim.cli' has no attribute {name!r}")

@@ -1,7 +1,7 @@
 """``hwsim render`` (one frame, a turntable, a frame split across workers) and ``hwsim
 convert``: what the command line does with their arguments and what it prints.
 
-``hwsim.cli.main`` builds the parser and dispatches here.
+``hwsim.cli.commands`` builds the parser and dispatches here.
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.run.fidelity import FIDELITIES
 from hwsim.studies.bench import GOALS, TABLE_GOALS, run_bench
 

@@ -11,7 +11,7 @@ from simulators import require
 from top_cases import scene_of
 
 import models.machines.cube4.timing as timing
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.run.fidelity import resolve_arch
 from hwsim.studies.rtl_diff import rtl_diff
 from hwsim.volumes import make_phantom

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from simulators import require
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.cosim
 SCENE = ["--phantom", "head:size=8", "--mode", "composite", "--view", "30,20", "--image", "12"]

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.system
 

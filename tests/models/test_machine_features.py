@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
 from hwsim.run.fidelity import builtin_archs, check_family, check_scene_fits, render, resolve_arch
 from hwsim.spec.scene import CropSpec, CutPlane, Scene, VolumeSpec, load_scene

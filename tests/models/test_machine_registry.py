@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.errors import NotAvailableError
 from hwsim.run.fidelity import builtin_archs, machine_rungs, render, resolve_arch
 from models.functional import render_functional

@@ -13,7 +13,7 @@ import rungs
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
 from hwsim.golden import make_plan
 from hwsim.golden.bricks import HALO, BrickPlan, split_bricks

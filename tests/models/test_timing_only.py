@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import rungs
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
 from hwsim.run.fidelity import resolve_arch
 from hwsim.spec.transfer import resolve_transfer

@@ -187,7 +187,7 @@ def test_hwsim_render_at_the_transaction_rung(tmp_path, arch):
     cycle rung's, the same image."""
     import json
 
-    from hwsim.cli.main import main
+    from hwsim.cli.commands import main
 
     args = ["render", "--phantom", "head:size=20", "--arch", arch, "--image", "20", "--quiet"]
     assert main([*args, "--fidelity", "transaction", "--out", str(tmp_path / "t")]) == 0

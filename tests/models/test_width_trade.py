@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.run.fidelity import resolve_arch
 from hwsim.studies.trade import default_cases, width_trade, write_width_trade
 from hwsim.studies.trade.widths import pareto_front

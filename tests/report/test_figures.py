@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.report.report import write_report
 from hwsim.run.fidelity import builtin_archs, render, resolve_arch
 from hwsim.studies.figures import figure_scene, figure_size, measure_figures

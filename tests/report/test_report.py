@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
 from hwsim.report import plots
 from hwsim.report.report import load_run, write_report

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from rtl.build import UNITS, build, parse_settings
 
 pytestmark = pytest.mark.synth

@@ -105,7 +105,7 @@ def test_top_is_not_available_for_other_machines():
 
 
 def test_rtl_build_top_writes_the_tops_verilog(tmp_path):
-    from hwsim.cli.main import main
+    from hwsim.cli.commands import main
 
     argv = ["rtl", "build", "top", "--set", "top.pipelines=2", "--set", "top.max_axis=8"]
     assert main([*argv, "--out", str(tmp_path), "--no-synth", "--quiet"]) == 0

@@ -89,7 +89,7 @@ def tree(tmp_path_factory) -> Path:
         ("rtl/frame.py", "\nfrom __future__", "\n# a comment\nfrom __future__", False),
         ("rtl/rung.py", "_BINARIES = {", "_UNUSED = 1\n_BINARIES = {", False),
         ("models/machines/cube4/timing.py", "\nfrom __future__", "\nX = 1\nfrom __future__", False),
-        ("hwsim/cli/main.py", "\nfrom __future__", "\n# a comment\nfrom __future__", False),
+        ("hwsim/cli/commands.py", "\nfrom __future__", "\n# a comment\nfrom __future__", False),
     ],
 )
 def test_an_edit_rebuilds_if_the_generator_imports_the_file(tree, path, old, new, rebuilds):

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scene_text import error_of, parse
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
 from hwsim.run.fidelity import resolve_arch
 from hwsim.spec.arch import parse_arch

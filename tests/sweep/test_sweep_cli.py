@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.studies.sweep import RunsDB
 
 pytestmark = pytest.mark.system

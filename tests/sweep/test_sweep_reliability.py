@@ -34,7 +34,7 @@ def write_sweep(path: Path, body: str) -> Path:
 def cli(*args: str, new_session: bool = False) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     return subprocess.Popen(
-        [sys.executable, "-m", "hwsim.cli.main", *args],
+        [sys.executable, "-m", "hwsim.cli.commands", *args],
         cwd=REPO,
         env=env,
         stdout=subprocess.PIPE,

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import hwsim
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "api.md"

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.system
 
@@ -36,7 +36,7 @@ def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     """Run the installed entry point as a user would, in a child process."""
     env = {**os.environ, "PYTHONWARNINGS": "error"}
     return subprocess.run(
-        [sys.executable, "-m", "hwsim.cli.main", *args],
+        [sys.executable, "-m", "hwsim.cli.commands", *args],
         capture_output=True,
         text=True,
         cwd=cwd,

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.system
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from cli_errors import one_line_error
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.core.threads import THREADS_ENV_VAR
 
 pytestmark = pytest.mark.system

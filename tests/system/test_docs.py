@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.spec.scene import parse_scene
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"

@@ -10,7 +10,7 @@ import pytest
 from cli_errors import one_line_error
 
 import hwsim.run.fidelity
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.system
 

@@ -15,7 +15,7 @@ import signal
 import numpy as np
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.system
 

@@ -10,7 +10,7 @@ import pytest
 from cli_errors import one_line_error
 from PIL import Image
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.run.fidelity import render
 from hwsim.run.turntable import _azimuth, render_turntable
 from hwsim.spec.scene import VolumeSpec, load_scene

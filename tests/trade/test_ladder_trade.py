@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import hwsim.run.fidelity as fidelity
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 from hwsim.numerics import agreement, rmse
 from hwsim.spec.scene import ViewSpec
 from hwsim.studies.trade import ladder_cases, ladder_trade, write_ladder_trade

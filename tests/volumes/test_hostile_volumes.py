@@ -19,7 +19,7 @@ import nrrd
 import numpy as np
 import pytest
 
-from hwsim.cli.main import main
+from hwsim.cli.commands import main
 
 pytestmark = pytest.mark.system
 
@@ -169,7 +169,7 @@ def test_lying_headers_stay_far_below_1_gib(corpus, tmp_path):
     # by exec): RUSAGE_CHILDREN is the largest of every child this worker waited for, and
     # a child's ru_maxrss keeps the size of the forking worker across exec.
     script = (
-        "import sys\nfrom hwsim.cli.main import main\n"
+        "import sys\nfrom hwsim.cli.commands import main\n"
         "for p in sys.argv[2:]:\n"
         "    argv = ['render', '--volume', p, '--out', sys.argv[1], '--quiet']\n"
         "    assert main(argv) == 2\n"
