@@ -110,7 +110,7 @@ def test_all_lists_exactly_the_public_names():
     names = {n for n in dir(hwsim) if not n.startswith("_")}
     modules = {n for n in names if isinstance(vars(hwsim).get(n), types.ModuleType)}
     assert names - modules <= PUBLIC  # besides the subpackages imported so far
-    assert hwsim.InputError is __import__("hwsim.core.errors").errors.InputError
+    assert hwsim.InputError is __import__("hwsim.core.errors").core.errors.InputError
 
 
 def test_the_api_names_are_functions_not_modules():
