@@ -415,7 +415,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_figures(args: argparse.Namespace) -> int:
-    from hwsim.studies.figures import figures_command
+    from hwsim.studies.figures_tables import figures_command
 
     return figures_command(args, _progress_bar)
 

@@ -498,7 +498,7 @@ SHIPPED_FIGURES = (
 
 
 def _figures_blocks(path: Path) -> list[Block]:
-    from hwsim.studies.figures import EVIDENCE_LEGEND, loo_table, table
+    from hwsim.studies.figures_tables import EVIDENCE_LEGEND, loo_table, table
 
     data = json.loads(path.read_text())
     m = data.get("machine", {})

@@ -42,14 +42,9 @@ clocks), so a reader sees what one figure says about the rest.
 
 from __future__ import annotations
 
-import csv
-import datetime as _dt
-import json
 import math
-import platform
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 from hwsim.core.errors import HwsimError, InputError, NotAvailableError
@@ -75,7 +70,6 @@ __all__ = [
     "leave_one_out",
     "measure_figures",
     "published_figures",
-    "write_figures",
 ]
 
 #: The rungs that produce a cycle count, cheapest first.
@@ -447,155 +441,3 @@ def _counter_figure(row: FigureRow, run, value: float) -> None:
     row.difference = row.simulated / value - 1.0
     if row.tolerance is not None:
         row.within = bool(abs(row.difference) <= row.tolerance)
-
-
-def machine_facts() -> dict[str, Any]:
-    """Where and when the figures were measured."""
-    from hwsim import __version__
-
-    return {
-        "hwsim": __version__,
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "measured": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
-    }
-
-
-#: What each evidence label means, printed under every figures table.
-EVIDENCE_LEGEND = (
-    "evidence: 'fitted' = a machine parameter was set from this figure (fitted_from names "
-    "it), so the row shows only the modelled overheads; 'peak' = the figure is pipelines x "
-    "clock restated, so the row measures only what the model loses below one sample per "
-    "pipeline per clock; 'prediction' = no parameter came from it. Only prediction rows "
-    "are errors; none of the rows is a validation of the timing."
-)
-
-
-def write_figures(
-    rows: list[FigureRow], out_dir: str | Path, clocks: dict[str, float] | None = None
-) -> dict[str, Path]:
-    """``figures.json``, ``figures.csv`` and ``figures.md`` in ``out_dir``; ``clocks``
-    (machine -> file clock) adds the leave-one-out table."""
-    from hwsim.core.paths import output_folder
-
-    out = output_folder(out_dir)
-    loo = leave_one_out(rows, clocks or {})
-    data = {
-        "schema": 2,
-        "machine": machine_facts(),
-        "evidence": EVIDENCE_LEGEND,
-        "rows": [asdict(r) for r in rows],
-        "leave_one_out": [asdict(r) for r in loo],
-    }
-    paths = {"json": out / "figures.json", "csv": out / "figures.csv", "md": out / "figures.md"}
-    paths["json"].write_text(json.dumps(data, indent=2) + "\n")
-    with paths["csv"].open("w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(asdict(rows[0])) if rows else ["arch"])
-        writer.writeheader()
-        for r in rows:
-            d = asdict(r)
-            d["fitted_from"] = " ".join(d["fitted_from"] or [])
-            writer.writerow(d)
-    paths["md"].write_text(markdown_tables(data))
-    return paths
-
-
-def markdown_tables(data: dict[str, Any]) -> str:
-    """The figures table, its legend and the leave-one-out table as Markdown."""
-    header, body = table(data["rows"])
-    lines = ["# Published figures", "", *_md(header, body), "", data.get("evidence", "")]
-    loo = data.get("leave_one_out") or []
-    if loo:
-        lh, lb = loo_table(loo)
-        lines += ["", "## Leave one out: the clock fitted on one figure, the others predicted"]
-        lines += ["", *_md(lh, lb)]
-    return "\n".join(lines) + "\n"
-
-
-def _md(header: list[str], body: list[list[str]]) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    return lines + ["| " + " | ".join(r) + " |" for r in body]
-
-
-def loo_table(loo: list[dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
-    header = ["machine", "rung", "fitted on", "clock fitted", "file clock", "predicted"]
-    header += ["published", "predicted value", "error"]
-    body = [
-        [
-            d["arch"],
-            d["rung"],
-            f"{d['fitted_on']} ({d['fitted_evidence']})",
-            f"{d['clock_hz'] / 1e6:.4g} MHz",
-            f"{d['file_clock_hz'] / 1e6:.4g} MHz",
-            f"{d['figure']} ({d['evidence']})",
-            _num(d["published"]),
-            _num(d["predicted"]),
-            f"{100 * d['difference']:+.1f}%",
-        ]
-        for d in loo
-    ]
-    return header, body
-
-
-def _num(v: float | None) -> str:
-    if v is None or not math.isfinite(v):
-        return "-"
-    return f"{v:.4g}"
-
-
-def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list[list[str]]]:
-    """The human table: one line per machine and figure, one column per rung."""
-    dicts = [asdict(r) if isinstance(r, FigureRow) else r for r in rows]
-    rungs = [r for r in TIMING_RUNGS if any(d["rung"] == r for d in dicts)]
-    header = ["machine", "figure", "evidence", "published", "scenario"]
-    for rung in rungs:
-        header += [rung, "diff"]
-    header += ["tolerance", "note"]
-    grouped: dict[tuple[str, str], dict[str, dict[str, Any]]] = {}
-    for d in dicts:
-        grouped.setdefault((d["arch"], d["figure"]), {})[d["rung"]] = d
-    body = []
-    for (arch, figure), by_rung in grouped.items():
-        first = next(iter(by_rung.values()))
-        evidence = first.get("evidence", "?")
-        if first.get("fitted_from"):
-            evidence += " (" + ", ".join(first["fitted_from"]) + ")"
-        scenario = first.get("scenario") or f"dense head {first['size']}^3"
-        line = [arch, figure, evidence, _num(first["published"]), scenario]
-        for rung in rungs:
-            d = by_rung.get(rung)
-            if d is None or d["status"] != "ok":
-                line += [d["status"] if d else "-", ""]
-                continue
-            mark = {True: " ok", False: " OUT", None: ""}[d["within"]]
-            line += [_num(d["simulated"]), f"{100 * d['difference']:+.1f}%{mark}"]
-        tol = first["tolerance"]
-        parts = (part for d in by_rung.values() for part in d["note"].split("; ") if part)
-        notes = list(dict.fromkeys(parts))
-        if first.get("source"):
-            notes.append(f"{first.get('kind', 'stated')}: {first['source']}")
-        line += ["-" if tol is None else f"±{100 * tol:g}%", "; ".join(notes)]
-        body.append(line)
-    return header, body
-
-
-def figures_command(args, progress_bar: Any) -> int:
-    """``hwsim figures``: measure, write the three files, print the table."""
-    from hwsim.core.paths import output_folder
-    from hwsim.run.fidelity import builtin_archs, resolve_arch
-
-    if args.max_size < 1:
-        raise InputError(f"invalid {args.max_size}", key="--max-size", allowed=">= 1")
-    output_folder(args.out)
-    if args.arch:
-        archs = [resolve_arch(a) for a in args.arch]
-    else:
-        archs = [a for a in builtin_archs().values() if a.published]
-    rungs = tuple(r.strip() for r in args.rungs.split(",")) if args.rungs else TIMING_RUNGS
-    with progress_bar(args.quiet, "figures", unit="voxel") as progress:
-        rows = measure_figures(archs, rungs, max_size=args.max_size, progress=progress)
-    paths = write_figures(rows, args.out, {a.name: a.clock_hz for a in archs})
-    if not args.quiet:
-        print(paths["md"].read_text())
-        print(f"wrote {paths['json']}, {paths['csv'].name}, {paths['md'].name}")
-    return 0
