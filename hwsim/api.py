@@ -2,7 +2,7 @@
 
 ``import hwsim`` re-exports these names (``hwsim.render``, ``hwsim.load_scene``, ...);
 docs/api.md is their reference.  Each function is a thin layer over the library calls
-the command line makes (:mod:`hwsim.cli.scene` for the scene overrides,
+the command line makes (:mod:`hwsim.spec.overrides` for the scene overrides,
 :func:`hwsim.run.fidelity.render`, :func:`hwsim.run.output.write_render`, the sweep runner and the
 ladder trade), so a script and the CLI produce the same images, stats and files.  Bad
 input raises :class:`~hwsim.core.errors.InputError`, one line naming the key: the keyword's
@@ -11,8 +11,8 @@ name where the CLI's would name its flag (``view``, not ``--view``).
 
 from __future__ import annotations
 
-import argparse
 import contextlib
+import contextvars
 import functools
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -66,6 +66,20 @@ FILE_OPTIONS = ("shape", "dtype", "byte_order", "header_bytes", "spacing")
 ARCH_OVERRIDES = ("pipelines", "clock_hz", "formats")
 
 
+#: True while the command line calls the API: its errors keep naming flags (``--view``).
+_naming_flags: contextvars.ContextVar[bool] = contextvars.ContextVar("naming_flags", default=False)
+
+
+@contextlib.contextmanager
+def naming_flags() -> Iterator[None]:
+    """Inside the block, API errors name the command line's flags (the CLI's calls)."""
+    token = _naming_flags.set(True)
+    try:
+        yield
+    finally:
+        _naming_flags.reset(token)
+
+
 def _api_errors(fn: Callable) -> Callable:
     """Name the keyword, not the CLI flag, in an InputError (``--view`` -> ``view``)."""
 
@@ -74,6 +88,8 @@ def _api_errors(fn: Callable) -> Callable:
         try:
             return fn(*args, **kwargs)
         except InputError as exc:
+            if _naming_flags.get():
+                raise
             key, source = _keyword(exc.key), _keyword(exc.source)
             if (key, source) == (exc.key, exc.source):
                 raise
@@ -129,7 +145,7 @@ def load_scene(name_or_path: str | Path | Scene | None = None, **overrides: Any)
     ``"head:size=64"``), ``phantom``, ``shape`` and ``dtype`` (a ``.raw`` file), ``mode``,
     ``view=(azimuth, elevation)``, ``image=N`` or ``(width, height)``, ``projection``.
     None: the default scene (``head``); a Scene: that scene, overridden."""
-    from hwsim.cli.scene import apply_overrides
+    from hwsim.spec.overrides import SceneFlags, apply_overrides
     from hwsim.spec.scene import MODES, PROJECTIONS, Scene
     from hwsim.spec.scene import load_scene as load
 
@@ -141,36 +157,36 @@ def load_scene(name_or_path: str | Path | Scene | None = None, **overrides: Any)
             raise InputError(
                 f"not a scene override{hint}", key=key, allowed=", ".join(SCENE_OVERRIDES)
             )
-    flags = argparse.Namespace(**{k: None for k in SCENE_OVERRIDES})
+    flags: dict[str, str | None] = {}
     volume = overrides.get("volume")
     if volume is not None:
         if not isinstance(volume, (str, Path)):
             raise InputError(f"expected a path or phantom spec, got {volume!r}", key="volume")
         if isinstance(volume, str) and _is_phantom_spec(volume):
-            flags.phantom = volume
+            flags["phantom"] = volume
         else:
-            flags.volume = str(volume)
+            flags["volume"] = str(volume)
     if overrides.get("phantom") is not None:
-        if flags.volume or flags.phantom:
+        if flags:
             raise InputError("give volume or phantom, not both", key="phantom")
-        flags.phantom = _text(overrides["phantom"], "phantom")
+        flags["phantom"] = _text(overrides["phantom"], "phantom")
     for key, choices in (("mode", MODES), ("projection", PROJECTIONS)):
         value = overrides.get(key)
         if value is not None and value not in choices:
             raise InputError(f"unknown {key} {value!r}", key=key, allowed=", ".join(choices))
-        setattr(flags, key, value)
+        flags[key] = value
     if overrides.get("dtype") is not None:
-        flags.dtype = _text(overrides["dtype"], "dtype")
+        flags["dtype"] = _text(overrides["dtype"], "dtype")
     if overrides.get("shape") is not None:
-        flags.shape = ",".join(_numbers(overrides["shape"], "shape", 3, int))
+        flags["shape"] = ",".join(_numbers(overrides["shape"], "shape", 3, int))
     if overrides.get("view") is not None:
-        flags.view = ",".join(_numbers(overrides["view"], "view", 2, float))
+        flags["view"] = ",".join(_numbers(overrides["view"], "view", 2, float))
     image = overrides.get("image")
     if image is not None:
         pair = (image, image) if isinstance(image, int) and not isinstance(image, bool) else image
-        flags.image = "x".join(_numbers(pair, "image", 2, int))
+        flags["image"] = "x".join(_numbers(pair, "image", 2, int))
     scene = name_or_path if isinstance(name_or_path, Scene) else load(name_or_path)
-    return apply_overrides(scene, flags)
+    return apply_overrides(scene, SceneFlags(**flags))
 
 
 def _text(value: Any, key: str) -> str:

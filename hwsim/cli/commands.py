@@ -14,8 +14,9 @@ from collections.abc import Sequence
 
 from hwsim.cli.progress import progress_bar as _progress_bar
 from hwsim.cli.render import DEFAULT_RENDER_OUT, cmd_convert, cmd_render
-from hwsim.cli.scene import add_scene_options, apply_overrides
+from hwsim.cli.scene import add_scene_options
 from hwsim.core.errors import HwsimError, InputError
+from hwsim.spec.overrides import apply_overrides
 from hwsim.studies.bench import TABLE_GOALS
 
 __all__ = ["main", "build_parser", "DEFAULT_RENDER_OUT"]

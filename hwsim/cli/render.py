@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hwsim.cli.progress import progress_bar
-from hwsim.cli.scene import apply_overrides
 from hwsim.core.errors import InputError
 from hwsim.core.threads import using as using_threads
+from hwsim.spec.overrides import apply_overrides
 
 if TYPE_CHECKING:
     from hwsim.spec.scene import Scene
@@ -30,9 +30,9 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def _render_command(args: argparse.Namespace) -> int:
+    """Parse, load, call :func:`hwsim.api.render`, save, summarise."""
+    from hwsim.api import naming_flags, render
     from hwsim.core.paths import output_file, output_folder
-    from hwsim.run.fidelity import render
-    from hwsim.run.output import write_render
     from hwsim.spec.scene import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
@@ -45,11 +45,12 @@ def _render_command(args: argparse.Namespace) -> int:
     if args.frames != 1 or args.turn is not None:
         _check_turntable(args, options)
         return _turntable(scene, args, out_dir, options)
-    with progress_bar(args.quiet, "render") as progress:
-        run = render(scene, progress=progress, **options)
-    paths = write_render(run, out_dir)
+    fidelity, arch = options.pop("fidelity"), options.pop("arch")
+    with naming_flags(), progress_bar(args.quiet, "render") as progress:
+        run = render(scene, fidelity, arch, progress=progress, **options)
+        paths = run.save(out_dir)
     if not args.quiet:
-        _print_render(scene, run, paths, replacing)
+        _print_render(scene, run.render_run, paths, replacing)
     return 0
 
 
