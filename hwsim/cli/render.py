@@ -109,12 +109,7 @@ def _print_render(scene: Scene, run: Any, paths: dict[str, Path], replacing: boo
         f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"
     )
     if run.cycles is not None:
-        fps = run.clock_hz / run.cycles if run.cycles else 0.0
-        print(
-            f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
-            f"{run.cycles / run.clock_hz * 1e3:.3f} ms/frame, {fps:.1f} fps, "
-            f"{run.samples / run.cycles:.2f} samples/cycle"
-        )
+        _print_timing(run)
     if run.split is not None:
         peaks = [b["peak_rss_bytes"] for b in run.split["bands"]]
         print(
@@ -133,6 +128,29 @@ def _print_render(scene: Scene, run: Any, paths: dict[str, Path], replacing: boo
     note = " (no --out given: replaced the previous render there)" if replacing else ""
     names = [str(paths["png"]), paths["npy"].name] if "png" in paths else []
     print(f"  wrote {', '.join([*names, str(paths['stats'].name)])}{note}")
+
+
+def _print_timing(run: Any) -> None:
+    """The frame's simulated time, from the numbers ``stats.json`` holds (``frame_timing``):
+    the machine's alone, and for a supervolume the frame's with the host's read back."""
+    from hwsim.run.output import frame_timing
+
+    t = frame_timing(run)
+    bricked = "supervolume" in run.derived
+    per_cycle = run.samples / run.cycles if run.cycles else 0.0
+    print(
+        f"  {run.cycles:,} cycles at {run.clock_hz / 1e6:g} MHz: "
+        f"{t['machine_frame_seconds'] * 1e3:.3f} ms/frame, {t['machine_frames_per_second']:.1f} "
+        f"fps{' on the machine' if bricked else ''}, {per_cycle:.2f} samples/cycle"
+    )
+    if bricked:
+        bricks = run.derived["supervolume"]["bricks"]
+        print(
+            f"  with the host reading back {bricks} bricks' pixels "
+            f"({t['host_seconds'] * 1e3:.3f} ms; blend arithmetic not timed): "
+            f"{t['frame_seconds'] * 1e3:.3f} ms/frame, {t['frames_per_second']:.1f} fps "
+            "(stats.json frame_seconds)"
+        )
 
 
 def cmd_convert(args: argparse.Namespace) -> int:

@@ -27,6 +27,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "STATS_SCHEMA",
+    "frame_timing",
     "stats_dict",
     "stats_plain",
     "write_render",
@@ -38,12 +39,30 @@ __all__ = [
 STATS_SCHEMA = 1
 
 
+def frame_timing(run: RenderRun) -> dict[str, float | None]:
+    """A frame's simulated time and rate, computed here once for ``stats.json`` and the
+    render summary: the machine's (its cycles at its clock) and the frame's, which adds
+    the time the host spends on it (a supervolume's read back of its bricks' pixels,
+    :func:`hwsim.run.supervolume.host_seconds`; 0 otherwise).  All None when untimed."""
+    from hwsim.run.supervolume import host_seconds
+
+    keys = ("machine_frame_seconds", "machine_frames_per_second", "host_seconds")
+    keys += ("frame_seconds", "frames_per_second")
+    if run.cycles is None or not run.clock_hz:
+        return dict.fromkeys(keys)
+    machine = run.cycles / run.clock_hz
+    host = host_seconds(run.derived)
+    frame = machine + host
+    return dict(
+        zip(keys, (machine, 1.0 / machine if machine else 0.0, host, frame,
+                   1.0 / frame if frame else 0.0), strict=True)
+    )  # fmt: skip
+
+
 def stats_dict(run: RenderRun) -> dict[str, Any]:
     """The ``stats.json`` content of a render (design section 9)."""
-    frame_seconds = run.cycles / run.clock_hz if run.cycles is not None and run.clock_hz else None
-    if frame_seconds is not None and "supervolume" in run.derived:
-        # The bricks' frames plus the host's read back of their pixels (hwsim.run.supervolume).
-        frame_seconds += run.derived["supervolume"]["host_seconds"]
+    timing = frame_timing(run)
+    frame_seconds = timing["frame_seconds"]
     sps = run.samples / frame_seconds if frame_seconds else None
     vol = run.volume
     return {
@@ -72,7 +91,7 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "rays": run.rays,
         "cycles": run.cycles,
         "clock_hz": run.clock_hz,
-        "frame_seconds": frame_seconds,
+        **timing,  # the frame's seconds and fps, and the machine's alone (frame_timing)
         "samples_per_second": sps,
         "wall_seconds": run.wall_seconds,
         "wall_samples_per_second": run.samples / run.wall_seconds if run.wall_seconds else None,

@@ -21,7 +21,10 @@ brick renders bit for bit as in one pass.
 
 Timing: the frame is the bricks' frames back to back (their cycles summed) plus the read
 back of their pixels over ``[overheads] host_bus_bytes_per_second`` (4 bytes per pixel;
-the host's blend arithmetic is not timed) [I].
+the host's blend arithmetic is not timed) [I].  This module states only the host's part
+(``derived.supervolume.host_seconds``, :func:`host_seconds`); the frame's seconds and
+rate, the machine's alone and with the host's read back, are computed once from it by
+:func:`hwsim.run.output.frame_timing` for ``stats.json`` and the render summary.
 """
 
 from __future__ import annotations
@@ -41,7 +44,14 @@ from hwsim.spec.scene import Scene
 from hwsim.spec.transfer import TransferFunction
 from hwsim.volumes.volume import Volume
 
-__all__ = ["SupervolumeResult", "blend_unorm", "oversize", "refuse_supervolume", "render_bricks"]
+__all__ = [
+    "SupervolumeResult",
+    "blend_unorm",
+    "host_seconds",
+    "oversize",
+    "refuse_supervolume",
+    "render_bricks",
+]
 
 #: Modes the host blend models.
 MODES = ("composite", "mip", "minip")
@@ -147,6 +157,9 @@ def render_bricks(
     derived = derive(
         counters, cycles=cycles, samples=samples, pipelines=arch.pipelines, clock_hz=arch.clock_hz
     )
+    # The cycles' own frame time and rate would be a second, smaller frame time beside
+    # the frame's (with the host's read back): the frame's is hwsim.run.output's alone.
+    del derived["frame_seconds"], derived["frames_per_second"]
     derived["supervolume"] = info
     return SupervolumeResult(
         image=image,
@@ -213,24 +226,24 @@ def _blend_image(
     return whole.to_image(base, background), touched
 
 
+def host_seconds(derived: dict[str, Any]) -> float:
+    """A frame's time apart from its machine cycles, from its ``derived`` figures: a
+    supervolume's host read back of its bricks' pixels; 0 for a one-pass frame."""
+    return float(derived.get("supervolume", {}).get("host_seconds", 0.0))
+
+
 def _host_info(arch: ArchConfig, n_bricks: int, tally: _BrickTally) -> dict[str, Any]:
-    """The ``supervolume`` block of the derived figures: the bricks, and the frame's time
-    as the machine's cycles plus the host bus moving the bricks' pixels."""
+    """The ``supervolume`` block of the derived figures: the bricks, and the host bus
+    moving their pixels (the frame's time adds it to the cycles: :func:`host_seconds`)."""
     pixels = sum(p[0].size for p in tally.parts)
     host_bytes = pixels * PIXEL_BYTES
-    host_seconds = (
-        host_bytes / arch.host_bus_bytes_per_second if arch.host_bus_bytes_per_second else 0.0
-    )
-    machine_seconds = tally.cycles / arch.clock_hz
+    seconds = host_bytes / arch.host_bus_bytes_per_second if arch.host_bus_bytes_per_second else 0.0
     return {
         "bricks": n_bricks,
         "halo": HALO,
         "per_brick": tally.per_brick,
         "host_bytes": host_bytes,
-        "host_seconds": host_seconds,
-        "machine_seconds": machine_seconds,
-        "frame_seconds": machine_seconds + host_seconds,
-        "frames_per_second": 1.0 / (machine_seconds + host_seconds) if tally.cycles else 0.0,
+        "host_seconds": seconds,
     }
 
 
