@@ -24,7 +24,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-from hwsim.energy.synth import INDEPENDENCE, unit_datapath, unit_silicon
+from hwsim.energy.synth import INDEPENDENCE, synthesised, unit_datapath, unit_silicon
 from hwsim.energy.technology import Technology
 from models.machines.common.silicon import Silicon, counter_sum
 from models.units.ops import SHARED, Features, Op, unit_ops
@@ -37,6 +37,7 @@ __all__ = [
     "machine_area",
     "op_area_um2",
     "op_energy_pj",
+    "rtl_kind_differs",
     "rtl_width_inventory",
     "split_area",
     "synthesized_unit",
@@ -191,6 +192,26 @@ def synthesized_unit(unit: str, silicon: Silicon, tech: Technology, arch) -> dic
     }
 
 
+def rtl_kind_differs(unit: str, dp) -> str | None:
+    """Why the synthesised RTL of ``unit`` is not the unit datapath ``dp`` has, or None.
+
+    Widths may differ (the RTL is synthesised at its default widths and the table is
+    priced at the same ones); a choice of kind may not: the RTL's ``shade.method``
+    (``reflectance-map``) against a Phong machine, or its ``gradient.source``
+    (``sample``) against a machine that takes gradients at the voxels, is another unit,
+    and comparing its area with the table's says nothing about this machine."""
+    entry = synthesised()["units"].get(unit)
+    cfg = getattr(dp, unit, None)
+    if entry is None or cfg is None:
+        return None
+    differ = [
+        f"{unit}.{key} {getattr(cfg, key)} here, {value} in the RTL"
+        for key, value in sorted(entry["params"].items())
+        if isinstance(value, str) and hasattr(cfg, key) and getattr(cfg, key) != value
+    ]
+    return "; ".join(differ) or None
+
+
 def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
     """The silicon of ``arch`` with datapath ``dp``, whatever the scene: every pipeline's
     units (one light's hardware each) and the buffers."""
@@ -203,11 +224,14 @@ def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
     for u in _units_of(arch):
         inventory = unit_inventory(u, dp, silicon, 1, dp.shade.method, features)
         per = sum(op_area_um2(op, tech) for op in inventory)
+        other = rtl_kind_differs(u, dp)
         unit_area[u] = {
             "mm2": P * per / _UM2_PER_MM2,
             "per_pipeline_mm2": per / _UM2_PER_MM2,
             "gate_equivalents": P * per / tech.gate_um2(1.0),
-            "synthesized": synthesized_unit(u, silicon, tech, arch),
+            # Area two ways only where the RTL is this machine's kind of unit.
+            "synthesized": None if other else synthesized_unit(u, silicon, tech, arch),
+            "rtl_differs": other,
         }
     buffers = {
         s.name: {

@@ -85,4 +85,10 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
                   "table storage bits", "RTL storage bits", "storage mm^2 (shared price)",
                   "gate levels", "est. fmax MHz", "meets clock (est.)"]  # fmt: skip
         blocks.append(("table", header, rows))
+    other = {u: e["rtl_differs"] for u, e in area["units"].items() if e.get("rtl_differs")}
+    if other:
+        listed = "; ".join(f"{u} ({why})" for u, why in other.items())
+        blocks.append(
+            ("p", f"Not compared two ways, the RTL being another kind of unit: {listed}.")
+        )
     return blocks
