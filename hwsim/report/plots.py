@@ -96,17 +96,62 @@ def plot_images(
     return path
 
 
-def _bars(path: Path, names: list[str], xlabel: str, draw) -> Path:
-    """Horizontal bars, one per name (first at the top); ``draw(ax)`` adds the bars."""
+#: Longest line of a bar's label before it wraps (after a ``.`` of its path).
+LABEL_CHARS = 30
+
+
+def _wrap(name: str, width: int = LABEL_CHARS) -> str:
+    """``name`` broken into lines of at most ``width`` characters where it can be: after a
+    ``.`` of its path (``memory.sdram.bank_queue`` -> ``memory.sdram.`` / ``bank_queue``)."""
+    parts = re.findall(r"[^.]*\.?", name)
+    lines = [""]
+    for part in (p for p in parts if p):
+        if lines[-1] and len(lines[-1]) + len(part) > width:
+            lines.append("")
+        lines[-1] += part
+    return "\n".join(lines)
+
+
+def _compact(value: float, _pos: int = 0) -> str:
+    """An axis number in at most a few characters: ``250k``, ``1.5M``, ``4,000``, ``0.25``."""
+    for scale, suffix in ((1e9, "G"), (1e6, "M"), (1e4, "k")):
+        if abs(value) >= scale:
+            shown = value / (scale if suffix != "k" else 1e3)
+            return f"{shown:.3g}{suffix}"
+    return f"{value:,.4g}"
+
+
+def _bar_figure(names: list[str], xlabel: str, draw):
+    """Horizontal bars, one per name (first at the top); ``draw(ax)`` adds the bars.
+
+    Labels wrap (:func:`_wrap`) and the figure grows with their lines, the value axis
+    carries at most six compact numbers, and a legend sits outside the bars, so nothing
+    overlaps however many units a machine has."""
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.0, 0.35 * len(names) + 1.3))
+    labels = [_wrap(n) for n in names]
+    lines = sum(label.count("\n") + 1 for label in labels)
+    fig, ax = plt.subplots(figsize=(6.5, 0.22 * lines + 0.13 * len(names) + 1.3))
     draw(ax)
+    ax.set_yticks(range(len(names)), labels, fontsize=8)
     ax.set_xlabel(xlabel)
-    ax.invert_yaxis()
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    if ax.get_xscale() == "linear":
+        from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+        ax.xaxis.set_major_formatter(FuncFormatter(_compact))
+    ax.set_ylim(len(names) - 0.5, -0.5)  # first name at the top
+    return fig
+
+
+def _save(fig, path: Path) -> Path:
+    """Write ``fig`` as PNG, cropped to everything drawn (legends outside the axes)."""
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    _plt().close(fig)
     return path
+
+
+def _bars(path: Path, names: list[str], xlabel: str, draw) -> Path:
+    return _save(_bar_figure(names, xlabel, draw), path)
 
 
 def plot_utilisation(units: dict[str, dict[str, float]], cycles: int, path: Path) -> Path | None:
@@ -138,7 +183,8 @@ def plot_stalls(units: dict[str, dict[str, float]], path: Path) -> Path | None:
             if widths.any():
                 ax.barh(names, widths, left=left, label=reason.removeprefix("stall:"))
                 left += widths
-        ax.legend(fontsize=7)
+        # Beside the bars, not over them.
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
 
     return _bars(path, names, "stall cycles", draw)
 
