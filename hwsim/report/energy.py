@@ -36,7 +36,7 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
                 ["average power at the simulated frame rate (W)", _g(energy["average_watts"])],
                 ["area (mm^2)", _g(area["total_mm2"])],
                 ["area per pipeline, units (mm^2)", _g(area["per_pipeline_mm2"])],
-                ["gate equivalents", _g(area["gate_equivalents"], ".3e")],
+                ["area (GE: NAND2 gate equivalents)", _g(area["gate_equivalents"], ".3e")],
             ],
         )
     )  # fmt: skip

@@ -28,6 +28,7 @@ from hwsim.core.errors import HwsimError, InputError
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
 from hwsim.report.energy import energy_blocks
+from hwsim.report.tables import METRIC_UNITS, figure_units, footnoted, loo_units, merged_diffs
 from hwsim.studies.trade.files import EXACT_LEGEND, psnr_cell
 
 __all__ = ["RunRecord", "load_run", "build_report", "write_report"]
@@ -147,7 +148,7 @@ def _published(run: RunRecord) -> list[list[str]]:
     arch = builtin_archs().get(s["arch"] or "")
     if arch is None or not arch.published:
         return []
-    fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+    fps = _fps(s)
     sps = s.get("samples_per_second")
     rows = []
     for fig in published_figures(arch):
@@ -164,7 +165,10 @@ def _published(run: RunRecord) -> list[list[str]]:
         else:
             sim, how = None, f"on its own scenario ({fig.scenario.text()}): hwsim figures"
         ratio = _fmt(sim / fig.value if sim else None, ".3f")
-        rows.append([fig.key, evidence, _fmt(fig.value), _fmt(sim) if sim else "-", ratio, how])
+        unit = METRIC_UNITS[fig.metric]
+        rows.append(
+            [fig.key, unit, evidence, _fmt(fig.value), _fmt(sim) if sim else "-", ratio, how]
+        )
     return rows
 
 
@@ -180,10 +184,25 @@ def _run_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) ->
     return blocks
 
 
+def _fps(s: dict[str, Any]) -> float | None:
+    """The frame rate ``stats.json`` states (``frames_per_second``: with a supervolume's
+    host read back), or for a run written before it, its ``frame_seconds`` inverted."""
+    if "frames_per_second" in s:
+        return s["frames_per_second"]
+    return 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+
+
 def _summary_table(run: RunRecord) -> Block:
-    """The run's quantities at a glance: what was rendered, how, and how fast."""
+    """The run's quantities at a glance: what was rendered, how, and how fast; every
+    number with its unit (in the quantity's name)."""
     s = run.stats
-    fps = 1.0 / s["frame_seconds"] if s.get("frame_seconds") else None
+    clock = s.get("clock_hz")
+    host = []
+    if s.get("host_seconds"):  # a supervolume: the machine's part and the host's
+        host = [
+            ["machine frame time, bricks' cycles (s)", _fmt(s.get("machine_frame_seconds"))],
+            ["host read back of the bricks (s)", _fmt(s["host_seconds"])],
+        ]
     return (
         "table",
         ["quantity", "value"],
@@ -197,18 +216,19 @@ def _summary_table(run: RunRecord) -> Block:
             ["mode", s["scene"]["render"]["mode"]],
             ["fidelity / sampling", f"{s['fidelity']} / {s['sampling']}"],
             ["architecture", s["arch"] or "none (ideal ray caster)"],
-            ["samples", _fmt(s["samples"])],
+            ["samples (count)", _fmt(s["samples"])],
             [
-                "cycles",
+                "cycles (count)",
                 _fmt(s.get("cycles"))
                 if s["fidelity"] != "golden"
                 else "none: golden has no timing",
             ],
-            ["clock", _fmt(s.get("clock_hz"))],
+            ["clock (MHz)", _fmt(clock / 1e6 if clock else None)],
             ["simulated frame time (s)", _fmt(s.get("frame_seconds"))],
-            ["simulated fps", _fmt(fps)],
-            ["simulated samples/s", _fmt(s.get("samples_per_second"))],
-            ["wall seconds", _fmt(s.get("wall_seconds"))],
+            *host,
+            ["simulated frame rate (fps)", _fmt(_fps(s))],
+            ["simulated sample rate (samples/s)", _fmt(s.get("samples_per_second"))],
+            ["wall time (s)", _fmt(s.get("wall_seconds"))],
             ["elaborated units", ", ".join(s.get("elaborated_units", [])) or "-"],
             ["elided units", ", ".join(s.get("elided_units", [])) or "none"],
             [
@@ -304,7 +324,8 @@ def _published_blocks(run: RunRecord) -> list[Block]:
         blocks.append(
             (
                 "table",
-                ["figure", "evidence", "published", "simulated", "simulated / published", "how"],
+                ["figure", "unit", "evidence", "published", "simulated", "simulated / published"]
+                + ["how"],
                 published,
             )
         )
@@ -463,9 +484,7 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
                         r.stats["arch"] or "ideal",
                         r.stats["fidelity"],
                         _fmt(r.stats.get("cycles")),
-                        _fmt(
-                            1.0 / r.stats["frame_seconds"] if r.stats.get("frame_seconds") else None
-                        ),
+                        _fmt(_fps(r.stats)),
                         _fmt(r.stats["wall_seconds"], ".3f"),
                     ]
                     for i, r in enumerate(runs, start=1)
@@ -502,21 +521,25 @@ def _figures_blocks(path: Path) -> list[Block]:
 
     data = json.loads(path.read_text())
     m = data.get("machine", {})
-    header, body = table(data["rows"])
+    header, body = merged_diffs(*figure_units(*table(data["rows"]), data["rows"]))
+    header, body, notes = footnoted(header, body, "note")
     blocks: list[Block] = [
         ("h2", "Published figures of every machine"),
         (
             "p",
             f"Each machine's published figure against hwsim's at every timing rung, on its "
             f"scenario (docs/figures.md); from {path}, measured {m.get('measured', '?')} "
-            f"with hwsim {m.get('hwsim', '?')}. 'diff' is simulated / published - 1; "
-            "'OUT' marks a row beyond its acceptance band.",
+            f"with hwsim {m.get('hwsim', '?')}. Each rung's value is followed by its diff, "
+            "simulated / published - 1; "
+            "'OUT' marks a row beyond its acceptance band; notes [n] are listed under the "
+            "table.",
         ),
         ("table", header, body),
+        ("notes", notes),
         ("p", data.get("evidence") or EVIDENCE_LEGEND),
     ]
     if data.get("leave_one_out"):
-        lh, lb = loo_table(data["leave_one_out"])
+        lh, lb = loo_units(*loo_table(data["leave_one_out"]), data["leave_one_out"])
         blocks += [
             ("h3", "Leave one out: the clock fitted on one figure, the others predicted"),
             ("table", lh, lb),

@@ -66,7 +66,7 @@ def test_published_figures_compare_the_simulated_rate(report, folders):
     _, md, _ = report
     stats = load_run(folders / "f").stats
     ratio = stats["samples_per_second"] / 500e6  # VolumePro 500: 500 M samples/s [V]
-    row = "| samples_per_second | peak (pipeline.clock_hz) | 5e+08 | "
+    row = "| samples_per_second | samples/s | peak (pipeline.clock_hz) | 5e+08 | "
     assert row + f"{stats['samples_per_second']:.4g} | {ratio:.3f} |" in md
 
 

@@ -5,6 +5,7 @@ the page."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -82,3 +83,58 @@ def test_stall_plot_labels_do_not_overlap(monkeypatch, tmp_path, scale):
     ylabels = [t.get_window_extent(renderer) for t in ax.yaxis.get_ticklabels()]
     assert not any(b.overlaps(ax.get_window_extent(renderer)) for b in ylabels)
     assert all(len(t.get_text()) <= 8 for t in ax.xaxis.get_ticklabels())
+
+
+_NUMBER = re.compile(r"^[-+±]?[\d,]*\.?\d+(e[-+]?\d+)?%?( ok| OUT)?$")
+#: What names a number's unit in a column header or a quantity's name.
+_UNIT = re.compile(
+    r"\b(s|MHz|fps|J|W|GE|GiB|dB|bits|cycles|samples|rays|levels|count|unit)\b|samples/s|mm\^2"
+    r"|GB/s|%|/|error|diff|tolerance"
+)
+
+
+def _md_tables(md: str):
+    for chunk in md.split("\n\n"):
+        lines = [line for line in chunk.splitlines() if line.startswith("|")]
+        if len(lines) >= 3:
+            rows = [[c.strip() for c in line.strip("|").split(" | ")] for line in lines]
+            yield rows[0], rows[2:]
+
+
+def _unitless(md: str) -> list[tuple[str, str]]:
+    """Numbers in the report's tables with no unit in their column or quantity name."""
+    bare = []
+    for header, body in _md_tables(md):
+        if header[:2] == ["quantity", "value"]:
+            bare += [(r[0], r[1]) for r in body if _NUMBER.match(r[1]) and not _UNIT.search(r[0])]
+        elif "unit" not in header:  # a unit column names every line's
+            for j, name in enumerate(header):
+                cells = [r[j] for r in body if r[j] not in ("-", "")]
+                numbers = cells and all(_NUMBER.match(c) for c in cells)
+                if numbers and name != "run" and not _UNIT.search(name):
+                    bare.append((name, cells[0]))
+    return bare
+
+
+def test_every_number_in_the_tables_carries_its_unit(report):
+    _, md, _ = report
+    assert "| clock (MHz) | 125 |" in md
+    assert _unitless(md) == []
+    figures = next(h for h, _ in _md_tables(md) if "scenario" in h)
+    assert figures[figures.index("figure") + 1] == "unit"
+    assert "| fps_256 | fps |" in md and "| samples_per_second | samples/s |" in md
+
+
+def test_the_figures_table_fits_the_page(report):
+    """Each rung's diff shares its cell, the notes are footnotes under the table and a
+    table of many columns is set dense, so the tolerance and note columns are on the page
+    rather than in a horizontal scroll."""
+    _, md, html = report
+    header, body = next((h, b) for h, b in _md_tables(md) if "scenario" in h)
+    assert "diff" not in header and len(header) <= 12
+    assert header[-2:] == ["tolerance", "note"]
+    marks = [line[-1] for line in body]
+    assert all(re.fullmatch(r"\[\d+\]", m) for m in marks if m) and any(marks)
+    notes = html.split('<ol class="notes">')[1].split("</ol>")[0]
+    assert notes.count("<li>") == max(int(m.strip("[]")) for m in marks if m)
+    assert '<table class="dense">' in html
