@@ -417,14 +417,16 @@ def _trade_blocks(folder: Path, out: Path) -> list[Block]:
 
 
 def _sweep_blocks(path: Path) -> list[Block]:
-    """One row per run of a sweep database (``hwsim sweep --db``)."""
+    """One row per run of a sweep database (``hwsim sweep --db``), sorted by the runs'
+    parameters (:func:`hwsim.studies.sweep.db.by_parameters`); a run whose wall time
+    includes its worker's JIT compile is marked."""
     import sqlite3
 
-    from hwsim.studies.sweep.db import RunsDB
+    from hwsim.studies.sweep.db import RunsDB, by_parameters
 
     try:
         with RunsDB(path, create=False) as db:
-            rows = db.rows()
+            rows = by_parameters(db.rows())
     except sqlite3.DatabaseError as exc:
         raise InputError(f"unreadable sweep database: {exc}", source=str(path)) from None
     failed = sum(r["status"] != "ok" for r in rows)
@@ -436,15 +438,23 @@ def _sweep_blocks(path: Path) -> list[Block]:
             _fmt(1.0 / r["frame_seconds"]) if r["frame_seconds"] else "-",
             _fmt(r["samples_per_second"]) if r["samples_per_second"] else "-",
             _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
+            {1: "yes [1]", 0: "no"}.get(r.get("includes_compile"), NOT_RECORDED),
             r["error"] or "",
         ]
         for r in rows
     ]
-    header = ["run", "status", "cycles", "simulated fps", "simulated samples/s", "wall s", "error"]
+    header = ["run", "status", "cycles", "simulated fps", "simulated samples/s", "wall s"]
+    header += ["includes compile", "error"]
+    note = (
+        "Rows sorted by their parameters (names alphabetically, values ascending). [1] The "
+        "first run of its worker process: its wall time includes the imports and numba's "
+        "JIT compile (or cache load), so it is not comparable with the warm runs' wall times."
+    )
     return [
         ("h2", f"Sweep ({path})"),
         ("p", f"{len(rows)} run(s), {failed} failed."),
         ("table", header, table),
+        ("p", note),
     ]
 
 

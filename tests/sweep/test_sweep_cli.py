@@ -161,3 +161,20 @@ def test_an_unknown_technology_is_refused_when_the_sweep_is_read(tmp_path, capsy
     err = capsys.readouterr().err.strip()
     assert "s.toml" in err and "sweep.technology" in err and "cmos45" in err
     assert not (tmp_path / "r.db").exists()
+
+
+def test_sweep_rows_are_sorted_and_the_compiling_run_is_marked(swept):
+    """One worker process: its first run pays the JIT compile and says so; the report's
+    sweep table lists the runs by their parameters, not in the order they finished."""
+    tmp, _, rows = swept
+    assert sorted(r["includes_compile"] for r in rows) == [0] * (len(rows) - 1) + [1]
+    argv = ["report", str(tmp / "runs.db"), "--out", str(tmp / "report-sweep"), "--quiet"]
+    assert main(argv) == 0
+    md = (tmp / "report-sweep" / "report.md").read_text()
+    lines = [line for line in md.splitlines() if line.startswith("| phantom=")]
+    labels = [line.split(" | ")[0].strip("| ") for line in lines]
+    by_label = {r["label"]: r["params"] for r in rows}
+    keys = [tuple(sorted(by_label[label].items())) for label in labels]
+    assert keys == sorted(keys)
+    assert sum("| yes [1] |" in line for line in lines) == 1
+    assert "[1] The first run of its worker process" in md

@@ -67,3 +67,23 @@ def test_a_database_from_before_a_column_gains_it(tmp_path):
         rows = {r["key"]: r for r in db.rows()}
     assert rows["old"]["energy_joules"] is None
     assert (rows["new"]["energy_joules"], rows["new"]["area_mm2"]) == (1.5e-3, 12.0)
+
+
+def test_rows_sort_by_their_parameters_names_then_values(tmp_path):
+    from hwsim.studies.sweep.db import by_parameters
+
+    params = [
+        {"pipelines": 8, "arch": "cube4"},
+        {"pipelines": 2, "arch": "volumepro500"},
+        {"pipelines": 16, "arch": "cube4"},
+        {"pipelines": 2, "arch": "cube4"},
+        {"pipelines": 2, "arch": "cube4", "size": None},
+    ]
+    with RunsDB(tmp_path / "r.db") as db:
+        for i, p in enumerate(params):
+            db.insert(row(f"k{i}", params=p))
+        rows = by_parameters(db.rows())
+    # arch first (alphabetically before pipelines), then pipelines numerically (2 < 8 < 16).
+    assert [r["key"] for r in rows] == ["k3", "k4", "k0", "k2", "k1"]
+    same = [row("x1", params={"a": 1}), row("x0", params={"a": 1})]
+    assert [r["key"] for r in by_parameters(same)] == ["x1", "x0"]  # stable

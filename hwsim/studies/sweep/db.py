@@ -21,7 +21,7 @@ from typing import Any
 
 from hwsim.core.errors import InputError
 
-__all__ = ["COLUMNS", "SCHEMA", "RunsDB"]
+__all__ = ["COLUMNS", "SCHEMA", "RunsDB", "by_parameters"]
 
 SCHEMA = 1
 #: Columns of table ``runs`` besides ``key``: (name, SQL type).  ``params`` and
@@ -45,6 +45,9 @@ COLUMNS = (
     ("samples_per_second", "REAL"),
     ("wall_seconds", "REAL"),
     ("wall_samples_per_second", "REAL"),
+    # 1: the first run of its worker process, whose wall time includes the imports and
+    # numba's JIT compile (or cache load); 0: a later run of a warm process.
+    ("includes_compile", "INTEGER"),
     ("technology", "TEXT"),  # hwsim.energy: the node the next three are priced in
     ("energy_joules", "REAL"),
     ("energy_per_sample_joules", "REAL"),
@@ -187,6 +190,26 @@ class RunsDB:
     def integrity(self) -> str:
         """``PRAGMA integrity_check``: ``"ok"`` for a sound file."""
         return self.conn.execute("PRAGMA integrity_check").fetchone()[0]
+
+
+def by_parameters(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``rows`` sorted by their parameters (``params``, decoded): parameter names in
+    alphabetical order, each one's values ascending (numbers by value, then text, then
+    anything else by its JSON); rows with equal parameters keep their order (stable)."""
+    return sorted(rows, key=lambda row: _parameter_key(row.get("params") or {}))
+
+
+def _parameter_key(params: dict[str, Any]) -> tuple:
+    def rank(value: Any) -> tuple:
+        if value is None:
+            return (0, 0.0, "")
+        if isinstance(value, (int, float)):  # bool too: false before true
+            return (1, float(value), "")
+        if isinstance(value, str):
+            return (2, 0.0, value)
+        return (3, 0.0, json.dumps(value, sort_keys=True, default=str))
+
+    return tuple((name, rank(params[name])) for name in sorted(params))
 
 
 def _sql_value(value: Any) -> Any:

@@ -14,6 +14,7 @@ recorded as failed with Dask's ``KilledWorker`` error.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import os
 import time
@@ -59,6 +60,10 @@ def image_digest(image: np.ndarray) -> str:
     return digest.hexdigest()
 
 
+#: Runs this process has started: the first pays for the imports and the JIT compile.
+_RUNS_IN_PROCESS = itertools.count()
+
+
 def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
 
@@ -93,6 +98,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
         "worker": _worker_name(),
         "worker_pid": os.getpid(),
         "started_at": _now(),
+        "includes_compile": next(_RUNS_IN_PROCESS) == 0,  # its wall time is not warm
     }
     try:
         scene, arch, fidelity, overrides = build_run(run)
