@@ -15,11 +15,11 @@ import contextlib
 import contextvars
 import functools
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hwsim.core.errors import InputError
+from hwsim.studies.sweep.runner import SweepSummary as SweepResult
 
 if TYPE_CHECKING:
     from hwsim.run.fidelity import RenderRun
@@ -40,7 +40,17 @@ __all__ = [
 ]
 
 #: Keywords of :func:`load_scene`: the ``hwsim render`` scene flags.
-SCENE_OVERRIDES = ("volume", "phantom", "shape", "dtype", "mode", "view", "image", "projection")
+SCENE_OVERRIDES = (
+    "volume",
+    "phantom",
+    "shape",
+    "dtype",
+    "mode",
+    "view",
+    "image",
+    "projection",
+    "transfer",
+)
 #: Keywords of :func:`render` besides ``fidelity`` and ``arch`` (hwsim.run.fidelity.render's,
 #: plus ``threads`` and ``max_memory``, which the CLI sets around a render).
 RENDER_OPTIONS = (
@@ -143,7 +153,8 @@ def load_scene(name_or_path: str | Path | Scene | None = None, **overrides: Any)
     """A scene by built-in name (``hwsim scenes``) or TOML file, with the ``hwsim render``
     flags' overrides applied: ``volume`` (a file, DICOM folder or phantom spec such as
     ``"head:size=64"``), ``phantom``, ``shape`` and ``dtype`` (a ``.raw`` file), ``mode``,
-    ``view=(azimuth, elevation)``, ``image=N`` or ``(width, height)``, ``projection``.
+    ``view=(azimuth, elevation)``, ``image=N`` or ``(width, height)``, ``projection``,
+    ``transfer`` (a preset name such as ``"mr"``, or a transfer ``.toml`` / ``.npy`` file).
     None: the default scene (``head``); a Scene: that scene, overridden."""
     from hwsim.spec.overrides import SceneFlags, apply_overrides
     from hwsim.spec.scene import MODES, PROJECTIONS, Scene
@@ -177,6 +188,11 @@ def load_scene(name_or_path: str | Path | Scene | None = None, **overrides: Any)
         flags[key] = value
     if overrides.get("dtype") is not None:
         flags["dtype"] = _text(overrides["dtype"], "dtype")
+    transfer = overrides.get("transfer")
+    if transfer is not None:
+        flags["transfer"] = (
+            str(transfer) if isinstance(transfer, Path) else _text(transfer, "transfer")
+        )
     if overrides.get("shape") is not None:
         flags["shape"] = ",".join(_numbers(overrides["shape"], "shape", 3, int))
     if overrides.get("view") is not None:
@@ -389,21 +405,6 @@ def arch(name_or_path: str | Path, **overrides: Any) -> ArchConfig:
 # ------------------------------------------------------------------------ sweep, trade
 
 
-@dataclass
-class SweepResult:
-    """What :func:`sweep` did (``hwsim sweep``'s summary) and its rows in the database."""
-
-    total: int
-    skipped: int
-    ok: int
-    failed: int
-    wall_seconds: float
-    db: str
-    #: One dict per run of this sweep (docs/sweeps.md columns; ``params`` and ``stats``
-    #: decoded), in the database's order.
-    rows: list[dict[str, Any]] = field(default_factory=list)
-
-
 @_api_errors
 def sweep(
     spec: str | Path | dict[str, Any],
@@ -450,15 +451,8 @@ def sweep(
             plan, runs_db, client, out_dir=str(out) if out is not None else None, progress=progress
         )
         rows = [r for r in runs_db.rows() if r["key"] in keys]
-    return SweepResult(
-        total=summary.total,
-        skipped=summary.skipped,
-        ok=summary.ok,
-        failed=summary.failed,
-        wall_seconds=summary.wall_seconds,
-        db=summary.db,
-        rows=rows,
-    )
+    summary.rows = rows
+    return summary
 
 
 @_api_errors

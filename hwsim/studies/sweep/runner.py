@@ -19,7 +19,7 @@ import json
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,7 @@ import numpy as np
 
 from hwsim.core.cluster import ALLOWED_FAILURES, connect, local_client
 from hwsim.core.errors import HwsimError
+from hwsim.core.paths import display_path, display_text
 from hwsim.studies.sweep.db import RunsDB
 from hwsim.studies.sweep.spec import RunSpec, Sweep, build_run, code_version, run_key, technology_of
 
@@ -43,7 +44,10 @@ __all__ = [
 
 @dataclass
 class SweepSummary:
-    """What a sweep did: runs in the file, already in the database, ok, failed, time."""
+    """What a sweep did: runs in the file, already in the database, ok, failed, time;
+    ``rows`` (filled by :func:`hwsim.sweep`, which returns it as ``hwsim.SweepResult``):
+    one dict per run of this sweep (docs/sweeps.md columns; ``params`` and ``stats``
+    decoded), in the database's order."""
 
     total: int
     skipped: int
@@ -51,6 +55,7 @@ class SweepSummary:
     failed: int
     wall_seconds: float
     db: str
+    rows: list[dict[str, Any]] = field(default_factory=list)
 
 
 def image_digest(image: np.ndarray) -> str:
@@ -102,7 +107,8 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
     }
     try:
         scene, arch, fidelity, overrides = build_run(run)
-        row.update(scene=scene.name, volume=scene.volume.describe(), mode=scene.render.mode)
+        volume = display_path(scene.volume.describe())  # a file or a phantom's spec
+        row.update(scene=scene.name, volume=volume, mode=scene.render.mode)
         result = render(
             scene,
             fidelity=fidelity,
@@ -143,9 +149,10 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
             write_render(result, folder)
             sweep_facts = {"key": key, "params": p, "arch_overrides": overrides}
             (folder / "sweep.json").write_text(json.dumps(sweep_facts, indent=2) + "\n")
-            row["run_dir"] = str(folder)
+            row["run_dir"] = display_path(folder)
     except Exception as exc:  # recorded, not raised: one bad run must not stop a sweep
         text = str(exc) if isinstance(exc, HwsimError) else f"{type(exc).__name__}: {exc}"
+        text = display_text(text)  # the paths it names, as display_path writes them
         row.update(status="error", error=text)
     row["finished_at"] = _now()
     return row
