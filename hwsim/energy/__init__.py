@@ -22,13 +22,16 @@ __all__ = [
 
 def units_below_clock(arch, technology: str | None = None) -> list[tuple[str, float]]:
     """``(unit, fmax_hz)`` of each datapath unit of ``arch`` whose synthesised RTL cannot
-    run at the machine's clock in ``technology`` (default: the machine's own node)."""
-    from hwsim.energy.model import DATAPATH
+    run at the machine's clock in ``technology`` (default: the machine's own node); only
+    units the machine has, of the RTL's kind (:func:`~hwsim.energy.model.rtl_kind_differs`)."""
+    from hwsim.energy.model import machine_units, rtl_kind_differs
     from hwsim.energy.synth import unit_silicon
+    from models.datapath import Datapath
 
     tech = load_technology(technology or arch.technology)
+    dp = Datapath.from_arch(arch, max(arch.value_bits))
     out = []
-    for unit in DATAPATH:
+    for unit in (u for u in machine_units(arch) if not rtl_kind_differs(u, dp)):
         syn = unit_silicon(unit, tech, arch.clock_hz)
         if syn is not None and syn["meets_clock"] is False:
             out.append((unit, syn["fmax_hz"]))

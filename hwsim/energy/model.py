@@ -35,6 +35,7 @@ __all__ = [
     "arch_features",
     "estimate",
     "machine_area",
+    "machine_units",
     "op_area_um2",
     "op_energy_pj",
     "rtl_kind_differs",
@@ -221,7 +222,7 @@ def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
     P = arch.pipelines
     unit_area = {}
     features = arch_features(arch)
-    for u in _units_of(arch):
+    for u in machine_units(arch):
         inventory = unit_inventory(u, dp, silicon, 1, dp.shade.method, features)
         per = sum(op_area_um2(op, tech) for op in inventory)
         other = rtl_kind_differs(u, dp)
@@ -262,13 +263,14 @@ def unit_joules_per_sample(arch, dp, scene, units: list[str], tech: Technology) 
     lights = max(1, len(scene.lights)) if scene.lit else 0
     features = arch_features(arch, scene)
     out = {}
-    for u in (u for u in _units_of(arch) if u in units):
+    for u in (u for u in machine_units(arch) if u in units):
         inventory = unit_inventory(u, dp, silicon, lights, dp.shade.method, features)
         out[u] = sum(op_energy_pj(op, tech) for op in inventory) * _PJ
     return out
 
 
-def _units_of(arch) -> list[str]:
+def machine_units(arch) -> list[str]:
+    """The datapath units ``arch`` has (the crop unit only where it crops)."""
     return [u for u in DATAPATH if u != "crop" or arch.crop]
 
 

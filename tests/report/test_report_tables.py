@@ -138,3 +138,14 @@ def test_the_figures_table_fits_the_page(report):
     notes = html.split('<ol class="notes">')[1].split("</ol>")[0]
     assert notes.count("<li>") == max(int(m.strip("[]")) for m in marks if m)
     assert '<table class="dense">' in html
+
+
+def test_the_slow_unit_flags_name_only_units_the_machine_has():
+    """``hwsim archs`` flags units whose RTL misses the clock: the reflectance-map shader
+    on VolumePro 500, which has it; never on Cube-4, whose shader is Phong."""
+    from hwsim.energy import units_below_clock
+    from hwsim.run.fidelity import resolve_arch
+
+    assert "shade" in dict(units_below_clock(resolve_arch("volumepro500")))
+    assert "shade" not in dict(units_below_clock(resolve_arch("cube4")))
+    assert "gradient" not in dict(units_below_clock(resolve_arch("volumepro1000")))
