@@ -43,7 +43,8 @@ def test_a_supervolume_prints_the_machine_and_the_host_rate_it_writes(tmp_path, 
     assert "frame_seconds" not in stats["derived"]
     assert "frames_per_second" not in stats["derived"]
     (machine_line, host_line) = lines
-    assert "fps on the machine" in machine_line and "with the host reading back" in host_line
+    assert "fps on the machine" in machine_line
+    assert "with the host's read back of 8 bricks" in host_line
     for line, key in ((machine_line, "machine_"), (host_line, "")):
         ms, fps = map(float, _RATE.search(line).groups())
         assert ms == pytest.approx(stats[f"{key}frame_seconds"] * 1e3, abs=6e-4)
