@@ -122,11 +122,19 @@ def termination_pass(frame: Frame):
     return render_functional(frame)
 
 
-def timing_only(frame: Frame, *, steady_state: bool = False) -> TransactionResult:
+def timing_only(
+    frame: Frame,
+    *,
+    steady_state: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> TransactionResult:
     """The transaction rung without the image (``--timing-only``, sweeps): the event model
     alone, fed the rays' ends by :func:`termination_pass` where it reads them.  ``samples``
-    is the model's own count (``frame.samples``; else the plan's), ``rays`` the plan's."""
+    is the model's own count (``frame.samples``; else the plan's), ``rays`` the plan's.
+    ``progress(done, total)`` counts the event model's work items (slices, beam groups,
+    ray packets)."""
     model = transaction_model(frame, steady_state=steady_state)
+    model.progress = progress
     if getattr(model, "READS_THE_FRAME", False):
         model.ends = termination_pass  # run only if the model asks (its rays may stop)
     timing = model.run()
@@ -161,17 +169,20 @@ def render_transaction(
     fails before the image is computed; it runs after the image, whose per-ray
     termination steps a machine with early-ray-termination hardware needs.
     ``counters["transaction.timing_seconds"]`` and ``["transaction.image_seconds"]``
-    split the wall time between the two parts.  ``steady_state`` (VolumePro family) also
-    plays a second frame back to back: ``counters["frame.period_cycles"]``, as the cycle
-    rung's rule 9.
+    split the wall time between the two parts.  ``progress(done, total)`` runs over both:
+    the image's steps, then the event model's work items scaled to as many steps.
+    ``steady_state`` (VolumePro family) also plays a second frame back to back:
+    ``counters["frame.period_cycles"]``, as the cycle rung's rule 9.
     """
     model = transaction_model(frame, steady_state=steady_state)
+    image_part, model.progress, finish = _image_then_timing(progress)
     start = time.perf_counter()
-    image = render_functional(frame, progress=progress)
+    image = render_functional(frame, progress=image_part)
     image_seconds = time.perf_counter() - start
     if getattr(model, "READS_THE_FRAME", False):
         model.stopped = image.stopped  # the rays' termination steps (ERT hardware)
     timing = model.run()
+    finish()
     counters = dict(timing.counters)
     counters["transaction.image_seconds"] = image_seconds
     counters["functional.saturated"] = image.counters.get("functional.saturated", {})
@@ -190,3 +201,27 @@ def render_transaction(
         counters=counters,
         derived=derived,
     )
+
+
+def _image_then_timing(progress: Callable[[int, int], None] | None):
+    """``progress`` split in two halves of one scale: a callback for the functional image
+    (its steps), one for the event model (its work items, scaled to as many steps as
+    the image had) and ``finish()``, which reports the whole (a model with no work items
+    reports none)."""
+    if progress is None:
+        return None, None, lambda: None
+    steps = [0]
+
+    def image(done: int, total: int) -> None:
+        steps[0] = total
+        progress(done, 2 * total)
+
+    def timing(done: int, total: int) -> None:
+        n = steps[0] or total
+        progress(n + n * done // max(total, 1), 2 * n)
+
+    def finish() -> None:
+        n = max(steps[0], 1)
+        progress(2 * n, 2 * n)
+
+    return image, timing, finish

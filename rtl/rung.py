@@ -26,9 +26,11 @@ import os
 import shutil
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from hwsim.core.errors import NotAvailableError
+from hwsim.core.notices import first_run
 from models.frame import Frame
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
@@ -132,9 +134,14 @@ def _locked(folder: Path):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+def _executable(folder: Path, simulator: str) -> Path:
+    """Where the simulator's executable of the top built in ``folder`` is."""
+    return folder / ("Vcube4_bench" if simulator == "verilator" else "cube4_tb.vvp")
+
+
 def _build(source: Path, folder: Path, simulator: str) -> Path:
     """The simulator's executable for the top in ``source`` (built once per folder)."""
-    exe = folder / ("Vcube4_bench" if simulator == "verilator" else "cube4_tb.vvp")
+    exe = _executable(folder, simulator)
     if exe.is_file():
         return exe
     bench = [source.with_name("cube4_bench.v"), source]
@@ -173,20 +180,27 @@ def run_simulator(
     *,
     stall_every: int = 0,
     events: bool = False,
+    progress: Callable[[int, int], None] | None = None,
 ) -> tuple[CycleResult, dict]:
     """Run one frame on ``simulator``; returns the result and timings (``build_seconds``,
     ``run_seconds``: the whole process, ``sim_seconds``: the frame's clocks alone on
     Verilator, ``clocks``).  ``events``: also ``timing["events"]``, the frame clocks of
     every period start (``"S"``), frozen clock (``"F"``) and delivered pixel (``"P"``:
-    ``(clock, ray)``)."""
+    ``(clock, ray)``).  ``progress(done, total)``: the samples the top has taken of the
+    plan's, as the Verilator model reports them (Icarus: at the end).  A first build
+    (Verilog export, simulator build) is announced as first-run work
+    (:func:`hwsim.core.notices.first_run`)."""
     require_simulator(simulator)
     t0 = time.perf_counter()
     key = build_key(program)
     folder = build_dir(program, simulator, key=key)
     folder.mkdir(parents=True, exist_ok=True)
-    source = verilog_of(program, key=key)
-    with _locked(folder):  # one build per folder even with parallel runs (pytest -n 2)
-        exe = _build(source, folder, simulator)
+    built = _executable(folder, simulator).is_file()
+    name = "Verilator" if simulator == "verilator" else "Icarus"
+    with contextlib.nullcontext() if built else first_run(f"building RTL ({name}), first run only"):
+        source = verilog_of(program, key=key)
+        with _locked(folder):  # one build per folder even with parallel runs (pytest -n 2)
+            exe = _build(source, folder, simulator)
     t1 = time.perf_counter()
     pid = os.getpid()
     loads_hex, volume_hex = folder / f"loads_{pid}.hex", folder / f"volume_{pid}.hex"
@@ -211,13 +225,13 @@ def run_simulator(
         *(f"+r_{name}={int(value):x}" for name, value in regs.items()),
     ]
     cmd = [str(exe)] if simulator == "verilator" else ["vvp", "-n", str(exe)]
-    done = subprocess.run([*cmd, *plusargs], capture_output=True, text=True, check=False)
+    returncode, output = _simulate(cmd + plusargs, program.plan.samples, progress)
     t2 = time.perf_counter()
     for path in (loads_hex, volume_hex):
         path.unlink(missing_ok=True)
-    line = next((x for x in done.stdout.splitlines() if x.startswith("HWSIM ")), None)
-    if done.returncode != 0 or line is None or not pixels_hex.is_file():
-        tail = (done.stdout + done.stderr).strip().splitlines()[-3:]
+    line = next((x for x in output if x.startswith("HWSIM ")), None)
+    if returncode != 0 or line is None or not pixels_hex.is_file():
+        tail = output[-3:]
         raise RuntimeError(f"{simulator} run of the RTL top failed: {' | '.join(tail)}")
     raw = json.loads(line[len("HWSIM ") :].replace("\x00", ""))
     if not raw["finished"]:
@@ -240,6 +254,27 @@ def run_simulator(
     if events:
         timing["events"] = timing_events
     return result, timing
+
+
+def _simulate(
+    cmd: list[str], samples: int, progress: Callable[[int, int], None] | None
+) -> tuple[int, list[str]]:
+    """Run the simulator's ``cmd``; return its exit status and output lines (stdout and
+    stderr).  Its ``HWSIM_PROGRESS <samples>`` lines (:func:`rtl.top_bench.verilator_main`)
+    go to ``progress`` as they come, the end as all ``samples``."""
+    output = []
+    with subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    ) as process:
+        for line in process.stdout:  # type: ignore[union-attr]
+            if line.startswith("HWSIM_PROGRESS "):
+                if progress is not None and samples:
+                    progress(min(int(line.split()[1]), samples - 1), samples)
+                continue
+            output.append(line.rstrip("\n"))
+    if progress is not None and process.returncode == 0:
+        progress(max(samples, 1), max(samples, 1))
+    return process.returncode, output
 
 
 def _read_events(path: Path, lay) -> dict[str, list]:
@@ -273,7 +308,11 @@ def _unpack_pixel(lay, word: int) -> dict:
 
 
 def render_rtl(
-    frame: Frame, *, simulator: str = "verilator", trace: str | Path | None = None
+    frame: Frame,
+    *,
+    simulator: str = "verilator",
+    trace: str | Path | None = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CycleResult:
     """Render ``frame`` on the RTL top of its architecture.
 
@@ -284,6 +323,9 @@ def render_rtl(
         :class:`NotAvailableError` (exit status 2).
     trace : path, optional
         Write a VCD of the top there; the frame then runs in Amaranth's simulator.
+    progress : callable, optional
+        ``progress(done, total)``: samples taken of the plan's (:func:`run_simulator`;
+        Amaranth's simulator: at the end).
     """
     program = prepare(frame)
     if trace is not None:
@@ -291,6 +333,8 @@ def render_rtl(
 
         result = run_amaranth(program, vcd=str(trace))
         result.counters["rtl.simulator"] = "amaranth"
+        if progress is not None:
+            progress(1, 1)
         return result
-    result, _ = run_simulator(program, simulator)
+    result, _ = run_simulator(program, simulator, progress=progress)
     return result

@@ -233,7 +233,8 @@ endmodule
 def verilator_main() -> str:
     """The C++ main of the Verilator model: the clock, reset and ``go`` in C++, the frame
     in the model, the counters and the simulated seconds printed as one ``HWSIM {...}``
-    JSON line (``+limit=N`` clocks at most)."""
+    JSON line (``+limit=N`` clocks at most); every 16384 clocks, the samples taken so far
+    as a ``HWSIM_PROGRESS <samples>`` line (the rtl rung's progress)."""
     return r"""#include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -269,6 +270,10 @@ int main(int argc, char** argv) {
   while (!bench->finished && n < limit) {
     tick();
     ++n;
+    if ((n & 0x3FFF) == 0) {
+      std::printf("HWSIM_PROGRESS %u\n", bench->samples);
+      std::fflush(stdout);
+    }
   }
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::printf("HWSIM {\"finished\": %d, \"cycles\": %u, \"samples\": %u, "

@@ -433,7 +433,7 @@ def _timing_only(job: RenderJob) -> Executed:
 
     frame = job.frame()
     check_family(frame)
-    result = time_frame(frame, steady_state=job.request.steady_state)
+    result = time_frame(frame, steady_state=job.request.steady_state, progress=job.request.progress)
     return result, _machine_facts(job, result, frame)
 
 
@@ -552,7 +552,8 @@ def _render_machine(frame, request: RenderRequest):
     if fidelity == "rtl":
         from rtl.rung import render_rtl
 
-        return render_rtl(frame, simulator=request.simulator or "verilator", trace=trace)
+        simulator = request.simulator or "verilator"
+        return render_rtl(frame, simulator=simulator, trace=trace, progress=progress)
     from models.functional import render_functional
 
     return render_functional(frame, progress=progress)

@@ -15,7 +15,13 @@ from hwsim.memory import MemoryConfig
 from hwsim.spec.arch import ArchConfig
 from models.frame import Frame
 
-__all__ = ["ReadsTheFrame", "TxnTiming", "require_pipeline_clock", "slice_loads"]
+__all__ = [
+    "ReadsTheFrame",
+    "TxnTiming",
+    "report_progress",
+    "require_pipeline_clock",
+    "slice_loads",
+]
 
 
 @dataclass
@@ -24,6 +30,15 @@ class TxnTiming:
 
     cycles: int
     counters: dict[str, Any]
+
+
+def report_progress(model: Any, done: int, total: int) -> None:
+    """Tell ``model.progress`` (``progress(done, total)``, set by the caller; None or
+    unset: nobody listens) that the event model has simulated ``done`` of its ``total``
+    work items (slices, beam groups, ray packets)."""
+    progress = getattr(model, "progress", None)
+    if progress is not None:
+        progress(done, total)
 
 
 def slice_loads(plan: SamplePlan) -> tuple[np.ndarray, np.ndarray]:

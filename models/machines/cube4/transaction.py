@@ -38,7 +38,7 @@ from hwsim.engine.fifo import freezing_fifo
 from hwsim.golden.positions import SamplePlan
 from models.frame import Frame
 from models.machines.common.slice_order import slice_direction
-from models.machines.common.transaction import TxnTiming, slice_loads
+from models.machines.common.transaction import TxnTiming, report_progress, slice_loads
 from models.machines.cube4.frame import check_cube4_frame, cube4_buffers
 from models.machines.cube4.timing import (
     cube4_lanes,
@@ -160,6 +160,7 @@ class Cube4Transaction:
                 stats["stretch"] += stretch
                 yield env.timeout(T + geo.slice_overhead + stretch)
                 stats["events"] += 2
+                report_progress(self, j + 1, len(samples))
             starts.append(int(env.now))
 
         env.process(memory())

@@ -47,7 +47,12 @@ from hwsim.memory import SdramTransactionPort
 from models.backend import Backend
 from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
-from models.machines.common.transaction import ReadsTheFrame, TxnTiming, require_pipeline_clock
+from models.machines.common.transaction import (
+    ReadsTheFrame,
+    TxnTiming,
+    report_progress,
+    require_pipeline_clock,
+)
 from models.machines.vizard2.config import (
     BLOCK,
     FEEDBACK,
@@ -278,7 +283,7 @@ class VizardTransaction(ReadsTheFrame):
         packets = self._packets()
 
         def issue():
-            for packet in packets:
+            for k, packet in enumerate(packets):
                 last = self._last_rounds(packet, stopped, tags)
                 if stopped is not None:
                     stop = np.minimum(stopped[self.plan.ray_ids[packet]], last)
@@ -314,6 +319,7 @@ class VizardTransaction(ReadsTheFrame):
                     yield env.timeout(end - env.now)
                 yield from bus.push(int(packet.size))  # the packet retires
                 stats["events"] += 2
+                report_progress(self, k + 1, len(packets))
             stats["pipe_end"] = int(env.now)
 
         env.process(issue())

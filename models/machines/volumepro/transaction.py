@@ -53,7 +53,12 @@ from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction, slice_position
-from models.machines.common.transaction import TxnTiming, require_pipeline_clock, slice_loads
+from models.machines.common.transaction import (
+    TxnTiming,
+    report_progress,
+    require_pipeline_clock,
+    slice_loads,
+)
 from models.machines.volumepro.memory import layout, mini_block_bursts, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade
@@ -292,6 +297,8 @@ class SlabTransaction:
             raise DeadlockError(
                 f"input buffer: {self.capacity_mbbs} mini-block beams hold no chunk of {self.U}"
             )
+        # Progress: slices simulated, of one frame (and two more back to back, steady state).
+        self._slices_done = [0, n_steps * (3 if self.steady_state else 1)]
         stats, bus, ports = self._simulate(
             chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=1
         )
@@ -422,6 +429,8 @@ class SlabTransaction:
                     yield env.timeout(extra)
                 leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
                 yield from bus.push(leaving)
+                self._slices_done[0] += 1
+                report_progress(self, *self._slices_done)
                 if k % ng == ng - 1:
                     stats["pipe_ends"].append(int(env.now))
             stats["pipe_end"] = int(env.now)
