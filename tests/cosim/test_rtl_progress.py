@@ -9,12 +9,21 @@ from simulators import require
 
 from hwsim.core import notices
 from hwsim.run.fidelity import render
-from hwsim.spec.overrides import apply_overrides
 from hwsim.spec.scene import load_scene
 
 pytestmark = pytest.mark.cosim
-# test_top_rung's scene: the same top, so the same build folder.
-SCENE = ["--phantom", "head:size=8", "--mode", "composite", "--view", "30,20", "--image", "12"]
+
+
+def small_scene():
+    """test_top_rung's scene (``--phantom head:size=8 --mode composite --view 30,20
+    --image 12``): the same top, so the same build folder."""
+    import dataclasses
+
+    scene = load_scene("head")
+    volume = dataclasses.replace(scene.volume, params=(("size", 8),))
+    view = dataclasses.replace(scene.view, width=12, height=12, azimuth=30, elevation=20)
+    render_ = dataclasses.replace(scene.render, mode="composite")
+    return scene.replace(volume=volume, view=view, render=render_)
 
 
 class Heard:
@@ -29,10 +38,7 @@ class Heard:
 
 
 def _rtl_frame(progress):
-    from hwsim.cli.commands import build_parser
-
-    args = build_parser().parse_args(["render", *SCENE])
-    scene = apply_overrides(load_scene(args.scene), args)
+    scene = small_scene()
     heard = Heard()
     with notices.listening(heard):
         render(scene, fidelity="rtl", arch="cube4", progress=progress)
@@ -40,22 +46,14 @@ def _rtl_frame(progress):
 
 
 def _built() -> bool:
-    """Whether the Verilator model of the scene's top is already built."""
-    from hwsim.cli.commands import build_parser
-    from hwsim.run.fidelity import resolve_arch
-    from models.frame import frame_of
+    """Whether the Verilator model of the scene's top (the frame the rung renders) is
+    already built."""
+    from hwsim.run.fidelity import RenderRequest, _prepare
     from rtl.frame import prepare
     from rtl.rung import build_dir
 
-    args = build_parser().parse_args(["render", *SCENE])
-    scene = apply_overrides(load_scene(args.scene), args)
-    from hwsim.spec.transfer import resolve_transfer
-    from hwsim.volumes import load_volume
-
-    volume = load_volume(scene.volume, scene.base_dir)
-    transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
-    program = prepare(frame_of(scene, volume, transfer, resolve_arch("cube4")))
-    return (build_dir(program, "verilator") / "Vcube4_bench").is_file()
+    frame = _prepare(small_scene(), RenderRequest(fidelity="rtl", arch="cube4")).frame()
+    return (build_dir(prepare(frame), "verilator") / "Vcube4_bench").is_file()
 
 
 def test_the_rtl_rung_reports_progress_and_announces_only_a_first_build():

@@ -20,11 +20,13 @@ pytestmark = pytest.mark.system
 
 
 def small_scene():
-    from hwsim.cli.commands import build_parser
-    from hwsim.spec.overrides import apply_overrides
+    """The default scene on a 16^3 head phantom, a 16 x 16 image."""
+    import dataclasses
 
-    args = build_parser().parse_args(["render", "--phantom", "head:size=16", "--image", "16"])
-    return apply_overrides(load_scene(args.scene), args)
+    scene = load_scene("head")
+    volume = dataclasses.replace(scene.volume, params=(("size", 16),))
+    view = dataclasses.replace(scene.view, width=16, height=16)
+    return scene.replace(volume=volume, view=view)
 
 
 class Recorder:
