@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from hwsim.cli.progress import progress_bar as _progress_bar
 from hwsim.cli.render import DEFAULT_RENDER_OUT, cmd_convert, cmd_render
 from hwsim.cli.scene import add_scene_options
+from hwsim.cli.warm import add_warm_parser, cmd_warm
 from hwsim.core.errors import HwsimError, InputError
 from hwsim.spec.overrides import apply_overrides
 from hwsim.studies.bench import TABLE_GOALS
@@ -291,6 +292,7 @@ _SUBPARSERS = (
     _add_figures_parser,
     _add_bench_parser,
     _add_rtl_parsers,
+    add_warm_parser,
 )
 
 
@@ -516,6 +518,7 @@ _COMMANDS = {
     "figures": _cmd_figures,
     "bench": _cmd_bench,
     "rtl": _cmd_rtl,
+    "warm": cmd_warm,
 }
 
 
