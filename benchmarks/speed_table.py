@@ -14,6 +14,12 @@ both; the load average is recorded before and after every row.  Headline figures
 **one thread** for hwsim and for VTK (``HWSIM_THREADS=1``, ``SetNumberOfThreads(1)``);
 the two-thread figures sit beside them.  Benchmarks assert nothing (conventions item 11).
 
+A row that needs more than the run install (:data:`REQUIRES`: VTK from the ``bench``
+extra, VolPack from apt, the shared data) is checked before any row is measured and,
+when that is missing, ``skipped`` with a one-line reason naming what to install;
+``--no-vtk`` skips the VTK rows.  A row that raises is ``failed`` with its error in one
+line and the other rows still run (the exit status is then 1).
+
 ======================  ========================================================  =======
 row                     value                                                     goal
 ======================  ========================================================  =======
@@ -58,6 +64,7 @@ if __package__ in (None, ""):
 from benchmarks.report_io import write_report
 from hwsim.core.threads import using as using_threads
 from hwsim.studies.bench import TABLE_GOALS as GOALS
+from hwsim.studies.bench import one_line, status_text
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -113,16 +120,6 @@ def _vtk_caster(scene, volume, transfer, threads: int):
     from benchmarks.vtk_reference import VtkRayCaster
 
     return VtkRayCaster(**_vtk_kwargs(volume, transfer, scene), threads=threads)
-
-
-def _missing_ct_or_vtk() -> str | None:
-    if not CT.is_file():
-        return f"{CT} is missing (../shared/data)"
-    try:
-        import benchmarks.vtk_reference  # noqa: F401
-    except ImportError as exc:
-        return f"VTK is not importable ({exc}); pip install -e '.[bench]'"
-    return None
 
 
 def golden_vs_vtk_first(repeats: int, image: int = 256) -> dict[str, Any]:
@@ -215,11 +212,6 @@ def functional_vs_volpack(frames: int, repeats: int) -> dict[str, Any]:
 
     from benchmarks import volpack_reference as vp
 
-    missing = vp.volpack_available()
-    if missing is not None:
-        return {"status": "not available", "note": missing}
-    if not vp.VOLUME.is_file():
-        return {"status": "not available", "note": f"{vp.VOLUME} is missing"}
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="volpack-") as tmp:
         work = vp.build(vp.EXAMPLES, Path(tmp))
@@ -396,17 +388,68 @@ def threads_2_vs_1(repeats: int) -> dict[str, Any]:
     return {"value": min(p["speedup"] for p in per.values()), "rungs": per}
 
 
+# ----------------------------------------------------------------- what rows need
+
+
+def _needs_vtk() -> str | None:
+    from benchmarks.vtk_reference import vtk_missing
+
+    return vtk_missing()
+
+
+def _needs_ct() -> str | None:
+    return None if CT.is_file() else f"needs {CT} (the shared data beside the clone)"
+
+
+def _needs_volpack() -> str | None:
+    from benchmarks.volpack_reference import volpack_available
+
+    return volpack_available()
+
+
+#: What a row needs beyond the run install (``pip install -e .[run]``), each a check that
+#: returns why it is missing (one line naming what to install) or None.  The other rows
+#: need nothing more (``threads_2_vs_1`` renders the CT scan when it is there, else the
+#: head phantom; it borrows only VTK's early-termination constant, not VTK).
+REQUIRES: dict[str, tuple[Callable[[], str | None], ...]] = {
+    "golden_vs_vtk_first": (_needs_vtk, _needs_ct),
+    "golden_vs_vtk_rotation": (_needs_vtk, _needs_ct),
+    "functional_vs_volpack": (_needs_volpack,),
+}
+#: The rows ``vtk=False`` (``--no-vtk``) skips: every use of VTK.
+VTK_ROWS = ("golden_vs_vtk_first", "golden_vs_vtk_rotation")
+
+
+def plan(rows: Sequence[str] = ROWS, *, vtk: bool = True) -> list[tuple[str, str | None]]:
+    """The rows of ``rows`` in the table's order, each with why it will be skipped
+    (``None``: it runs), found before any row is measured."""
+    unknown = set(rows) - set(ROWS)
+    if unknown:
+        raise ValueError(f"unknown rows {sorted(unknown)}; rows are {', '.join(ROWS)}")
+    out = []
+    for name in (r for r in ROWS if r in rows):
+        why = "--no-vtk" if not vtk and name in VTK_ROWS else None
+        for check in REQUIRES.get(name, ()) if why is None else ():
+            why = check()
+            if why is not None:
+                break
+        out.append((name, why))
+    return out
+
+
 # ----------------------------------------------------------------- the table
 
 
 def _row(name: str, measure: Callable[[], dict[str, Any]]) -> dict[str, Any]:
+    """Row ``name`` measured: its value, goal and whether it is met; ``failed`` with the
+    error in one line when the measurement raised (the other rows still run)."""
     goal, better, unit, definition = GOALS[name]
     before = list(os.getloadavg())
     start = time.perf_counter()
     try:
         row = measure()
-    except FileNotFoundError as exc:
-        row = {"status": "not available", "note": str(exc)}
+    except Exception as exc:  # a failed row is reported, the table goes on
+        row = {"status": "failed", "error": one_line(exc)}
     row.setdefault("status", "ok" if row.get("value") is not None else "not available")
     value = row.get("value")
     met = None
@@ -426,22 +469,42 @@ def _row(name: str, measure: Callable[[], dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def skipped(name: str, why: str) -> dict[str, Any]:
+    """The record of row ``name`` skipped because of ``why`` (a missing extra or a flag)."""
+    goal, better, unit, definition = GOALS[name]
+    return {
+        "row": name,
+        "status": "skipped",
+        "note": why,
+        "goal": goal,
+        "better": better,
+        "unit": unit,
+        "definition": definition,
+        "goal_met": None,
+    }
+
+
 def run(
     rows: Sequence[str] = ROWS,
     *,
+    vtk: bool = True,
     sizes: Sequence[int] = (128, 256),
     memory_size: int = 512,
     repeats: int = 3,
     frames: int = 10,
     log: Callable[[str], None] = lambda m: None,
+    on_row: Callable[[str], None] = lambda name: None,
+    out: list[dict[str, Any]] | None = None,
 ) -> list[dict[str, Any]]:
-    """The rows named in ``rows`` (in the table's order), as JSON-ready dicts."""
-    unknown = set(rows) - set(ROWS)
-    if unknown:
-        raise ValueError(f"unknown rows {sorted(unknown)}; rows are {', '.join(ROWS)}")
-    out: list[dict[str, Any]] = []
-    vtk_rows = {"golden_vs_vtk_first", "golden_vs_vtk_rotation"}
-    missing = _missing_ct_or_vtk() if vtk_rows & set(rows) else None
+    """The rows named in ``rows`` (in the table's order), as JSON-ready dicts.
+
+    A row whose requirement is missing (:data:`REQUIRES`; ``vtk`` false: every VTK row)
+    is ``skipped`` with the reason, before anything is measured; a row that raises is
+    ``failed`` with its error (logged) and the others still run.  ``on_row(name)`` is
+    called as each measured row starts; ``out``, when given, is filled as rows finish.
+    """
+    planned = plan(rows, vtk=vtk)
+    out = [] if out is None else out
     pair: tuple[dict, dict] | None = None
 
     def cycle_pair() -> tuple[dict, dict]:
@@ -461,14 +524,15 @@ def run(
         "cycle_512_peak_bytes": lambda: cycle_512_peak(memory_size),
         "threads_2_vs_1": lambda: threads_2_vs_1(repeats),
     }
-    for name in ROWS:
-        if name not in rows:
+    out.extend(skipped(name, why) for name, why in planned if why is not None)
+    for name, why in planned:
+        if why is not None:
             continue
-        log(f"speed table: {name}")
-        if name.startswith("golden_vs_vtk") and missing is not None:
-            out.append(_row(name, lambda m=missing: {"status": "not available", "note": m}))
-            continue
+        on_row(name)
         out.append(_row(name, measures[name]))
+        if out[-1]["status"] == "failed":
+            log(f"{name}: failed: {out[-1]['error']}")
+    out.sort(key=lambda r: ROWS.index(r["row"]))
     return out
 
 
@@ -487,7 +551,7 @@ def format_rows(rows: Sequence[dict[str, Any]]) -> str:
     lines = [f"{'row':<24}{'value':>11}{'goal':>11}  met"]
     for r in rows:
         sign = ">=" if r["better"] == "higher" else "<="
-        met = {True: "yes", False: "no", None: r["status"]}[r["goal_met"]]
+        met = {True: "yes", False: "no", None: status_text(r)}[r["goal_met"]]
         goal = f"{sign} {show(r['goal'], r['unit'])}"
         lines.append(f"{r['row']:<24}{show(r.get('value'), r['unit']):>11}{goal:>11}  {met}")
     return "\n".join(lines)
@@ -500,17 +564,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--memory-size", type=int, default=512)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--no-vtk", action="store_true", help="skip the VTK rows")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
     from hwsim.studies.bench import machine_info
 
+    def say(message: str) -> None:
+        print(message, file=sys.stderr, flush=True)
+
+    for name, why in plan(args.rows, vtk=not args.no_vtk):
+        if why is not None:
+            say(f"{name}: skipped: {why}")
     rows = run(
         args.rows,
+        vtk=not args.no_vtk,
         sizes=args.sizes,
         memory_size=args.memory_size,
         repeats=args.repeats,
         frames=args.frames,
-        log=lambda m: print(m, file=sys.stderr, flush=True),
+        log=say,
+        on_row=lambda name: say(f"speed table: {name}"),
     )
     print(format_rows(rows))
     report = {
@@ -521,7 +594,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "rows": rows,
     }
     write_report(report, args.out)
-    return 0
+    return 1 if any(r["status"] == "failed" for r in rows) else 0
 
 
 if __name__ == "__main__":

@@ -62,13 +62,16 @@ VOLUME = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data
 TURN = 5.0  # degrees per frame, as rendervolume turns
 
 
-def volpack_available(examples: Path = EXAMPLES) -> str | None:
-    """None when VolPack can be built and run here, else why not."""
+def volpack_available(examples: Path = EXAMPLES, volume: Path = VOLUME) -> str | None:
+    """None when VolPack can be built and run here on ``volume``'s scan, else why not, in
+    one line naming what to install (``hwsim bench`` skips its row with it)."""
     if not HEADER.exists() or not examples.is_dir():
-        return "VolPack is not installed (apt-get install libvolpack1-dev)"
+        return "needs VolPack (apt-get install libvolpack1-dev; ./dev test installs it)"
     for tool in ("gcc", "make"):
         if shutil.which(tool) is None:
-            return f"{tool} is not installed (needed to build VolPack's examples)"
+            return f"needs {tool} to build VolPack's examples (apt-get install {tool})"
+    if not volume.is_file():
+        return f"needs {volume} (the shared data beside the clone)"
     return None
 
 
@@ -160,7 +163,7 @@ def run(
         "platform": platform.platform(),
         "goal_ratio": GOAL_RATIO,
     }
-    missing = volpack_available(examples)
+    missing = volpack_available(examples, volume)
     report["volpack_missing"] = missing
     report["volpack"] = None
     if missing is None:

@@ -5,7 +5,9 @@ window, with the transfer function, material, light, camera and sample distance 
 hwsim scene, and times it.  The VTK wheel from PyPI renders headless through EGL (Mesa)
 here; ``VTK_DEFAULT_OPENGL_WINDOW`` is set to ``vtkEGLRenderWindow`` before VTK is
 imported unless the caller already chose a window class (``vtkOSMesaRenderWindow`` is
-the other headless choice).  The ray casting itself runs on the CPU, threaded by
+the other headless choice).  VTK is imported on first use: importing this module needs
+none (the run install has no ``bench`` extra), and :func:`vtk_missing` says whether it
+is there.  The ray casting itself runs on the CPU, threaded by
 ``vtkMultiThreader``; OpenGL only draws the finished image as a texture.
 
 Conventions (matching hwsim, see ``hwsim/spec/scene.py`` ``ViewSpec``):
@@ -38,23 +40,44 @@ from typing import Any
 
 import numpy as np
 
-# The window class must be chosen before VTK is imported.
-os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-
-import vtk
-from vtk.util.numpy_support import numpy_to_vtk
-
 __all__ = [
+    "BENCH_EXTRA",
     "VTK_EARLY_TERMINATION",
     "VtkRayCaster",
     "render_vtk",
     "vtk_environment",
+    "vtk_missing",
     "view_vectors",
 ]
 
 #: Accumulated opacity at which the fixed-point mapper stops a ray: it stops when the
 #: remaining opacity (15-bit fixed point) falls below 0xff.
 VTK_EARLY_TERMINATION = 1.0 - 0xFF / 0x8000
+#: How to install VTK: the ``bench`` extra (the run install has no VTK).
+BENCH_EXTRA = "pip install -e .[bench]"
+
+
+def _vtk():
+    """VTK, imported on first use: this module's constants and camera geometry need none
+    (the run install imports them without the ``bench`` extra)."""
+    # The window class must be chosen before VTK is imported.
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import vtk
+
+    return vtk
+
+
+def vtk_missing() -> str | None:
+    """None when VTK imports here, else why not in one line naming the extra to install."""
+    try:
+        _vtk()
+    except ImportError as exc:
+        if isinstance(exc, ModuleNotFoundError) and exc.name == "vtk":
+            return f"needs vtk ({BENCH_EXTRA})"
+        why = (str(exc).splitlines() or [type(exc).__name__])[0]
+        return f"needs a working vtk ({BENCH_EXTRA}): {why}"
+    return None
+
 
 TransferPoint = tuple[float, float, float, float, float]
 
@@ -83,6 +106,7 @@ def view_vectors(azimuth: float, elevation: float) -> tuple[np.ndarray, np.ndarr
 
 def vtk_environment() -> dict[str, Any]:
     """What VTK renders with here: version, window class, OpenGL renderer, threads."""
+    vtk = _vtk()
     window = vtk.vtkRenderWindow()
     window.SetOffScreenRendering(1)
     window.SetSize(8, 8)
@@ -161,6 +185,9 @@ class VtkRayCaster:
     ) -> None:
         if data_zyx.ndim != 3:
             raise ValueError(f"volume must be 3-D, got shape {data_zyx.shape}")
+        vtk = _vtk()
+        from vtk.util.numpy_support import numpy_to_vtk
+
         self._data = np.ascontiguousarray(data_zyx)  # VTK borrows this buffer
         nz, ny, nx = self._data.shape
         sz, sy, sx = (float(s) for s in spacing_zyx)
@@ -275,7 +302,7 @@ class VtkRayCaster:
 
     def image(self) -> np.ndarray:
         """The last frame as float64 RGBA ``(height, width, 4)``, row 0 at the top."""
-        grab = vtk.vtkWindowToImageFilter()
+        grab = _vtk().vtkWindowToImageFilter()
         grab.SetInput(self.window)
         grab.SetInputBufferTypeToRGBA()
         grab.ReadFrontBufferOff()
@@ -337,7 +364,7 @@ def render_vtk(
                 threads=caster.threads,
                 sample_distance=caster.sample_distance,
                 window_class=caster.window_class,
-                vtk_version=vtk.vtkVersion.GetVTKVersion(),
+                vtk_version=_vtk().vtkVersion.GetVTKVersion(),
             )
     finally:
         caster.close()

