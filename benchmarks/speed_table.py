@@ -505,12 +505,19 @@ def run(
     """
     planned = plan(rows, vtk=vtk)
     out = [] if out is None else out
-    pair: tuple[dict, dict] | None = None
+    pair: tuple[dict, dict] | Exception | None = None
 
     def cycle_pair() -> tuple[dict, dict]:
+        """The two cycle rows' shared measurement, made once (a failure too: both rows
+        fail with it rather than measuring for minutes again)."""
         nonlocal pair
         if pair is None:
-            pair = cycle_and_timing_only(sizes, repeats)
+            try:
+                pair = cycle_and_timing_only(sizes, repeats)
+            except Exception as exc:
+                pair = exc
+        if isinstance(pair, Exception):
+            raise pair
         return pair
 
     measures: dict[str, Callable[[], dict[str, Any]]] = {

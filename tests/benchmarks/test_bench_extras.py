@@ -189,3 +189,20 @@ def test_the_threads_row_scene_imports_no_vtk(monkeypatch):
 
     monkeypatch.setitem(sys.modules, "vtk", None)  # any import of VTK now raises
     assert _ct_scene(16).render.early_termination == VTK_EARLY_TERMINATION
+
+
+def test_the_cycle_rows_fail_together_measuring_once(monkeypatch):
+    import benchmarks.speed_table as table
+
+    calls = []
+
+    def broken(sizes, repeats):
+        calls.append(sizes)
+        raise MemoryError("no room for the frame")
+
+    monkeypatch.setattr(table, "cycle_and_timing_only", broken)
+    rows = table.run(["cycle_samples_per_s", "timing_only_vs_cycle"], sizes=(16,), repeats=1)
+    assert len(calls) == 1
+    assert [(r["status"], r["error"]) for r in rows] == [
+        ("failed", "MemoryError: no room for the frame")
+    ] * 2
