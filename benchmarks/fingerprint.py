@@ -34,7 +34,7 @@ WALL_CLOCK_SUFFIX = "_seconds"
 
 def random_scene(rng: np.random.Generator):
     """One small random scene and a short description of it."""
-    from hwsim.spec.scene import VolumeSpec, load_scene
+    from hwsim.spec.scene import TransferSpec, VolumeSpec, load_scene
 
     base = load_scene("head")
     phantom = str(rng.choice(PHANTOMS))
@@ -57,8 +57,14 @@ def random_scene(rng: np.random.Generator):
         lighting=bool(rng.integers(2)),
         sample_spacing=float(rng.choice([0.5, 1.0, 1.0, 2.0])),
     )
+    # The ct preset named, not the head scene's auto: every phantom keeps the preset its
+    # fingerprints were first recorded with (auto would give the ball and Marschner-Lobb
+    # the warm ramp).
     scene = base.replace(
-        volume=VolumeSpec(phantom=phantom, params=(("size", size),)), view=view, render=render
+        volume=VolumeSpec(phantom=phantom, params=(("size", size),)),
+        transfer=TransferSpec(preset="ct"),
+        view=view,
+        render=render,
     )
     what = f"{phantom}:{size} {width}x{height} {projection} {azimuth:g},{elevation:g} {mode}"
     return scene, what

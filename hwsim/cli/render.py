@@ -92,6 +92,17 @@ def _check_turntable(args: argparse.Namespace, options: dict[str, Any]) -> None:
         )
 
 
+def _print_transfer(scene: Scene) -> None:
+    """Which transfer function classified the samples, and why (auto's choice)."""
+    from hwsim.run.output import transfer_stats
+
+    chosen = transfer_stats(scene)
+    what = (
+        f"{chosen['preset']} ({chosen['chosen_by']})" if chosen["preset"] else chosen["chosen_by"]
+    )
+    print(f"  transfer: {what}")
+
+
 def _print_render(scene: Scene, run: Any, paths: dict[str, Path], replacing: bool) -> None:
     """The summary of one rendered frame: what, how fast, and where it was written."""
     for e in run.extensions:
@@ -104,6 +115,8 @@ def _print_render(scene: Scene, run: Any, paths: dict[str, Path], replacing: boo
         f"{scene.name}: {vol.name} {'x'.join(map(str, vol.shape))} {vol.data.dtype}, "
         f"{scene.render.mode}, {run.fidelity}/{run.sampling}, {image}"
     )
+    if run.scene.render.mode == "composite":  # the modes that classify samples
+        _print_transfer(run.scene)
     print(
         f"  {run.samples:,} samples in {run.wall_seconds:.2f} s "
         f"({run.samples / max(run.wall_seconds, 1e-9) / 1e6:.2f} M samples/s wall)"

@@ -10,7 +10,7 @@ __all__ = ["add_scene_options"]
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:
     """The scene and its overrides (``render``, ``rtl diff``)."""
-    from hwsim.spec.scene import MODES, PROJECTIONS
+    from hwsim.spec.scene import MODES, PROJECTIONS, TF_PRESETS
 
     p.add_argument("scene", nargs="?", help="scene TOML file or built-in name (default: head)")
     src = p.add_mutually_exclusive_group()
@@ -22,3 +22,9 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--view", metavar="AZ,EL", help="azimuth,elevation in degrees")
     p.add_argument("--image", metavar="W[xH]", help="image size in pixels")
     p.add_argument("--projection", choices=PROJECTIONS)
+    p.add_argument(
+        "--transfer",
+        metavar="PRESET|FILE",
+        help=f"transfer function: a preset ({', '.join(TF_PRESETS)}), a transfer TOML "
+        "(the keys of a scene's [transfer]) or an (N, 4) .npy table",
+    )

@@ -32,6 +32,7 @@ from hwsim.run.render_request import (  # noqa: F401  (re-exported: callers impo
 from hwsim.run.supervolume import oversize, refuse_supervolume, render_bricks
 from hwsim.spec.arch import ArchConfig, load_arch_file
 from hwsim.spec.machine_features import IDEAL, Algorithms, Extension, require_machine
+from hwsim.spec.preset_choice import resolve_auto
 from hwsim.spec.scene import Scene
 from hwsim.spec.transfer import TransferFunction, resolve_transfer
 from hwsim.volumes import load_volume
@@ -339,6 +340,8 @@ def _prepare(scene: Scene, request: RenderRequest) -> RenderJob:
             scene = scene.replace(render=dataclasses.replace(scene.render, gradient=gradient))
     sampling = request.refuse_order(machine)
     volume = _load_volume(scene, request, machine)
+    if scene.classification is None:  # `auto` chosen once: every rung, the stats see it
+        scene = scene.replace(transfer=resolve_auto(scene.transfer, volume))
     bricked = _bricks_of(scene, request, machine, volume, extensions)
     transfer = resolve_transfer(scene.transfer, volume, scene.base_dir)
     used, elided = elaboration(scene, transfer)

@@ -24,12 +24,14 @@ from hwsim.core.threads import frame_threads
 
 if TYPE_CHECKING:
     from hwsim.run.fidelity import RenderRun
+    from hwsim.spec.scene import Scene
 
 __all__ = [
     "STATS_SCHEMA",
     "frame_timing",
     "stats_dict",
     "stats_plain",
+    "transfer_stats",
     "write_render",
     "image_to_rgb8",
     "output_folder",
@@ -72,6 +74,7 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
         "arch": run.arch,
         "sampling": run.sampling,
         "scene": run.scene.to_dict(),
+        "transfer": transfer_stats(run.scene),  # the preset and why (auto's choice)
         "volume": {
             "name": vol.name,
             "source": vol.source,
@@ -114,6 +117,19 @@ def stats_dict(run: RenderRun) -> dict[str, Any]:
             "frame_threads": frame_threads(),  # the frame kernels' threads (--threads)
         },
     }
+
+
+def transfer_stats(scene: Scene) -> dict[str, Any]:
+    """Which transfer function a render used and why: ``preset`` (None for a scene's own
+    points or table, or its ``[classification]`` LUTs) and ``chosen_by`` (``"scene"`` when
+    the scene names it, ``"auto: ..."`` when :mod:`hwsim.spec.preset_choice` chose it)."""
+    spec = scene.transfer
+    if scene.classification is not None:
+        return {"preset": None, "chosen_by": "scene [classification] LUTs"}
+    if spec.points is not None or spec.table is not None:
+        kind = "points" if spec.points is not None else "table"
+        return {"preset": None, "chosen_by": f"scene transfer.{kind}"}
+    return {"preset": spec.preset, "chosen_by": spec.chosen_by or "scene"}
 
 
 def stats_plain(run: RenderRun) -> dict[str, Any]:

@@ -1,8 +1,8 @@
 """A scene's overrides as the command line spells them (``--view 30,10``, ``--image 256x128``,
-``--volume ct.nrrd``, ``--phantom head:size=64``): parsed, range-checked and applied to a
-loaded scene, every bad value a one-line error naming the flag.  ``hwsim render`` and
-``hwsim rtl diff`` pass their parsed arguments; :func:`hwsim.load_scene` passes
-:class:`SceneFlags` built from its keywords."""
+``--volume ct.nrrd``, ``--phantom head:size=64``, ``--transfer mr``): parsed, range-checked
+and applied to a loaded scene, every bad value a one-line error naming the flag.  ``hwsim
+render`` and ``hwsim rtl diff`` pass their parsed arguments; :func:`hwsim.load_scene`
+passes :class:`SceneFlags` built from its keywords."""
 
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ class SceneFlags:
     view: str | None = None
     image: str | None = None
     projection: str | None = None
+    transfer: str | None = None
 
 
 class _Flags(Protocol):
@@ -38,6 +39,7 @@ class _Flags(Protocol):
     view: str | None
     image: str | None
     projection: str | None
+    transfer: str | None
 
 
 def apply_overrides(scene: Any, args: _Flags) -> Any:
@@ -77,7 +79,44 @@ def apply_overrides(scene: Any, args: _Flags) -> Any:
         view = dataclasses.replace(view, width=width, height=height)
     if args.projection:
         view = dataclasses.replace(view, projection=args.projection)
+    if args.transfer is not None:
+        scene = scene.replace(transfer=_transfer(scene, args.transfer))
     return scene.replace(render=render_spec, view=view)
+
+
+def _transfer(scene: Any, text: str) -> Any:
+    """``--transfer PRESET|FILE``: a named preset, a transfer-function TOML (the keys of a
+    scene's ``[transfer]``) or an ``(N, 4)`` ``.npy`` table.  A preset or table keeps the
+    scene's gradient modulation and classification order."""
+    from hwsim.spec.scene import TF_PRESETS, TransferSpec, load_transfer
+
+    allowed = f"{', '.join(TF_PRESETS)}, a transfer FILE.toml or a table FILE.npy"
+    if scene.classification is not None:
+        raise InputError(
+            "the scene's [classification] LUTs replace its transfer function",
+            key="--transfer",
+            allowed="a scene without [classification]",
+        )
+    text = text.strip()
+    kind = Path(text).suffix.lower()
+    if kind in (".toml", ".npy") or "/" in text:
+        path = Path(text).expanduser().resolve()
+        if kind not in (".toml", ".npy") or not path.is_file():
+            why = "file not found" if kind in (".toml", ".npy") else "not a .toml or .npy file"
+            raise InputError(why, source=str(path), key="--transfer", allowed=allowed)
+        if kind == ".toml":
+            return load_transfer(path)
+    elif text not in TF_PRESETS:
+        raise InputError(f"unknown preset {text!r}", key="--transfer", allowed=allowed)
+    old = scene.transfer
+    keep = {
+        "gradient_opacity": old.gradient_opacity,
+        "order": old.order,
+        "gradient_illumination": old.gradient_illumination,
+    }
+    if kind == ".npy":
+        return TransferSpec(preset=None, table=str(path), **keep)
+    return TransferSpec(preset=text, **keep)
 
 
 def _float(text: str, flag: str) -> float:

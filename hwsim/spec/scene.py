@@ -44,6 +44,7 @@ __all__ = [
     "CutPlane",
     "Scene",
     "load_scene",
+    "load_transfer",
     "parse_scene",
     "builtin_scenes",
     "DEFAULT_SCENE",
@@ -58,7 +59,9 @@ PROJECTIONS = ("parallel", "perspective")
 INTERPOLATIONS = ("trilinear", "nearest", "cubic")
 GRADIENT_SOURCES = ("voxel", "sample")
 CLASSIFICATION_ORDERS = ("post", "pre")
-TF_PRESETS = ("auto", "ct", "mr", "ramp")
+#: Transfer presets (hwsim.spec.transfer.preset_points); ``auto`` chooses one of the others
+#: from the volume (hwsim.spec.preset_choice).
+TF_PRESETS = ("auto", "ct", "mr", "ramp", "warm")
 DEFAULT_SCENE = "head"
 #: Largest image side.  Whether a large image fits is the memory budget's call
 #: (hwsim.run.fidelity.check_work: about 512 bytes per pixel, 4096^2 needs 8 GiB).
@@ -101,7 +104,9 @@ class TransferSpec:
     other spacings.  ``gradient_opacity`` rows are ``[|grad| in value units per world
     unit, factor 0..1]``; ``gradient_illumination`` rows the same, scaling a lit sample's
     diffuse and specular light (VolumePro 500's gradient-magnitude illumination
-    modulation).
+    modulation).  ``chosen_by`` is why a render has this preset: empty when the scene
+    names it, ``"auto: ..."`` when :func:`hwsim.spec.preset_choice.resolve_auto` chose it
+    (not compared: a scene rendered with the chosen preset equals one naming it).
     """
 
     preset: str | None = "auto"
@@ -111,6 +116,7 @@ class TransferSpec:
     gradient_opacity: tuple[tuple[float, float], ...] | None = None
     order: str = "post"
     gradient_illumination: tuple[tuple[float, float], ...] | None = None
+    chosen_by: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -261,6 +267,10 @@ class Scene:
         unused = ("shape", "dtype", "byte_order", "header_bytes") if self.volume.phantom else ()
         for key in (*unused, *(("params",) if self.volume.path else ())):
             volume.pop(key)
+        out["transfer"].pop("chosen_by")  # stats.json's "transfer" says it; the dict parses back
+        for lut in (out.get("classification") or {}).get("luts", ()):
+            if lut.get("transfer"):
+                lut["transfer"].pop("chosen_by")
         out["schema"] = SCHEMA
         return out
 
@@ -316,6 +326,22 @@ def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "s
     )
     top.finish()
     return scene
+
+
+def load_transfer(path: str | Path) -> TransferSpec:
+    """A transfer-function file (``--transfer FILE.toml``): TOML holding the keys of a
+    scene's ``[transfer]`` table at its top level, plus ``schema = 1`` and an optional
+    ``description``.  A relative ``table`` path is resolved against the file's folder."""
+    path = Path(path)
+    data = dict(read_toml(path))
+    head = Table({k: data.pop(k) for k in ("schema", "description") if k in data}, str(path))
+    head.schema(SCHEMA)
+    head.string("description", "")
+    head.finish()
+    spec = _transfer(Table(data, str(path)))
+    if spec.table is not None and not Path(spec.table).is_absolute():
+        spec = dataclasses.replace(spec, table=str((path.parent / spec.table).resolve()))
+    return spec
 
 
 def _magnitude_rows(t: Table, key: str) -> tuple[tuple[float, float], ...] | None:

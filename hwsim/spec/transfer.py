@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from hwsim.core.errors import InputError
-from hwsim.spec.scene import TransferSpec
+from hwsim.spec.preset_choice import choose_preset
+from hwsim.spec.scene import TF_PRESETS, TransferSpec
 from hwsim.volumes.volume import Volume
 
 __all__ = ["TransferFunction", "resolve_transfer", "preset_points"]
@@ -125,7 +126,7 @@ def _percentiles(volume: Volume, lo: float, hi: float) -> tuple[float, float]:
             "the mr preset reads percentiles of the whole volume",
             source=volume.source,
             key="transfer.preset",
-            allowed="another preset or a transfer table with --workers",
+            allowed="another preset or a transfer table with --workers (--transfer)",
         )
     if cached is None or cached[0] != (lo, hi):
         data = volume.data
@@ -140,14 +141,15 @@ def preset_points(name: str, volume: Volume) -> np.ndarray:
 
     ``ct``: Hounsfield units, translucent skin and opaque white bone.  ``mr``: a warm
     ramp between the 40th and 99.5th percentile of non-zero voxels.  ``ramp``: grey,
-    opacity 0 to 0.5 across the value range.  ``auto``: ``ct`` for HU data, else a warm
-    ramp over the value range.
+    opacity 0 to 0.5 across the value range.  ``warm``: a warm ramp over the value
+    range.  ``auto``: one of these chosen from the volume's header and values
+    (:func:`hwsim.spec.preset_choice.choose_preset`).
     """
     lo, hi = volume.value_range
     if hi <= lo:
         hi = lo + 1.0
     if name == "auto":
-        name = "ct" if volume.units == "HU" else "warm"
+        name = choose_preset(volume)[0]
     if name == "ct":
         return np.array(
             [
@@ -187,7 +189,7 @@ def preset_points(name: str, volume: Volume) -> np.ndarray:
             ]
         )
     raise InputError(
-        f"unknown transfer preset {name!r}", key="transfer.preset", allowed="auto, ct, mr, ramp"
+        f"unknown transfer preset {name!r}", key="transfer.preset", allowed=", ".join(TF_PRESETS)
     )
 
 

@@ -104,6 +104,7 @@ def read_dicom_series(folder: Path) -> Volume:
         units=units,
         bits=meta["bits_stored"],
         meta=meta,
+        modality=(modality.strip().upper(), "DICOM Modality tag"),
     )
 
 

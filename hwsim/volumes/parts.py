@@ -26,6 +26,7 @@ import numpy as np
 
 from hwsim.core.errors import InputError
 from hwsim.spec.scene import VolumeSpec
+from hwsim.volumes.modality import nrrd_modality
 from hwsim.volumes.readers import HU_AIR_THRESHOLD, _nrrd_spacing, _stem, npy_header
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume
 
@@ -57,6 +58,8 @@ class VolumeParts:
     value_range: tuple[float, float]
     #: The head's parameters, or the file's ``(path, byte offset, byte order)``.
     args: tuple
+    #: The modality the file's header names and where (:mod:`hwsim.volumes.modality`).
+    modality: tuple[str, str] = ("", "")
 
     def volume(self) -> Volume:
         """The frame's volume, without voxels (see the module docstring)."""
@@ -65,6 +68,8 @@ class VolumeParts:
             np.zeros(1, dtype=dtype), shape=self.shape, strides=(0, 0, 0), writeable=False
         )
         meta = {"value_range": self.value_range, "parts": self}
+        if self.modality[0]:
+            meta["modality_from"] = self.modality[1]
         return Volume(
             data=data,
             spacing=self.spacing,
@@ -72,6 +77,7 @@ class VolumeParts:
             source=self.source,
             units=self.units,
             meta=meta,
+            modality=self.modality[0],
         )
 
     def box(self, z: slice, y: slice, x: slice | int = slice(None)) -> np.ndarray:
@@ -142,10 +148,11 @@ def volume_parts(spec: VolumeSpec, base_dir: Path | None = None) -> VolumeParts:
     if not path.is_file():
         raise InputError("file not found", source=str(path))
     name = path.name.lower()
+    modality = ("", "")
     if name.endswith(".npy"):
         layout = _npy_layout(path)
     elif name.endswith((".nrrd", ".nhdr")):
-        layout = _nrrd_layout(path)
+        layout, modality = _nrrd_layout(path)
     elif name.endswith(".raw"):
         layout = _raw_layout(path, spec)
     else:
@@ -185,6 +192,7 @@ def volume_parts(spec: VolumeSpec, base_dir: Path | None = None) -> VolumeParts:
         units="",
         value_range=(0.0, 0.0),
         args=(str(data_path), offset, dtype.str),
+        modality=modality,
     )
     lo, hi = _value_range(parts)
     if units == "" and np.dtype(parts.dtype).kind == "i" and lo <= HU_AIR_THRESHOLD:
@@ -301,7 +309,8 @@ def _nrrd_layout(path: Path):
     nbytes = int(np.prod(shape)) * dtype.itemsize
     offset = os.path.getsize(data_path) - nbytes if skip == -1 else offset + skip
     units = "HU" if "hounsfield" in str(header.get("content", "")).lower() else ""
-    return data_path, offset, shape, dtype, tuple(_nrrd_spacing(header, src)), units
+    layout = data_path, offset, shape, dtype, tuple(_nrrd_spacing(header, src)), units
+    return layout, nrrd_modality(header, path)
 
 
 def _raw_layout(path: Path, spec: VolumeSpec):

@@ -22,6 +22,7 @@ import numpy as np
 from hwsim.core.budget import require_fits
 from hwsim.core.errors import InputError, one_line_warnings
 from hwsim.spec.scene import VolumeSpec
+from hwsim.volumes.modality import nifti_modality, nrrd_modality
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume, require_axes
 
 __all__ = ["EXTENSIONS", "load_volume", "read_volume", "hu_units"]
@@ -234,8 +235,10 @@ def make_volume(
     units: str = "",
     bits: int | None = None,
     meta: dict | None = None,
+    modality: tuple[str, str] = ("", ""),
 ) -> Volume:
-    """Check shape, normalise the type and build the :class:`Volume` (errors name ``source``)."""
+    """Check shape, normalise the type and build the :class:`Volume` (errors name ``source``);
+    ``modality`` is what the header names and where (:mod:`hwsim.volumes.modality`)."""
     if data.ndim != 3:
         raise InputError(
             f"expected 3-D data, got {data.ndim}-D with shape {data.shape}",
@@ -245,6 +248,9 @@ def make_volume(
         )
     require_axes(data.shape, source)
     data = to_supported(data, source)
+    meta = dict(meta or {})
+    if modality[0]:
+        meta["modality_from"] = modality[1]
     return Volume(
         data=data,
         spacing=tuple(float(s) for s in spacing),  # type: ignore[arg-type]
@@ -252,7 +258,8 @@ def make_volume(
         source=source,
         units=hu_units(data, units),
         bits=honest_bits(data, bits),
-        meta=meta or {},
+        meta=meta,
+        modality=modality[0],
     )
 
 
@@ -351,7 +358,15 @@ def _read_nrrd(path: Path) -> Volume:
         spacing = np.ones(3)  # make_volume refuses the shape with a clear message
     units = "HU" if "hounsfield" in str(header.get("content", "")).lower() else ""
     meta = {"nrrd_header": {k: str(v) for k, v in header.items()}}
-    return make_volume(data, src, spacing=tuple(spacing), name=_stem(path), units=units, meta=meta)
+    return make_volume(
+        data,
+        src,
+        spacing=tuple(spacing),
+        name=_stem(path),
+        units=units,
+        meta=meta,
+        modality=nrrd_modality(header, path),
+    )
 
 
 def _nrrd_payload(path: Path, fh, header: dict, dtype: np.dtype, nbytes: int) -> np.ndarray:
@@ -537,6 +552,7 @@ def _read_nifti(path: Path) -> Volume:
         slope, inter = float(proxy.slope), float(proxy.inter)
         zooms = [float(z) for z in image.header.get_zooms()]
         offset = int(proxy.offset)
+        modality = nifti_modality(image.header)
     except Exception as exc:  # nibabel raises many types for damaged files
         raise InputError(f"cannot read NIfTI: {type(exc).__name__}: {exc}", source=src) from None
     _check_nifti_size(path, offset + declare(shape, dtype, src, key="dim"))
@@ -567,7 +583,7 @@ def _read_nifti(path: Path) -> Volume:
         meta.update(scl_slope=slope, scl_inter=inter, scaled=False)
     data = np.ascontiguousarray(np.transpose(raw, tuple(range(raw.ndim))[::-1]))
     spacing = tuple(zooms[:3][::-1]) if raw.ndim == 3 else (1.0, 1.0, 1.0)
-    return make_volume(data, src, spacing=spacing, name=_stem(path), meta=meta)
+    return make_volume(data, src, spacing=spacing, name=_stem(path), meta=meta, modality=modality)
 
 
 def _check_nifti_size(path: Path, expected: int) -> None:

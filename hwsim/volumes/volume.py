@@ -60,6 +60,11 @@ class Volume:
     bits : int
         Significant bits of integer data (8, 12, 16, or 32 for field containers); 0 for
         float data.
+    modality : str
+        Imaging modality the file's header names (``"CT"``, ``"MR"``, ...; DICOM's
+        Modality tag, a NRRD field or comment, a NIfTI description); empty when it names
+        none.  ``meta["modality_from"]`` says where it was read.  The ``auto`` transfer
+        preset reads it (:mod:`hwsim.spec.preset_choice`).
     """
 
     data: np.ndarray
@@ -69,6 +74,7 @@ class Volume:
     units: str = ""
     bits: int = 0
     meta: dict = field(default_factory=dict)
+    modality: str = ""
 
     def __post_init__(self) -> None:
         where = self.source or self.name
@@ -166,7 +172,7 @@ class Volume:
 
     def brick(self, lo: tuple[int, int, int], hi: tuple[int, int, int], label: str) -> Volume:
         """Voxels ``lo .. hi - 1`` (z, y, x) as a volume of their own (a contiguous copy)
-        that keeps this volume's spacing, units, bits and value range."""
+        that keeps this volume's spacing, units, bits, modality and value range."""
         box = (slice(lo[0], hi[0]), slice(lo[1], hi[1]), slice(lo[2], hi[2]))
         part = self.data[box]
         meta = {**self.meta, "value_range": self.value_range}
@@ -180,6 +186,7 @@ class Volume:
             units=self.units,
             bits=self.bits,
             meta=meta,
+            modality=self.modality,
         )
 
     @property

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from hwsim.cli.commands import main
-from hwsim.spec.scene import parse_scene
+from hwsim.spec.scene import load_transfer, parse_scene
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 pytestmark = pytest.mark.system
@@ -22,9 +22,17 @@ def blocks(doc: str, lang: str) -> list[str]:
 
 
 def test_scene_reference_example_is_a_valid_scene():
-    (example,) = blocks("scenes.md", "toml")
+    example, _transfer_file = blocks("scenes.md", "toml")
     scene = parse_scene(tomllib.loads(example), source="docs/scenes.md")
     assert scene.name == "skull" and scene.cut_planes and scene.crop is not None
+
+
+def test_transfer_file_example_is_a_valid_transfer_file(tmp_path):
+    _scene, example = blocks("scenes.md", "toml")
+    path = tmp_path / "bone.toml"
+    path.write_text(example)
+    spec = load_transfer(path)
+    assert spec.preset is None and len(spec.points) == 3 and spec.order == "post"
 
 
 def test_cli_examples_run(tmp_path):
