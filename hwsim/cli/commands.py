@@ -169,7 +169,7 @@ def _add_trade_parser(sub) -> None:
     t.add_argument(
         "--extend",
         action="store_true",
-        help="measure scenes outside a machine's features as what-ifs (else: unsupported rows)",
+        help="also measure scenes outside a machine's features, as what-if rows",
     )
     _add_repeatable(t, "--volume", "PATH", "add a volume file to the scene set")
     _add_repeatable(

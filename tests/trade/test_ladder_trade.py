@@ -1,4 +1,5 @@
-"""The fidelity-ladder trade: every rung and machine has a row; errors are the right pairs."""
+"""The fidelity-ladder trade: what each machine has is measured, the rest said once;
+errors are the right pairs."""
 
 from __future__ import annotations
 
@@ -23,23 +24,22 @@ pytestmark = pytest.mark.model
 ARCHS = ["volumepro500", "vizard2", "cube4"]
 
 
-def runs_on(rung: str, arch: str, scene: str) -> bool:
-    """Whether this build renders ``scene`` at ``rung`` on ``arch`` (the RTL top: the
-    Cube-4 family's composite and MIP, not the ball's X-ray)."""
-    from models.cycle import has_cycle_model
-    from models.transaction import has_transaction_model
+def modelled(rung: str, arch: str) -> bool:
+    """Whether a rung models ``arch`` (its family's registry entry)."""
+    return rung in fidelity.machine_rungs(fidelity.resolve_arch(arch))
 
-    if rung == "rtl":
-        return scene == "head" and fidelity.resolve_arch(arch).order == "slice-parallel"
+
+def inside(scene, arch: str) -> bool:
+    """Whether ``scene`` is inside ``arch``'s declared features (the check every rung asks)."""
+    from hwsim.core.errors import InputError
+    from hwsim.spec.machine_features import require_machine
+
     machine = fidelity.resolve_arch(arch)
-    if rung == "cycle":
-        return has_cycle_model(machine)
-    return rung != "transaction" or has_transaction_model(machine)
-
-
-def refused(rung: str, arch: str) -> bool:
-    """The rtl rung on a Cube-4 machine: built, but the ball's X-ray is beyond the RTL top."""
-    return rung == "rtl" and fidelity.resolve_arch(arch).order == "slice-parallel"
+    try:
+        require_machine(scene, machine, fidelity.algorithms(machine), extend=False)
+    except InputError:
+        return False
+    return True
 
 
 @pytest.fixture(scope="module")
@@ -61,9 +61,10 @@ def test_a_scene_outside_a_machine_is_unsupported_or_a_marked_what_if(cases, row
         if row["arch"] == "cube4":
             assert row["status"] == "unsupported" and "cube4 has no xray" in row["note"]
     what_if = pick(rows, "ball", "cube4", "functional")
-    assert what_if["status"] == "ok" and what_if["extensions"] == ["modes"]
-    assert what_if["note"] == "what-if: xray"
-    assert pick(rows, "head", "cube4", "functional")["extensions"] == []
+    assert what_if["status"] == "what-if" and what_if["extensions"] == ["modes"]
+    assert what_if["note"] == "what-if: xray (the machine's modes: composite, mip)"
+    head = pick(rows, "head", "cube4", "functional")
+    assert head["status"] == "ok" and head["extensions"] == []
 
 
 def pick(rows, scene, arch, rung):
@@ -71,20 +72,37 @@ def pick(rows, scene, arch, rung):
     return row
 
 
-def test_every_rung_of_every_machine_has_a_row_and_missing_rungs_say_so(rows):
-    for scene in ("head", "ball"):
+def test_every_rung_of_every_machine_is_measured_or_left_out_once_with_its_reason(cases, rows):
+    """With ``extend``, a rung that models the machine is measured on every scene (a what-if
+    outside its features); a rung that does not is no row, one not-run entry per machine;
+    the RTL top refusing the ball's X-ray is left out with the top's reason."""
+    left_out = {
+        (scene, arch, rung): e
+        for e in rows.not_run
+        for arch in e["archs"]
+        for scene in e["scenes"]
+        for rung in e["rungs"]
+    }
+    for case in cases:
+        scene = case.label
         assert pick(rows, scene, "ideal", "golden")["status"] == "ok"
         for arch in ARCHS:
             for rung in fidelity.FIDELITIES:
-                row = pick(rows, scene, arch, rung)
-                if runs_on(rung, arch, scene):
-                    assert row["status"] == "ok" and row["wall_seconds"] > 0
-                    assert row["samples"] > 0
+                cell = (scene, arch, rung)
+                found = [r for r in rows if (r["scene"], r["arch"], r["rung"]) == cell]
+                if not modelled(rung, arch):
+                    assert not found and left_out[cell]["status"] == "not available"
+                    assert left_out[cell]["reason"] == "no rtl model of the machine"
+                elif rung == "rtl" and scene == "ball":  # beyond the RTL top, said once
+                    assert not found and "not in the RTL top" in left_out[cell]["reason"]
                 else:
-                    assert row["status"] == (
-                        "unsupported" if refused(rung, arch) else "not available"
-                    )
-                    assert row["wall_seconds"] is None and row["numerical_rmse"] is None
+                    (row,) = found
+                    assert row["status"] == ("ok" if inside(case.scene, arch) else "what-if")
+                    assert row["wall_seconds"] > 0 and row["samples"] > 0
+    rtl = [e for e in rows.not_run if e["status"] == "not available"]
+    assert len(rtl) == 1 and rtl[0]["scenes"] == ["head", "ball"] and rtl[0]["rungs"] == ["rtl"]
+    assert set(rtl[0]["archs"]) == {a for a in ARCHS if not modelled("rtl", a)}
+    assert all(r["status"] in ("ok", "what-if") for r in rows)
 
 
 def test_numerical_and_algorithmic_errors_compare_the_documented_pairs(cases, rows):
@@ -98,7 +116,7 @@ def test_numerical_and_algorithmic_errors_compare_the_documented_pairs(cases, ro
         assert row["algorithmic_rmse"] == pytest.approx(rmse(ideal, golden.image), rel=1e-12)
         assert row["total_rmse"] == pytest.approx(rmse(ideal, fixed.image), rel=1e-12)
         assert row["cycles"] == fixed.cycles
-        if runs_on("cycle", arch, "head"):
+        if modelled("cycle", arch):
             cycle = pick(rows, "head", arch, "cycle")
             assert row["cycle_reference"] == "cycle" and cycle["cycle_error"] == 0.0
             assert row["cycle_error"] == pytest.approx(fixed.cycles / cycle["cycles"] - 1)
@@ -133,7 +151,7 @@ def test_transaction_rows_carry_their_cycle_error_against_the_cycle_rung(cases, 
     txn = pick(rows, "head", "cube4", "transaction")
     assert txn["cycle_independence"].startswith("shared (cube4_latency, cube4_pixel_pushes")
     assert vizard["cycle_independence"].startswith("partly shared (SdramController")
-    from hwsim.studies.trade.command import format_ladder
+    from hwsim.studies.trade.table import format_ladder
 
     (line,) = [x for x in format_ladder([txn]).splitlines() if x.startswith("head")]
     assert " shared  ok" in line and "%" not in line
@@ -211,9 +229,13 @@ def test_cli_trade_on_the_real_ct(tmp_path, shared_data, capsys):
     argv = ["trade", "--volume", str(shared_data / "ct_cranium.nrrd"), "--arch", "volumepro500"]
     status = main([*argv, "--image", "24", "--size", "16", "--out", str(out)])
     assert status == 0
-    rows = json.loads((out / "trade.json").read_text())["rows"]
+    data = json.loads((out / "trade.json").read_text())
+    rows = data["rows"]
     ct = {r["rung"]: r for r in rows if r["scene"] == "ct_cranium" and r["arch"] == "volumepro500"}
-    assert set(ct) == set(fidelity.FIDELITIES)
+    assert set(ct) == set(fidelity.machine_rungs(fidelity.resolve_arch("volumepro500")))
+    assert "rtl" not in ct and all(r["status"] == "ok" for r in rows)
+    (rtl,) = [e for e in data["not_run"] if e["rungs"] == ["rtl"]]
+    assert rtl["archs"] == ["volumepro500"] and rtl["text"].startswith("every scene at rtl on")
     assert ct["functional"]["status"] == "ok" and ct["functional"]["numerical_psnr_db"] > 30
     assert ct["transaction"]["status"] == "ok"
     assert ct["transaction"]["numerical_rmse"] == ct["functional"]["numerical_rmse"]
@@ -251,7 +273,7 @@ def test_round_off_shows_as_exact_in_the_table_and_is_named_in_the_files(rows, t
     """The ball through cube4's ray positions: golden reaches the ideal caster's samples in
     another operation order, so the two differ by float64 round-off only (was printed as
     "alg PSNR 327.6 dB"); the table says exact, the files keep the dB and say round-off."""
-    from hwsim.studies.trade.command import format_ladder
+    from hwsim.studies.trade.table import format_ladder
 
     row = pick(rows, "ball", "cube4", "golden")
     assert row["algorithmic_match"] == "round-off" and 250 < row["algorithmic_psnr_db"] < 400

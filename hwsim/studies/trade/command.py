@@ -6,7 +6,7 @@ import argparse
 from typing import Any
 
 from hwsim.core.errors import InputError
-from hwsim.studies.trade.files import EXACT_LEGEND, fmt_cell, psnr_cell
+from hwsim.studies.trade.table import format_ladder
 
 __all__ = ["trade_command"]
 
@@ -30,46 +30,10 @@ def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
         rows = ladder_trade(cases, args.arch or None, rungs, progress=progress, extend=args.extend)
     paths = write_ladder_trade(rows, args.out)
     if not args.quiet:
-        print(format_ladder(rows))
-        print(f"wrote {paths['csv']}, {paths['json'].name}, {paths['png'].name}")
+        print(format_ladder(rows, rows.not_run))
+        names = ", ".join(paths[k].name for k in ("json", "md", "png"))
+        print(f"wrote {paths['csv']}, {names}")
     return 0
-
-
-def format_ladder(rows: list[dict[str, Any]]) -> str:
-    """The trade table as fixed-width text (one line per scene, architecture and rung)."""
-    lines = [
-        f"{'scene':<15}{'arch':<15}{'rung':<12}{'wall s':>8}{'Msamp/s':>9}{'cycles':>11}"
-        f"{'num PSNR':>9}{'alg PSNR':>9}{'cyc err':>8}  status"
-    ]
-    for r in rows:
-        sps = r["wall_samples_per_second"]
-        lines.append(
-            f"{r['scene'][:14]:<15}{r['arch'][:14]:<15}{r['rung']:<12}"
-            f"{fmt_cell(r['wall_seconds'], '.3f', 8)}"
-            f"{fmt_cell(sps / 1e6 if sps else None, '.2f', 9)}"
-            f"{fmt_cell(r['cycles'], ',d', 11)}"
-            f"{psnr_cell(r, 'numerical', 9)}"
-            f"{psnr_cell(r, 'algorithmic', 9)}"
-            f"{_cycle_error_cell(r, 8)}  {r['status']}"
-        )
-    lines.append(
-        "num PSNR: against golden at the same sample positions; alg PSNR: golden at the "
-        "machine's positions against the ideal ray caster; cyc err: against the cycle rung "
-        "(shared: a consistency check, both rungs time the frame with the same functions, "
-        "cycle_independence in the files names them; ref: the cycle rung itself)\n" + EXACT_LEGEND
-    )
-    return "\n".join(lines)
-
-
-def _cycle_error_cell(row: dict[str, Any], width: int) -> str:
-    """The ``cyc err`` cell: the error, or ``shared`` where both sides share the code
-    that sets the count (no measurement), ``ref`` for the cycle rung itself."""
-    independence = row.get("cycle_independence") or ""
-    if independence == "reference":
-        return f"{'ref':>{width}}"
-    if independence.startswith("shared"):
-        return f"{'shared':>{width}}"
-    return fmt_cell(row.get("cycle_error"), ".1%", width)
 
 
 def _widths(args: argparse.Namespace, progress_bar: Any) -> int:

@@ -1,14 +1,15 @@
-"""The fidelity-ladder trade: every rung on every architecture, speed against error.
+"""The fidelity-ladder trade: every rung of every machine, speed against error.
 
 # Ref: shared/docs/design.md section 3 (the ladder, its contracts and the two kinds of
 #      image error); docs/fidelity.md.
 
 For each scene the ideal float64 ray caster (``golden`` without an architecture) is the
 reference.  Then for each architecture of :func:`hwsim.run.fidelity.builtin_archs` and each
-rung of :data:`hwsim.run.fidelity.FIDELITIES`:
+rung of :data:`hwsim.run.fidelity.FIDELITIES` that :mod:`hwsim.studies.trade.plan` keeps
+(the machine has the rung and the scene's features; what-ifs only with ``extend``; the
+rest is listed once in ``not_run``, or is a row with its reason when the user named the
+machine and the rung):
 
-* a rung that does not model the machine gets a row with status ``not available``,
-  nothing measured, the reason in ``note``;
 * ``golden`` at the machine's sample positions gives the **algorithmic** error (its
   image against the ideal ray caster);
 * every other rung gives the **numerical** error (its image against golden at the same
@@ -18,8 +19,9 @@ rung of :data:`hwsim.run.fidelity.FIDELITIES`:
   Cube-4 family the transaction rung times frames with the cycle rung's own functions, so
   its ``cycle_error`` is a consistency check, not a measurement.
 
-Rows are written as ``trade.csv`` / ``trade.json``; ``trade.png`` is the Pareto plot
-(wall seconds against error, both log scale, the non-dominated points joined).
+Rows are written as ``trade.csv`` / ``trade.json``, the table with the reasons of its empty
+cells as ``trade.md``; ``trade.png`` is the Pareto plot (wall seconds against error, both
+log scale, the non-dominated points joined).
 """
 
 from __future__ import annotations
@@ -38,11 +40,23 @@ from hwsim.numerics import agreement, max_abs_error, per_channel, psnr, rmse
 from hwsim.spec.scene import Scene, ViewSpec, VolumeSpec, load_scene
 from hwsim.studies.trade.files import write_rows
 from hwsim.studies.trade.ladder_plot import pareto_front, plot_ladder
+from hwsim.studies.trade.plan import (
+    NOT_AVAILABLE,
+    UNSUPPORTED,
+    WHAT_IF,
+    NotRun,
+    TradeRows,
+    Verdict,
+    cell_verdict,
+    scene_verdict,
+)
+from hwsim.studies.trade.table import ladder_markdown, reason_lines
 from hwsim.volumes.volume import Volume
 
 __all__ = [
     "LADDER_SCENES",
     "TradeCase",
+    "TradeRows",
     "image_error",
     "ladder_cases",
     "ladder_trade",
@@ -127,12 +141,16 @@ def ladder_trade(
     progress: Callable[[int, int], None] | None = None,
     *,
     extend: bool = False,
-) -> list[dict[str, Any]]:
-    """Measure every (scene, architecture, rung); one row each (see the module doc).
+) -> TradeRows:
+    """Measure every (scene, machine, rung) the machine has; one row each (module doc).
 
-    A scene outside a machine's declared features is an ``unsupported`` row naming the
-    feature, or with ``extend`` a what-if row whose ``extensions`` name the features."""
-    from hwsim.run.fidelity import FIDELITIES, builtin_archs, render
+    The product is :mod:`hwsim.studies.trade.plan`'s: the rungs that model each machine
+    and the scenes inside its declared features, plus with ``extend`` the what-ifs
+    (status ``what-if``, ``extensions`` naming the features).  The cells left out are in
+    the result's ``not_run``, each reason once; naming both ``archs`` and ``rungs`` makes
+    each of those cells a row instead (``unsupported`` or ``not available``, the reason
+    in ``note``)."""
+    from hwsim.run.fidelity import FIDELITIES, builtin_archs, render, resolve_arch
 
     arch_names = list(archs) if archs else list(builtin_archs())
     rung_names = list(rungs) if rungs else list(FIDELITIES)
@@ -141,8 +159,12 @@ def ladder_trade(
             raise InputError(f"unknown rung {r!r}", key="--rungs", allowed=", ".join(FIDELITIES))
     if "golden" not in rung_names:
         rung_names.insert(0, "golden")  # the reference of every error column
+    named = bool(archs) and bool(rungs)
+    machines = {a: resolve_arch(a) for a in arch_names}
+    plans = [_case_plan(case, machines, rung_names, extend) for case in cases]
+    not_run = NotRun([c.label for c in cases], rung_names)
     rows: list[dict[str, Any]] = []
-    total = len(cases) * (1 + len(arch_names) * len(rung_names))
+    total = sum(1 + sum(v.runs for cells in p.values() for v in cells.values()) for p in plans)
     done = 0
 
     def tick() -> None:
@@ -151,7 +173,7 @@ def ladder_trade(
         if progress is not None:
             progress(done, total)
 
-    for case in cases:
+    for case, plan in zip(cases, plans, strict=True):
         # Untimed warm-up: fills the golden renderer's per-volume cache (float copy and
         # voxel gradients), which every later render of this volume reuses.
         render(case.scene, fidelity="golden", volume=case.volume)
@@ -160,39 +182,55 @@ def ladder_trade(
         reference["total_rmse"], reference["total_match"] = 0.0, "identical"
         rows.append(reference)
         tick()
-        for arch in arch_names:
-            rows.extend(_arch_rows(case, arch, rung_names, ideal, tick, extend=extend))
-    return rows
+        for arch, cells in plan.items():
+            measured, refused = _arch_rows(case, arch, cells, ideal, tick, extend=extend)
+            for rung, verdict in refused.items():
+                if named:
+                    measured.append(_empty(case, arch, rung, verdict.status, verdict.reason))
+                else:
+                    not_run.add(case.label, arch, rung, verdict)
+            rows.extend(sorted(measured, key=lambda r: rung_names.index(r["rung"])))
+    return TradeRows(rows, not_run.entries())
+
+
+def _case_plan(
+    case: TradeCase, machines: dict[str, Any], rung_names: list[str], extend: bool
+) -> dict[str, dict[str, Verdict]]:
+    """Each machine's verdict on each rung of ``case``, before anything is rendered."""
+    plan = {}
+    for arch, machine in machines.items():
+        scene = scene_verdict(case.scene, case.volume, machine, extend=extend)
+        plan[arch] = {rung: cell_verdict(machine, rung, scene) for rung in rung_names}
+    return plan
 
 
 def _arch_rows(
     case: TradeCase,
     arch: str,
-    rung_names: list[str],
+    cells: dict[str, Verdict],
     ideal: Any,
     tick: Callable[[], None],
     *,
     extend: bool,
-) -> list[dict[str, Any]]:
-    """One machine's rows of ``case``, one per rung in ``rung_names`` order: each rung's
-    render measured against ``ideal``, the machine's golden and its cycle rung."""
+) -> tuple[list[dict[str, Any]], dict[str, Verdict]]:
+    """One machine's rows of ``case``: each rung its ``cells`` verdict runs, its render
+    measured against ``ideal``, the machine's golden and its cycle rung (or a ``not
+    available`` row: a rung this build lacks, a missing simulator); and the verdicts of the
+    rungs not measured, planned so or refused when rendered (a rung's own limits)."""
     from hwsim.run.fidelity import render
 
     runs: dict[str, Any] = {}
-    pending: list[dict[str, Any]] = []
-    for rung in rung_names:
+    failed: list[dict[str, Any]] = []
+    refused = {rung: v for rung, v in cells.items() if not v.runs}
+    for rung in (r for r, v in cells.items() if v.runs):
         try:
             runs[rung] = render(
                 case.scene, fidelity=rung, arch=arch, volume=case.volume, extend=extend
             )
-        except NotAvailableError as exc:  # the rung does not model this machine yet
-            pending.append(_empty(case, arch, rung, "not available", note=exc.message))
-            tick()
-            continue
-        except InputError as exc:  # the machine refuses the scene, as the hardware did
-            pending.append(_empty(case, arch, rung, "unsupported", note=exc.message))
-            tick()
-            continue
+        except NotAvailableError as exc:  # modelled, but not in this build: a failure
+            failed.append(_empty(case, arch, rung, NOT_AVAILABLE, exc.message))
+        except InputError as exc:  # refused by the rung's own limits
+            refused[rung] = Verdict(UNSUPPORTED, exc.message)
         tick()
     cycle = runs.get("cycle")
     full = None
@@ -205,10 +243,8 @@ def _arch_rows(
             elaborate_all=True,
             extend=extend,
         )
-    for rung, run in runs.items():
-        pending.append(_measured_row(case, arch, rung, run, ideal, runs, full))
-    order = {r: i for i, r in enumerate(rung_names)}
-    return sorted(pending, key=lambda r: order[r["rung"]])
+    rows = [_measured_row(case, arch, rung, run, ideal, runs, full) for rung, run in runs.items()]
+    return rows + failed, refused
 
 
 def _measured_row(
@@ -224,7 +260,7 @@ def _measured_row(
     machine's golden (numerical) and golden against ideal (algorithmic); the cycle rung's
     elision against ``full`` (every unit elaborated); its cycles against the cycle rung's."""
     golden, cycle = runs.get("golden"), runs.get("cycle")
-    row = _row(case, arch, run, status="ok")
+    row = _row(case, arch, run, status=WHAT_IF if run.extensions else "ok")
     total = image_error(ideal.image, run.image)
     row["total_rmse"], row["total_match"] = total["rmse"], total["match"]
     if golden is not None:
@@ -319,16 +355,27 @@ def _row(case: TradeCase, arch: str, run: Any, *, status: str, note: str = "") -
         note=note,
     )
     if run.extensions and not note:
-        row["note"] = "what-if: " + ", ".join(e["asked"] for e in run.extensions)
+        row["note"] = "what-if: " + "; ".join(
+            f"{e['asked']} (the machine's {e['feature']}: {e['machine']})" for e in run.extensions
+        )
     return row
 
 
 def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[str, Path]:
-    """Write ``trade.csv``, ``trade.json`` and the Pareto plot ``trade.png``."""
+    """Write ``trade.csv``, ``trade.json`` (with ``not_run`` when ``rows`` is a
+    :class:`TradeRows`), the table with its reasons as ``trade.md`` and the Pareto plot
+    ``trade.png``."""
     out = output_folder(out_dir)
-    paths = {"csv": out / "trade.csv", "json": out / "trade.json", "png": out / "trade.png"}
+    paths = {
+        "csv": out / "trade.csv",
+        "json": out / "trade.json",
+        "md": out / "trade.md",
+        "png": out / "trade.png",
+    }
+    not_run = list(getattr(rows, "not_run", []))
     flat = [{k: v for k, v in r.items() if k != "numerical_per_channel"} for r in rows]
     write_rows(flat, paths["csv"], None)
-    write_rows(rows, None, paths["json"])
-    plot_ladder(rows, paths["png"])
+    write_rows(list(rows), None, paths["json"], not_run=not_run)
+    paths["md"].write_text(ladder_markdown(rows, not_run))
+    plot_ladder(rows, paths["png"], reason_lines(rows, not_run))
     return paths

@@ -1,5 +1,6 @@
 """The fidelity ladder's Pareto plot (``trade.png``): one panel per scene, wall seconds
-against error, one colour per rung and one marker per machine."""
+against error, one colour per rung and one marker per machine (hollow: a what-if); under
+the legend, the reasons of the cells without a point."""
 
 from __future__ import annotations
 
@@ -21,8 +22,16 @@ def pareto_front(points: Sequence[tuple[float, float]]) -> list[tuple[float, flo
     return front
 
 
-def plot_ladder(rows: list[dict[str, Any]], path: Path) -> None:
-    """Write the Pareto plot of the trade ``rows`` to ``path``."""
+#: Measured row statuses (a what-if is measured, outside the machine's features).
+MEASURED = ("ok", "what-if")
+
+#: Reason lines shown under the legend; the rest are counted (all are in trade.md).
+MAX_REASON_LINES = 12
+
+
+def plot_ladder(rows: list[dict[str, Any]], path: Path, reasons: Sequence[str] = ()) -> None:
+    """Write the Pareto plot of the trade ``rows`` to ``path``, ``reasons`` (the table's
+    footnotes and not-run lines) under its legend."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -35,21 +44,45 @@ def plot_ladder(rows: list[dict[str, Any]], path: Path) -> None:
     colours = {r: plt.cm.tab10(i) for i, r in enumerate(rungs)}
     ncols = min(len(scenes), 3)
     nrows = -(-len(scenes) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.6 * nrows + 0.8), squeeze=False)
+    notes = _fitted(reasons)
+    foot = 0.8 + 0.13 * len(notes)  # inches under the panels: legend, then the reasons
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.6 * nrows + foot), squeeze=False)
     for ax in axes.flat[len(scenes) :]:
         ax.set_visible(False)
     for ax, scene in zip(axes.flat, scenes, strict=False):
-        measured = [r for r in rows if r["scene"] == scene and r["status"] == "ok"]
+        measured = [r for r in rows if r["scene"] == scene and r["status"] in MEASURED]
         _plot_scene(ax, scene, measured, colours, markers)
     handles = [
         plt.Line2D([], [], color=c, marker="o", ls="", label=f"rung {r}")
         for r, c in colours.items()
-        if any(x["rung"] == r and x["status"] == "ok" for x in rows)
+        if any(x["rung"] == r and x["status"] in MEASURED for x in rows)
     ] + [plt.Line2D([], [], color="k", marker=m, ls="", label=a) for a, m in markers.items()]
-    fig.legend(handles=handles, loc="lower center", ncol=min(len(handles), 6), fontsize=7)
-    fig.tight_layout(rect=(0, 0.8 / (3.6 * nrows + 0.8), 1, 1))
+    if any(r["status"] == "what-if" for r in rows):
+        handles.append(plt.Line2D([], [], color="k", marker="o", mfc="none", ls="",
+                                  label="hollow: what-if (--extend)"))  # fmt: skip
+    height = 3.6 * nrows + foot
+    fig.legend(
+        handles=handles,
+        loc="lower center",
+        bbox_to_anchor=(0.5, (foot - 0.8) / height),
+        ncol=min(len(handles), 6),
+        fontsize=7,
+    )
+    for i, line in enumerate(notes):
+        fig.text(0.01, (foot - 0.8 - 0.13 * (i + 1)) / height, line, fontsize=6, va="bottom")
+    fig.tight_layout(rect=(0, foot / height, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _fitted(reasons: Sequence[str]) -> list[str]:
+    """The reason lines the plot shows: each cut to one line, at most
+    :data:`MAX_REASON_LINES`, the rest counted."""
+    lines = [r if len(r) <= 160 else r[:157] + "..." for r in reasons]
+    if len(lines) > MAX_REASON_LINES:
+        more = len(lines) - MAX_REASON_LINES + 1
+        lines = [*lines[: MAX_REASON_LINES - 1], f"... {more} more lines in trade.md"]
+    return lines
 
 
 def _plot_scene(
@@ -72,10 +105,12 @@ def _plot_scene(
             err = 0.0
         y = max(err, floor)
         pts.append((r["wall_seconds"], y))
+        colour = colours[r["rung"]]
         ax.scatter(
             r["wall_seconds"],
             y,
-            color=colours[r["rung"]],
+            facecolors="none" if r["status"] == "what-if" else [colour],
+            edgecolors=[colour],
             marker=markers.get(r["arch"], "o"),
             s=28,
             zorder=3,
