@@ -214,6 +214,114 @@ def _interp(x, xp, fp, row):  # pragma: no cover - compiled
     return out
 
 
+# ``_walk``'s parts are inlined into it at Numba IR level (``inline="always"``): named steps
+# of one compiled loop, as fast as the loop written out in one body (its LLVM code calls
+# none of them and counts no references inside the loop).  An array a part takes and last
+# uses inside a branch would be reference counted (an atomic add) on every sample: see
+# hwsim.memory.sdram_kernel, where that cost about 10%.
+
+
+@numba.njit(inline="always", nogil=True)
+def _grid(shape):  # pragma: no cover - compiled
+    """``shape``'s last index per axis (float), last cell origin per axis (int), and
+    ``(ny, nx, sz, sy, sx)``: the row lengths and the tap strides in ``field`` rows (0
+    along an axis one voxel thick, so its taps read the same voxel)."""
+    nz, ny, nx = shape[0], shape[1], shape[2]
+    top = (np.float64(nz - 1), np.float64(ny - 1), np.float64(nx - 1))
+    cap = (max(nz - 2, 0), max(ny - 2, 0), max(nx - 2, 0))
+    layout = (ny, nx, ny * nx if nz > 1 else 0, nx if ny > 1 else 0, 1 if nx > 1 else 0)
+    return top, cap, layout
+
+
+@numba.njit(inline="always", nogil=True)
+def _step_span(sel, j_lo, j_hi):  # pragma: no cover - compiled
+    """The first and last step any of the rays ``sel`` samples."""
+    j_first, j_last = j_lo[sel[0]], j_hi[sel[0]]
+    for r in sel:
+        j_first, j_last = min(j_first, j_lo[r]), max(j_last, j_hi[r])
+    return j_first, j_last
+
+
+@numba.njit(inline="always", nogil=True)
+def _sample(field, o, d, r, dr, t, top, cap, layout, s):  # pragma: no cover - compiled
+    """Every component of ``field`` at ray ``r``'s point ``o[r] + t d[dr]`` (clamped into
+    the volume) into ``s``, by the seven lerps of ``trilinear_rows`` in its order."""
+    ny, nx, sz, sy, sx = layout
+    p0 = min(max(o[r, 0] + t * d[dr, 0], 0.0), top[0])
+    p1 = min(max(o[r, 1] + t * d[dr, 1], 0.0), top[1])
+    p2 = min(max(o[r, 2] + t * d[dr, 2], 0.0), top[2])
+    i0 = min(np.int64(np.floor(p0)), cap[0])
+    i1 = min(np.int64(np.floor(p1)), cap[1])
+    i2 = min(np.int64(np.floor(p2)), cap[2])
+    fz, fy, fx = p0 - i0, p1 - i1, p2 - i2
+    base = (i0 * ny + i1) * nx + i2
+    for c in range(field.shape[1]):
+        y0 = field[base, c] + fx * (field[base + sx, c] - field[base, c])
+        y1 = field[base + sy, c] + fx * (field[base + sy + sx, c] - field[base + sy, c])
+        near = y0 + fy * (y1 - y0)
+        b2 = base + sz
+        y0 = field[b2, c] + fx * (field[b2 + sx, c] - field[b2, c])
+        y1 = field[b2 + sy, c] + fx * (field[b2 + sy + sx, c] - field[b2 + sy, c])
+        far = y0 + fy * (y1 - y0)
+        s[c] = near + fz * (far - near)
+
+
+@numba.njit(inline="always", nogil=True)
+def _half_vector(view, vr, l0, l1, l2, h):  # pragma: no cover - compiled
+    """Into ``h``: the unit half vector of view ``view[vr]`` and light ``(l0, l1, l2)``
+    (zero where the sum vanishes), as phong makes it for a perspective ray."""
+    h0 = view[vr, 0] + l0
+    h1 = view[vr, 1] + l1
+    h2 = view[vr, 2] + l2
+    norm = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
+    if norm > 1e-12:
+        h[0], h[1], h[2] = h0 / norm, h1 / norm, h2 / norm
+    else:
+        h[0], h[1], h[2] = 0.0, 0.0, 0.0
+
+
+@numba.njit(inline="always", nogil=True)
+def _phong(s, mag, illum, rgb, lit_args, vr, out, h):  # pragma: no cover - compiled
+    """Phong-shade ``rgb`` in place at the gradient ``s[1:4]`` (magnitude ``mag``), each
+    light's term scaled by ``illum`` when illumination is modulated; ``lit_args`` is
+    ``(lights, intensities, halves, view, material, mod_illum, per_ray_view)`` and ``vr``
+    the ray's row of ``view``; ``out`` and ``h`` are scratch."""
+    lights, intensities, halves, view, material, mod_illum, per_ray_view = lit_args
+    ka, kd, ks, shininess = material[0], material[1], material[2], material[3]
+    scale = -1.0 / mag if mag > 1e-12 else 0.0
+    n0, n1, n2 = s[1] * scale, s[2] * scale, s[3] * scale
+    for c in range(3):
+        out[c] = ka * rgb[c]
+    for k in range(lights.shape[0]):
+        l0, l1, l2 = lights[k, 0], lights[k, 1], lights[k, 2]
+        ndl = max(n0 * l0 + n1 * l1 + n2 * l2, 0.0)
+        if per_ray_view:
+            _half_vector(view, vr, l0, l1, l2, h)
+        else:
+            h[0], h[1], h[2] = halves[k, 0], halves[k, 1], halves[k, 2]
+        ndh = n0 * h[0] + n1 * h[1] + n2 * h[2]
+        spec = ks * power_scalar(max(ndh, 0.0), shininess)
+        for c in range(3):
+            light = intensities[k] * (kd * ndl * rgb[c] + spec)
+            out[c] += illum * light if mod_illum else light
+    for c in range(3):
+        rgb[c] = min(max(out[c], 0.0), 1.0)
+
+
+@numba.njit(inline="always", nogil=True)
+def _composite(acc, ray, rgb, a, expo, ert):  # pragma: no cover - compiled
+    """Composite colour ``rgb``, opacity ``a`` (corrected by the exponent ``expo``) behind
+    ``acc[ray]``, front to back; whether the ray has reached early termination ``ert``."""
+    A = acc[ray, 3]
+    a = 1.0 - power_scalar(1.0 - a, expo)
+    weight = (1.0 - A) * a
+    for c in range(3):
+        acc[ray, c] += weight * rgb[c]
+    A += weight
+    acc[ray, 3] = A
+    return ert < 1.0 and not A < ert
+
+
 @numba.njit(cache=True, nogil=True)
 def _walk(
     sel,
@@ -244,59 +352,23 @@ def _walk(
     acc,
     taken,
 ):  # pragma: no cover - compiled
-    need_grad, lit, modulates, mod_illum, per_ray_view = (
-        flags[0],
-        flags[1],
-        flags[2],
-        flags[3],
-        flags[4],
-    )
-    ka, kd, ks, shininess = material[0], material[1], material[2], material[3]
-    nz, ny, nx = shape[0], shape[1], shape[2]
-    top = (np.float64(nz - 1), np.float64(ny - 1), np.float64(nx - 1))
-    cap = (max(nz - 2, 0), max(ny - 2, 0), max(nx - 2, 0))
-    sz = ny * nx if nz > 1 else 0
-    sy = nx if ny > 1 else 0
-    sx = 1 if nx > 1 else 0
-    ncomp = field.shape[1]
-    s = np.empty(4)
-    rgb = np.empty(3)
-    out = np.empty(3)
-    h = np.empty(3)
+    need_grad, lit, modulates = flags[0], flags[1], flags[2]
+    mod_illum, per_ray_view = flags[3], flags[4]
+    lit_args = (lights, intensities, halves, view, material, mod_illum, per_ray_view)
+    top, cap, layout = _grid(shape)
+    s, rgb, out, h = np.empty(4), np.empty(3), np.empty(3), np.empty(3)
     shared_d = d.shape[0] == 1
     # The chunk's rays advance together, one step at a time: neighbouring rays sample
     # neighbouring voxels, which stay in cache.  Each ray's samples keep their order.
-    j_first, j_last = j_lo[sel[0]], j_hi[sel[0]]
-    for r in sel:
-        j_first, j_last = min(j_first, j_lo[r]), max(j_last, j_hi[r])
+    j_first, j_last = _step_span(sel, j_lo, j_hi)
     done = np.zeros(sel.shape[0], dtype=np.bool_)
     for j in range(j_first, j_last + 1):
+        t = (k_first + k_dir * j) * dt
         for q in range(sel.shape[0]):
             r = sel[q]
             if done[q] or j < j_lo[r] or j > j_hi[r]:
                 continue
-            ray = ray_ids[r]
-            dr = 0 if shared_d else r
-            vr = r if per_ray_view else 0
-            A = acc[ray, 3]
-            t = (k_first + k_dir * j) * dt
-            p0 = min(max(o[r, 0] + t * d[dr, 0], 0.0), top[0])
-            p1 = min(max(o[r, 1] + t * d[dr, 1], 0.0), top[1])
-            p2 = min(max(o[r, 2] + t * d[dr, 2], 0.0), top[2])
-            i0 = min(np.int64(np.floor(p0)), cap[0])
-            i1 = min(np.int64(np.floor(p1)), cap[1])
-            i2 = min(np.int64(np.floor(p2)), cap[2])
-            fz, fy, fx = p0 - i0, p1 - i1, p2 - i2
-            base = (i0 * ny + i1) * nx + i2
-            for c in range(ncomp):
-                y0 = field[base, c] + fx * (field[base + sx, c] - field[base, c])
-                y1 = field[base + sy, c] + fx * (field[base + sy + sx, c] - field[base + sy, c])
-                near = y0 + fy * (y1 - y0)
-                b2 = base + sz
-                y0 = field[b2, c] + fx * (field[b2 + sx, c] - field[b2, c])
-                y1 = field[b2 + sy, c] + fx * (field[b2 + sy + sx, c] - field[b2 + sy, c])
-                far = y0 + fy * (y1 - y0)
-                s[c] = near + fz * (far - near)
+            _sample(field, o, d, r, 0 if shared_d else r, t, top, cap, layout, s)
             taken[r] += 1
             v = s[0]
             a = _interp(v, tf_x, tf_rgba, 3)
@@ -311,36 +383,6 @@ def _walk(
                     a = a * _interp(mag, gp_x, gp_f, 0)
                 if lit:
                     illum = _interp(mag, ip_x, ip_f, 0) if mod_illum else 1.0
-                    scale = -1.0 / mag if mag > 1e-12 else 0.0
-                    n0, n1, n2 = gx * scale, gy * scale, gz * scale
-                    for c in range(3):
-                        out[c] = ka * rgb[c]
-                    for k in range(lights.shape[0]):
-                        l0, l1, l2 = lights[k, 0], lights[k, 1], lights[k, 2]
-                        ndl = max(n0 * l0 + n1 * l1 + n2 * l2, 0.0)
-                        if per_ray_view:
-                            h0 = view[vr, 0] + l0
-                            h1 = view[vr, 1] + l1
-                            h2 = view[vr, 2] + l2
-                            norm = np.sqrt(h0 * h0 + h1 * h1 + h2 * h2)
-                            if norm > 1e-12:
-                                h[0], h[1], h[2] = h0 / norm, h1 / norm, h2 / norm
-                            else:
-                                h[0], h[1], h[2] = 0.0, 0.0, 0.0
-                        else:
-                            h[0], h[1], h[2] = halves[k, 0], halves[k, 1], halves[k, 2]
-                        ndh = n0 * h[0] + n1 * h[1] + n2 * h[2]
-                        spec = ks * power_scalar(max(ndh, 0.0), shininess)
-                        for c in range(3):
-                            light = intensities[k] * (kd * ndl * rgb[c] + spec)
-                            out[c] += illum * light if mod_illum else light
-                    for c in range(3):
-                        rgb[c] = min(max(out[c], 0.0), 1.0)
-            a = 1.0 - power_scalar(1.0 - a, expo)
-            weight = (1.0 - A) * a
-            for c in range(3):
-                acc[ray, c] += weight * rgb[c]
-            A += weight
-            acc[ray, 3] = A
-            if ert < 1.0 and not A < ert:
+                    _phong(s, mag, illum, rgb, lit_args, r if per_ray_view else 0, out, h)
+            if _composite(acc, ray_ids[r], rgb, a, expo, ert):
                 done[q] = True
