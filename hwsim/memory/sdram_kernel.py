@@ -1,11 +1,12 @@
 """The cycle-exact SDRAM controller's request loop, compiled (numba).
 
-One function, :func:`schedule_requests`, is the whole scheduling rule set of
-:mod:`hwsim.memory.sdram_cycle` (its module docstring states the rules); the
-:class:`~hwsim.memory.SdramController` keeps the state in a few integer arrays and calls
-it for every batch of requests.  The cycle rung's VolumePro/EM-Cube and VIZARD II memories
-and the transaction rung's SDRAM port all schedule through it, so it sets much of their
-speed: a few tens of nanoseconds a burst compiled, about half a microsecond as Python.
+One function, :func:`schedule_requests` (with the refresh it inlines), is the whole
+scheduling rule set of :mod:`hwsim.memory.sdram_cycle` (its module docstring states the
+rules); the :class:`~hwsim.memory.SdramController` keeps the state in a few integer arrays
+and calls it for every batch of requests.  The cycle rung's VolumePro/EM-Cube and VIZARD
+II memories and the transaction rung's SDRAM port all schedule through it, so it sets much
+of their speed: a few tens of nanoseconds a burst compiled, about half a microsecond as
+Python.
 ``schedule_requests.py_func`` is the same code uncompiled (the tests run both).
 
 Command-bus bookkeeping: one command per cycle is kept as a short list of the cycles
@@ -80,6 +81,48 @@ def _first_free(booked, n_booked, cycle):
 
 
 @numba.njit(cache=True, nogil=True)
+def _issue(booked, n_booked, cycle, command_bus):
+    """Issue a command wanted at ``cycle`` on the first cycle from there with the command
+    bus free, and book it; returns ``(its cycle, booked fill)``."""
+    cycle = _first_free(booked, n_booked, cycle)
+    return cycle, _book(booked, n_booked, cycle, command_bus)
+
+
+# Inlined into schedule_requests at Numba IR level (``inline="always"``), so it costs no
+# call.  An array handed to an inlined function is reference counted (an atomic add) on
+# each call: once per refresh is cheap, once per request would not be (about 10% of the loop),
+# so the per-request path stays in schedule_requests and calls only plain functions
+# (_issue), which LLVM inlines.
+@numba.njit(cache=True, nogil=True, inline="always")
+def _refresh(params, bank_state, booked, n_booked, due, prev_read, last_ref):
+    """Book the refresh due at ``due``: after every command issued so far (possibly while
+    the controller sat idle), all banks precharged (one PRECHARGE-ALL if a row is open),
+    then REFRESH; every bank closes until tRFC after it.  Returns ``(PRECHARGE-ALL cycle or
+    -1, REFRESH cycle, booked fill)``; ``booked`` must have room for two more."""
+    t_rp, t_ras, rtp, t_rfc = params[1], params[2], params[6], params[7]
+    command_bus = params[11] != 0
+    open_row, act_at = bank_state[0], bank_state[1]
+    act_ready, read_at = bank_state[2], bank_state[3]
+    begin = max(due, prev_read + 1, last_ref + 1)
+    prea = -1
+    any_open = False
+    for q in range(open_row.shape[0]):
+        if open_row[q] >= 0:
+            any_open = True
+            begin = max(begin, act_at[q] + t_ras, read_at[q] + rtp)
+    if any_open:
+        prea, n_booked = _issue(booked, n_booked, begin, command_bus)
+        begin = prea + t_rp
+    for q in range(open_row.shape[0]):
+        begin = max(begin, act_ready[q])
+    ref, n_booked = _issue(booked, n_booked, begin, command_bus)
+    for q in range(open_row.shape[0]):
+        open_row[q] = -1
+        act_ready[q] = ref + t_rfc
+    return prea, ref, n_booked
+
+
+@numba.njit(cache=True, nogil=True)
 def schedule_requests(params, regs, bank_state, banks, rows, arrive, out, start, booked, log):
     """Schedule requests ``banks[j], rows[j], arrive[j]`` as request ``start + j`` onwards.
 
@@ -90,7 +133,6 @@ def schedule_requests(params, regs, bank_state, banks, rows, arrive, out, start,
     t_rcd, t_rp, t_ras, t_rc, t_rrd = params[0], params[1], params[2], params[3], params[4]
     bc, rtp, t_rfc, t_refi = params[5], params[6], params[7], params[8]
     closed, depth, command_bus = params[9] != 0, params[10], params[11] != 0
-    nb = bank_state.shape[1]
     open_row, act_at = bank_state[0], bank_state[1]
     act_ready, read_at = bank_state[2], bank_state[3]
     last_act, prev_read, last_ref, refresh_end = regs[0], regs[1], regs[2], regs[3]
@@ -98,78 +140,43 @@ def schedule_requests(params, regs, bank_state, banks, rows, arrive, out, start,
     reads, acts, pres, refreshed = out[0], out[1], out[2], out[3]
     for j in range(banks.shape[0]):
         i = start + j
-        b, r, e = banks[j], rows[j], arrive[j]
-        admit = floor
-        if e > admit:
-            admit = e
-        if i >= depth and reads[i - depth] + 1 > admit:
-            admit = reads[i - depth] + 1
-        floor = admit
+        b, r = banks[j], rows[j]
+        # Admitted in order, on arrival, once the request ``depth`` ahead has left the queue.
+        floor = max(floor, arrive[j], reads[i - depth] + 1 if i >= depth else floor)
         refreshed[i] = 1 if floor >= due else 0
         while floor >= due:
             if n_ref == log.shape[0]:
                 log = _grown(log)
             if n_booked + 2 > booked.shape[0]:
                 booked = _grown(booked)
-            # Refresh before admitting: after every command issued so far (possibly while
-            # the controller sat idle), all banks precharged, then REFRESH and tRFC.
-            begin = max(due, prev_read + 1, last_ref + 1)
-            prea = -1
-            any_open = False
-            for q in range(nb):
-                if open_row[q] >= 0:
-                    any_open = True
-                    begin = max(begin, act_at[q] + t_ras, read_at[q] + rtp)
-            if any_open:
-                begin = _first_free(booked, n_booked, begin)
-                prea = begin
-                n_booked = _book(booked, n_booked, prea, command_bus)
-                ref = prea + t_rp
-            else:
-                ref = begin
-            for q in range(nb):
-                ref = max(ref, act_ready[q])
-            ref = _first_free(booked, n_booked, ref)
-            n_booked = _book(booked, n_booked, ref, command_bus)
-            log[n_ref, 0] = prea
-            log[n_ref, 1] = ref
+            prea, last_ref, n_booked = _refresh(
+                params, bank_state, booked, n_booked, due, prev_read, last_ref
+            )
+            log[n_ref, 0], log[n_ref, 1] = prea, last_ref
             n_ref += 1
-            refresh_end = ref + t_rfc
-            last_ref = ref
-            for q in range(nb):
-                open_row[q] = -1
-                act_ready[q] = refresh_end
+            refresh_end = last_ref + t_rfc
             due += t_refi
-            if refresh_end > floor:
-                floor = refresh_end
-
+            floor = max(floor, refresh_end)
         if n_booked + 3 > booked.shape[0]:
             booked = _grown(booked)
-        acts[i] = -1
-        pres[i] = -1
+        acts[i] = pres[i] = -1
         if open_row[b] == r:  # row hit: READ only
             t = max(act_at[b] + t_rcd, floor, prev_read + bc)
         else:
             if open_row[b] < 0:  # row miss
                 t = max(act_ready[b], floor)
             else:  # row conflict: PRECHARGE first
-                t = _first_free(booked, n_booked, max(act_at[b] + t_ras, floor, read_at[b] + rtp))
-                n_booked = _book(booked, n_booked, t, command_bus)
-                pres[i] = t
-                t += t_rp
-            t = _first_free(booked, n_booked, max(t, act_at[b] + t_rc, last_act + t_rrd))
-            n_booked = _book(booked, n_booked, t, command_bus)
-            acts[i] = t
-            act_at[b] = t
-            last_act = t
-            t = max(t + t_rcd, prev_read + bc)
-        t = _first_free(booked, n_booked, t)
-        n_booked = _book(booked, n_booked, t, command_bus)
-        reads[i] = t
-        read_at[b] = t
-        prev_read = t
+                t = max(act_at[b] + t_ras, floor, read_at[b] + rtp)
+                pres[i], n_booked = _issue(booked, n_booked, t, command_bus)
+                t = pres[i] + t_rp
+            t = max(t, act_at[b] + t_rc, last_act + t_rrd)
+            acts[i], n_booked = _issue(booked, n_booked, t, command_bus)
+            act_at[b] = last_act = acts[i]
+            t = max(last_act + t_rcd, prev_read + bc)
+        reads[i], n_booked = _issue(booked, n_booked, t, command_bus)
+        read_at[b] = prev_read = reads[i]
         if closed:
-            act_ready[b] = max(t + rtp, act_at[b] + t_ras) + t_rp
+            act_ready[b] = max(prev_read + rtp, act_at[b] + t_ras) + t_rp
         else:
             open_row[b] = r
         kept = 0  # drop booked cycles before this admission: none can matter again
