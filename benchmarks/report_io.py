@@ -8,15 +8,21 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hwsim.core.paths import display_text
+
 __all__ = ["median_seconds", "write_report"]
 
 
 def write_report(report: dict[str, Any], path: Path | None) -> None:
-    """Write ``report`` to ``path`` (parents created) and say so; nothing when None."""
+    """Write ``report`` to ``path`` (parents created) and say so; nothing when None.
+
+    Paths in it (a note naming a machine file or the shared data) are written relative to
+    the repository (hwsim.core.paths.display_text), never as this machine's absolute paths.
+    """
     if path is None:
         return
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report, indent=2) + "\n")
+    path.write_text(display_text(json.dumps(report, indent=2)) + "\n")
     print(f"wrote {path}")
 
 

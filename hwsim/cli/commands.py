@@ -431,20 +431,20 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import display_path, output_folder
     from hwsim.report.report import write_report
 
     output_folder(args.out)
     paths = write_report(args.runs, args.out)
     if not args.quiet:
-        print(f"wrote {paths['md']} and {paths['html'].name}")
+        print(f"wrote {display_path(paths['md'])} and {paths['html'].name}")
     return 0
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
 
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import display_text, output_folder
     from hwsim.run.fidelity import resolve_arch
     from hwsim.studies.bench import failures, format_bench, run_bench
 
@@ -472,8 +472,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     resolve_arch(args.arch)
     out = output_folder(args.out)
 
-    def save(report: dict) -> None:
-        (out / "bench.json").write_text(json.dumps(report, indent=2) + "\n")
+    def save(report: dict) -> None:  # its notes' paths relative (hwsim.core.paths)
+        (out / "bench.json").write_text(display_text(json.dumps(report, indent=2)) + "\n")
 
     def log(message: str) -> None:  # above the progress bar, not through it
         if not args.quiet:

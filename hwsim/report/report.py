@@ -76,7 +76,10 @@ def load_run(folder: str | Path) -> RunRecord:
 # --------------------------------------------------------------------------- blocks
 
 
-def _scene_from_stats(stats: dict[str, Any]):
+def _scene_from_stats(stats: dict[str, Any], folder: Path | None = None):
+    """The run's scene; its recorded paths (relative: hwsim.core.paths.display_path) found
+    again beside the scene file, in the run ``folder``, the repository or here."""
+    from hwsim.core.paths import locate
     from hwsim.spec.scene import parse_scene
 
     def clean(v: Any) -> Any:
@@ -87,11 +90,14 @@ def _scene_from_stats(stats: dict[str, Any]):
         return v
 
     data = {k: v for k, v in clean(stats["scene"]).items() if k not in ("name", "source")}
-    return parse_scene(
-        data,
-        source=stats["scene"].get("source", "<stats.json>"),
-        name=stats["scene"].get("name", "scene"),
-    )
+    source = stats["scene"].get("source", "<stats.json>")
+    if source.endswith(".toml"):
+        source = str(locate(source, folder))
+    volume = data.get("volume", {})
+    if volume.get("path"):
+        beside = Path(source).parent if source.endswith(".toml") else None
+        volume["path"] = str(locate(volume["path"], beside, folder))
+    return parse_scene(data, source=source, name=stats["scene"].get("name", "scene"))
 
 
 def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | None, str]:
@@ -104,7 +110,7 @@ def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | Non
         from hwsim.run.fidelity import render
 
         try:
-            ideal = render(_scene_from_stats(run.stats), fidelity="golden")
+            ideal = render(_scene_from_stats(run.stats, run.folder), fidelity="golden")
         except HwsimError as exc:
             return None, f"ideal reference unavailable: {exc}"
         return ideal.image, "the ideal ray caster, rendered by the report (algorithmic error)"
@@ -120,7 +126,7 @@ def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | Non
     try:
         from hwsim.run.fidelity import render
 
-        scene = _scene_from_stats(run.stats)
+        scene = _scene_from_stats(run.stats, run.folder)
         arch = run.stats["arch"]
         golden = render(
             scene, fidelity="golden", arch=arch, sampling="ray" if arch else run.stats["sampling"]
@@ -510,7 +516,7 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     if not figures and SHIPPED_FIGURES.is_file():
         figures.append(SHIPPED_FIGURES)
     for path in figures:
-        blocks += _figures_blocks(path)
+        blocks += _figures_blocks(path, out)
     if not figures:
         blocks += [
             ("h2", "Published figures of every machine"),
@@ -526,11 +532,13 @@ SHIPPED_FIGURES = (
 )
 
 
-def _figures_blocks(path: Path) -> list[Block]:
+def _figures_blocks(path: Path, out: Path) -> list[Block]:
+    from hwsim.core.paths import display_path
     from hwsim.studies.figures_tables import EVIDENCE_LEGEND, loo_table, table
 
     data = json.loads(path.read_text())
     m = data.get("machine", {})
+    shown = display_path(path, out)  # never this machine's absolute path
     header, body = merged_diffs(*figure_units(*table(data["rows"]), data["rows"]))
     header, body, notes = footnoted(header, body, "note")
     blocks: list[Block] = [
@@ -538,7 +546,7 @@ def _figures_blocks(path: Path) -> list[Block]:
         (
             "p",
             f"Each machine's published figure against hwsim's at every timing rung, on its "
-            f"scenario (docs/figures.md); from {path}, measured {m.get('measured', '?')} "
+            f"scenario (docs/figures.md); from {shown}, measured {m.get('measured', '?')} "
             f"with hwsim {m.get('hwsim', '?')}. Each rung's value is followed by its diff, "
             "simulated / published - 1; "
             "'OUT' marks a row beyond its acceptance band; notes [n] are listed under the "

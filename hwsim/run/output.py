@@ -19,7 +19,7 @@ import numpy as np
 
 from hwsim import __version__
 from hwsim.core.errors import InputError
-from hwsim.core.paths import output_file, output_folder
+from hwsim.core.paths import display_path, output_file, output_folder
 from hwsim.core.threads import frame_threads
 
 if TYPE_CHECKING:
@@ -61,23 +61,32 @@ def frame_timing(run: RenderRun) -> dict[str, float | None]:
     )  # fmt: skip
 
 
-def stats_dict(run: RenderRun) -> dict[str, Any]:
-    """The ``stats.json`` content of a render (design section 9)."""
+def stats_dict(run: RenderRun, base: str | Path | None = None) -> dict[str, Any]:
+    """The ``stats.json`` content of a render (design section 9).
+
+    Its paths (the scene file, the volume) are recorded relative to ``base`` (the run
+    folder), the repository or the working folder (:func:`hwsim.core.paths.display_path`),
+    never as this machine's absolute paths.
+    """
     timing = frame_timing(run)
     frame_seconds = timing["frame_seconds"]
     sps = run.samples / frame_seconds if frame_seconds else None
     vol = run.volume
+    scene = run.scene.to_dict()
+    scene["source"] = display_path(scene["source"], base)
+    if scene["volume"].get("path"):
+        scene["volume"]["path"] = display_path(scene["volume"]["path"], base)
     return {
         "schema": STATS_SCHEMA,
         "hwsim_version": __version__,
         "fidelity": run.fidelity,
         "arch": run.arch,
         "sampling": run.sampling,
-        "scene": run.scene.to_dict(),
+        "scene": scene,
         "transfer": transfer_stats(run.scene),  # the preset and why (auto's choice)
         "volume": {
             "name": vol.name,
-            "source": vol.source,
+            "source": display_path(vol.source, base),
             "shape_zyx": list(vol.shape),
             "spacing_zyx": list(vol.spacing),
             "dtype": str(vol.data.dtype),
@@ -132,9 +141,9 @@ def transfer_stats(scene: Scene) -> dict[str, Any]:
     return {"preset": spec.preset, "chosen_by": spec.chosen_by or "scene"}
 
 
-def stats_plain(run: RenderRun) -> dict[str, Any]:
+def stats_plain(run: RenderRun, base: str | Path | None = None) -> dict[str, Any]:
     """:func:`stats_dict` as plain JSON types (NumPy scalars and arrays converted)."""
-    return json.loads(json.dumps(stats_dict(run), default=_json_default))
+    return json.loads(json.dumps(stats_dict(run, base), default=_json_default))
 
 
 def image_to_rgb8(
@@ -174,7 +183,7 @@ def write_render(
     out = output_folder(out_dir)
     paths = {"npy": out / "image.npy", "png": out / "image.png", "stats": out / "stats.json"}
     try:
-        stats = stats_dict(run)
+        stats = stats_dict(run, out)
         if run.image is None:  # timed without its image: stats only
             del paths["npy"], paths["png"]
         else:

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hwsim.core.errors import HwsimError, InputError, NotAvailableError
+from hwsim.core.paths import display_text
 from hwsim.spec.arch import ArchConfig
 from hwsim.spec.published import (
     DEFAULT_SIZE,
@@ -343,7 +344,8 @@ def _fill_row(row: FigureRow, fig: PublishedFigure, run: Any) -> None:
         return
     if isinstance(run, HwsimError):
         row.status = "refused" if isinstance(run, InputError) else "failed"
-        row.note = "; ".join(filter(None, [row.note, str(run)]))
+        # The error names the machine's file: recorded relative to the repository.
+        row.note = "; ".join(filter(None, [row.note, display_text(str(run))]))
         return
     row.cycles, row.samples = int(run.cycles), int(run.samples)
     row.wall_seconds = round(run.wall_seconds, 3)
