@@ -106,6 +106,23 @@ def test_the_transaction_rung_reports_while_its_event_model_runs(arch, model, mo
     assert len(during) >= 2 and during[0] < 1.0 and min(during) >= 0.5, during
 
 
+@pytest.mark.parametrize("fidelity", ["transaction", "cycle"])
+def test_a_supervolume_reports_its_bricks(fidelity):
+    """A 28^3 head on a VolumePro 500 that holds 16^3: bricks, each a frame."""
+    import dataclasses
+
+    from hwsim.run.fidelity import resolve_arch
+
+    machine = dataclasses.replace(resolve_arch("volumepro500"), max_volume=(16, 16, 16))
+    scene = small_scene()
+    scene = scene.replace(volume=dataclasses.replace(scene.volume, params=(("size", 28),)))
+    progress = Recorder()
+    run = render(scene, fidelity=fidelity, arch=machine, progress=progress)
+    assert run.derived["supervolume"]["bricks"] > 1
+    progress.check()
+    assert len(progress.fractions) == run.derived["supervolume"]["bricks"]
+
+
 def test_a_turntable_reports_its_frames():
     progress = Recorder()
     render_turntable(small_scene(), 3, 30.0, progress=progress, fidelity="functional")
