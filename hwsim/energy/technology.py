@@ -62,6 +62,11 @@ _KEYS = {
 _SCALING = {"energy": (1, 2), "area": (2, 0), "timing": (1, 0), "leakage": (0, 0)}
 #: Keys that never scale by the logic rules (external memory): a derived file gives them.
 _OWN = {"dram_read_bit_pj", "dram_activate_pj", "dram_refresh_pj", "w_per_mm2"}
+#: Tables whose values are divisors somewhere (gate equivalents = area / NAND2 area,
+#: fmax = 1 / (levels x FO4 delay)): zero is refused at load.
+_POSITIVE = {"area", "timing"}
+#: A derived file's ``base`` chain: at most this many files deep.
+MAX_BASE_DEPTH = 8
 #: Ratios that hold at every node (a gate level in FO4): taken from the base as they are.
 _RATIOS = {"gate_level_fo4"}
 
@@ -161,7 +166,9 @@ def _parse(data: dict, source: str, base: Technology | None) -> Technology:
         for key in keys:
             if table.has(key):
                 entry = table.table(key)
-                values[table_name][key] = entry.number("value", lo=0.0, hi=1e12)
+                # Areas and delays divide (gate equivalents, fmax): strictly positive.
+                positive = table_name in _POSITIVE
+                values[table_name][key] = entry.number("value", lo=0.0, hi=1e12, lo_open=positive)
                 tag = entry.choice("tag", ("V", "R", "I"))
                 tags[table_name][key] = (tag, entry.string("source"))
                 entry.finish()
@@ -204,27 +211,53 @@ _CACHE: dict[str, Technology] = {}
 def load_technology(name_or_path: str) -> Technology:
     """A technology by built-in name (``cmos45``, ``cmos250``, ``cmos350``) or from a
     TOML file; a derived file's ``base`` is looked up the same way (relative paths from the
-    file's folder)."""
-    if name_or_path in _CACHE:
-        return _CACHE[name_or_path]
+    file's folder).  A ``base`` chain that comes back to a file it passed, or is deeper than
+    :data:`MAX_BASE_DEPTH`, is refused naming the chain."""
+    return _load(name_or_path, ())
+
+
+def _locate(name_or_path: str, chain: tuple[tuple[str, str], ...]) -> tuple[Path, str]:
+    """The file of ``name_or_path`` and its name in messages; ``chain`` is the
+    (resolved path, source) of each file whose ``base`` led here."""
     builtins = builtin_technologies()
     if name_or_path in builtins:
         path = builtins[name_or_path]
-    elif name_or_path.endswith(".toml") or "/" in name_or_path:
-        path = Path(name_or_path)
-    else:
+        return path, f"hwsim/energy/technologies/{path.name}"
+    if name_or_path.endswith(".toml") or "/" in name_or_path:
+        return Path(name_or_path), name_or_path
+    allowed = ", ".join(sorted(builtins)) + ", or a .toml file"
+    message = f"unknown technology {name_or_path!r}"
+    if chain:
+        raise InputError(message, source=chain[-1][1], key="technology.base", allowed=allowed)
+    raise InputError(message, key="--technology", allowed=allowed)
+
+
+def _load(name_or_path: str, chain: tuple[tuple[str, str], ...]) -> Technology:
+    if name_or_path in _CACHE:
+        return _CACHE[name_or_path]
+    path, source = _locate(name_or_path, chain)
+    resolved = str(path.resolve())
+    names = " -> ".join([*(s for _, s in chain), source])
+    if resolved in (r for r, _ in chain):
         raise InputError(
-            f"unknown technology {name_or_path!r}",
-            key="--technology",
-            allowed=", ".join(sorted(builtins)) + ", or a .toml file",
+            f"base chain comes back to a file it passed: {names}",
+            source=chain[-1][1],
+            key="technology.base",
+            allowed="a chain of other files",
+        )
+    if len(chain) >= MAX_BASE_DEPTH:
+        raise InputError(
+            f"base chain deeper than {MAX_BASE_DEPTH} files: {names}",
+            source=chain[-1][1],
+            key="technology.base",
+            allowed=f"at most {MAX_BASE_DEPTH} files",
         )
     data = read_toml(path)
-    source = f"hwsim/energy/technologies/{path.name}" if name_or_path in builtins else str(path)
-    base_name = data.get("technology", {}).get("base") if isinstance(data, dict) else None
+    base_name = Table(data, source).table("technology", required=True).string("base", "")
     base = None
     if base_name:
-        found = base_name if base_name in builtins else str(path.parent / base_name)
-        base = load_technology(found)
+        found = base_name if base_name in builtin_technologies() else str(path.parent / base_name)
+        base = _load(found, (*chain, (resolved, source)))
     tech = _parse(data, source, base)
     _CACHE[name_or_path] = tech
     return tech

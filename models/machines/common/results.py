@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.core.config import Table
 from hwsim.core.errors import InputError
 from hwsim.engine import Counters, DrainFifo
 from hwsim.engine.metrics import derive
@@ -65,15 +66,10 @@ class CycleResult:
 
 def check_buffer_keys(arch: ArchConfig, known: Iterable[str]) -> None:
     """Refuse a ``[buffers]`` key the machine does not have, naming the file and key."""
-    known = list(known)
-    unknown = sorted(set(arch.buffers) - set(known))
-    if unknown:
-        raise InputError(
-            "unknown key",
-            source=arch.source,
-            key=f"buffers.{unknown[0]}",
-            allowed=", ".join(known),
-        )
+    table = Table(arch.buffers, arch.source, "buffers")
+    for key in known:
+        table.raw(key, None)
+    table.finish()
 
 
 def buffer_table(
@@ -82,17 +78,8 @@ def buffer_table(
     """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
     refused naming the file and key) and checked against what this volume ``needs``."""
     check_buffer_keys(arch, defaults)
-    out = {}
-    for key, default in defaults.items():
-        value = arch.buffers.get(key, default)
-        if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-            raise InputError(
-                f"invalid {value!r}",
-                source=arch.source,
-                key=f"buffers.{key}",
-                allowed="an integer >= 0",
-            )
-        out[key] = value
+    table = Table(arch.buffers, arch.source, "buffers")
+    out = {key: table.integer(key, default, lo=0) for key, default in defaults.items()}
     for key, need in needs.items():
         if out[key] < need:
             raise InputError(
