@@ -62,12 +62,13 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
+from hwsim.core import env
 from hwsim.core.threads import using as using_threads
 from hwsim.studies.bench import TABLE_GOALS as GOALS
 from hwsim.studies.bench import one_line, status_text
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data"))
+DATA = env.value("HWSIM_SHARED_DATA") or REPO.parent / "shared" / "data"
 CT = DATA / "ct_cranium.nrrd"
 #: The machines of the cycle, timing-only and memory rows.
 MACHINES = ("cube4", "em-cube", "volumepro500", "volumepro1000", "vizard2")

@@ -33,7 +33,6 @@ import argparse
 import dataclasses
 import functools
 import json
-import os
 import sys
 import time
 from collections.abc import Sequence
@@ -44,6 +43,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
+from hwsim.core import env
 from hwsim.core.errors import NotAvailableError
 from hwsim.run.fidelity import resolve_arch
 from hwsim.spec.scene import Scene, TransferSpec, ViewSpec, VolumeSpec
@@ -65,10 +65,8 @@ __all__ = ["CONTRACT", "annotate", "cases", "measure", "run", "main"]
 
 #: The issue's bound on the transaction rung's cycle error.
 CONTRACT = 0.02
-SHARED = Path(
-    os.environ.get(
-        "HWSIM_SHARED_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
-    )
+SHARED = env.value("HWSIM_SHARED_DATA") or (
+    Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 )
 
 PARALLEL = [(0, 0), (30, 20), (45, 0), (150, -30), (90, 45)]

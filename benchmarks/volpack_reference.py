@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import gzip
-import os
 import platform
 import shutil
 import statistics
@@ -47,6 +46,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.report_io import write_report
+from hwsim.core import env
 
 __all__ = ["EXAMPLES", "GOAL_RATIO", "volpack_available", "volpack_frame_seconds", "run", "main"]
 
@@ -56,7 +56,7 @@ HEADER = Path("/usr/include/volpack.h")
 GOAL_RATIO = 0.1
 REPO = Path(__file__).resolve().parents[1]
 #: The MR scan beside the clone (``HWSIM_SHARED_DATA`` overrides the folder, as in tests).
-VOLUME = Path(os.environ.get("HWSIM_SHARED_DATA", REPO.parent / "shared" / "data")) / (
+VOLUME = (env.value("HWSIM_SHARED_DATA") or REPO.parent / "shared" / "data") / (
     "mr_brainsmall.nrrd"
 )
 TURN = 5.0  # degrees per frame, as rendervolume turns

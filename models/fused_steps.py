@@ -44,6 +44,7 @@ from collections.abc import Callable, Iterator
 import numba
 import numpy as np
 
+from hwsim.core import interrupt
 from hwsim.core.threads import frame_threads
 from hwsim.core.threads import pool as thread_pool
 from hwsim.golden.occupancy import Occupancy
@@ -274,6 +275,7 @@ def run_steps_compiled(
         walk = _Walker(plan, blocks.distance, blocks.block, mine)
         simulated, sat = 0, np.zeros(2, dtype=np.int64)
         for j in range(plan.n_steps):
+            interrupt.check()  # Ctrl-C: the threads without progress stop here too
             m = walk.step(j, state.alive)
             if m:
                 rays = walk.rays[:m]

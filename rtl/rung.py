@@ -29,6 +29,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from hwsim.core import env
 from hwsim.core.errors import NotAvailableError
 from hwsim.core.notices import first_run
 from models.frame import Frame
@@ -94,7 +95,7 @@ def build_dir(
     """``<root>/<simulator>_top_P<P>_<key>`` (root: ``$HWSIM_RTL_BUILD`` or ``build/rtl``;
     key: :func:`build_key`, computed unless given); ``simulator = "verilog"`` is the
     exported Verilog both simulators compile."""
-    root = root or Path(os.environ.get("HWSIM_RTL_BUILD", REPO / "build" / "rtl"))
+    root = root or env.value("HWSIM_RTL_BUILD") or REPO / "build" / "rtl"
     key = key or build_key(program)
     return root / f"{simulator}_top_P{program.geo.pipelines}_{key}"
 
@@ -266,12 +267,16 @@ def _simulate(
     with subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     ) as process:
-        for line in process.stdout:  # type: ignore[union-attr]
-            if line.startswith("HWSIM_PROGRESS "):
-                if progress is not None and samples:
-                    progress(min(int(line.split()[1]), samples - 1), samples)
-                continue
-            output.append(line.rstrip("\n"))
+        try:
+            for line in process.stdout:  # type: ignore[union-attr]
+                if line.startswith("HWSIM_PROGRESS "):
+                    if progress is not None and samples:
+                        progress(min(int(line.split()[1]), samples - 1), samples)
+                    continue
+                output.append(line.rstrip("\n"))
+        except BaseException:  # Ctrl-C (or a failing progress bar): the simulator stops too
+            process.kill()
+            raise
     if progress is not None and process.returncode == 0:
         progress(max(samples, 1), max(samples, 1))
     return process.returncode, output

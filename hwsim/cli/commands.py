@@ -16,6 +16,7 @@ from hwsim.cli.progress import progress_bar as _progress_bar
 from hwsim.cli.render import DEFAULT_RENDER_OUT, cmd_convert, cmd_render
 from hwsim.cli.scene import add_scene_options
 from hwsim.cli.warm import add_warm_parser, cmd_warm
+from hwsim.core import env, interrupt
 from hwsim.core.errors import HwsimError, InputError
 from hwsim.spec.overrides import apply_overrides
 from hwsim.studies.bench import TABLE_GOALS
@@ -327,7 +328,14 @@ def _version() -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status."""
     args = build_parser().parse_args(argv)
+    with interrupt.handling_sigint():  # Ctrl-C: exit 130 in seconds, frame threads too
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the command of ``args``; its errors as one line and an exit status."""
     try:
+        env.validate()  # every HWSIM_* variable, before any work (hwsim.core.env)
         if getattr(args, "max_memory", None) is not None:
             from hwsim.core.budget import memory_budget_of, parse_size
 
@@ -344,10 +352,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout = open(os.devnull, "w")
         return 0
     except KeyboardInterrupt:
-        print("hwsim: interrupted", file=sys.stderr)
-        return 130
+        from hwsim.core.threads import join_pools
+
+        join_pools()  # each frame thread stops at its next step
+        interrupt.say()
+        return interrupt.EXIT_STATUS
     except Exception as exc:  # an internal fault: say so in one line, keep the exit code 1
-        if os.environ.get("HWSIM_DEBUG"):
+        if env.value("HWSIM_DEBUG"):
             raise
         print(
             f"hwsim: internal error: {type(exc).__name__}: {exc} "

@@ -8,7 +8,7 @@ import threading
 import time
 from collections import defaultdict
 
-from hwsim.core import notices
+from hwsim.core import interrupt, notices
 
 __all__ = ["COMPILING", "first_run_notice", "progress_bar"]
 
@@ -36,6 +36,7 @@ class progress_bar:
         return self._update
 
     def _update(self, done: int, total: int, what: str | None = None) -> None:
+        interrupt.check()  # every rung calls this regularly: a stop request ends it here
         if self.bar is None:
             from tqdm import tqdm
 
@@ -130,6 +131,8 @@ class first_run_notice:
         with self.lock:
             self.depth = 0
             self._hide()
+        if exc and isinstance(exc[1], KeyboardInterrupt):  # interrupted: its one line only
+            return
         for what, seconds in self.seconds.items():
             print(f"{what}: {seconds:.1f} s (cached for the next runs)", file=sys.stderr)
 

@@ -19,6 +19,7 @@ import os
 import re
 from collections.abc import Iterator
 
+from hwsim.core.env import value
 from hwsim.core.errors import InputError
 
 __all__ = [
@@ -48,6 +49,8 @@ ENV_VAR = "HWSIM_MAX_MEMORY"
 DEFAULT_MAX_SAMPLES = 10**10
 SAMPLE_ENV_VAR = "HWSIM_MAX_SAMPLES"
 
+#: The largest size accepted (1024 TiB): above it, a typo.
+MAX_SIZE = 1 << 50
 _SUFFIX = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 _SIZE = re.compile(r"^\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)(?:i?b)?\s*$", re.IGNORECASE)
 _override: int | None = None
@@ -66,10 +69,10 @@ def parse_size(text: str, *, key: str = "--max-memory") -> int:
         raise InputError(
             f"{text!r} is not a size", key=key, allowed="bytes, or a number with K, M, G or T"
         )
-    value = int(float(match.group(1)) * _SUFFIX[match.group(2).lower()])
-    if value < 1 << 20:
-        raise InputError(f"{text!r} is below 1 MiB", key=key, allowed="1M .. any")
-    return value
+    value = float(match.group(1)) * _SUFFIX[match.group(2).lower()]
+    if not 1 << 20 <= value <= MAX_SIZE:  # also inf, from 400 digits
+        raise InputError(f"{text!r} is out of range", key=key, allowed="1M .. 1024T")
+    return int(value)
 
 
 def available_memory_bytes() -> int:
@@ -116,9 +119,9 @@ def memory_budget() -> int:
     """Bytes one run may plan to allocate (see the module docstring for the order)."""
     if _override is not None:
         return _override
-    env = os.environ.get(ENV_VAR)
-    if env:
-        return parse_size(env, key=ENV_VAR)
+    env = value(ENV_VAR)
+    if env is not None:
+        return env
     return int(available_memory_bytes() * DEFAULT_FRACTION)
 
 
@@ -161,13 +164,5 @@ def require_fits(nbytes: float, *, what: str, source: str | None = None, key: st
 
 def sample_budget() -> int:
     """Most samples one frame may plan: ``HWSIM_MAX_SAMPLES`` or :data:`DEFAULT_MAX_SAMPLES`."""
-    env = os.environ.get(SAMPLE_ENV_VAR)
-    if not env:
-        return DEFAULT_MAX_SAMPLES
-    try:
-        value = int(float(env))
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise InputError(f"{env!r} is not a positive count", key=SAMPLE_ENV_VAR, allowed=">= 1")
-    return value
+    env = value(SAMPLE_ENV_VAR)
+    return DEFAULT_MAX_SAMPLES if env is None else env

@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import resource
 from collections.abc import Iterator
 from typing import Any
 
+from hwsim.core import env, interrupt
 from hwsim.core.errors import InputError
 
 __all__ = [
@@ -51,7 +51,7 @@ def local_client(workers: int) -> Iterator[Any]:
         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
         # One worker per core already: each render runs its frame on one thread
         # (hwsim.core.threads.frame_threads), unless the user chose otherwise.
-        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": os.environ.get("HWSIM_THREADS", "1"),
+        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": str(env.value("HWSIM_THREADS") or 1),
     }
     with dask.config.set(settings):
         cluster = LocalCluster(
@@ -61,6 +61,7 @@ def local_client(workers: int) -> Iterator[Any]:
             host="127.0.0.1",
             dashboard_address="127.0.0.1:0",
             worker_dashboard_address="127.0.0.1:0",
+            preload=[interrupt.__name__],  # the workers ignore SIGINT
             silence_logs=logging.ERROR,
         )
         try:

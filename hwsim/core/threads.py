@@ -15,9 +15,10 @@ from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
+from hwsim.core import env
 from hwsim.core.errors import InputError
 
-__all__ = ["THREADS_ENV_VAR", "frame_threads", "pool", "using"]
+__all__ = ["THREADS_ENV_VAR", "frame_threads", "join_pools", "pool", "using"]
 
 #: Environment variable: threads per frame (:func:`frame_threads`).
 THREADS_ENV_VAR = "HWSIM_THREADS"
@@ -28,16 +29,8 @@ _POOLS: dict[int, ThreadPoolExecutor] = {}
 def frame_threads() -> int:
     """Threads one frame's compiled kernels use: ``HWSIM_THREADS``, else every core this
     process may run on (sweeps start their workers with one each)."""
-    text = os.environ.get(THREADS_ENV_VAR)
-    if not text:
-        return max(1, len(os.sched_getaffinity(0)))
-    try:
-        threads = int(text)
-    except ValueError:
-        threads = 0
-    if not 1 <= threads <= 256:
-        raise InputError(f"{text!r} is not a thread count", key=THREADS_ENV_VAR, allowed="1 .. 256")
-    return threads
+    threads = env.value(THREADS_ENV_VAR)
+    return max(1, len(os.sched_getaffinity(0))) if threads is None else threads
 
 
 def pool(threads: int) -> ThreadPoolExecutor:
@@ -48,14 +41,24 @@ def pool(threads: int) -> ThreadPoolExecutor:
     return found
 
 
+def join_pools() -> None:
+    """Cancel the frame threads' queued work and wait for the running work to end (after
+    an interrupt: each part checks :func:`hwsim.core.interrupt.check` between steps)."""
+    while _POOLS:
+        _, found = _POOLS.popitem()
+        found.shutdown(wait=True, cancel_futures=True)
+
+
 @contextmanager
 def using(threads: int | None) -> Iterator[None]:
     """Frames inside the block use ``threads`` threads (None: unchanged); restored after."""
     if threads is None:
         yield
         return
-    if not 1 <= threads <= 256:
-        raise InputError(f"{threads} is out of range", key="--threads", allowed="1 .. 256")
+    if not 1 <= threads <= env.MAX_THREADS:
+        raise InputError(
+            f"{threads} is out of range", key="--threads", allowed=f"1 .. {env.MAX_THREADS}"
+        )
     old = os.environ.get(THREADS_ENV_VAR)
     os.environ[THREADS_ENV_VAR] = str(threads)
     try:

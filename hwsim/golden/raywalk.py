@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING
 import numba
 import numpy as np
 
+from hwsim.core import interrupt
 from hwsim.core.threads import frame_threads, pool
 from hwsim.golden.power import power_scalar
 from hwsim.golden.shading import unit_vector
@@ -94,6 +95,7 @@ def _walk_threaded(chunks, threads, args, acc, taken, n_steps, progress) -> None
 
     def work() -> None:
         while True:
+            interrupt.check()  # Ctrl-C: stop between tiles
             with lock:
                 sel = next(tiles, None)
             if sel is None:
