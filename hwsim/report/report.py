@@ -17,7 +17,6 @@ self-contained.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ from hwsim.core.errors import HwsimError, InputError
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
 from hwsim.report.energy import energy_blocks
+from hwsim.report.inputs import read_figures, read_image, read_stats, read_sweep_facts, read_trade
 from hwsim.report.tables import METRIC_UNITS, figure_units, footnoted, loo_units, merged_diffs
 from hwsim.studies.trade.files import EXACT_LEGEND, psnr_cell
 
@@ -55,21 +55,16 @@ class RunRecord:
 
 
 def load_run(folder: str | Path) -> RunRecord:
-    """Read ``stats.json`` and ``image.npy`` of a render folder."""
+    """Read ``stats.json`` and ``image.npy`` of a render folder, each checked against
+    its declared shape (:mod:`hwsim.report.inputs`)."""
     folder = Path(folder)
-    try:
-        stats = json.loads((folder / "stats.json").read_text())
-        image = np.load(folder / "image.npy", allow_pickle=False)
-    except FileNotFoundError as exc:
-        raise InputError(
-            f"not a run folder: {Path(exc.filename).name} missing",
-            source=str(folder),
-            key="RUN_DIR",
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"unreadable run: {exc}", source=str(folder), key="RUN_DIR") from None
+    for name in ("stats.json", "image.npy"):
+        if not (folder / name).exists():
+            raise InputError(f"not a run folder: {name} missing", source=str(folder), key="RUN_DIR")
+    stats = read_stats(folder / "stats.json")
+    image = read_image(folder / "image.npy")
     facts = folder / "sweep.json"  # written beside a sweep's run (hwsim sweep --out)
-    overrides = json.loads(facts.read_text())["arch_overrides"] if facts.is_file() else {}
+    overrides = read_sweep_facts(facts) if facts.is_file() else {}
     return RunRecord(folder, stats, image, overrides)
 
 
@@ -371,8 +366,7 @@ def _split_blocks(s: dict[str, Any]) -> list[Block]:
 
 
 def _trade_blocks(folder: Path, out: Path) -> list[Block]:
-    data = json.loads((folder / "trade.json").read_text())
-    rows = data["rows"]
+    rows = read_trade(folder / "trade.json")["rows"]
     blocks: list[Block] = [("h2", f"Fidelity-ladder trade ({folder})")]
     header = [
         "scene",
@@ -536,8 +530,8 @@ def _figures_blocks(path: Path, out: Path) -> list[Block]:
     from hwsim.core.paths import display_path
     from hwsim.studies.figures_tables import EVIDENCE_LEGEND, loo_table, table
 
-    data = json.loads(path.read_text())
-    m = data.get("machine", {})
+    data = read_figures(path)
+    m = data.get("machine") or {}
     shown = display_path(path, out)  # never this machine's absolute path
     header, body = merged_diffs(*figure_units(*table(data["rows"]), data["rows"]))
     header, body, notes = footnoted(header, body, "note")
