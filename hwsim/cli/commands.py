@@ -358,6 +358,11 @@ def _run(args: argparse.Namespace) -> int:
         interrupt.say()
         return interrupt.EXIT_STATUS
     except Exception as exc:  # an internal fault: say so in one line, keep the exit code 1
+        from hwsim.core.paths import os_problem
+
+        if (problem := os_problem(exc)) is not None:  # any OSError: a path the user gave
+            print(f"hwsim: error: {problem}", file=sys.stderr)
+            return 2
         if env.value("HWSIM_DEBUG"):
             raise
         print(

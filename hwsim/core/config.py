@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from hwsim.core.errors import InputError
+from hwsim.core.paths import input_file
 
 __all__ = ["Table", "read_toml"]
 
@@ -23,13 +24,9 @@ _MISSING = object()
 
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML file; a missing or malformed file raises :class:`InputError`."""
-    path = Path(path)
+    path = input_file(path)  # a FIFO or a device is refused, never opened
     try:
         text = path.read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", source=str(path)) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, expected a TOML file", source=str(path)) from None
     except UnicodeDecodeError:
         raise InputError("not UTF-8 text", source=str(path)) from None
     try:

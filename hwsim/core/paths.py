@@ -14,8 +14,12 @@ The tool keeps its resolved absolute paths for reading and for cache keys.
 
 from __future__ import annotations
 
+import ast
+import errno
 import os
 import re
+import stat
+from contextlib import suppress
 from functools import cache
 from pathlib import Path
 
@@ -24,6 +28,10 @@ from hwsim.core.errors import InputError
 __all__ = [
     "output_folder",
     "output_file",
+    "os_error",
+    "os_problem",
+    "file_kind",
+    "input_file",
     "repo_root",
     "display_path",
     "display_text",
@@ -38,13 +46,14 @@ def output_folder(out_dir: str | Path, key: str = "--out") -> Path:
     an unwritable output is refused up front and never after minutes of simulation.
     """
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder", source=str(out), key=key)
+    kind = file_kind(out, key)
+    if kind is not None and kind != "a folder":
+        raise InputError(f"exists and is not a folder ({kind})", source=str(out), key=key)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(
-            f"cannot create output folder: {exc.strerror}", source=str(out), key=key
+            f"cannot create output folder: {_what(exc)}", source=str(exc.filename or out), key=key
         ) from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise InputError("output folder is not writable", source=str(out), key=key)
@@ -54,12 +63,100 @@ def output_folder(out_dir: str | Path, key: str = "--out") -> Path:
 def output_file(path: str | Path, key: str) -> Path:
     """Create the folder of the output file ``path`` and check the file can be written."""
     target = Path(path)
-    if target.is_dir():
+    kind = file_kind(target, key)
+    if kind == "a folder":
         raise InputError("is a folder, expected a file name", source=str(target), key=key)
+    if kind not in (None, "a file"):  # opening a FIFO to write waits for a reader
+        raise InputError(
+            f"is {kind}, not a regular file", source=str(target), key=key, allowed="a file name"
+        )
     output_folder(target.parent if str(target.parent) else Path("."), key=key)
-    if target.exists() and not os.access(target, os.W_OK):
+    if kind is not None and not os.access(target, os.W_OK):
         raise InputError("output file is not writable", source=str(target), key=key)
     return target
+
+
+# ------------------------------------------------------------------ inputs and OS errors
+
+#: What :func:`file_kind` calls each kind of file-system entry.
+_KINDS = {
+    stat.S_IFREG: "a file",
+    stat.S_IFDIR: "a folder",
+    stat.S_IFIFO: "a named pipe (FIFO)",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+    stat.S_IFLNK: "a symbolic link",
+}
+
+
+def _what(exc: OSError) -> str:
+    """What went wrong, in the operating system's words: ``file name too long``."""
+    text = exc.strerror or str(exc) or type(exc).__name__
+    return text[:1].lower() + text[1:]
+
+
+def os_error(exc: OSError, key: str | None = None) -> InputError:
+    """The one-line :class:`InputError` for an operating-system error: the path it names
+    and what went wrong (``PATH: file name too long``).  The command line's error
+    boundary (``hwsim.cli.commands.main``) turns every escaping ``OSError`` into this."""
+    names = [n for n in (exc.filename, exc.filename2) if n is not None]
+    source = " -> ".join(os.fsdecode(n) if isinstance(n, bytes) else str(n) for n in names)
+    allowed = "names of at most 255 bytes" if exc.errno == errno.ENAMETOOLONG else None
+    return InputError(_what(exc), source=source or None, key=key, allowed=allowed)
+
+
+def os_problem(exc: BaseException) -> InputError | None:
+    """The one-line error for an exception the operating system caused, else None (a bug).
+
+    An ``OSError`` (name too long, permission denied, no space, not found, a symlink
+    loop, ...) and Python 3.11's ``RuntimeError("Symlink loop from '...'")`` of
+    ``Path.resolve`` are the user's to fix: :func:`os_error`.
+    """
+    if isinstance(exc, OSError):
+        return os_error(exc)
+    text = str(exc) if isinstance(exc, RuntimeError) else ""
+    if text.startswith("Symlink loop from "):
+        name = text.removeprefix("Symlink loop from ")
+        with suppress(ValueError, SyntaxError):
+            name = str(ast.literal_eval(name))
+        return InputError("too many levels of symbolic links (a symlink loop)", source=name)
+    return None
+
+
+def file_kind(path: str | Path, key: str | None = None) -> str | None:
+    """What ``path`` is (``"a file"``, ``"a folder"``, ``"a named pipe (FIFO)"``, ...), or
+    None when nothing is there; a name too long, a symlink loop, a folder that cannot be
+    searched and the like are a one-line :class:`InputError`."""
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as exc:
+        raise os_error(exc, key) from None
+    except ValueError:  # an embedded NUL character
+        raise InputError("path holds a NUL character", source=repr(str(path)), key=key) from None
+    return _KINDS.get(stat.S_IFMT(mode), "not a regular file")
+
+
+def input_file(path: str | Path, key: str | None = None, *, folder: bool = False) -> Path:
+    """``path`` as a :class:`Path`, checked before any reader opens it: it exists and is a
+    regular file (or a folder, with ``folder=True``).
+
+    A named pipe would block ``open`` until a writer comes, a device (``/dev/zero``) reads
+    without end and a socket cannot be opened at all, so each is refused by what it is,
+    as is a missing file, a name too long or a symlink loop: one line naming the path.
+    Every reader of a user's file (volumes, scenes, architectures, technologies, sweeps,
+    transfer tables, report inputs) opens it only after this.
+    """
+    target = Path(path)
+    kind = file_kind(target, key)
+    if kind is None:
+        raise InputError("file not found", source=str(target), key=key)
+    if kind == "a file" or (folder and kind == "a folder"):
+        return target
+    expected = "a file or a folder" if folder else "a file"
+    raise InputError(f"is {kind}, expected {expected}", source=str(target), key=key)
 
 
 @cache

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from hwsim.core.errors import InputError
+from hwsim.core.paths import input_file
 from hwsim.golden.camera import Camera, index_to_world
 from hwsim.spec.scene_features import GeometrySpec
 from hwsim.volumes.volume import Volume
@@ -141,7 +142,7 @@ def _load_pair(spec: GeometrySpec, camera: Camera, base_dir: Path) -> GeometryBu
         ("geometry.depth", spec.depth, ((h, w),)),
     ):
         p = Path(path)  # type: ignore[arg-type]
-        p = p if p.is_absolute() else base_dir / p
+        p = input_file(p if p.is_absolute() else base_dir / p, key)  # never a FIFO
         try:
             a = np.load(p, allow_pickle=False).astype(np.float64)
         except (OSError, ValueError) as exc:

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from hwsim.core.errors import InputError
+from hwsim.core.paths import file_kind, input_file
 
 __all__ = ["SceneFlags", "apply_overrides"]
 
@@ -101,9 +102,10 @@ def _transfer(scene: Any, text: str) -> Any:
     kind = Path(text).suffix.lower()
     if kind in (".toml", ".npy") or "/" in text:
         path = Path(text).expanduser().resolve()
-        if kind not in (".toml", ".npy") or not path.is_file():
+        if kind not in (".toml", ".npy") or file_kind(path, "--transfer") is None:
             why = "file not found" if kind in (".toml", ".npy") else "not a .toml or .npy file"
             raise InputError(why, source=str(path), key="--transfer", allowed=allowed)
+        input_file(path, "--transfer")  # a folder, a FIFO or a device: refused unopened
         if kind == ".toml":
             return load_transfer(path)
     elif text not in TF_PRESETS:

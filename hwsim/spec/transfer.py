@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from hwsim.core.errors import InputError
+from hwsim.core.paths import input_file
 from hwsim.spec.preset_choice import choose_preset
 from hwsim.spec.scene import TF_PRESETS, TransferSpec
 from hwsim.volumes.volume import Volume
@@ -227,9 +228,8 @@ def _table_points(spec: TransferSpec, volume: Volume, base_dir: Path) -> np.ndar
         path = base_dir / path
     source = str(path)
     key = "transfer.table"
-    if path.is_dir():
-        raise InputError("is a folder, expected an .npy file", source=source, key=key)
-    if path.exists() and path.stat().st_size > 64 << 20:  # 65536 x 4 float64 is 2 MiB
+    input_file(path, key)  # missing, a folder, a FIFO or a device: refused unopened
+    if path.stat().st_size > 64 << 20:  # 65536 x 4 float64 is 2 MiB
         raise InputError("file is over 64 MiB", source=source, key=key, allowed="an (N, 4) .npy")
     try:
         table = np.load(path, allow_pickle=False)

@@ -28,10 +28,12 @@ _SAME_POSITION = 1e-4  # mm: two slices closer than this along the normal are du
 def read_dicom_series(folder: Path) -> Volume:
     """Read every DICOM image in ``folder`` (not recursive) as one ``(z, y, x)`` volume.
 
-    Files that are not DICOM (a README, a DICOMDIR, files without pixel data) are skipped
-    unless they are named ``*.dcm``.  Raises :class:`InputError` naming the offending
-    file on a second series, differing rows/columns or orientation, duplicate slice
-    positions, multi-frame images or unreadable pixel data.
+    Files that are not DICOM (a README) are skipped unless they are named ``*.dcm``; a
+    DICOM file without pixel data is skipped (a DICOMDIR) unless it belongs to the series
+    or is named ``*.dcm``: then the series has a hole and is refused naming that file.
+    Raises :class:`InputError` naming the offending file on a second series, differing
+    rows/columns or orientation, duplicate slice positions, multi-frame images or
+    unreadable pixel data.
 
     Returns
     -------
@@ -41,24 +43,11 @@ def read_dicom_series(folder: Path) -> Volume:
         PixelSpacing[1])``.  ``bits`` is ``BitsStored`` when the rescaled values still fit
         that many bits, else the type's width.
     """
-    import pydicom
-    from pydicom.errors import InvalidDicomError
-
     folder = Path(folder)
-    slices: list[tuple[Path, Any]] = []
-    for path in sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")):
-        try:
-            ds = pydicom.dcmread(path)
-        except InvalidDicomError:
-            if path.suffix.lower() == ".dcm":
-                raise InputError("not a DICOM file", source=str(path)) from None
-            continue
-        except Exception as exc:  # pydicom raises many types for damaged files
-            raise InputError(f"cannot read DICOM: {exc}", source=str(path)) from None
-        if "PixelData" in ds:
-            slices.append((path, ds))
+    slices, bare = _read_files(folder)
     if not slices:
         raise InputError("no DICOM images in folder", source=str(folder), key="DICOM series")
+    _check_no_bare_slice(bare, slices[0][1])
     _check_consistent(slices)
     slices, positions, how = _sort(slices)
     first = slices[0][1]
@@ -108,6 +97,27 @@ def read_dicom_series(folder: Path) -> Volume:
     )
 
 
+def _read_files(folder: Path) -> tuple[list[tuple[Path, Any]], list[tuple[Path, Any]]]:
+    """The folder's DICOM files (regular files only: a FIFO is never opened), split into
+    those with pixel data and those without; a damaged one is refused naming it."""
+    import pydicom
+    from pydicom.errors import InvalidDicomError
+
+    slices: list[tuple[Path, Any]] = []
+    bare: list[tuple[Path, Any]] = []
+    for path in sorted(p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")):
+        try:
+            ds = pydicom.dcmread(path)
+        except InvalidDicomError:
+            if path.suffix.lower() == ".dcm":
+                raise InputError("not a DICOM file", source=str(path)) from None
+            continue
+        except Exception as exc:  # pydicom raises many types for damaged files
+            raise InputError(f"cannot read DICOM: {exc}", source=str(path)) from None
+        (slices if "PixelData" in ds else bare).append((path, ds))
+    return slices, bare
+
+
 #: Largest departure of a slice distance from the median, as a share of the median, that
 #: is still one regular spacing (scanners round positions to about 1e-3 mm).
 SLICE_TOLERANCE = 0.01
@@ -132,6 +142,21 @@ def _check_regular(folder: Path, positions: np.ndarray) -> None:
             allowed=f"every distance within {SLICE_TOLERANCE:.0%} of the median "
             "(resample the series first)",
         )
+
+
+def _check_no_bare_slice(bare: list[tuple[Path, Any]], first: Any) -> None:
+    """Refuse a slice of the series that has no pixel data (a hole in the stack); other
+    DICOM files without pixels (a DICOMDIR, a report of another series) are skipped."""
+    series = first.get("SeriesInstanceUID")
+    for path, ds in bare:
+        same = series is not None and ds.get("SeriesInstanceUID") == series
+        if same or path.suffix.lower() == ".dcm" or "Rows" in ds:
+            raise InputError(
+                "DICOM slice without pixel data",
+                source=str(path),
+                key="PixelData",
+                allowed="every slice of the series holds its pixels",
+            )
 
 
 def _check_consistent(slices: list[tuple[Path, Any]]) -> None:

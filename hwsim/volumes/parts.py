@@ -25,9 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from hwsim.core.errors import InputError
+from hwsim.core.paths import input_file
 from hwsim.spec.scene import VolumeSpec
 from hwsim.volumes.modality import nrrd_modality
-from hwsim.volumes.readers import HU_AIR_THRESHOLD, _nrrd_spacing, _stem, npy_header
+from hwsim.volumes.nrrd_file import _HEADER_ERRORS, byte_skip, nrrd_spacing
+from hwsim.volumes.readers import HU_AIR_THRESHOLD, _stem, npy_header
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume
 
 __all__ = ["VolumeParts", "volume_parts", "is_partial"]
@@ -145,8 +147,7 @@ def volume_parts(spec: VolumeSpec, base_dir: Path | None = None) -> VolumeParts:
     path = Path(spec.path).expanduser()
     if base_dir is not None and not path.is_absolute():
         path = Path(base_dir) / path
-    if not path.is_file():
-        raise InputError("file not found", source=str(path))
+    input_file(path)  # a FIFO, a device or a socket is never opened
     name = path.name.lower()
     modality = ("", "")
     if name.endswith(".npy"):
@@ -280,8 +281,8 @@ def _nrrd_layout(path: Path):
             header = nrrd.read_header(fh)
             dtype = nrrd.reader._determine_datatype(header)
             offset = fh.tell()
-    except (nrrd.NRRDError, OSError, ValueError, KeyError, TypeError) as exc:
-        raise InputError(f"cannot read NRRD: {exc}", source=src) from None
+    except (nrrd.NRRDError, *_HEADER_ERRORS) as exc:
+        raise InputError(f"cannot read NRRD: {exc or type(exc).__name__}", source=src) from None
     encoding = str(header.get("encoding", "raw")).lower()
     if encoding != "raw":
         raise InputError(
@@ -293,23 +294,23 @@ def _nrrd_layout(path: Path):
     sizes = [int(n) for n in header["sizes"]]
     if len(sizes) != 3:
         raise InputError(f"has {len(sizes)} axes", source=src, key="dimension", allowed="3")
-    if int(header.get("line skip", header.get("lineskip", 0))):
-        raise InputError("line skip", source=src, key="line skip", allowed="0")
-    skip = int(header.get("byte skip", header.get("byteskip", 0)))
+    lines, skip = byte_skip(header, path)  # -1 or >= 0, refused otherwise
+    if lines:
+        raise InputError(f"line skip {lines}", source=src, key="line skip", allowed="0")
     detached = header.get("data file", header.get("datafile"))
     data_path = path
     if detached is not None:
         if not isinstance(detached, str):
             raise InputError("multi-file data", source=src, key="data file", allowed="one file")
         data_path = Path(detached) if os.path.isabs(detached) else path.parent / detached
-        if not data_path.is_file():
-            raise InputError("data file not found", source=str(data_path), key="data file")
+        input_file(data_path, "data file")
         offset = 0
     shape = tuple(sizes[::-1])
     nbytes = int(np.prod(shape)) * dtype.itemsize
-    offset = os.path.getsize(data_path) - nbytes if skip == -1 else offset + skip
+    # -1: the file's last bytes, never the header's (too short a file: the size check)
+    offset = max(offset, os.path.getsize(data_path) - nbytes) if skip == -1 else offset + skip
     units = "HU" if "hounsfield" in str(header.get("content", "")).lower() else ""
-    layout = data_path, offset, shape, dtype, tuple(_nrrd_spacing(header, src)), units
+    layout = data_path, offset, shape, dtype, tuple(nrrd_spacing(header, src)), units
     return layout, nrrd_modality(header, path)
 
 

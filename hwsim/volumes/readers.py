@@ -9,20 +9,23 @@ only when that is lossless; anything a user can get wrong raises
 
 from __future__ import annotations
 
-import bz2
 import dataclasses
 import gzip
-import os
+import logging
+import struct
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from hwsim.core.budget import require_fits
-from hwsim.core.errors import InputError, one_line_warnings
+from hwsim.core.errors import InputError, one_line_warnings, warn_user
+from hwsim.core.paths import input_file
 from hwsim.spec.scene import VolumeSpec
-from hwsim.volumes.modality import nifti_modality, nrrd_modality
+from hwsim.volumes.modality import nifti_modality
 from hwsim.volumes.volume import SUPPORTED_DTYPES, Volume, require_axes
 
 __all__ = ["EXTENSIONS", "load_volume", "read_volume", "hu_units"]
@@ -98,10 +101,8 @@ def read_volume(
     Volume
         ``(z, y, x)`` data; ``units`` is ``"HU"`` for CT-like data (see :func:`hu_units`).
     """
-    path = Path(path)
+    path = input_file(path, folder=True)  # a FIFO, a device or a socket is never opened
     src = str(path)
-    if not path.exists():
-        raise InputError("file not found", source=src)
     with one_line_warnings(src):
         volume = _read_kind(path, src, shape, dtype, byte_order, header_bytes)
     if spacing is not None:
@@ -118,9 +119,12 @@ def _read_kind(path, src, shape, dtype, byte_order, header_bytes) -> Volume:
     if kind == ".npy":
         volume = _read_npy(path)
     elif kind in (".nrrd", ".nhdr"):
-        volume = _read_nrrd(path)
+        from hwsim.volumes.nrrd_file import read_nrrd
+
+        volume = read_nrrd(path)
     elif kind in (".nii", ".nii.gz"):
-        volume = _read_nifti(path)
+        with _nibabel_log(src):
+            volume = _read_nifti(path)
     elif kind == ".raw":
         volume = _read_raw(path, shape, dtype, byte_order, header_bytes)
     else:
@@ -324,164 +328,6 @@ def _read_npy(path: Path) -> Volume:
     return make_volume(data, str(path), name=_stem(path))
 
 
-#: Compressed NRRD encodings, inflated in bounded chunks by :func:`_inflate`.
-_DECOMPRESSORS = {
-    "gzip": lambda: zlib.decompressobj(zlib.MAX_WBITS | 32),
-    "gz": lambda: zlib.decompressobj(zlib.MAX_WBITS | 32),
-    "bzip2": bz2.BZ2Decompressor,
-    "bz2": bz2.BZ2Decompressor,
-}
-_CHUNK = 1 << 20
-
-
-def _read_nrrd(path: Path) -> Volume:
-    """NRRD with attached or detached data, raw, ASCII, gzip or bzip2 encoded.
-
-    The header is read first: the declared shape x type must fit the memory budget, a
-    raw payload must be as long as declared, and a compressed one is inflated in 1 MiB
-    chunks into a buffer of the declared size and refused the moment it runs past it.
-    """
-    import nrrd
-
-    src = str(path)
-    try:
-        with open(path, "rb") as fh:
-            header = nrrd.read_header(fh)
-            dtype = nrrd.reader._determine_datatype(header)
-            nbytes = declare(header["sizes"], dtype, src, key="sizes")
-            data = _nrrd_payload(path, fh, header, dtype, nbytes)
-    except (nrrd.NRRDError, OSError, ValueError, EOFError, KeyError, TypeError) as exc:
-        raise InputError(f"cannot read NRRD: {exc}", source=src) from None
-    data = data.reshape(tuple(int(n) for n in header["sizes"][::-1]))
-    spacing = _nrrd_spacing(header, src)
-    if data.ndim != 3:
-        spacing = np.ones(3)  # make_volume refuses the shape with a clear message
-    units = "HU" if "hounsfield" in str(header.get("content", "")).lower() else ""
-    meta = {"nrrd_header": {k: str(v) for k, v in header.items()}}
-    return make_volume(
-        data,
-        src,
-        spacing=tuple(spacing),
-        name=_stem(path),
-        units=units,
-        meta=meta,
-        modality=nrrd_modality(header, path),
-    )
-
-
-def _nrrd_payload(path: Path, fh, header: dict, dtype: np.dtype, nbytes: int) -> np.ndarray:
-    """The flat voxel array of a NRRD whose header ``fh`` has just been read."""
-    import nrrd
-
-    encoding = str(header.get("encoding", "raw")).lower()
-    skip = int(header.get("byte skip", header.get("byteskip", 0)))
-    lines = int(header.get("line skip", header.get("lineskip", 0)))
-    detached = header.get("data file", header.get("datafile"))
-    if encoding in ("ascii", "text", "txt") or not isinstance(detached, (str, type(None))):
-        fh.seek(0)  # text and multi-file data: pynrrd, now that the size is known to fit
-        return np.ravel(nrrd.read_data(header, fh, str(path), index_order="C"))
-    if encoding != "raw" and encoding not in _DECOMPRESSORS:
-        raise InputError(
-            f"unknown encoding {encoding!r}",
-            source=str(path),
-            key="encoding",
-            allowed="raw, ascii, gzip, bzip2",
-        )
-    if detached is not None:
-        data_path = Path(detached) if os.path.isabs(detached) else path.parent / detached
-        if not data_path.is_file():
-            raise InputError("data file not found", source=str(data_path), key="data file")
-        fh = open(data_path, "rb")
-    try:
-        for _ in range(lines):
-            fh.readline()
-        if encoding == "raw":
-            if skip == -1:
-                fh.seek(-nbytes, os.SEEK_END)
-            else:
-                fh.seek(skip, os.SEEK_CUR)
-            held = os.fstat(fh.fileno()).st_size - fh.tell()
-            if held != nbytes:
-                raise _size_error(path, held, nbytes)
-            payload = fh.read(nbytes)
-        else:
-            if skip < 0:
-                raise InputError(
-                    "byte skip -1 with compressed data", source=str(path), key="byte skip"
-                )
-            payload = _inflate(fh, _DECOMPRESSORS[encoding](), skip, nbytes, path)
-    finally:
-        if detached is not None:
-            fh.close()
-    return np.frombuffer(payload, dtype=dtype)
-
-
-def _inflate(fh, decompressor, skip: int, nbytes: int, path: Path) -> bytearray:
-    """Inflate ``fh`` into exactly ``skip + nbytes`` bytes; any more or less is refused.
-
-    Output is asked for at most one byte past what is wanted at a time, so a stream that
-    would inflate to gigabytes stops after ``skip + nbytes + 1`` bytes.
-    """
-    want = skip + nbytes
-    out = bytearray()
-    pending = b""
-    bz = isinstance(decompressor, bz2.BZ2Decompressor)
-    try:
-        while not decompressor.eof:
-            if bz and not decompressor.needs_input:
-                pending = b""  # output held back by max_length: drain it first
-            elif not pending:
-                pending = fh.read(_CHUNK)
-                if not pending:
-                    break
-            out += decompressor.decompress(pending, max_length=want + 1 - len(out))
-            pending = b"" if bz else decompressor.unconsumed_tail
-            if len(out) > want:
-                raise _size_error(path, None, nbytes)
-    except (zlib.error, OSError, EOFError) as exc:
-        raise InputError(f"damaged compressed data: {exc}", source=str(path)) from None
-    if len(out) != want:
-        raise _size_error(path, len(out) - skip, nbytes)
-    return out[skip:]
-
-
-def _size_error(path: Path, actual: int | None, nbytes: int) -> InputError:
-    held = f"more than {nbytes}" if actual is None else str(actual)
-    return InputError(
-        f"NRRD data holds {held} bytes but the header declares {nbytes}",
-        source=str(path),
-        key="sizes",
-        allowed=f"exactly {nbytes} bytes",
-    )
-
-
-def _nrrd_spacing(header: dict, src: str) -> np.ndarray:
-    """``(z, y, x)`` spacing from ``spacings`` or the ``space directions`` vector lengths.
-
-    A negative spacing is a flipped axis: its magnitude is the voxel size.  Zero or
-    non-finite spacings are refused (an axis without a spacing, ``nan`` in pynrrd,
-    defaults to 1.0).
-    """
-    ndim = len(header["sizes"])
-    if "spacings" in header:
-        spacing = np.abs(np.asarray(header["spacings"], dtype=np.float64))
-        key = "spacings"
-    elif "space directions" in header:
-        dirs = np.asarray(header["space directions"], dtype=np.float64).reshape(ndim, -1)
-        spacing = np.linalg.norm(dirs, axis=1)
-        key = "space directions"
-    else:
-        return np.ones(3)
-    if ndim == 3 and ((spacing == 0) | np.isinf(spacing)).any():
-        raise InputError(
-            f"spacing {spacing.tolist()} has a zero or infinite axis",
-            source=src,
-            key=key,
-            allowed="finite numbers > 0",
-        )
-    return np.where(np.isnan(spacing), 1.0, spacing)[::-1]
-
-
 def _read_raw(
     path: Path,
     shape: tuple[int, int, int] | None,
@@ -545,6 +391,7 @@ def _read_nifti(path: Path) -> Volume:
     import nibabel as nib
 
     src = str(path)
+    _check_nifti_header(path)
     try:
         image = nib.load(src)  # the header only: the data stays on disk behind a proxy
         proxy = image.dataobj
@@ -584,6 +431,72 @@ def _read_nifti(path: Path) -> Volume:
     data = np.ascontiguousarray(np.transpose(raw, tuple(range(raw.ndim))[::-1]))
     spacing = tuple(zooms[:3][::-1]) if raw.ndim == 3 else (1.0, 1.0, 1.0)
     return make_volume(data, src, spacing=spacing, name=_stem(path), meta=meta, modality=modality)
+
+
+class _Collect(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__()
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextmanager
+def _nibabel_log(source: str) -> Iterator[None]:
+    """nibabel logs its header repairs to stderr itself and through the root logger; keep
+    them, and pass each on as one :func:`warn_user` line only if the read succeeds (a
+    failed read is hwsim's one error line, nothing else)."""
+    logger = logging.getLogger("nibabel.global")
+    handlers, propagate = list(logger.handlers), logger.propagate
+    collect = _Collect()
+    for handler in handlers:
+        logger.removeHandler(handler)
+    logger.addHandler(collect)
+    logger.propagate = False
+    try:
+        yield
+    finally:
+        logger.removeHandler(collect)
+        for handler in handlers:
+            logger.addHandler(handler)
+        logger.propagate = propagate
+    for message in dict.fromkeys(collect.messages):
+        warn_user(source, message)
+
+
+#: ``sizeof_hdr`` of NIfTI-1 and NIfTI-2 headers, and where each keeps ``dim``.
+_NIFTI_DIM = {348: (40, "h"), 540: (16, "q")}
+
+
+def _check_nifti_header(path: Path) -> None:
+    """Refuse a header nibabel would only log about: ``sizeof_hdr`` that is not 348 or
+    540 in either byte order, or ``dim[0]`` (the number of dimensions) outside 1 .. 7.
+
+    nibabel guesses the byte order from ``dim[0]``, so a bad one makes it log a cascade
+    of repairs to stderr before it fails; this says the one thing that is wrong."""
+    opener = gzip.open if path.name.lower().endswith(".gz") else open
+    try:
+        with opener(path, "rb") as fh:
+            head = fh.read(48)  # sizeof_hdr and dim[0] of either version
+    except (OSError, EOFError, zlib.error) as exc:
+        raise InputError(f"cannot read NIfTI: {exc}", source=str(path)) from None
+    for order in "<>" if len(head) == 48 else "":
+        size = struct.unpack(order + "i", head[:4])[0]
+        if size in _NIFTI_DIM:
+            offset, code = _NIFTI_DIM[size]
+            ndim = struct.unpack_from(order + code, head, offset)[0]
+            if not 1 <= ndim <= 7:
+                raise InputError(
+                    f"{ndim} dimensions", source=str(path), key="dim[0]", allowed="1 .. 7"
+                )
+            return
+    raise InputError(
+        "not a NIfTI header (sizeof_hdr is neither 348 nor 540, or the file is shorter)",
+        source=str(path),
+        key="sizeof_hdr",
+        allowed="a NIfTI-1 or NIfTI-2 file",
+    )
 
 
 def _check_nifti_size(path: Path, expected: int) -> None:

@@ -87,7 +87,7 @@ def _cases(tmp):
         cases.append((p, fragment))
     p = tmp / "detached.nhdr"
     _nrrd(p, (8, 8, 8), b"", extra="data file: missing.raw")
-    cases.append((tmp / "missing.raw", "data file not found"))
+    cases.append((tmp / "missing.raw", "data file: file not found"))
     p = tmp / "zero.nrrd"
     _nrrd(p, (8, 8, 8), b"\0" * 512, extra="spacings: 1 0 1")
     cases.append((p, "zero or infinite"))
@@ -151,8 +151,10 @@ def test_dicom_series_with_a_gap_is_refused(tmp_path, capsys):
         ds.ImageOrientationPatient = [1, 0, 0, 0, 1, 0]
         ds.PixelSpacing = [1.0, 1.0]
         ds.PixelData = np.zeros((4, 4), np.int16).tobytes()
-        ds.save_as(tmp_path / f"s{i}.dcm", enforce_file_format=True)
-    assert main(["render", "--volume", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+        (tmp_path / "series").mkdir(exist_ok=True)
+        ds.save_as(tmp_path / "series" / f"s{i}.dcm", enforce_file_format=True)
+    volume = str(tmp_path / "series")  # the output beside it: never inside an input
+    assert main(["render", "--volume", volume, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "not evenly spaced" in err and "ImagePositionPatient" in err and err.count("\n") == 1
 
