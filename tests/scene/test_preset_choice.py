@@ -8,8 +8,8 @@ import nibabel as nib
 import nrrd
 import numpy as np
 import pytest
-from pydicom.dataset import Dataset, FileMetaDataset
-from pydicom.uid import ExplicitVRLittleEndian, MRImageStorage, generate_uid
+from dicom_files import write_slice
+from pydicom.uid import MRImageStorage
 
 from hwsim.spec.preset_choice import choose_preset, resolve_auto
 from hwsim.spec.scene import TransferSpec, VolumeSpec
@@ -151,23 +151,14 @@ def test_nifti_description(tmp_path, rng):
 def write_mr_series(folder, data: np.ndarray) -> None:
     folder.mkdir()
     for k, plane in enumerate(data):
-        meta = FileMetaDataset()
-        meta.MediaStorageSOPClassUID = MRImageStorage
-        meta.MediaStorageSOPInstanceUID = generate_uid()
-        meta.TransferSyntaxUID = ExplicitVRLittleEndian
-        ds = Dataset()
-        ds.file_meta = meta
-        ds.SOPClassUID, ds.SOPInstanceUID = MRImageStorage, meta.MediaStorageSOPInstanceUID
-        ds.Modality, ds.StudyInstanceUID, ds.SeriesInstanceUID = "MR", "1.2", "1.2.3"
-        ds.Rows, ds.Columns = plane.shape
-        ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
-        ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 16, 16, 15, 0
-        ds.PixelSpacing, ds.SliceThickness = [1.0, 1.0], 1.0
-        ds.ImageOrientationPatient = [1, 0, 0, 0, 1, 0]
-        ds.ImagePositionPatient = [0.0, 0.0, float(k)]
-        ds.InstanceNumber = k + 1
-        ds.PixelData = plane.astype("<u2").tobytes()
-        ds.save_as(folder / f"IM{k}.dcm", enforce_file_format=True)
+        write_slice(
+            folder / f"IM{k}.dcm",
+            plane,
+            sop_class=MRImageStorage,
+            modality="MR",
+            position=(0.0, 0.0, float(k)),
+            instance=k + 1,
+        )
 
 
 def test_dicom_modality_tag(tmp_path, rng):

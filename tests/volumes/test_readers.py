@@ -9,8 +9,8 @@ import nibabel as nib
 import nrrd
 import numpy as np
 import pytest
-from pydicom.dataset import Dataset, FileMetaDataset
-from pydicom.uid import CTImageStorage, ExplicitVRLittleEndian, generate_uid
+from dicom_files import write_slice
+from pydicom.uid import CTImageStorage
 
 from hwsim.core.errors import InputError
 from hwsim.spec.scene import VolumeSpec
@@ -279,27 +279,24 @@ def test_raw_errors(tmp_path, asym, kwargs, needle):
 
 def write_ct_slice(path, hu, *, position, normal_rows, instance, series, rows_cols=None):
     """One CT slice: 12-bit unsigned stored values, rescale intercept -1024 -> HU."""
-    meta = FileMetaDataset()
-    meta.MediaStorageSOPClassUID = CTImageStorage
-    meta.MediaStorageSOPInstanceUID = generate_uid()
-    meta.TransferSyntaxUID = ExplicitVRLittleEndian
-    ds = Dataset()
-    ds.file_meta = meta
-    ds.SOPClassUID, ds.SOPInstanceUID = CTImageStorage, meta.MediaStorageSOPInstanceUID
-    ds.Modality = "CT"
-    ds.StudyInstanceUID, ds.SeriesInstanceUID = "1.2.3", series
-    ds.Rows, ds.Columns = rows_cols or hu.shape
-    ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
-    ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 16, 12, 11, 0
-    ds.PixelSpacing = [1.25, 0.5]  # between rows (y), between columns (x)
-    ds.SliceThickness = 2.5
-    ds.ImageOrientationPatient = [*normal_rows[0], *normal_rows[1]]
-    ds.ImagePositionPatient = [float(v) for v in position]
-    if instance is not None:
-        ds.InstanceNumber = instance
-    ds.RescaleSlope, ds.RescaleIntercept, ds.RescaleType = 1, -1024, "HU"
-    ds.PixelData = (hu.astype(np.int32) + 1024).astype("<u2").tobytes()
-    ds.save_as(path, enforce_file_format=True)
+    write_slice(
+        path,
+        hu.astype(np.int32) + 1024,
+        sop_class=CTImageStorage,
+        modality="CT",
+        position=position,
+        orientation=[*normal_rows[0], *normal_rows[1]],
+        spacing=(1.25, 0.5),  # between rows (y), between columns (x)
+        thickness=2.5,
+        bits_stored=12,
+        study="1.2.3",
+        series=series,
+        instance=instance,
+        rows_cols=rows_cols,
+        RescaleSlope=1,
+        RescaleIntercept=-1024,
+        RescaleType="HU",
+    )
 
 
 def write_series(folder, volume, *, shuffle=(2, 0, 3, 1), instances=True, series="1.2.3.4"):
