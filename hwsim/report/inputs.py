@@ -155,6 +155,39 @@ def read_sweep_facts(path: Path) -> dict[str, Any]:
     return read_json(path, SWEEP_FACTS)["arch_overrides"]
 
 
+#: A row of a sweep database (hwsim.studies.sweep.db) as the report's sweep table reads it.
+SWEEP_ROW = {
+    "label": OneOf(str, None),
+    "status": str,
+    "cycles": OneOf(int, None),
+    **{k: _NULL_NUM for k in ("frame_seconds", "samples_per_second", "wall_seconds")},
+    "includes_compile": Opt(int),
+    "error": OneOf(str, None),
+    "params": Opt(dict),
+}
+
+
+def read_sweep_rows(path: Path) -> list[dict[str, Any]]:
+    """The runs of a sweep database, sorted by their parameters, each checked against
+    :data:`SWEEP_ROW`; a JSON column that does not parse is one line naming the file."""
+    import sqlite3
+
+    from hwsim.studies.sweep.db import RunsDB, by_parameters
+
+    try:
+        with RunsDB(path, create=False) as db:
+            rows = db.rows()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"unreadable sweep database: {exc}", source=str(path)) from None
+    except (ValueError, RecursionError):  # json.loads of the params or stats column
+        raise InputError(
+            "a params or stats column is not JSON", source=str(path), key="runs"
+        ) from None
+    for i, row in enumerate(rows):
+        check_shape(row, SWEEP_ROW, str(path), f"runs[{i}]")
+    return by_parameters(rows)
+
+
 def read_image(path: Path) -> np.ndarray:
     """A run's ``image.npy``: a 2-D (gray) or 3-D (channels last) array of real numbers,
     not all NaN; anything else is one line naming the file."""

@@ -27,7 +27,14 @@ from hwsim.core.errors import HwsimError, InputError
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
 from hwsim.report.energy import energy_blocks
-from hwsim.report.inputs import read_figures, read_image, read_stats, read_sweep_facts, read_trade
+from hwsim.report.inputs import (
+    read_figures,
+    read_image,
+    read_stats,
+    read_sweep_facts,
+    read_sweep_rows,
+    read_trade,
+)
 from hwsim.report.tables import METRIC_UNITS, figure_units, footnoted, loo_units, merged_diffs
 from hwsim.studies.trade.files import EXACT_LEGEND, psnr_cell
 
@@ -420,15 +427,7 @@ def _sweep_blocks(path: Path) -> list[Block]:
     """One row per run of a sweep database (``hwsim sweep --db``), sorted by the runs'
     parameters (:func:`hwsim.studies.sweep.db.by_parameters`); a run whose wall time
     includes its worker's JIT compile is marked."""
-    import sqlite3
-
-    from hwsim.studies.sweep.db import RunsDB, by_parameters
-
-    try:
-        with RunsDB(path, create=False) as db:
-            rows = by_parameters(db.rows())
-    except sqlite3.DatabaseError as exc:
-        raise InputError(f"unreadable sweep database: {exc}", source=str(path)) from None
+    rows = read_sweep_rows(path)
     failed = sum(r["status"] != "ok" for r in rows)
     table = [
         [
