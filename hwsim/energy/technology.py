@@ -252,7 +252,17 @@ def _load(name_or_path: str, chain: tuple[tuple[str, str], ...]) -> Technology:
             key="technology.base",
             allowed=f"at most {MAX_BASE_DEPTH} files",
         )
-    data = read_toml(path)
+    try:
+        data = read_toml(path)
+    except InputError as exc:
+        if not chain:
+            raise
+        raise InputError(  # named by the file whose base it is
+            f"base {str(path)!r}: {exc.message}",
+            source=chain[-1][1],
+            key="technology.base",
+            allowed=exc.allowed or "a built-in technology or a .toml file beside this one",
+        ) from None
     base_name = Table(data, source).table("technology", required=True).string("base", "")
     base = None
     if base_name:
