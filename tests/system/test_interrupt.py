@@ -25,7 +25,8 @@ pytestmark = [pytest.mark.system, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]
 #: Generous: a hang, not a slow machine, is what fails.
 HANG_GUARD_SECONDS = 600
-HEAD = ["--phantom", "head:size=256", "--threads", "2"]
+HEAD = ["--threads", "2"]
+SMALL, LARGE = ["--phantom", "head:size=128"], ["--phantom", "head:size=256"]
 OUTPUTS = ("image.npy", "image.png", "stats.json", "throughput.csv", "units.csv", "memory.csv")
 
 
@@ -74,9 +75,9 @@ def _assert_interrupted(status: int, err: str, out: Path) -> None:
 @pytest.mark.parametrize(
     ("rung", "extra"),
     [
-        ("golden", ["--image", "1024"]),
-        ("functional", ["--arch", "volumepro500", "--image", "512"]),
-        ("cycle", ["--arch", "volumepro500"]),
+        ("golden", [*SMALL, "--image", "1024"]),
+        ("functional", [*SMALL, "--arch", "volumepro500", "--image", "1024"]),
+        ("cycle", [*LARGE, "--arch", "volumepro500"]),
     ],
 )
 def test_sigint_stops_a_render(tmp_path, rung, extra):
@@ -88,7 +89,7 @@ def test_sigint_stops_a_render(tmp_path, rung, extra):
 
 def test_sigint_stops_a_turntable(tmp_path):
     out = tmp_path / "turntable"
-    args = ["render", *HEAD, "--image", "512", "--frames", "40", "--out", str(out)]
+    args = ["render", *HEAD, *SMALL, "--image", "512", "--frames", "40", "--out", str(out)]
     status, err = _interrupt_when_started(args, "frames:")
     _assert_interrupted(status, err, out)
     assert not (out / "turntable.gif").exists()
@@ -98,7 +99,7 @@ def test_sigint_stops_a_sweep_and_its_cluster(tmp_path):
     sweep = tmp_path / "sweep.toml"
     sweep.write_text(
         'schema = 1\n[sweep]\narch = ["volumepro500"]\nfidelity = ["cycle"]\n'
-        'phantom = ["head:size=192", "head:size=224"]\nimage = [256]\npipelines = [1, 2, 4]\n'
+        'phantom = ["head:size=64", "head:size=256"]\nimage = [256]\npipelines = [1, 2, 4]\n'
     )
     args = ["sweep", str(sweep), "--workers", "2", "--db", str(tmp_path / "runs.db")]
     status, err = _interrupt_when_started(args, "sweep:")
