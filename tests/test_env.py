@@ -2,9 +2,9 @@
 command like a flag: accepted, or one line naming the variable and its allowed range and
 exit status 2, before any work (a sweep's workers start only after the check).
 
-The command run is ``hwsim scenes`` (no work of its own), in process; hypothesis draws
-the values.  Two static checks keep the list honest: docs/cli.md has a row for every
-variable, and the code reads no ``HWSIM_*`` variable that :data:`VARIABLES` lacks.
+tests/fuzz/test_env.py draws values with hypothesis.  Two static checks here keep the
+list honest: docs/cli.md has a row for every variable, and the code reads no
+``HWSIM_*`` variable that :data:`VARIABLES` lacks.
 """
 
 from __future__ import annotations
@@ -13,55 +13,11 @@ import re
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, example, given, settings
-from hypothesis import strategies as st
 
 from hwsim.cli.commands import main
 from hwsim.core import env
-from hwsim.core.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]
-#: Printable text an environment can hold (no NUL, no lone surrogate).
-TEXT = st.text(st.characters(blacklist_categories=("Cs",), blacklist_characters="\0"), max_size=40)
-ODD = ["inf", "-inf", "nan", "abc", "-1", "0", "1e400", "9" * 400, " ", "1.5", "0x10", "2G", "-2G"]
-VALUES = st.one_of(TEXT, st.sampled_from(ODD), st.integers().map(str), st.floats().map(str))
-#: Read through hwsim.core.env: what the parsers return for each variable.
-KINDS = {"HWSIM_THREADS": int, "HWSIM_MAX_MEMORY": int, "HWSIM_MAX_SAMPLES": int,
-         "HWSIM_DEBUG": bool, "HWSIM_RTL_BUILD": Path, "HWSIM_SHARED_DATA": Path}  # fmt: skip
-
-
-@settings(
-    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
-@given(name=st.sampled_from(sorted(env.VARIABLES)), text=VALUES)
-@example(name="HWSIM_MAX_SAMPLES", text="inf")
-@example(name="HWSIM_THREADS", text="abc")
-@example(name="HWSIM_THREADS", text="-3")
-@example(name="HWSIM_THREADS", text="100000")
-@example(name="HWSIM_MAX_MEMORY", text="9" * 400)
-def test_a_value_is_accepted_or_refused_in_one_line(monkeypatch, capsys, name, text):
-    with monkeypatch.context() as patch:  # one example's value, not the earlier ones'
-        patch.setenv(name, text)
-        _accepted_or_refused(name, *_run_scenes(capsys))
-
-
-def _run_scenes(capsys) -> tuple[int, str]:
-    status = main(["scenes"])
-    return status, capsys.readouterr().err
-
-
-def _accepted_or_refused(name: str, status: int, err: str) -> None:
-    if status == 0:
-        value = env.value(name)  # what the library reads: of its kind, in range
-        assert value is None or isinstance(value, KINDS[name]), value
-        if name == "HWSIM_THREADS" and value is not None:
-            assert 1 <= value <= env.MAX_THREADS
-        return
-    assert status == 2, err
-    assert err.count("\n") == 1 and err.startswith(f"hwsim: error: {name}: "), err
-    assert "(allowed: " in err, err
-    with pytest.raises(InputError):
-        env.value(name)
 
 
 @pytest.mark.parametrize(

@@ -73,7 +73,11 @@ def _flag(name: str, text: str) -> bool:
 
 def _folder(name: str, text: str) -> Path:
     path = Path(text).expanduser()
-    if "\0" in text or (path.exists() and not path.is_dir()):
+    try:
+        wrong = "\0" in text or (path.exists() and not path.is_dir())
+    except OSError as exc:  # a name too long, a loop of links
+        raise InputError(f"{exc.strerror or exc}", key=name, allowed="a folder path") from None
+    if wrong:
         raise InputError(f"{text!r} is not a folder", key=name, allowed="a folder path")
     return path
 
