@@ -54,7 +54,8 @@ class Table:
 
     def __init__(self, data: dict[str, Any], source: str, path: str = "") -> None:
         if not isinstance(data, dict):
-            raise InputError("must be a table", source=source, key=path or "<top>")
+            got = f"{data!r}" if len(repr(data)) <= 40 else f"{repr(data)[:37]}..."
+            raise InputError(f"must be a table, got {got}", source=source, key=path or "<top>")
         self.data = data
         self.source = source
         self.path = path
@@ -131,6 +132,20 @@ class Table:
         if value not in choices:
             raise self.error(name, f"unknown value {value!r}", ", ".join(choices))
         return value
+
+    def choices(
+        self, name: str, allowed: Sequence[Any], default: Any = _MISSING
+    ) -> tuple[Any, ...]:
+        """A non-empty list of values from ``allowed`` (a machine's modes, voxel widths),
+        each of the same type as the allowed value it equals (``8.0`` is not ``8``)."""
+        value = self.raw(name, default)
+        text = "a non-empty list of " + ", ".join(map(str, allowed))
+        if not isinstance(value, list) or not value:
+            raise self.error(name, f"must be a list, got {value!r}", text)
+        for i, v in enumerate(value):
+            if not any(type(v) is type(a) and v == a for a in allowed):
+                raise self.error(name, f"unknown value {v!r} (item {i})", text)
+        return tuple(value)
 
     def vector(
         self,

@@ -198,11 +198,7 @@ _FEATURE_KEYS = (
 
 def _declared(features: Table, name: str, default: tuple[str, ...]) -> tuple[str, ...]:
     """A declared feature list: a non-empty list of :data:`FEATURE_CHOICES` values."""
-    allowed = FEATURE_CHOICES[name]
-    value = features.raw(name, list(default))
-    if not isinstance(value, list) or not value or any(v not in allowed for v in value):
-        raise features.error(name, f"invalid {value!r}", f"a list of {', '.join(allowed)}")
-    return tuple(value)
+    return features.choices(name, FEATURE_CHOICES[name], list(default))
 
 
 def _sources(features: Table) -> dict[str, str]:
@@ -226,9 +222,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
     features = top.table("features")
     overheads = top.table("overheads")
     silicon = top.table("silicon")
-    bits = limits.raw("voxel_bits", [8, 12, 16])
-    if not isinstance(bits, list) or not bits or any(b not in (8, 12, 16, 32) for b in bits):
-        raise limits.error("voxel_bits", f"invalid {bits!r}", "a list of 8, 12, 16, 32")
+    bits = limits.choices("voxel_bits", (8, 12, 16, 32), [8, 12, 16])
     max_volume = tuple(int(v) for v in limits.vector("max_volume", 3, [256] * 3, 1, 1 << 16))
     ss = features.vector("supersampling", 2, [1.0, 1.0], 0.125, 16)
     if ss[1] < ss[0]:
@@ -241,7 +235,7 @@ def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
         family=_family(p),
         pipelines=p.integer("count", lo=1, hi=4096),
         clock_hz=p.number("clock_hz", lo=1.0, hi=10e9),
-        voxel_bits=tuple(bits),
+        voxel_bits=bits,
         max_volume=max_volume,  # type: ignore[arg-type]
         perspective=features.boolean("perspective", False),
         early_termination=features.boolean("early_termination", False),
