@@ -327,8 +327,12 @@ def _version() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status."""
-    args = build_parser().parse_args(argv)
     with interrupt.handling_sigint():  # Ctrl-C: exit 130 in seconds, frame threads too
+        try:
+            args = build_parser().parse_args(argv)  # imports most of hwsim: seconds
+        except KeyboardInterrupt:
+            interrupt.say()
+            return interrupt.EXIT_STATUS
         return _run(args)
 
 
