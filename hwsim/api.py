@@ -423,7 +423,7 @@ def sweep(
     from hwsim.core.paths import output_file, output_folder
     from hwsim.studies.sweep.db import RunsDB, check_ours
     from hwsim.studies.sweep.runner import run_sweep
-    from hwsim.studies.sweep.spec import load_sweep, parse_sweep, run_key
+    from hwsim.studies.sweep.spec import load_sweep, parse_sweep
 
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
         raise InputError(f"{workers!r} is out of range", key="workers", allowed="1 .. 256")
@@ -438,17 +438,21 @@ def sweep(
         check_address(scheduler)
     if out is not None:
         output_folder(out)
-    keys = {run_key(r) for r in plan.runs}
+    keys: set[str] = set()
     with _budget(max_memory), contextlib.ExitStack() as stack:
-        runs_db = stack.enter_context(RunsDB(db))
-        if retry_failed:
-            runs_db.delete_failed()
-        if scheduler:
+        if scheduler:  # reached before the database is opened or changed
             client = stack.enter_context(connect(scheduler))
         else:
             client = stack.enter_context(local_client(workers))
+        runs_db = stack.enter_context(RunsDB(db))
         summary = run_sweep(
-            plan, runs_db, client, out_dir=str(out) if out is not None else None, progress=progress
+            plan,
+            runs_db,
+            client,
+            out_dir=str(out) if out is not None else None,
+            progress=progress,
+            retry_failed=retry_failed,
+            keys=keys,
         )
         rows = [r for r in runs_db.rows() if r["key"] in keys]
     summary.rows = rows

@@ -13,11 +13,15 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import resource
-from collections.abc import Iterator
+import socket
+import struct
+import threading
+import time
+from collections.abc import Callable, Iterator
 from typing import Any
 
-from hwsim.core import env, interrupt
 from hwsim.core.errors import InputError
 
 __all__ = [
@@ -25,6 +29,9 @@ __all__ = [
     "local_client",
     "connect",
     "check_address",
+    "heartbeat",
+    "scheduler_workers",
+    "scheduler_timeout",
     "client_for",
     "peak_rss_bytes",
     "reset_peak_rss",
@@ -51,7 +58,7 @@ def local_client(workers: int) -> Iterator[Any]:
         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
         # One worker per core already: each render runs its frame on one thread
         # (hwsim.core.threads.frame_threads), unless the user chose otherwise.
-        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": str(env.value("HWSIM_THREADS") or 1),
+        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": os.environ.get("HWSIM_THREADS", "1"),
     }
     with dask.config.set(settings):
         cluster = LocalCluster(
@@ -61,7 +68,6 @@ def local_client(workers: int) -> Iterator[Any]:
             host="127.0.0.1",
             dashboard_address="127.0.0.1:0",
             worker_dashboard_address="127.0.0.1:0",
-            preload=[interrupt.__name__],  # the workers ignore SIGINT
             silence_logs=logging.ERROR,
         )
         try:
@@ -71,33 +77,214 @@ def local_client(workers: int) -> Iterator[Any]:
             cluster.close()
 
 
+#: Address schemes ``--scheduler`` accepts: Dask's TCP transport, what ``dask scheduler``
+#: listens on by default.  ``tls://`` needs certificates hwsim has no options for,
+#: ``inproc://`` reaches only a scheduler inside this process, and ``ucx://`` / ``ws://``
+#: need extras this install does not have, so each is refused by name before connecting.
+SCHEMES = ("tcp",)
+_ALLOWED_ADDRESS = "tcp://HOST:PORT (or HOST:PORT) with PORT in 1 .. 65535"
+
+#: Seconds between two liveness checks of the scheduler while waiting for results.
+HEARTBEAT_SECONDS = 5.0
+
+
 def check_address(address: str) -> None:
-    """``[tcp://]host:port`` with a port in 1 .. 65535, or a one-line input error."""
-    rest = address.split("://", 1)[-1]
-    host, _, port = rest.rpartition(":")
-    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+    """``[tcp://]host:port`` with a port in 1 .. 65535, or a one-line input error naming
+    ``--scheduler`` and the allowed form (an unsupported scheme is named)."""
+    scheme, sep, rest = address.partition("://")
+    if sep and scheme.lower() not in SCHEMES:
         raise InputError(
-            f"{address!r} has no port",
-            source=address,
+            f"unsupported address scheme {scheme + '://'!r} in {address!r}",
             key="--scheduler",
-            allowed="tcp://HOST:PORT with PORT in 1 .. 65535",
+            allowed=_ALLOWED_ADDRESS,
         )
+    host, _, port = (rest if sep else address).rpartition(":")
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise InputError(f"{address!r} has no port", key="--scheduler", allowed=_ALLOWED_ADDRESS)
+
+
+def scheduler_timeout() -> float:
+    """Seconds a scheduler has to answer: Dask's ``distributed.comm.timeouts.connect``
+    (environment ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT``, default 30 s)."""
+    import dask
+    import distributed  # noqa: F401  (its import adds its defaults to dask.config)
+    from dask.utils import parse_timedelta
+
+    value = dask.config.get("distributed.comm.timeouts.connect")
+    try:
+        seconds = float(parse_timedelta(value, default="seconds"))
+    except (TypeError, ValueError):
+        seconds = -1.0
+    if not 0 < seconds <= 3600:
+        raise InputError(
+            f"{value!r} is not a duration",
+            key="DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT",
+            allowed="a duration in 0 .. 3600 s, e.g. 10s",
+        )
+    return seconds
 
 
 @contextlib.contextmanager
 def connect(address: str) -> Iterator[Any]:
-    """A Dask client on an existing scheduler (``tcp://host:port``)."""
-    from distributed import Client
+    """A Dask client on an existing scheduler (``tcp://host:port``).
 
+    The scheme is checked before any connection (:func:`check_address`).  Connecting,
+    Dask's handshake and the first exchange with the scheduler must all finish within
+    :func:`scheduler_timeout` seconds, even against a peer that accepts and says nothing
+    or says garbage: the port is first probed with a plain socket that reads the peer's
+    handshake frame (a Dask scheduler speaks first; its frame is small), then the client
+    is built in a thread the caller waits for with a deadline (Dask's own ``timeout``
+    does not cover a handshake that never comes).  Failures are one-line input errors.
+    """
     check_address(address)
-    try:
-        client = Client(address, timeout="5s")
-    except (OSError, TimeoutError) as exc:
-        raise InputError(
-            f"cannot reach the scheduler: {exc}", source=address, key="--scheduler"
-        ) from None
+    if "://" not in address:
+        address = f"tcp://{address}"
+    seconds = scheduler_timeout()
+    deadline = time.monotonic() + seconds
+    _probe(address, seconds, deadline)
+    client = _client_within(address, seconds, deadline)
     with client:
         yield client
+
+
+def _silent(address: str, seconds: float) -> InputError:
+    return InputError(
+        f"scheduler at {address} did not answer within {seconds:g} s", key="--scheduler"
+    )
+
+
+def _garbled(address: str, why: str) -> InputError:
+    return InputError(
+        f"scheduler at {address} did not answer as a Dask scheduler ({why})", key="--scheduler"
+    )
+
+
+def _probe(address: str, seconds: float, deadline: float) -> None:
+    """Connect with a plain socket and read the peer's first Dask frame header within the
+    deadline: a silent or garbling peer is refused before Dask allocates what it claims."""
+    host, _, port = address.partition("://")[2].rpartition(":")
+    host = host.strip("[]")
+    try:
+        with socket.create_connection((host, int(port)), timeout=seconds) as sock:
+            size = struct.unpack("<Q", _recv_exact(sock, 8, deadline, address, seconds))[0]
+            if not 16 <= size <= _MAX_HANDSHAKE:
+                raise _garbled(address, f"a first message of {size} bytes")
+            head = _recv_exact(sock, size, deadline, address, seconds)
+    except TimeoutError:
+        raise _silent(address, seconds) from None
+    except OSError as exc:
+        raise InputError(
+            f"cannot reach the scheduler at {address}: {exc.strerror or exc}", key="--scheduler"
+        ) from None
+    if not _is_handshake(head):
+        raise _garbled(address, "its first message is not a Dask handshake")
+
+
+def _is_handshake(head: bytes) -> bool:
+    """Whether ``head`` (a first message's frames) is Dask's handshake: a msgpack map
+    naming the peer's compression and Python version."""
+    import msgpack
+    from distributed.protocol.utils import unpack_frames
+
+    try:
+        n_frames = struct.unpack("<Q", head[:8])[0]
+        if not 1 <= n_frames <= 64:
+            return False
+        frames, _ = unpack_frames(head, partial=True)
+        for frame in frames:
+            message = msgpack.loads(frame, raw=False)
+            if isinstance(message, dict) and {"compression", "python"} <= message.keys():
+                return True
+    except Exception:  # garbage of any shape
+        return False
+    return False
+
+
+#: A Dask handshake is a few hundred bytes; a peer claiming more is not a scheduler.
+_MAX_HANDSHAKE = 1 << 20
+
+
+def _recv_exact(sock: socket.socket, n: int, deadline: float, address: str, seconds: float):
+    data = bytearray()
+    while len(data) < n:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise _silent(address, seconds)
+        sock.settimeout(left)
+        chunk = sock.recv(n - len(data))
+        if not chunk:
+            raise _garbled(address, "it closed the connection")
+        data += chunk
+    return bytes(data)
+
+
+def _client_within(address: str, seconds: float, deadline: float) -> Any:
+    """``distributed.Client(address)`` built in a daemon thread, waited for until the
+    deadline; a client that comes too late is closed by that thread."""
+    from distributed import Client
+
+    box: dict[str, Any] = {}
+    late = threading.Event()
+
+    def build() -> None:
+        try:
+            client = Client(address, timeout=seconds, set_as_default=False)
+        except BaseException as exc:  # reported by the waiting caller
+            box["error"] = exc
+            return
+        box["client"] = client
+        if late.is_set():
+            client.close(timeout=seconds)
+
+    thread = threading.Thread(target=build, name="hwsim-connect", daemon=True)
+    thread.start()
+    thread.join(max(0.0, deadline - time.monotonic()) + 1.0)
+    if thread.is_alive():
+        late.set()
+        raise _silent(address, seconds)
+    if "error" in box:
+        exc = box["error"]
+        if isinstance(exc, (TimeoutError, OSError)):
+            raise _silent(address, seconds) from None
+        raise _garbled(address, f"{type(exc).__name__}: {exc}"[:200]) from None
+    return box["client"]
+
+
+def scheduler_workers(client: Any) -> dict[str, int]:
+    """The scheduler's workers and their threads, asked within :func:`scheduler_timeout`
+    seconds: a silent scheduler is a one-line input error."""
+    seconds = scheduler_timeout()
+    try:
+        return dict(client.nthreads(callback_timeout=seconds))
+    except Exception:  # a timeout, a closed comm
+        raise _stopped(client, seconds) from None
+
+
+def _stopped(client: Any, seconds: float) -> InputError:
+    where = getattr(client.scheduler, "address", "?")
+    return InputError(
+        f"scheduler at {where} stopped answering (no reply within {seconds:g} s)",
+        key="--scheduler",
+    )
+
+
+def heartbeat(client: Any) -> Callable[[], None]:
+    """A check to call while waiting for results: every :data:`HEARTBEAT_SECONDS` it asks
+    the scheduler for its identity and raises a one-line input error when no answer
+    comes within :func:`scheduler_timeout` seconds (a scheduler gone silent mid-run)."""
+    seconds = scheduler_timeout()
+    last = [time.monotonic()]
+
+    def check() -> None:
+        if time.monotonic() - last[0] < HEARTBEAT_SECONDS:
+            return
+        try:
+            client.sync(client.scheduler.identity, callback_timeout=seconds)
+        except Exception:  # a timeout, a closed comm: the scheduler is gone
+            raise _stopped(client, seconds) from None
+        last[0] = time.monotonic()
+
+    return check
 
 
 @contextlib.contextmanager

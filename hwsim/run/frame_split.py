@@ -96,9 +96,10 @@ def split_frame(
 def _run(split, frame, client, bands, faults, progress, start) -> tuple[Any, dict]:
     from distributed import Queue, as_completed
 
-    from hwsim.core.cluster import peak_rss_bytes
+    from hwsim.core.cluster import heartbeat, peak_rss_bytes, scheduler_timeout, scheduler_workers
 
-    n_workers = max(1, len(client.scheduler_info()["workers"]))
+    n_workers = max(1, len(scheduler_workers(client)))  # bounded: a silent scheduler fails
+    alive, seconds = heartbeat(client), scheduler_timeout()
     groups = split.bands(int(bands or n_workers))
     token = uuid.uuid4().hex[:12]
     queue = Queue(f"hwsim-progress-{token}", client=client)
@@ -129,7 +130,8 @@ def _run(split, frame, client, bands, faults, progress, start) -> tuple[Any, dic
     by_key = {f.key: band for band, f in enumerate(futures)}
     remaining = set(range(len(groups)))
     while remaining:
-        for band, step, _ in _drain(queue):
+        alive()  # every few seconds: does the scheduler still answer?
+        for band, step, _ in _drain(queue, seconds):
             done[band] = max(done[band], step)  # a rerun band starts again from 0
         if progress is not None and sum(done.values()) > shown:
             shown = sum(done.values())
@@ -137,7 +139,12 @@ def _run(split, frame, client, bands, faults, progress, start) -> tuple[Any, dic
         finished = pending.next_batch(block=False) if pending.has_ready() else []
         for future in finished:
             band = by_key[future.key]
-            results[band] = future.result()
+            try:
+                results[band] = future.result(timeout=seconds)
+            except TimeoutError:  # finished, but its result never came
+                raise InputError(
+                    f"band {band}'s result did not arrive within {seconds:g} s", key="--scheduler"
+                ) from None
             remaining.discard(band)
             done[band] = steps
         if remaining and not finished:
@@ -157,7 +164,13 @@ def _run(split, frame, client, bands, faults, progress, start) -> tuple[Any, dic
     return result, info
 
 
-def _drain(queue) -> list[tuple[int, int, int]]:
-    """Every progress message waiting in ``queue`` (none: an empty list, at once)."""
-    waiting = queue.qsize()
-    return queue.get(batch=waiting) if waiting else []
+def _drain(queue, seconds: float) -> list[tuple[int, int, int]]:
+    """Every progress message waiting in ``queue`` (none: an empty list, at once), each
+    exchange with the scheduler bounded by ``seconds`` (a silent one: one-line error)."""
+    try:
+        waiting = queue.qsize(callback_timeout=seconds)
+        return queue.get(batch=waiting, callback_timeout=seconds) if waiting else []
+    except TimeoutError:
+        raise InputError(
+            f"the scheduler stopped answering (no reply within {seconds:g} s)", key="--scheduler"
+        ) from None

@@ -165,6 +165,10 @@ class RenderRequest:
                 key="--workers",
                 allowed="one of them",
             )
+        if self.scheduler is not None:
+            from hwsim.core.cluster import check_address
+
+            check_address(self.scheduler)  # a bad scheme or port before any work
         if workers is not None and not (isinstance(workers, int) and 1 <= workers <= MAX_WORKERS):
             raise InputError(
                 f"{workers!r} is out of range", key="--workers", allowed=f"1 .. {MAX_WORKERS}"

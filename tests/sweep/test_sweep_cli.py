@@ -118,7 +118,9 @@ def test_an_unreachable_scheduler_is_bad_input(tmp_path, capsys):
     (tmp_path / "s.toml").write_text('[sweep]\nphantom = ["ball:size=16"]\n')
     argv = ["sweep", str(tmp_path / "s.toml"), "--db", str(tmp_path / "r.db")]
     assert main([*argv, "--scheduler", "tcp://127.0.0.1:9"]) == 2
-    assert "tcp://127.0.0.1:9: --scheduler: cannot reach the scheduler" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--scheduler: cannot reach the scheduler at tcp://127.0.0.1:9" in err
+    assert not (tmp_path / "r.db").exists()  # nothing written before the scheduler answered
 
 
 def test_every_timed_row_holds_its_energy_and_area(tmp_path):

@@ -34,12 +34,18 @@ def test_the_key_is_unique_in_the_schema_itself(tmp_path):
         conn.execute("INSERT INTO runs (key, status, params) VALUES ('a', 'ok', '{}')")
 
 
-def test_retry_failed_deletes_only_failed_rows(tmp_path):
+def test_retry_failed_replaces_only_failed_rows_in_place(tmp_path):
     with RunsDB(tmp_path / "r.db") as db:
         db.insert(row("a"))
         db.insert(row("b", "error", error="boom"))
-        assert db.delete_failed() == 1
-        assert db.finished_keys() == {"a"}
+        assert db.statuses(["a", "b", "c"]) == {"a": "ok", "b": "error"}
+        assert not db.insert(row("b"))  # without replace_failed the failed row stays
+        assert db.insert(row("b"), replace_failed=True)
+        assert not db.insert(row("a", "error", error="late"), replace_failed=True)
+        assert [(r["key"], r["status"], r["error"]) for r in db.rows()] == [
+            ("a", "ok", None),
+            ("b", "ok", None),
+        ]
 
 
 def test_a_file_that_is_not_a_database_is_bad_input(tmp_path):

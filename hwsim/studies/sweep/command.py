@@ -31,15 +31,20 @@ def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     if args.out:
         output_folder(args.out)
     with contextlib.ExitStack() as stack:
-        db = stack.enter_context(RunsDB(args.db))
-        if args.retry_failed:
-            db.delete_failed()
-        if args.scheduler:
+        if args.scheduler:  # reached before the database is opened or changed
             client = stack.enter_context(connect(args.scheduler))
         else:
             client = stack.enter_context(local_client(args.workers))
+        db = stack.enter_context(RunsDB(args.db))
         with progress_bar(args.quiet, "sweep") as progress:
-            summary = run_sweep(sweep, db, client, out_dir=args.out, progress=progress)
+            summary = run_sweep(
+                sweep,
+                db,
+                client,
+                out_dir=args.out,
+                progress=progress,
+                retry_failed=args.retry_failed,
+            )
     if not args.quiet:
         print(
             f"{summary.total} runs: {summary.skipped} already in {summary.db}, "

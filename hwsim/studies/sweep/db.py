@@ -5,7 +5,8 @@
 
 Kill-safety comes from SQLite: the database runs in WAL mode with ``synchronous=FULL``,
 so a committed row survives a ``kill -9`` of the writer (and a power cut); each finished
-run is one ``INSERT ... ON CONFLICT(key) DO NOTHING`` committed on its own, so a killed
+run is one ``INSERT ... ON CONFLICT(key) DO NOTHING`` committed on its own (with
+``--retry-failed``, ``DO UPDATE`` of a failed row: replaced, never deleted first), so a killed
 sweep loses at most the runs that were still computing, and the ``UNIQUE`` key makes a
 duplicate row impossible.  Only the process driving the sweep writes; Dask workers
 return their rows to it.
@@ -148,15 +149,36 @@ class RunsDB:
         """Keys of every run with a row (finished, successfully or not)."""
         return {k for (k,) in self.conn.execute("SELECT key FROM runs")}
 
-    def insert(self, row: dict[str, Any]) -> bool:
-        """Write one finished run in its own transaction; ``False`` if the key existed."""
+    def statuses(self, keys: Iterable[str]) -> dict[str, str]:
+        """``{key: status}`` of those of ``keys`` that have a row (one batch of a sweep)."""
+        keys = list(keys)
+        out: dict[str, str] = {}
+        for i in range(0, len(keys), 500):  # SQLite's limit on bound parameters
+            chunk = keys[i : i + 500]
+            marks = ",".join("?" * len(chunk))
+            query = f"SELECT key, status FROM runs WHERE key IN ({marks})"
+            out.update(self.conn.execute(query, chunk).fetchall())
+        return out
+
+    def insert(self, row: dict[str, Any], *, replace_failed: bool = False) -> bool:
+        """Write one finished run in its own transaction; ``False`` if the key existed.
+
+        With ``replace_failed`` a row of the same key whose status is ``error`` is
+        overwritten by this one in that same transaction (``--retry-failed``): the failed
+        row stays until its replacement is committed, and a row that is ``ok`` is never
+        touched.
+        """
         values = [_sql_value(row.get(n)) for n in _NAMES]
         marks = ",".join("?" * len(_NAMES))
+        on_conflict = "DO NOTHING"
+        if replace_failed:
+            sets = ", ".join(f"{n} = excluded.{n}" for n, _ in COLUMNS)
+            on_conflict = f"DO UPDATE SET {sets} WHERE runs.status = 'error'"
         self.conn.execute("BEGIN IMMEDIATE")
         try:
             cur = self.conn.execute(
                 f"INSERT INTO runs ({','.join(_NAMES)}) VALUES ({marks}) "
-                "ON CONFLICT(key) DO NOTHING",
+                f"ON CONFLICT(key) {on_conflict}",
                 values,
             )
             self.conn.execute("COMMIT")
@@ -164,11 +186,6 @@ class RunsDB:
             self.conn.execute("ROLLBACK")
             raise
         return cur.rowcount == 1
-
-    def delete_failed(self) -> int:
-        """Remove the rows of failed runs (so the next sweep retries them)."""
-        with self.conn:
-            return self.conn.execute("DELETE FROM runs WHERE status = 'error'").rowcount
 
     def rows(self, where: str = "1", args: Iterable[Any] = ()) -> list[dict[str, Any]]:
         """Rows as dicts, JSON columns decoded."""

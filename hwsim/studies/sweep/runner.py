@@ -2,9 +2,15 @@
 
 # Ref: shared/docs/design.md sections 8 and 9 (sweeps on Dask, rows in SQLite).
 
-The driver computes every run's key, skips keys the database already has, submits the
-rest as one Dask task each and writes each result the moment it arrives, in its own
-transaction (:class:`hwsim.studies.sweep.db.RunsDB`).  A run that raises is caught on the worker
+The driver walks the product a batch at a time (twice the workers' threads): it computes
+each run's key as it goes, skips keys the database already has (one query per batch),
+submits the rest as one Dask task each, at most a batch in flight, and writes each result
+the moment it arrives, in its own transaction (:class:`hwsim.studies.sweep.db.RunsDB`);
+a product of a million runs starts writing rows at once, in bounded memory.  While it
+waits the scheduler is asked every few seconds whether it still answers
+(:func:`hwsim.core.cluster.heartbeat`): a scheduler gone silent ends the sweep with one
+line, the rows already written kept.  With ``--retry-failed`` a failed row is replaced
+in the transaction that writes its new result.  A run that raises is caught on the worker
 and comes back as an ``error`` row, so one bad run never stops the sweep.  A worker
 that dies mid-task (killed, out of memory) is replaced by its nanny and the scheduler
 reruns the task elsewhere, up to :data:`ALLOWED_FAILURES` times; past that the run is
@@ -18,15 +24,22 @@ import itertools
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hwsim.core.cluster import ALLOWED_FAILURES, connect, local_client
-from hwsim.core.errors import HwsimError
+from hwsim.core.cluster import (
+    ALLOWED_FAILURES,
+    connect,
+    heartbeat,
+    local_client,
+    scheduler_timeout,
+    scheduler_workers,
+)
+from hwsim.core.errors import HwsimError, InputError
 from hwsim.core.paths import display_path, display_text
 from hwsim.studies.sweep.db import RunsDB
 from hwsim.studies.sweep.spec import RunSpec, Sweep, build_run, code_version, run_key, technology_of
@@ -165,8 +178,14 @@ def run_sweep(
     *,
     out_dir: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
+    retry_failed: bool = False,
+    keys: set[str] | None = None,
 ) -> SweepSummary:
-    """Run every run of ``sweep`` whose key ``db`` does not hold yet.
+    """Run every run of ``sweep`` whose key ``db`` does not hold yet, streaming.
+
+    Keys are computed as the product is walked, a batch at a time; each batch is
+    checked against ``db`` and its new runs submitted, with at most twice the workers'
+    threads in flight, so memory stays bounded whatever the product's size.
 
     Parameters
     ----------
@@ -179,27 +198,105 @@ def run_sweep(
     out_dir : str or Path, optional
         Also write each run's render folder under it.
     progress : callable, optional
-        ``progress(done, total)`` after each finished run (total = runs submitted).
+        ``progress(done, total)`` as runs finish or are skipped (total = the product).
+    retry_failed : bool
+        Rerun the runs recorded as failed; each failed row is replaced in the
+        transaction that writes its new result (never deleted first).
+    keys : set, optional
+        Filled with the key of every run of the sweep.
     """
-    from distributed import as_completed
-
     start = time.perf_counter()
-    keyed: dict[str, RunSpec] = {}
-    for run in sweep.runs:
-        keyed.setdefault(run_key(run), run)  # identical configurations run once
-    done_keys = db.finished_keys()
-    pending = [(k, r) for k, r in keyed.items() if k not in done_keys]
     out = str(Path(out_dir).resolve()) if out_dir is not None else None
-    futures = {
-        client.submit(execute_run, run, key, out, pure=False): (key, run) for key, run in pending
-    }
-    ok = failed = 0
-    if progress is not None and pending:
-        progress(0, len(pending))
-    for n, future in enumerate(as_completed(futures), start=1):
-        key, run = futures.pop(future)
+    flow = _Flow(client, db, sweep.size, progress, retry_failed)
+    flow.report()
+    for batch in _batches(_keyed(sweep.runs), flow.limit):
+        statuses = db.statuses(key for key, _ in batch)
+        for key, run in batch:
+            if keys is not None:
+                keys.add(key)
+            if flow.should_skip(key, statuses.get(key)):
+                flow.skipped += 1
+                flow.report()
+                continue
+            flow.submit(client.submit(execute_run, run, key, out, pure=False), key, run)
+            while len(flow.futures) >= flow.limit:
+                flow.collect()
+    while flow.futures:
+        flow.collect()
+    return SweepSummary(
+        total=sweep.size,
+        skipped=flow.skipped,
+        ok=flow.ok,
+        failed=flow.failed,
+        wall_seconds=time.perf_counter() - start,
+        db=str(db.path),
+    )
+
+
+def _keyed(runs: Iterable[RunSpec]) -> Iterator[tuple[str, RunSpec]]:
+    """``(run_key(run), run)`` for each run, computed as it is asked for."""
+    for run in runs:
+        yield run_key(run), run
+
+
+def _batches(items: Iterator[Any], size: int) -> Iterator[list[Any]]:
+    """``items`` in lists of ``size`` (the last one shorter), read as they are asked for."""
+    while batch := list(itertools.islice(items, size)):
+        yield batch
+
+
+class _Flow:
+    """A sweep's runs in flight: submitted futures, their rows written as they finish."""
+
+    def __init__(self, client, db, total, progress, retry_failed) -> None:
+        from distributed import as_completed
+
+        self.db, self.total, self.progress = db, total, progress
+        self.retry_failed = retry_failed
+        self.limit = 2 * max(1, sum(scheduler_workers(client).values()))
+        self.alive = heartbeat(client)
+        self.seconds = scheduler_timeout()
+        self.futures: dict[Any, tuple[str, RunSpec]] = {}
+        self.queue = as_completed()
+        self.retried: set[str] = set()  # failed keys rerun by this sweep (bounded by them)
+        self.skipped = self.ok = self.failed = 0
+
+    def should_skip(self, key: str, status: str | None) -> bool:
+        """A key in flight, already rerun, or with a row (a failed one unless retrying)."""
+        if key in self.retried or any(k == key for k, _ in self.futures.values()):
+            return True
+        if status == "error" and self.retry_failed:
+            self.retried.add(key)
+            return False
+        return status is not None
+
+    def submit(self, future: Any, key: str, run: RunSpec) -> None:
+        self.futures[future] = (key, run)
+        self.queue.add(future)
+
+    def report(self) -> None:
+        if self.progress is not None:
+            self.progress(self.skipped + self.ok + self.failed, self.total)
+
+    def collect(self) -> None:
+        """Wait for finished runs (checking the scheduler answers) and write their rows."""
+        while not self.queue.has_ready():
+            self.alive()
+            time.sleep(0.05)
+        for future in self.queue.next_batch(block=False):
+            key, run = self.futures.pop(future)
+            self.db.insert(self._row(future, key, run), replace_failed=key in self.retried)
+            future.release()
+            self.report()
+
+    def _row(self, future: Any, key: str, run: RunSpec) -> dict[str, Any]:
         try:
-            row = future.result()
+            row = future.result(timeout=self.seconds)
+        except TimeoutError:  # finished, but its result never came: the scheduler is gone
+            raise InputError(
+                f"a finished run's result did not arrive within {self.seconds:g} s",
+                key="--scheduler",
+            ) from None
         except Exception as exc:  # the task itself failed: worker lost too often, cancelled
             row = {
                 "key": key,
@@ -210,17 +307,6 @@ def run_sweep(
                 "code_version": code_version(),
                 "finished_at": _now(),
             }
-        future.release()
-        db.insert(row)
-        ok += row["status"] == "ok"
-        failed += row["status"] != "ok"
-        if progress is not None:
-            progress(n, len(pending))
-    return SweepSummary(
-        total=len(keyed),
-        skipped=len(keyed) - len(pending),
-        ok=ok,
-        failed=failed,
-        wall_seconds=time.perf_counter() - start,
-        db=str(db.path),
-    )
+        self.ok += row["status"] == "ok"
+        self.failed += row["status"] != "ok"
+        return row

@@ -19,6 +19,8 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -33,6 +35,8 @@ from hwsim.spec.scene import MAX_IMAGE, MODES, Scene, VolumeSpec, load_scene
 __all__ = [
     "SCHEMA",
     "PARAMETERS",
+    "MAX_RUNS",
+    "RunProduct",
     "RunSpec",
     "Sweep",
     "load_sweep",
@@ -61,6 +65,8 @@ PARAMETERS = (
     "technology",
 )
 _ARCH_OVERRIDES = ("pipelines", "clock_hz")
+#: The most runs one sweep file may describe (the product of its lists' lengths).
+MAX_RUNS = 10**7
 
 
 @dataclass(frozen=True)
@@ -79,13 +85,55 @@ class RunSpec:
         return " ".join(f"{k}={_short(v)}" for k, v in self.params)
 
 
+class RunProduct(Sequence[RunSpec]):
+    """The runs of a sweep, made one at a time: the product of the axes' lists in file
+    order (the last axis varies fastest), indexable without building the others."""
+
+    def __init__(self, axes: dict[str, list[Any]], base_dir: str) -> None:
+        self._names = list(axes)
+        self._lists = [axes[n] for n in self._names]
+        self._base = base_dir
+
+    def __len__(self) -> int:
+        return math.prod(len(v) for v in self._lists)
+
+    def _run(self, combo: tuple[Any, ...]) -> RunSpec:
+        return RunSpec(tuple(zip(self._names, combo, strict=True)), self._base)
+
+    def __iter__(self) -> Iterator[RunSpec]:
+        return (self._run(combo) for combo in itertools.product(*self._lists))
+
+    def __getitem__(self, index):  # type: ignore[override]
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        n = len(self)
+        if not -n <= index < n:
+            raise IndexError(index)
+        index %= n
+        combo = []
+        for values in reversed(self._lists):  # mixed radix, last axis fastest
+            index, digit = divmod(index, len(values))
+            combo.append(values[digit])
+        return self._run(tuple(reversed(combo)))
+
+
 @dataclass(frozen=True)
 class Sweep:
-    """A validated sweep file: its source and every run of the product, in order."""
+    """A validated sweep file: its source, its axes and its runs (made lazily)."""
 
     source: str
     axes: dict[str, list[Any]]
-    runs: tuple[RunSpec, ...]
+    base_dir: str
+
+    @property
+    def runs(self) -> RunProduct:
+        """Every run of the product, in order, made as it is read."""
+        return RunProduct(self.axes, self.base_dir)
+
+    @property
+    def size(self) -> int:
+        """How many runs the product has, from the lists' lengths."""
+        return math.prod(len(v) for v in self.axes.values())
 
 
 def load_sweep(path: str | Path) -> Sweep:
@@ -123,14 +171,16 @@ def parse_sweep(data: dict[str, Any], *, source: str, base_dir: str | Path) -> S
         ]
     if "phantom" in axes and "volume" in axes:
         raise InputError("give phantom or volume, not both", source=source, key="sweep.volume")
-    names = list(axes)
-    runs = tuple(
-        RunSpec(tuple(zip(names, combo, strict=True)), base)
-        for combo in itertools.product(*(axes[n] for n in names))
-    )
-    if not runs:
-        raise InputError("the product of the lists is empty", source=source, key="sweep")
-    for run in {_machine_params(r): r for r in runs}.values():  # each distinct machine once
+    sweep = Sweep(source=source, axes=axes, base_dir=base)
+    if sweep.size > MAX_RUNS:
+        sizes = " x ".join(str(len(v)) for v in axes.values())
+        raise InputError(
+            f"the product of the lists has {sweep.size} runs ({sizes})",
+            source=source,
+            key="sweep",
+            allowed=f"at most {MAX_RUNS} runs",
+        )
+    for run in _machine_runs(axes, base):  # each distinct machine once
         try:
             build_run(run)
         except InputError as exc:
@@ -141,7 +191,21 @@ def parse_sweep(data: dict[str, Any], *, source: str, base_dir: str | Path) -> S
             raise InputError(
                 exc.message, source=source, key=f"sweep.{key}", allowed=exc.allowed
             ) from None
-    return Sweep(source=source, axes=axes, runs=runs)
+    return sweep
+
+
+def _machine_runs(axes: dict[str, list[Any]], base: str) -> Iterator[RunSpec]:
+    """One run per distinct machine (architecture and its overrides), the other axes at
+    their first value: what the file's machines are checked with."""
+    machine = {n: v for n, v in axes.items() if _is_machine(n)}
+    seen: set[tuple] = set()
+    for combo in itertools.product(*machine.values()):
+        chosen = dict(zip(machine, combo, strict=True))
+        params = tuple((n, chosen[n] if n in chosen else v[0]) for n, v in axes.items())
+        token = tuple((n, json.dumps(v)) for n, v in chosen.items())
+        if token not in seen:
+            seen.add(token)
+            yield RunSpec(params, base)
 
 
 def build_run(run: RunSpec) -> tuple[Scene, ArchConfig | None, str, dict[str, Any]]:
@@ -370,13 +434,9 @@ def _flatten(table: dict[str, Any], prefix: str) -> dict[str, Any]:
     return out
 
 
-def _machine_params(run: RunSpec) -> tuple:
-    """The parameters that define a run's machine (architecture and its overrides)."""
-    return tuple(
-        (k, json.dumps(v))
-        for k, v in run.params
-        if k in _ARCH_OVERRIDES or k == "arch" or k.startswith("formats.")
-    )
+def _is_machine(name: str) -> bool:
+    """Whether a parameter defines a run's machine (architecture and its overrides)."""
+    return name in _ARCH_OVERRIDES or name == "arch" or name.startswith("formats.")
 
 
 def _short(value: Any) -> str:
