@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 HWSIM = [sys.executable, "-m", "hwsim.cli.commands"]
 #: Far above any case's run time (about 3 s); only a hung command reaches it.
@@ -225,3 +227,98 @@ def test_a_genuine_bug_is_still_an_internal_error(monkeypatch, capsys):
     monkeypatch.delenv("HWSIM_DEBUG", raising=False)
     assert commands.main(["scenes"]) == 1
     assert "internal error: ZeroDivisionError" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------- the property
+
+#: (role, command line with PATH where the odd path goes): every path-taking argument.
+ROLES = {
+    "folder out": [
+        [*_RENDER, "--out", "PATH"],
+        ["report", "run", "--out", "PATH"],
+        ["rtl", "build", "interp", "--no-synth", "--out", "PATH"],
+    ],
+    "file out": [
+        [*_RENDER, "--fidelity", "cycle", "--trace", "PATH", "--out", "o"],
+        ["convert", "vol.npy", "PATH"],
+        ["sweep", "scene.toml", "--db", "PATH", "--out", "o"],
+    ],
+    "file in": [
+        ["render", "--volume", "PATH", "--out", "o"],
+        ["render", "PATH", "--out", "o"],
+        [*_RENDER, "--arch", "PATH", "--out", "o"],
+        [*_RENDER, "--technology", "PATH", "--out", "o"],
+        [*_RENDER, "--transfer", "PATH", "--out", "o"],
+        ["convert", "PATH", "out.npy"],
+        ["sweep", "PATH", "--out", "o"],
+        ["report", "PATH", "--out", "rep"],
+    ],
+}
+
+
+def _odd_path(folder: Path, kind: str, role: str, suffix: str) -> str:
+    """A path of ``kind`` in ``folder`` that is wrong for ``role``."""
+    (folder / "afile").write_text("x")
+    (folder / "adir").mkdir(exist_ok=True)
+    if kind == "long":
+        return f"{LONG}{suffix}"
+    if kind == "long inside":
+        return f"adir/{LONG}/x{suffix}"
+    if kind == "loop":
+        (folder / f"loop{suffix}").symlink_to(f"loop{suffix}")
+        return f"loop{suffix}"
+    if kind == "under a file":
+        return f"afile/x{suffix}"
+    if kind == "dangling":
+        (folder / f"gone{suffix}").symlink_to("nowhere/at/all")
+        return f"gone{suffix}"
+    if kind == "device":
+        (folder / f"dev{suffix}").symlink_to("/dev/null")
+        return f"dev{suffix}"
+    # "wrong kind": a file where a folder goes, a folder where a file goes or is read
+    if role == "folder out":
+        return "afile"
+    (folder / f"adir{suffix}").mkdir(exist_ok=True)
+    return f"adir{suffix}"
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    role_args=st.sampled_from([(role, args) for role, lines in ROLES.items() for args in lines]),
+    kind=st.sampled_from(
+        ["long", "long inside", "loop", "under a file", "dangling", "device", "wrong kind"]
+    ),
+    suffix=st.sampled_from(["", ".toml", ".nrrd", ".npy", ".vcd", ".db"]),
+)
+def test_any_odd_path_anywhere_is_one_line_exit_2(role_args, kind, suffix):
+    """The class: whatever path argument gets whichever odd path, the command ends with
+    exit 2 and one line on stderr, never an internal error (in-process: fast)."""
+    import contextlib
+    import io
+    import tempfile
+
+    from hwsim.cli.commands import main
+
+    role, args = role_args
+    assume(not (role == "file out" and kind == "dangling"))  # the link itself is replaced
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        np.save(folder / "vol.npy", np.zeros((4, 4, 4), np.uint8))
+        (folder / "scene.toml").write_text('[volume]\nphantom = "ball"\n')
+        odd = _odd_path(folder, kind, role, suffix)
+        argv = [odd if a == "PATH" else a for a in args]
+        err = io.StringIO()
+        cwd = os.getcwd()
+        os.chdir(folder)
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                status = main(argv)
+        finally:
+            os.chdir(cwd)
+    text = err.getvalue()
+    assert "internal error" not in text and "Traceback" not in text, (argv, text)
+    assert status == 2 and text.count("\n") == 1 and text.startswith("hwsim: error: "), (
+        argv,
+        status,
+        text,
+    )
