@@ -13,6 +13,7 @@ import dataclasses
 import gzip
 import logging
 import struct
+import tokenize
 import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -301,7 +302,7 @@ def npy_header(path: Path) -> tuple[tuple[int, ...], bool, np.dtype, int]:
             )
             shape, fortran, dtype = read_header(fh, max_header_size=1 << 16)
             return shape, fortran, dtype, fh.tell()
-    except (ValueError, OSError, EOFError, SyntaxError) as exc:
+    except (ValueError, OSError, EOFError, SyntaxError, tokenize.TokenError) as exc:
         raise InputError(f"cannot read .npy header: {exc}", source=str(path)) from None
 
 
@@ -418,7 +419,7 @@ def _read_nifti(path: Path) -> Volume:
     done = not (np.isfinite(slope) and np.isfinite(inter) and slope) or (slope, inter) == (1, 0)
     if not done and raw.dtype.kind == "f":
         raw, done = (raw * slope + inter).astype(raw.dtype), True
-    elif not done and slope.is_integer() and inter.is_integer() and raw.size:
+    elif not done and _small_integers(slope, inter) and raw.size:
         ends = np.array([raw.min(), raw.max()], dtype=np.int64) * int(slope) + int(inter)
         for target in (raw.dtype, np.dtype(np.int16), np.dtype(np.uint16)):
             info = np.iinfo(target)
@@ -497,6 +498,12 @@ def _check_nifti_header(path: Path) -> None:
         key="sizeof_hdr",
         allowed="a NIfTI-1 or NIfTI-2 file",
     )
+
+
+def _small_integers(*values: float) -> bool:
+    """Whole numbers small enough that scaling int16 data by them stays in int64 (a
+    damaged header's 1e30 slope is kept unapplied, as any other unscalable pair)."""
+    return all(v.is_integer() and abs(v) < 2**31 for v in values)
 
 
 def _check_nifti_size(path: Path, expected: int) -> None:
