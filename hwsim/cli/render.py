@@ -195,20 +195,22 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
 
 def _turntable(scene, args: argparse.Namespace, out_dir: str, options: dict) -> int:
-    """``hwsim render --frames N [--turn DEG]``: a turntable (hwsim.run.turntable)."""
-    from hwsim.run.turntable import render_turntable, turntable_stats, write_turntable
+    """``hwsim render --frames N [--turn DEG]``: a turntable, each frame written as it
+    ends and let go (hwsim.run.turntable.stream_turntable)."""
+    from hwsim.run.turntable import stream_turntable, turntable_stats
 
     turn = args.turn if args.turn is not None else 360.0 / max(args.frames, 1)
     with progress_bar(args.quiet, "frames") as progress:
-        runs = render_turntable(scene, args.frames, turn, progress=progress, **options)
-    paths = write_turntable(runs, out_dir, turn)
+        first, frames, paths = stream_turntable(
+            scene, args.frames, turn, out_dir, progress=progress, **options
+        )
     if not args.quiet:
-        stats = turntable_stats(runs, turn)
+        stats = turntable_stats(frames, turn)
         print(
-            f"{scene.name}: {len(runs)} frames, {turn:g} degrees apart, "
-            f"{runs[0].fidelity}/{runs[0].sampling}: first frame "
-            f"{runs[0].wall_seconds:.2f} s, then {stats['median_frame_wall_seconds']:.3f} s "
+            f"{scene.name}: {len(frames)} frames, {turn:g} degrees apart, "
+            f"{first.fidelity}/{first.sampling}: first frame "
+            f"{first.wall_seconds:.2f} s, then {stats['median_frame_wall_seconds']:.3f} s "
             "per frame (median)"
         )
-        print(f"  wrote {paths['gif']} and {len(runs)} frames in {paths['frames']}")
+        print(f"  wrote {paths['gif']} and {len(frames)} frames in {paths['frames']}")
     return 0

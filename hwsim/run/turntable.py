@@ -4,7 +4,9 @@ A classic volume-rendering output, and the honest way to time frames: the first 
 pays the set-up (volume load, per-volume derived arrays, compiled kernels), the others
 reuse it, so the per-frame figure is the median of frames 2..N.  Every frame goes
 through :func:`hwsim.run.fidelity.render` with the same loaded volume (the caches are keyed
-by it); the frames are written as PNGs and as an animated GIF encoded by Pillow.
+by it).  The frames stream to disk (:func:`stream_turntable`): each PNG is written as
+its frame ends and the frame let go, and the animated GIF (Pillow) is assembled from the
+files at the end, so a long turntable holds one frame, not all of them.
 """
 
 from __future__ import annotations
@@ -12,18 +14,31 @@ from __future__ import annotations
 import dataclasses
 import math
 import statistics
-from collections.abc import Callable
+import tempfile
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from hwsim.core.errors import InputError
+from hwsim.core.paths import output_folder
 from hwsim.run.fidelity import RenderRun, render
 from hwsim.spec.scene import Scene
 from hwsim.volumes import load_volume
 
-__all__ = ["MAX_FRAMES", "render_turntable", "turntable_stats", "write_turntable"]
+__all__ = [
+    "MAX_FRAMES",
+    "FrameStats",
+    "check_turntable",
+    "render_turntable",
+    "stream_turntable",
+    "turntable_frames",
+    "write_frames",
+    "turntable_bytes",
+    "turntable_stats",
+    "write_turntable",
+]
 
 MAX_FRAMES = 3600
 #: Playback rate of the GIF (frames per second).
@@ -36,79 +51,171 @@ def _azimuth(start: float, k: int, turn: float) -> float:
     return a - 360.0 if a > 180.0 else a + 360.0 if a <= -180.0 else a
 
 
-def render_turntable(
+def check_turntable(frames: int, turn: float, trace: str | None = None) -> None:
+    """Refuse a frame count, turn or waveform a turntable cannot take (before any frame)."""
+    if not 1 <= frames <= MAX_FRAMES:
+        raise InputError(f"{frames} frames", key="--frames", allowed=f"1 .. {MAX_FRAMES}")
+    if not math.isfinite(turn) or not -360.0 <= turn <= 360.0:
+        raise InputError(f"a turn of {turn:g} degrees", key="--turn", allowed="-360 .. 360")
+    if frames > 1 and trace is not None:
+        raise InputError("a waveform holds one frame", key="--trace", allowed="--frames 1")
+
+
+def turntable_frames(
     scene: Scene,
     frames: int,
     turn: float,
     *,
     progress: Callable[[int, int], None] | None = None,
     **render_kw: Any,
-) -> list[RenderRun]:
-    """``frames`` renders of ``scene``, the azimuth turned by ``turn`` degrees each.
+) -> Iterator[RenderRun]:
+    """``frames`` renders of ``scene``, the azimuth turned by ``turn`` degrees each, one
+    at a time (a caller that writes each and lets it go holds one frame in memory).
 
     ``render_kw`` go to :func:`hwsim.run.fidelity.render` (fidelity, arch, extend, ...); a
     waveform (``trace``) is refused: it would hold one frame of many.
     """
-    if not 1 <= frames <= MAX_FRAMES:
-        raise InputError(f"{frames} frames", key="--frames", allowed=f"1 .. {MAX_FRAMES}")
-    if not math.isfinite(turn) or not -360.0 <= turn <= 360.0:
-        raise InputError(f"a turn of {turn:g} degrees", key="--turn", allowed="-360 .. 360")
-    if frames > 1 and render_kw.get("trace") is not None:
-        raise InputError("a waveform holds one frame", key="--trace", allowed="--frames 1")
+    check_turntable(frames, turn, render_kw.get("trace"))
     volume = render_kw.pop("volume", None)
     if volume is None:
         volume = load_volume(scene.volume, scene.base_dir)
-    runs = []
     for k in range(frames):
         view = dataclasses.replace(scene.view, azimuth=_azimuth(scene.view.azimuth, k, turn))
-        runs.append(render(scene.replace(view=view), volume=volume, **render_kw))
+        yield render(scene.replace(view=view), volume=volume, **render_kw)
         if progress is not None:
             progress(k + 1, frames)
-    return runs
 
 
-def turntable_stats(runs: list[RenderRun], turn: float) -> dict[str, Any]:
+def render_turntable(scene: Scene, frames: int, turn: float, **kw: Any) -> list[RenderRun]:
+    """Every frame of :func:`turntable_frames` in a list (each with its image: for
+    scripts and small frames; :func:`stream_turntable` keeps none)."""
+    return list(turntable_frames(scene, frames, turn, **kw))
+
+
+@dataclasses.dataclass(frozen=True)
+class FrameStats:
+    """What a streamed turntable keeps of a frame once it is on disk."""
+
+    azimuth: float
+    wall_seconds: float
+    cycles: int | None
+    #: The image's range (a scalar image's share of the common grey window).
+    low: float
+    high: float
+
+    @classmethod
+    def of(cls, run: RenderRun) -> FrameStats:
+        image = run.image
+        return cls(run.scene.view.azimuth, run.wall_seconds, run.cycles,
+                   float(image.min()), float(image.max()))  # fmt: skip
+
+
+def turntable_stats(frames: Sequence[FrameStats | RenderRun], turn: float) -> dict[str, Any]:
     """The ``turntable`` block of stats.json: each frame's azimuth, wall time and cycles,
     and the per-frame figure (median wall time of frames 2..N; frame 1 pays the set-up)."""
-    walls = [r.wall_seconds for r in runs]
+    stats = [f if isinstance(f, FrameStats) else FrameStats.of(f) for f in frames]
+    walls = [f.wall_seconds for f in stats]
     later = walls[1:] or walls
     return {
-        "frames": len(runs),
+        "frames": len(stats),
         "turn_degrees": turn,
-        "azimuths": [r.scene.view.azimuth for r in runs],
+        "azimuths": [f.azimuth for f in stats],
         "frame_wall_seconds": walls,
-        "frame_cycles": [r.cycles for r in runs],
+        "frame_cycles": [f.cycles for f in stats],
         "median_frame_wall_seconds": statistics.median(later),
-        "median_of": "frames 2..N" if len(runs) > 1 else "the only frame",
+        "median_of": "frames 2..N" if len(stats) > 1 else "the only frame",
     }
 
 
-def _window(images: list[np.ndarray]) -> tuple[float, float]:
-    """One grey window for every frame of a scalar-image turntable (no flicker)."""
-    return min(float(i.min()) for i in images), max(float(i.max()) for i in images)
+def turntable_bytes(frames: int, height: int, width: int) -> int:
+    """Bytes a streamed turntable holds besides the frame being rendered: frame 1's
+    image (float64 RGBA) and the GIF encoder's frames (Pillow keeps each frame, one byte
+    a pixel, until it writes the file) and one frame's RGB and PNG buffers."""
+    return height * width * (32 + frames + 2 * 3)
+
+
+def stream_turntable(
+    scene: Scene, frames: int, turn: float, out_dir: str | Path, **kw: Any
+) -> tuple[RenderRun, list[FrameStats], dict[str, Path]]:
+    """Render a turntable into ``out_dir`` a frame at a time: ``frames/frame_NNNN.png``
+    as each frame ends (a scalar image's frames wait, as raw floats on disk, for the
+    grey window they share), then ``turntable.gif`` from the PNGs on disk and frame 1's
+    files with the ``turntable`` block.  Memory is one frame, frame 1's image and the
+    GIF encoder's bytes (:func:`turntable_bytes`), checked against the budget first.
+
+    Returns frame 1's run, every frame's :class:`FrameStats` and the paths written.
+    """
+    from hwsim.core.budget import require_fits
+
+    view = scene.view
+    require_fits(turntable_bytes(frames, view.height, view.width),
+                 what=f"a turntable of {frames} frames {view.width}x{view.height} (besides "
+                 "each frame)", key="--frames")  # fmt: skip
+    return write_frames(turntable_frames(scene, frames, turn, **kw), out_dir, turn)
+
+
+def write_frames(
+    runs: Iterable[RenderRun], out_dir: str | Path, turn: float
+) -> tuple[RenderRun, list[FrameStats], dict[str, Path]]:
+    """Write each run of ``runs`` as it comes (see :func:`stream_turntable`), keeping only
+    the first run and each frame's :class:`FrameStats`."""
+    from hwsim.run.output import write_render
+
+    out = Path(out_dir)
+    folder = output_folder(out / "frames")
+    first, stats = None, []
+    with tempfile.TemporaryDirectory(dir=out, prefix=".frames-") as scratch:
+        for run in runs:  # not enumerate: its reused tuple would hold the last frame
+            k, first = len(stats), first or run
+            stats.append(FrameStats.of(run))
+            if run.image.ndim == 2:  # a scalar image: its PNG needs every frame's range
+                np.save(Path(scratch) / f"{k:04d}.npy", run.image.astype(np.float32))
+            else:
+                _write_png(run.image, None, folder / f"frame_{k:04d}.png")
+            del run
+        if first is not None and first.image.ndim == 2:
+            window = min(f.low for f in stats), max(f.high for f in stats)
+            for k in range(len(stats)):
+                image = np.load(Path(scratch) / f"{k:04d}.npy")
+                _write_png(image, window, folder / f"frame_{k:04d}.png")
+    if first is None:
+        raise InputError("no frames", key="--frames", allowed=f"1 .. {MAX_FRAMES}")
+    pngs = [folder / f"frame_{k:04d}.png" for k in range(len(stats))]
+    gif = _write_gif(pngs, out / "turntable.gif")
+    paths = write_render(first, out, extra={"turntable": turntable_stats(stats, turn)})
+    return first, stats, {**paths, "frames": folder, "gif": gif}
 
 
 def write_turntable(runs: list[RenderRun], out_dir: str | Path, turn: float) -> dict[str, Path]:
     """Frame 1's image and stats (with the ``turntable`` block), ``frames/frame_NNNN.png``
-    and ``turntable.gif`` in ``out_dir``."""
+    and ``turntable.gif`` in ``out_dir``, from runs already in memory."""
+    return write_frames(runs, out_dir, turn)[2]
+
+
+def _write_png(image: np.ndarray, window: tuple[float, float] | None, path: Path) -> None:
     from PIL import Image
 
-    from hwsim.run.output import image_to_rgb8, write_render
+    from hwsim.run.output import image_to_rgb8
 
-    paths = write_render(runs[0], out_dir, extra={"turntable": turntable_stats(runs, turn)})
-    out = Path(out_dir)
-    folder = out / "frames"
-    folder.mkdir(exist_ok=True)
-    images = [r.image for r in runs]
-    window = _window(images) if images[0].ndim == 2 else None
-    pictures = []
-    for k, image in enumerate(images):
-        rgb, _ = image_to_rgb8(image, window)
-        picture = Image.fromarray(rgb)
-        picture.save(folder / f"frame_{k:04d}.png")
-        pictures.append(picture)
-    gif = out / "turntable.gif"
-    pictures[0].save(
-        gif, save_all=True, append_images=pictures[1:], duration=1000 // GIF_FPS, loop=0
+    rgb, _ = image_to_rgb8(image, window)
+    Image.fromarray(rgb).save(path, format="PNG")
+
+
+def _write_gif(pngs: list[Path], gif: Path) -> Path:
+    """``gif`` animated from the frames' PNG files, read one at a time."""
+    from PIL import Image
+
+    def read(path: Path) -> Image.Image:
+        with Image.open(path) as picture:
+            picture.load()
+            return picture.copy()
+
+    read(pngs[0]).save(
+        gif,
+        format="GIF",
+        save_all=True,
+        append_images=(read(p) for p in pngs[1:]),
+        duration=1000 // GIF_FPS,
+        loop=0,
     )
-    return {**paths, "frames": folder, "gif": gif}
+    return gif

@@ -82,3 +82,36 @@ def test_bad_turntables_are_one_line_errors(tmp_path, capsys, extra, key):
     args = ["render", *HEAD, *extra, "--out", str(tmp_path / "x")]
     assert main([a.replace("w.vcd", str(tmp_path / "w.vcd")) for a in args]) == 2
     one_line_error(capsys, key)
+
+
+def test_frames_stream_to_disk_and_are_not_kept(tmp_path, monkeypatch):
+    """Issue 33: each frame's PNG is on disk before the next frame renders, and no image
+    but frame 1's (its stats.json and image files are written at the end) stays alive."""
+    import gc
+    import weakref
+
+    import hwsim.run.turntable as turntable
+
+    out, images, checked = tmp_path / "tt", [], []
+
+    def render_and_watch(*args, **kw):
+        k = len(images)
+        if k:
+            assert (out / "frames" / f"frame_{k - 1:04d}.png").is_file(), k
+            gc.collect()
+            assert [ref() is None for ref in images[1:]] == [True] * (k - 1), k
+            checked.append(k)
+        run = render(*args, **kw)
+        images.append(weakref.ref(run.image))
+        return run
+
+    monkeypatch.setattr(turntable, "render", render_and_watch)
+    assert main(["render", *HEAD, "--frames", "5", "--out", str(out)]) == 0
+    assert checked == [1, 2, 3, 4]
+    assert len(list((out / "frames").iterdir())) == 5
+
+
+def test_a_turntable_over_the_memory_budget_is_refused_before_its_first_frame(tmp_path, capsys):
+    args = ["render", *HEAD, "--image", "4096", "--frames", "3000", "--max-memory", "64M"]
+    assert main([*args, "--out", str(tmp_path / "tt")]) == 2
+    one_line_error(capsys, "--frames", "memory budget")
