@@ -69,8 +69,9 @@ def read_dicom_series(folder: Path) -> Volume:
         slopes.append(float(ds.get("RescaleSlope", 1) or 1))
         inters.append(float(ds.get("RescaleIntercept", 0) or 0))
     raw = np.stack(planes)
-    data = _rescale(raw, np.array(slopes), np.array(inters))
-    row_mm, col_mm = (float(v) for v in first.get("PixelSpacing", (1.0, 1.0)))
+    data = _rescale(raw, np.array(slopes), np.array(inters), str(folder))
+    spacing = _numbers(first, "PixelSpacing", 2, slices[0][0])
+    row_mm, col_mm = (1.0, 1.0) if spacing is None else (float(v) for v in spacing)
     if len(positions) > 1:
         z_mm = float(np.median(np.diff(positions)))
     else:
@@ -176,7 +177,8 @@ def _check_consistent(slices: list[tuple[Path, Any]]) -> None:
             got = ds.get(key)
             same = got == want[key]
             if key == "ImageOrientationPatient" and got is not None and want[key] is not None:
-                same = np.allclose(np.asarray(got, float), np.asarray(want[key], float), atol=1e-4)
+                got_v, want_v = _numbers(ds, key, 6, path), _numbers(first, key, 6, first_path)
+                same = np.allclose(got_v, want_v, atol=1e-4)
             if not same:
                 raise InputError(
                     f"{key} {got} differs from {want[key]} in {first_path.name}",
@@ -192,10 +194,11 @@ def _sort(slices: list[tuple[Path, Any]]) -> tuple[list, np.ndarray, str]:
         "ImagePositionPatient" in ds and "ImageOrientationPatient" in ds for _, ds in slices
     )
     if have_pos:
-        iop = np.asarray(slices[0][1].ImageOrientationPatient, dtype=np.float64)
+        iop = _numbers(slices[0][1], "ImageOrientationPatient", 6, slices[0][0])
         normal = np.cross(iop[:3], iop[3:])
         keys = [
-            float(np.dot(np.asarray(ds.ImagePositionPatient, float), normal)) for _, ds in slices
+            float(np.dot(_numbers(ds, "ImagePositionPatient", 3, path), normal))
+            for path, ds in slices
         ]
         how = "position"
     else:
@@ -223,12 +226,32 @@ def _sort(slices: list[tuple[Path, Any]]) -> tuple[list, np.ndarray, str]:
     return slices, (keys_sorted if how == "position" else np.zeros(0)), how
 
 
-def _rescale(raw: np.ndarray, slopes: np.ndarray, inters: np.ndarray) -> np.ndarray:
+def _numbers(ds: Any, key: str, count: int, path: Path) -> np.ndarray | None:
+    """The multi-valued ``key`` of ``ds`` as ``count`` finite floats, None when absent;
+    another count or a value that is not a finite number is refused naming the file."""
+    if key not in ds:
+        return None
+    value = ds.get(key)
+    items = [value] if isinstance(value, (str, bytes, float, int)) else list(value)
+    try:
+        numbers = np.array([float(v) for v in items], dtype=np.float64)
+    except (TypeError, ValueError):
+        numbers = np.full(0, np.nan)
+    if numbers.size != count or not np.isfinite(numbers).all():
+        raise InputError(
+            f"{key} is {value!r}", source=str(path), key=key, allowed=f"{count} finite numbers"
+        )
+    return numbers
+
+
+def _rescale(raw: np.ndarray, slopes: np.ndarray, inters: np.ndarray, source: str) -> np.ndarray:
     """Apply per-slice rescale; integer results keep the stored type or the first of
-    int16/uint16 that holds them exactly, non-integer rescales give float32."""
+    int16/uint16 that holds them exactly, non-integer rescales give float32; values a
+    float32 cannot hold (a slope of 1e300, NaN) are refused."""
     if np.all(slopes == 1) and np.all(inters == 0):
         return raw
-    integral = np.all(slopes == np.round(slopes)) and np.all(inters == np.round(inters))
+    small = np.all(np.abs(slopes) < 2**31) and np.all(np.abs(inters) < 2**31)
+    integral = small and np.all(slopes == np.round(slopes)) and np.all(inters == np.round(inters))
     if integral and raw.dtype.kind in "iu":
         values = raw.astype(np.int64) * slopes.astype(np.int64)[:, None, None]
         values += inters.astype(np.int64)[:, None, None]
@@ -238,4 +261,11 @@ def _rescale(raw: np.ndarray, slopes: np.ndarray, inters: np.ndarray) -> np.ndar
             if info.min <= lo and hi <= info.max:
                 return values.astype(target)
     out = raw.astype(np.float64) * slopes[:, None, None] + inters[:, None, None]
+    if not (np.isfinite(out).all() and np.abs(out).max() <= np.finfo(np.float32).max):
+        raise InputError(
+            f"rescaled values reach {np.abs(out).max():g}",
+            source=source,
+            key="RescaleSlope/RescaleIntercept",
+            allowed="finite float32 values",
+        )
     return out.astype(np.float32)

@@ -380,3 +380,26 @@ def test_any_damaged_nifti_or_npy_header_is_read_or_refused_quietly(
     except InputError as exc:
         assert str(path) in str(exc) and "\n" not in str(exc), exc
         assert capfd.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    "key,value",
+    [
+        ("PixelSpacing", [1.0]),
+        ("PixelSpacing", [1.0, 2.0, 3.0]),
+        ("ImageOrientationPatient", [1, 0, 0, 0, 1]),
+        ("ImagePositionPatient", [0.0, 0.0]),
+    ],
+)
+def test_a_dicom_vector_of_the_wrong_length_is_refused_naming_file_and_key(tmp_path, key, value):
+    """Found by editing slices' tags: these were ValueError/TypeError (internal errors)."""
+    import pydicom
+
+    for z in (0, 1, 2):
+        _dicom_slice(tmp_path / f"s{z}.dcm", z)
+    ds = pydicom.dcmread(tmp_path / "s0.dcm")
+    setattr(ds, key, value)
+    ds.save_as(tmp_path / "s0.dcm")
+    with pytest.raises(InputError, match=f"{key}.*finite numbers") as info:
+        read_volume(tmp_path)
+    assert str(tmp_path / "s0.dcm") in str(info.value)
