@@ -14,9 +14,7 @@ def add_parser(sub):
     ``rtl`` actions (hwsim/cli/commands.py adds ``rtl diff``, which needs the cycle rung)."""
     from rtl.build import UNITS
 
-    r = sub.add_parser(
-        "rtl", help="Verilog and synthesis statistics of the RTL units; rtl against cycle rung"
-    )
+    r = sub.add_parser("rtl", help="RTL units' Verilog and synthesis stats; diff against cycle")
     actions = r.add_subparsers(dest="rtl_command", metavar="build|diff", required=True)
     b = actions.add_parser("build", help="write DIR/<unit>.v and DIR/synth.json")
     b.add_argument(
@@ -27,7 +25,9 @@ def add_parser(sub):
         help=f"one of {', '.join(UNITS)}, all (default: every unit), or top (the Cube-4 "
         "pipeline top: --set top.pipelines=4 top.max_axis=16 top.voxel_bits=12)",
     )
-    b.add_argument("--out", metavar="DIR", required=True)
+    b.add_argument(
+        "--out", metavar="DIR", required=True, help="writes DIR/<unit>.v and DIR/synth.json"
+    )
     b.add_argument(
         "--set",
         metavar="UNIT.KEY=VALUE",
@@ -39,7 +39,7 @@ def add_parser(sub):
     b.add_argument(
         "--abc", action="store_true", help="map gates with ABC (slow on the gradient unit: minutes)"
     )
-    b.add_argument("--quiet", action="store_true")
+    b.add_argument("--quiet", action="store_true", help="no progress bar or per-unit lines")
     return actions
 
 

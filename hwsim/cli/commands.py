@@ -18,6 +18,7 @@ from hwsim.cli.scene import add_scene_options
 from hwsim.cli.warm import add_warm_parser, cmd_warm
 from hwsim.core import env, interrupt
 from hwsim.core.errors import HwsimError, InputError
+from hwsim.core.logs import configure_logging
 from hwsim.spec.overrides import apply_overrides
 from hwsim.studies.bench import TABLE_GOALS
 
@@ -31,13 +32,47 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+#: The first line of ``hwsim --help``, for users.
+DESCRIPTION = "Simulate volume-rendering hardware: Cube-4, VolumePro, EM-Cube, VIZARD II."
+EPILOG = """\
+Run 'hwsim COMMAND --help' for a command's options; -v or -vv before or after the
+command logs what hwsim and its libraries (Dask, numba, ...) do.
+Documentation: README.md (getting started) and docs/cli.md (every command, its outputs
+and exit status) in the hwsim source tree; docs/ covers scenes, machines and sweeps."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="hwsim", description=__doc__.splitlines()[0])
+    """The ``hwsim`` parser: one subparser per command, ``--verbose`` on each."""
+    parser = _Parser(
+        prog="hwsim",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("--version", action="version", version=_version())
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(
+        title="commands", dest="command", metavar="COMMAND", required=True, parser_class=_Parser
+    )
     for add_subparser in _SUBPARSERS:
         add_subparser(sub)
+    _add_verbose(parser, default=0)
     return parser
+
+
+def _add_verbose(parser: argparse.ArgumentParser, default: object) -> None:
+    """``-v/--verbose`` on ``parser`` and every subcommand below it (there it keeps the
+    top level's count unless given: ``hwsim -v sweep ...`` and ``hwsim sweep ... -v``)."""
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="count",
+        default=default,
+        help="log more from hwsim and its libraries: -v INFO, -vv DEBUG (default: warnings only)",
+    )
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for child in action.choices.values():
+                _add_verbose(child, default=argparse.SUPPRESS)
 
 
 def _add_render_parser(sub) -> None:
@@ -48,14 +83,21 @@ def _add_render_parser(sub) -> None:
     r.add_argument(
         "--arch",
         metavar="NAME|FILE.toml",
-        help="architecture (golden: render at its sample positions)",
+        help="machine: a built-in name (hwsim archs) or a file (default: volumepro500 on the "
+        "timed rungs; golden: none, or render at its sample positions)",
     )
-    r.add_argument("--fidelity", choices=FIDELITIES, default="golden")
+    r.add_argument(
+        "--fidelity",
+        choices=FIDELITIES,
+        default="golden",
+        help="rung of the ladder: float64 reference, bit-exact datapath, memory timing, "
+        "clock by clock, or the Verilog itself (default: golden; docs/fidelity.md)",
+    )
     r.add_argument(
         "--sampling",
         choices=SAMPLINGS,
         default="ray",
-        help="golden sample positions: ideal rays or an architecture's order",
+        help="golden sample positions: ideal rays or an architecture's order (default: ray)",
     )
     r.add_argument(
         "--trace", metavar="FILE.vcd", help="cycle/rtl rung: VCD waveform of the hardware"
@@ -140,9 +182,7 @@ def _add_render_output_options(r: argparse.ArgumentParser) -> None:
 
 
 def _add_convert_parser(sub) -> None:
-    c = sub.add_parser(
-        "convert", help="rewrite a volume uncompressed (.nrrd or .npy): readable in parts"
-    )
+    c = sub.add_parser("convert", help="rewrite a volume uncompressed (.nrrd, .npy): read in parts")
     c.add_argument("volume", metavar="IN", help="volume file or DICOM folder")
     c.add_argument("out", metavar="OUT", help="OUT.nrrd (raw, keeps spacing and units) or .npy")
     _add_max_memory(c)
@@ -178,32 +218,41 @@ def _add_trade_parser(sub) -> None:
         "--widths: volumepro500)",
     )  # fmt: skip
     t.add_argument("--rungs", metavar="R,R,...", help="rungs to measure (default: all five)")
-    t.add_argument("--image", metavar="N", type=int, default=64, help="square image side")
-    t.add_argument("--size", metavar="N", type=int, default=64, help="phantom side (voxels)")
-    t.add_argument("--out", metavar="DIR", required=True)
+    t.add_argument("--image", metavar="N", type=int, default=64, help="square image side (64)")
+    t.add_argument("--size", metavar="N", type=int, default=64, help="phantom side in voxels (64)")
+    t.add_argument(
+        "--out",
+        metavar="DIR",
+        required=True,
+        help="writes trade.csv/.json/.md/.png (--widths: widths.csv/.json/.png)",
+    )
     _add_max_memory(t)
-    t.add_argument("--quiet", action="store_true")
+    _add_quiet(t)
 
 
 def _add_sweep_parser(sub) -> None:
     w = sub.add_parser("sweep", help="design-space sweep on Dask; rows in SQLite")
     w.add_argument("file", metavar="SWEEP.toml", help="sweep file (docs/sweeps.md)")
     where = w.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=2, help="local worker processes (2)")
-    where.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler")
+    where.add_argument(
+        "--workers", metavar="N", type=int, default=2, help="local worker processes (2)"
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="an existing Dask scheduler at tcp://HOST:PORT"
+    )
     w.add_argument("--db", metavar="FILE", default="runs.db", help="SQLite file (runs.db)")
     w.add_argument("--out", metavar="DIR", help="also write each run's render folder here")
     w.add_argument("--retry-failed", action="store_true", help="rerun runs recorded as failed")
     _add_max_memory(w)
-    w.add_argument("--quiet", action="store_true")
+    _add_quiet(w)
 
 
 def _add_report_parser(sub) -> None:
     rp = sub.add_parser("report", help="human report of runs: report.md + report.html")
     runs_help = "render, sweep --out or trade folders, or a sweep's runs.db"
     rp.add_argument("runs", metavar="RUN_DIR", nargs="+", help=runs_help)
-    rp.add_argument("--out", metavar="DIR", required=True)
-    rp.add_argument("--quiet", action="store_true")
+    rp.add_argument("--out", metavar="DIR", required=True, help="writes report.md and report.html")
+    _add_quiet(rp)
 
 
 def _add_figures_parser(sub) -> None:
@@ -217,15 +266,17 @@ def _add_figures_parser(sub) -> None:
     )
     f.add_argument("--out", metavar="DIR", required=True, help="writes figures.json/.csv/.md")
     _add_max_memory(f)
-    f.add_argument("--quiet", action="store_true")
+    _add_quiet(f)
 
 
 def _add_bench_parser(sub) -> None:
     b = sub.add_parser("bench", help="speed of every rung and the goal ratios, as JSON")
     b.add_argument("--size", metavar="N", type=int, default=64, help="head phantom side (64)")
     b.add_argument("--image", metavar="N", type=int, default=128, help="image side (128)")
-    b.add_argument("--arch", metavar="NAME|FILE.toml", default="volumepro500")
-    b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung")
+    b.add_argument(
+        "--arch", metavar="NAME|FILE.toml", default="volumepro500", help="machine (volumepro500)"
+    )
+    b.add_argument("--repeats", metavar="K", type=int, default=3, help="timed renders per rung (3)")
     b.add_argument(
         "--no-vtk", action="store_true", help="skip every use of VTK (the golden vs VTK rows)"
     )
@@ -284,9 +335,21 @@ def _add_rtl_parsers(sub) -> None:
         help="render a scene at the cycle and rtl rungs; the first clock where they differ",
     )
     add_scene_options(d)
-    d.add_argument("--arch", metavar="NAME|FILE.toml", default="cube4")
-    d.add_argument("--simulator", choices=("verilator", "icarus"), default="verilator")
-    d.add_argument("--quiet", action="store_true")
+    d.add_argument(
+        "--arch",
+        metavar="NAME|FILE.toml",
+        default="cube4",
+        help="a machine of the Cube-4 family, the one the RTL top implements (cube4)",
+    )
+    d.add_argument(
+        "--simulator",
+        choices=("verilator", "icarus"),
+        default="verilator",
+        help="HDL simulator of the rtl rung (verilator)",
+    )
+    d.add_argument(
+        "--quiet", action="store_true", help="print nothing: the exit status says (0 agree)"
+    )
 
 
 # One builder per subcommand, in the order ``hwsim --help`` lists them.
@@ -311,6 +374,10 @@ def _add_repeatable(parser: argparse.ArgumentParser, flag: str, metavar: str, wh
     )
 
 
+def _add_quiet(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+
+
 def _add_max_memory(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--max-memory",
@@ -333,6 +400,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             interrupt.say()
             return interrupt.EXIT_STATUS
+        configure_logging(args.verbose)
         return _run(args)
 
 
@@ -542,8 +610,9 @@ def _rtl_diff(args: argparse.Namespace) -> int:
 
     scene = apply_overrides(load_scene(args.scene), args)
     report = rtl_diff(scene, arch=args.arch, simulator=args.simulator)
-    for line in report.lines():
-        print(line)
+    if not args.quiet:
+        for line in report.lines():
+            print(line)
     return 0 if report.identical else 1
 
 

@@ -34,7 +34,7 @@ def add_warm_parser(sub) -> None:
     w = sub.add_parser(
         "warm", help="compile the frame kernels once (first run only), so renders start fast"
     )
-    w.add_argument("--quiet", action="store_true")
+    w.add_argument("--quiet", action="store_true", help="no progress bar or summary")
 
 
 def warm_jobs() -> list[tuple[str, str, str | None]]:

@@ -4,24 +4,38 @@ across workers (:mod:`hwsim.run.frame_split`).
 # Ref: shared/docs/design.md sections 8 and 9 (sweeps on Dask).
 
 A local cluster binds to 127.0.0.1 only, with one single-thread worker process per core
-asked; an existing cluster is reached by its scheduler's address.  A worker that dies
-holding a task is replaced by its nanny and the scheduler reruns the task elsewhere, up to
-:data:`ALLOWED_FAILURES` times.
+asked; an existing cluster is reached by its scheduler's address.  Its scheduler, nannies
+and workers keep their scratch files in a fresh directory of their own under the system
+temp dir (``hwsim-dask-*``), removed at close, or by the next cluster if its process was
+killed.  Dask's shared ``dask-scratch-space`` holds what killed workers left behind, and
+Dask purging that as a cluster starts on a busy machine took long enough for it to warn
+("Creating scratch directories is taking a surprisingly long time"; under pytest's
+warnings-as-errors, a failed start); hwsim's own clean-up runs outside that timed step.
+The dashboards listen on port 0 (no "Port 8787 is already in use"), and the workers log
+as the parent does (:mod:`hwsim.core.logs`).
+
+A worker that dies holding a task is replaced by its nanny and the scheduler reruns the
+task elsewhere, up to :data:`ALLOWED_FAILURES` times.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import logging
 import os
 import resource
+import shutil
 import socket
 import struct
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
+from hwsim.core import env, interrupt
 from hwsim.core.errors import InputError
 
 __all__ = [
@@ -45,11 +59,17 @@ ALLOWED_FAILURES = 3
 def local_client(workers: int) -> Iterator[Any]:
     """A Dask client on a ``LocalCluster`` of ``workers`` single-thread processes.
 
-    Everything listens on 127.0.0.1 only; the dashboard is off.
+    Everything listens on 127.0.0.1 only (dashboards on free ports); scratch files go to
+    a private temporary directory removed at close; logging follows
+    :func:`hwsim.core.logs.verbosity` in every process.
     """
     import dask
     from distributed import Client, LocalCluster
 
+    from hwsim.core import logs
+
+    logs.reapply()  # distributed's first import set its own loggers' levels
+    verbose = logs.verbosity()
     settings = {
         "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
         # Dask's nannies export MALLOC_TRIM_THRESHOLD_=65536 to their workers; that fixes
@@ -58,9 +78,10 @@ def local_client(workers: int) -> Iterator[Any]:
         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
         # One worker per core already: each render runs its frame on one thread
         # (hwsim.core.threads.frame_threads), unless the user chose otherwise.
-        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": os.environ.get("HWSIM_THREADS", "1"),
+        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": str(env.value("HWSIM_THREADS") or 1),
+        logs.DASK_KEY: verbose,  # read in each worker by the preload, logs.dask_setup
     }
-    with dask.config.set(settings):
+    with _scratch_directory() as scratch, dask.config.set(settings):
         cluster = LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -68,13 +89,61 @@ def local_client(workers: int) -> Iterator[Any]:
             host="127.0.0.1",
             dashboard_address="127.0.0.1:0",
             worker_dashboard_address="127.0.0.1:0",
-            silence_logs=logging.ERROR,
+            local_directory=scratch,
+            scheduler_kwargs={"local_directory": scratch},
+            preload=[logs.__name__, interrupt.__name__],  # interrupt: workers ignore SIGINT
+            silence_logs=False if verbose else logging.ERROR,
         )
         try:
             with Client(cluster) as client:
                 yield client
         finally:
             cluster.close()
+
+
+#: Name prefix of a local cluster's scratch directory and of its lock file beside it.
+_SCRATCH_PREFIX = "hwsim-dask-"
+
+
+@contextlib.contextmanager
+def _scratch_directory() -> Iterator[str]:
+    """A fresh directory for one local cluster's scratch files, removed at close.
+
+    Its lock file beside it (``<dir>.lock``, locked while the cluster runs) lets a later
+    cluster remove what a killed process left: :func:`_remove_orphans`.
+    """
+    base = Path(tempfile.gettempdir())
+    _remove_orphans(base)
+    fd, name = tempfile.mkstemp(prefix=_SCRATCH_PREFIX, suffix=".lock", dir=base)
+    lock = Path(name)
+    path = lock.with_suffix("")
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        path.mkdir(exist_ok=True)
+        yield str(path)
+    finally:
+        shutil.rmtree(path, ignore_errors=True)
+        lock.unlink(missing_ok=True)
+        os.close(fd)
+
+
+def _remove_orphans(base: Path) -> None:
+    """Remove the scratch directories whose lock nobody holds (their process is gone)."""
+    for lock in base.glob(f"{_SCRATCH_PREFIX}*.lock"):
+        try:
+            fd = os.open(lock, os.O_RDWR)
+        except OSError:  # removed meanwhile, or another user's
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # held: that cluster is running
+            os.close(fd)
+            continue
+        try:
+            shutil.rmtree(lock.with_suffix(""), ignore_errors=True)
+            lock.unlink(missing_ok=True)
+        finally:
+            os.close(fd)
 
 
 #: Address schemes ``--scheduler`` accepts: Dask's TCP transport, what ``dask scheduler``
@@ -136,6 +205,9 @@ def connect(address: str) -> Iterator[Any]:
     is built in a thread the caller waits for with a deadline (Dask's own ``timeout``
     does not cover a handshake that never comes).  Failures are one-line input errors.
     """
+    from hwsim.core import logs
+
+    logs.reapply()  # distributed's first import set its own loggers' levels
     check_address(address)
     if "://" not in address:
         address = f"tcp://{address}"
