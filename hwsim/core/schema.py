@@ -12,7 +12,8 @@ A shape is a Python value:
 * ``str``, ``int``, ``float`` (any JSON number), ``bool``, ``Any``: a value of that type;
 * ``{"key": shape, ...}``: an object with at least these keys (others are allowed, so
   a newer hwsim's extra fields read);
-* :class:`Opt` ``(shape)`` as a value of such a dict: the key may be absent or ``null``;
+* :class:`Opt` ``(shape)`` as a value of such a dict: the key may be absent or ``null``
+  (``Opt(shape, null=False)``: absent, but never ``null``);
 * ``[shape]``: an array of values of ``shape``;
 * :class:`MapOf` ``(shape)``: an object whose every value has ``shape``;
 * :class:`OneOf` ``(a, b, ...)``: any of the shapes.
@@ -36,9 +37,11 @@ MAX_DEPTH = 64
 
 @dataclass(frozen=True)
 class Opt:
-    """A key that may be absent or ``null``."""
+    """A key that may be absent, or ``null`` too unless ``null=False`` (a value read
+    with ``.get(key, default)``: absent gives the default, null would not)."""
 
     shape: Any
+    null: bool = True
 
 
 @dataclass(frozen=True)
@@ -154,7 +157,7 @@ def check_shape(value: Any, shape: Any, source: str, key: str = "") -> None:
         for name, sub in items:
             path = f"{key}.{name}" if key else str(name)
             optional = isinstance(sub, Opt)
-            if value.get(name) is None and optional:
+            if optional and (name not in value or (sub.null and value[name] is None)):
                 continue
             if name not in value:
                 raise InputError("is required", source=source, key=path)

@@ -39,7 +39,7 @@ _SYNTHESIZED = {
     "meets_clock": OneOf(bool, None),
     "memory_bits": int,
     "logic_levels": int,
-    "fmax_hz": _NUM,
+    "fmax_hz": _NULL_NUM,
     "fmax_basis": Opt(str),
     "independence": Opt(str),
     **{k: _NUM for k in ("table_logic_mm2", "logic_mm2", "storage_mm2")},
@@ -47,18 +47,16 @@ _SYNTHESIZED = {
     "table_storage_bits": Opt(int),
 }
 _ENERGY = {
-    **{k: _NUM for k in ("total_joules", "dynamic_joules", "per_sample_joules")},
-    "static_joules": _NUM,
-    "average_watts": _NUM,
-    "units": Opt(MapOf({"joules": float})),
-    "memories": Opt(MapOf({"joules": float})),
+    **{k: _NULL_NUM for k in ("total_joules", "dynamic_joules", "per_sample_joules")},
+    "static_joules": _NULL_NUM,
+    "average_watts": _NULL_NUM,
+    "units": Opt(MapOf({"joules": float}), null=False),
+    "memories": Opt(MapOf({"joules": float}), null=False),
 }
 _AREA = {
-    "total_mm2": _NUM,
-    "per_pipeline_mm2": _NUM,
-    "gate_equivalents": _NUM,
+    **{k: _NULL_NUM for k in ("total_mm2", "per_pipeline_mm2", "gate_equivalents")},
     "units": MapOf({"mm2": float, "synthesized": Opt(_SYNTHESIZED), "rtl_differs": Opt(str)}),
-    "buffers": Opt(MapOf({"mm2": float})),
+    "buffers": Opt(MapOf({"mm2": float}), null=False),
 }
 _BAND = {
     "band": int,
@@ -72,7 +70,7 @@ STATS = {
     "arch": OneOf(str, None),
     "scene": {
         "name": Opt(str),
-        "source": Opt(str),
+        "source": Opt(str, null=False),
         "render": {"mode": str},
         "volume": Opt({"path": Opt(str)}),
     },
@@ -82,9 +80,9 @@ STATS = {
     "wall_seconds": float,
     **{k: _NUM for k in ("clock_hz", "frame_seconds", "frames_per_second")},
     **{k: _NUM for k in ("samples_per_second", "host_seconds", "machine_frame_seconds")},
-    "elaborated_units": Opt([str]),
-    "elided_units": Opt([str]),
-    "counters": Opt(dict),
+    "elaborated_units": Opt([str], null=False),
+    "elided_units": Opt([str], null=False),
+    "counters": Opt(dict, null=False),
     "technology": Opt({"name": str, "node_nm": float, "vdd": float}),
     "energy": Opt(_ENERGY),
     "area": Opt(_AREA),
@@ -104,7 +102,8 @@ _TRADE_ROW = {
 TRADE = {"rows": [_TRADE_ROW]}
 _FIGURE_ROW = {
     **{k: str for k in ("arch", "figure", "rung", "status", "note")},
-    **{k: Opt(str) for k in ("evidence", "scenario", "source", "kind", "metric")},
+    "evidence": Opt(str, null=False),
+    **{k: Opt(str) for k in ("scenario", "source", "kind", "metric")},
     "fitted_from": Opt([str]),
     "size": Opt(int),
     "published": float,
@@ -129,8 +128,13 @@ FIGURES = {
 
 
 def read_stats(path: Path) -> dict[str, Any]:
-    """A run's ``stats.json``, checked against :data:`STATS`."""
-    return read_json(path, STATS)
+    """A run's ``stats.json``, checked against :data:`STATS`; a run with energy and
+    area states the technology and clock they were priced at."""
+    stats = read_json(path, STATS)
+    if stats.get("energy") and stats.get("area"):
+        priced = {"technology": {"name": str, "node_nm": float, "vdd": float}, "clock_hz": float}
+        check_shape(stats, priced, str(path))
+    return stats
 
 
 def read_trade(path: Path) -> dict[str, Any]:

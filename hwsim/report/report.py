@@ -69,6 +69,13 @@ def load_run(folder: str | Path) -> RunRecord:
         if not (folder / name).exists():
             raise InputError(f"not a run folder: {name} missing", source=str(folder), key="RUN_DIR")
     stats = read_stats(folder / "stats.json")
+    try:  # the recorded scene must parse: the report renders golden from it
+        _scene_from_stats(stats, folder)
+    except InputError as exc:
+        key = f"scene.{exc.key}" if exc.key else "scene"
+        raise InputError(
+            exc.message, source=str(folder / "stats.json"), key=key, allowed=exc.allowed
+        ) from None
     image = read_image(folder / "image.npy")
     facts = folder / "sweep.json"  # written beside a sweep's run (hwsim sweep --out)
     overrides = read_sweep_facts(facts) if facts.is_file() else {}

@@ -84,14 +84,18 @@ def get(doc: Any, path: tuple[Any, ...]) -> Any:
     return doc
 
 
+#: JSON has null too.
+JSON_VALUES = st.one_of(st.none(), VALUES)
+
+
 @st.composite
-def mutations(draw: Any, doc: dict[str, Any]) -> Mutation:
+def mutations(draw: Any, doc: dict[str, Any], values: st.SearchStrategy = VALUES) -> Mutation:
     kind = draw(st.sampled_from(["replace", "replace", "delete", "add"]))
     if kind == "add":
         path = (*draw(st.sampled_from(table_paths(doc))), "no_such_key")
-        return Mutation(kind, path, draw(VALUES))
+        return Mutation(kind, path, draw(values))
     path = draw(st.sampled_from(key_paths(doc)))
-    return Mutation(kind, path, draw(VALUES) if kind == "replace" else None)
+    return Mutation(kind, path, draw(values) if kind == "replace" else None)
 
 
 def mutated(doc: dict[str, Any], m: Mutation) -> dict[str, Any]:
