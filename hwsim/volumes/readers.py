@@ -402,6 +402,7 @@ def _read_nifti(path: Path) -> Volume:
         offset = int(proxy.offset)
         modality = nifti_modality(image.header)
     except Exception as exc:  # nibabel raises many types for damaged files
+        _check_gzip_stream(path)  # a cut .nii.gz: say that, not nibabel's guess
         raise InputError(f"cannot read NIfTI: {type(exc).__name__}: {exc}", source=src) from None
     _check_nifti_size(path, offset + declare(shape, dtype, src, key="dim"))
     try:
@@ -504,6 +505,22 @@ def _small_integers(*values: float) -> bool:
     """Whole numbers small enough that scaling int16 data by them stays in int64 (a
     damaged header's 1e30 slope is kept unapplied, as any other unscalable pair)."""
     return all(v.is_integer() and abs(v) < 2**31 for v in values)
+
+
+def _check_gzip_stream(path: Path) -> None:
+    """Refuse a ``.gz`` file whose stream is cut or damaged, saying how many bytes it
+    holds (read 1 MiB at a time, nothing kept)."""
+    if not path.name.lower().endswith(".gz"):
+        return
+    held = 0
+    try:
+        with gzip.open(path, "rb") as fh:
+            while chunk := fh.read1(1 << 20):  # what is there, up to where it breaks
+                held += len(chunk)
+    except (OSError, EOFError, zlib.error) as exc:
+        raise InputError(
+            f"damaged gzip stream after {held} bytes: {exc}", source=str(path), key="size"
+        ) from None
 
 
 def _check_nifti_size(path: Path, expected: int) -> None:

@@ -403,3 +403,13 @@ def test_a_dicom_vector_of_the_wrong_length_is_refused_naming_file_and_key(tmp_p
     with pytest.raises(InputError, match=f"{key}.*finite numbers") as info:
         read_volume(tmp_path)
     assert str(tmp_path / "s0.dcm") in str(info.value)
+
+
+@pytest.mark.parametrize("cut", [9, 30])
+def test_a_cut_nii_gz_says_its_stream_is_cut(tmp_path, cut):
+    """nibabel said 'Cannot work out file type' of a .nii.gz cut inside its stream."""
+    path = tmp_path / "v.nii.gz"
+    path.write_bytes(gzip.compress(_nifti(SAMPLE))[:-cut])
+    with pytest.raises(InputError, match="damaged gzip stream after") as info:
+        read_volume(path)
+    assert str(path) in str(info.value)
