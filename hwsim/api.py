@@ -344,10 +344,11 @@ def render(
                 "hwsim.load_scene(..., volume=PATH)",
                 key="volume",
             )
-    if options.get("trace") is not None:
-        from hwsim.core.paths import output_file
+    if options.get("trace") is not None:  # checked before the work starts, never an input
+        from hwsim.core.paths import FILE, plan_outputs
+        from hwsim.run.output import scene_inputs
 
-        output_file(options["trace"], "trace")  # checked before the work starts
+        plan_outputs(scene_inputs(scene), [("trace", options["trace"], FILE)])
     threads = options.pop("threads", None)
     max_memory = options.pop("max_memory", None)
     with _budget(max_memory), using(threads):
@@ -420,7 +421,7 @@ def sweep(
     """Run a sweep (``hwsim sweep``): a sweep TOML file, or its content as a dict (the
     ``[sweep]`` table alone or the whole file); runs already in ``db`` are skipped."""
     from hwsim.core.cluster import check_address, connect, local_client
-    from hwsim.core.paths import output_file, output_folder
+    from hwsim.core.paths import FILE, FOLDER, plan_outputs
     from hwsim.studies.sweep.db import RunsDB, check_ours
     from hwsim.studies.sweep.runner import run_sweep
     from hwsim.studies.sweep.spec import load_sweep, parse_sweep
@@ -432,12 +433,11 @@ def sweep(
         plan = parse_sweep(data, source="<sweep dict>", base_dir=Path.cwd())
     else:
         plan = load_sweep(spec)
-    output_file(db, "db")
+    spec_file = None if isinstance(spec, dict) else spec
+    plan_outputs([("spec", spec_file)], [("db", db, FILE), ("out", out, FOLDER)])
     check_ours(Path(db))
     if scheduler:
         check_address(scheduler)
-    if out is not None:
-        output_folder(out)
     keys: set[str] = set()
     with _budget(max_memory), contextlib.ExitStack() as stack:
         if scheduler:  # reached before the database is opened or changed

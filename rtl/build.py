@@ -25,6 +25,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hwsim.core.errors import HwsimError, InputError
+from hwsim.core.paths import write_text_atomic
 
 __all__ = ["UNITS", "TARGETS", "parse_settings", "build_unit", "synthesize", "build"]
 
@@ -218,7 +219,7 @@ def build(
     for k, unit in enumerate(units):
         component, params = build_unit(unit, settings.get(unit))
         text = to_verilog(component, unit)
-        (out / f"{unit}.v").write_text(text)
+        write_text_atomic(out / f"{unit}.v", text)
         # The top has no one latency: its frame's timing is its structure's (rtl/top.py).
         entry = {
             "params": params,
@@ -232,5 +233,5 @@ def build(
         if progress:
             progress(k + 1, len(units))
     if synth:
-        (out / "synth.json").write_text(json.dumps(report, indent=1, sort_keys=True) + "\n")
+        write_text_atomic(out / "synth.json", json.dumps(report, indent=1, sort_keys=True) + "\n")
     return report

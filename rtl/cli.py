@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from hwsim.core.errors import InputError
 
@@ -45,7 +46,7 @@ def add_parser(sub):
 
 def run(args: argparse.Namespace, progress=None) -> int:
     """Build the requested units; print one line per unit."""
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import in_folder, plan_outputs
     from rtl.build import TARGETS, UNITS, build, parse_settings
 
     if args.unit != "all" and args.unit not in TARGETS:
@@ -62,7 +63,9 @@ def run(args: argparse.Namespace, progress=None) -> int:
                 key=unit,
                 allowed=", ".join(units),
             )
-    out = output_folder(args.out)
+    out = Path(args.out)
+    files = [out / f"{unit}.v" for unit in units] + [out / "synth.json"] * (not args.no_synth)
+    plan_outputs([], in_folder("--out", out, files))  # every file, before any build
     report = build(units, out, settings, synth=not args.no_synth, abc=args.abc, progress=progress)
     if not args.quiet:
         for unit, entry in report["units"].items():

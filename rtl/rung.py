@@ -32,6 +32,7 @@ from pathlib import Path
 from hwsim.core import env
 from hwsim.core.errors import NotAvailableError
 from hwsim.core.notices import first_run
+from hwsim.core.paths import atomic_write
 from models.frame import Frame
 from models.machines.common.results import CycleResult
 from rtl.frame import FrameProgram, decode, prepare
@@ -336,7 +337,8 @@ def render_rtl(
     if trace is not None:
         from rtl.amaranth_run import run_amaranth
 
-        result = run_amaranth(program, vcd=str(trace))
+        with atomic_write(trace) as tmp:  # an earlier waveform kept until this one is whole
+            result = run_amaranth(program, vcd=str(tmp))
         result.counters["rtl.simulator"] = "amaranth"
         if progress is not None:
             progress(1, 1)

@@ -519,10 +519,11 @@ def _cmd_figures(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from hwsim.core.paths import display_path, output_folder
-    from hwsim.report.report import write_report
+    from hwsim.core.paths import display_path, in_folder, plan_outputs
+    from hwsim.report.report import report_inputs, report_paths, write_report
 
-    output_folder(args.out)
+    outputs = in_folder("--out", args.out, report_paths(args.out).values())
+    plan_outputs(report_inputs(args.runs), outputs)  # never onto a file it reads
     paths = write_report(args.runs, args.out)
     if not args.quiet:
         print(f"wrote {display_path(paths['md'])} and {paths['html'].name}")
@@ -531,8 +532,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
+    from pathlib import Path
 
-    from hwsim.core.paths import display_text, output_folder
+    from hwsim.core.paths import display_text, in_folder, plan_outputs, write_text_atomic
     from hwsim.run.fidelity import resolve_arch
     from hwsim.studies.bench import failures, format_bench, run_bench
 
@@ -557,11 +559,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             if row not in TABLE_GOALS:
                 allowed = ", ".join(TABLE_GOALS) + ", none"
                 raise InputError(f"no row {row!r}", key="--rows", allowed=allowed)
+    out = Path(args.out)
+    plan_outputs([("--arch", args.arch)], in_folder("--out", out, [out / "bench.json"]))
     resolve_arch(args.arch)
-    out = output_folder(args.out)
 
     def save(report: dict) -> None:  # its notes' paths relative (hwsim.core.paths)
-        (out / "bench.json").write_text(display_text(json.dumps(report, indent=2)) + "\n")
+        write_text_atomic(out / "bench.json", display_text(json.dumps(report, indent=2)) + "\n")
 
     def log(message: str) -> None:  # above the progress bar, not through it
         if not args.quiet:

@@ -32,18 +32,17 @@ def cmd_render(args: argparse.Namespace) -> int:
 def _render_command(args: argparse.Namespace) -> int:
     """Parse, load, call :func:`hwsim.api.render`, save, summarise."""
     from hwsim.api import naming_flags, render
-    from hwsim.core.paths import output_file, output_folder
     from hwsim.spec.scene import load_scene
 
     scene = apply_overrides(load_scene(args.scene), args)
     out_dir = args.out if args.out is not None else DEFAULT_RENDER_OUT
     replacing = args.out is None and (Path(out_dir) / "stats.json").is_file()
-    output_folder(out_dir)  # every output checked before the work starts
-    if args.trace:
-        output_file(args.trace, "--trace")
     options = _render_options(args)
-    if args.frames != 1 or args.turn is not None:
+    turntable = args.frames != 1 or args.turn is not None
+    if turntable:
         _check_turntable(args, options)
+    _plan_render(scene, args, out_dir, turntable)  # every output, before the work starts
+    if turntable:
         return _turntable(scene, args, out_dir, options)
     fidelity, arch = options.pop("fidelity"), options.pop("arch")
     with naming_flags(), progress_bar(args.quiet, "render") as progress:
@@ -52,6 +51,26 @@ def _render_command(args: argparse.Namespace) -> int:
     if not args.quiet:
         _print_render(scene, run.render_run, paths, replacing)
     return 0
+
+
+def _plan_render(scene: Scene, args: argparse.Namespace, out_dir: str, turntable: bool) -> None:
+    """Check every file this render will write (``--out`` and each file in it, a
+    turntable's frames and GIF, ``--trace``) against the files it reads and the kinds
+    already there (:func:`hwsim.core.paths.plan_outputs`), before the frame."""
+    from hwsim.core.paths import FILE, plan_outputs
+    from hwsim.run.output import render_outputs, scene_inputs
+    from hwsim.run.turntable import turntable_outputs
+
+    inputs = [
+        ("--volume" if key == "volume" and args.volume else key, path)
+        for key, path in scene_inputs(scene)
+    ]
+    for flag in ("arch", "technology", "transfer"):
+        value = getattr(args, flag, None)
+        if value and (value.endswith((".toml", ".npy")) or "/" in value):
+            inputs.append((f"--{flag}", value))
+    outputs = turntable_outputs(out_dir, args.frames) if turntable else render_outputs(out_dir)
+    plan_outputs(inputs, [*outputs, ("--trace", args.trace, FILE)])
 
 
 def _render_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -171,24 +190,26 @@ def cmd_convert(args: argparse.Namespace) -> int:
     import nrrd
     import numpy as np
 
-    from hwsim.core.paths import output_file
+    from hwsim.core.paths import FILE, atomic_write, plan_outputs
     from hwsim.volumes import read_volume
 
     out = args.out
     if not out.lower().endswith((".nrrd", ".npy")):
         raise InputError("unknown output type", source=out, key="OUT", allowed=".nrrd or .npy")
-    output_file(out, "OUT")
+    plan_outputs([("IN", args.volume)], [("OUT", out, FILE)])
     volume = read_volume(args.volume)
     data = np.ascontiguousarray(volume.data)
-    if out.lower().endswith(".npy"):
-        np.save(out, data)
-        kept = "spacing not kept: .npy has none"
-    else:
-        header = {"encoding": "raw", "spacings": list(volume.spacing[::-1])}
-        if volume.units == "HU":
-            header["content"] = f"{volume.name} (Hounsfield units)"
-        nrrd.write(out, data, header=header, index_order="C")
-        kept = f"spacing {volume.spacing}"
+    with atomic_write(out) as tmp:
+        if out.lower().endswith(".npy"):
+            with open(tmp, "wb") as fh:  # a file object: np.save adds no suffix
+                np.save(fh, data)
+            kept = "spacing not kept: .npy has none"
+        else:
+            header = {"encoding": "raw", "spacings": list(volume.spacing[::-1])}
+            if volume.units == "HU":
+                header["content"] = f"{volume.name} (Hounsfield units)"
+            nrrd.write(str(tmp), data, header=header, index_order="C")
+            kept = f"spacing {volume.spacing}"
     shape = "x".join(map(str, volume.shape))
     print(f"wrote {out}: {shape} {data.dtype}, {kept}")
     return 0

@@ -19,7 +19,8 @@ import errno
 import os
 import re
 import stat
-from contextlib import suppress
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager, suppress
 from functools import cache
 from pathlib import Path
 
@@ -36,6 +37,12 @@ __all__ = [
     "display_path",
     "display_text",
     "locate",
+    "FILE",
+    "FOLDER",
+    "plan_outputs",
+    "in_folder",
+    "atomic_write",
+    "write_text_atomic",
 ]
 
 
@@ -222,3 +229,130 @@ def locate(text: str, *bases: str | Path | None) -> Path:
         if base is not None and (Path(base) / path).exists():
             return Path(base) / path
     return path
+
+
+# ------------------------------------------------------------------ planned, atomic outputs
+
+#: The kinds of output :func:`plan_outputs` checks: a file is written, a folder created.
+FILE, FOLDER = "file", "folder"
+
+PathLike = str | os.PathLike
+
+
+def _stat(path: Path, key: str) -> os.stat_result | None:
+    """``os.stat(path)``, None when it does not exist; any other OS error is bad input."""
+    try:
+        return os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as exc:
+        why = f"cannot use this path: {exc.strerror}"
+        raise InputError(why, source=str(path), key=key) from None
+
+
+def _input_entries(inputs: Iterable[tuple[str, PathLike | None]]) -> list[tuple]:
+    """Each existing input as (key, path, real path, (device, inode), is a folder)."""
+    found = []
+    for key, path in inputs:
+        if path is None or not str(path) or str(path).startswith("<"):  # built-in
+            continue
+        info = _stat(Path(path), key)
+        if info is not None:
+            is_dir = Path(path).is_dir()
+            found.append((key, path, os.path.realpath(path), (info.st_dev, info.st_ino), is_dir))
+    return found
+
+
+def _check_kind(path: Path, key: str, kind: str) -> None:
+    """A folder where a file goes, a file where a folder goes (or above either): refused."""
+    info = _stat(path, key)
+    if info is not None:
+        if kind == FILE and Path(path).is_dir():
+            raise InputError("is a folder, expected a file name", source=str(path), key=key)
+        if kind == FOLDER and not Path(path).is_dir():
+            raise InputError("exists and is not a folder", source=str(path), key=key)
+        return
+    for parent in path.parents:  # the nearest existing folder above it
+        if _stat(parent, key) is not None:
+            if not parent.is_dir():
+                what = "output folder" if kind == FOLDER else "its folder"
+                why = f"cannot create {what}: {parent} exists and is not a folder"
+                raise InputError(why, source=str(path), key=key)
+            return
+
+
+def _check_not_input(path: Path, key: str, found: list[tuple]) -> None:
+    """An output that is one of the command's inputs, or inside an input folder, is refused."""
+    real = os.path.realpath(path)
+    info = _stat(path, key)
+    for in_key, in_path, in_real, in_id, in_dir in found:
+        same = real == in_real or (info is not None and (info.st_dev, info.st_ino) == in_id)
+        inside = in_dir and real.startswith(in_real.rstrip(os.sep) + os.sep)
+        if same or inside:
+            what = "is" if same else "is inside"
+            raise InputError(
+                f"{what} the input {in_path} ({in_key}); an output never replaces an input",
+                source=str(path),
+                key=key,
+            )
+
+
+def plan_outputs(
+    inputs: Iterable[tuple[str, PathLike | None]],
+    outputs: Iterable[tuple[str, PathLike | None, str]],
+) -> list[Path]:
+    """Check every output of a command before any work, then create its folders.
+
+    ``inputs`` are ``(flag, path)`` pairs: every file the command reads (a folder, such
+    as a DICOM series or a run folder, stands for every file inside it); ``outputs`` are
+    ``(flag, path, FILE | FOLDER)``: every file and folder it will write.  Refused as a
+    one-line :class:`InputError` (exit 2), before anything is created: an output that is
+    an input (same real path or same file) or lies inside an input folder, a folder where
+    a file goes or a file where a folder goes.  Then each folder is created and each
+    file's folder checked writable (:func:`output_folder`, :func:`output_file`).
+    ``None`` paths are skipped.  Returns the outputs' paths in order.
+    """
+    found = _input_entries(inputs)
+    planned = [(key, Path(path), kind) for key, path, kind in outputs if path is not None]
+    for key, path, kind in planned:
+        _check_kind(path, key, kind)
+        if kind == FILE:
+            _check_not_input(path, key, found)
+    for key, path, kind in planned:
+        if kind == FOLDER:
+            output_folder(path, key=key)
+        else:
+            output_file(path, key=key)
+    return [path for _, path, _ in planned]
+
+
+def in_folder(key: str, folder: PathLike, files: Iterable[PathLike]) -> list[tuple[str, Path, str]]:
+    """``folder`` and the ``files`` a command writes in it, as :func:`plan_outputs` takes
+    them (every output named by the flag ``key`` that chose the folder)."""
+    return [(key, Path(folder), FOLDER), *((key, Path(f), FILE) for f in files)]
+
+
+@contextmanager
+def atomic_write(path: PathLike) -> Iterator[Path]:
+    """A temporary name next to ``path`` (same suffix, so writers that read the format
+    from it work) that is renamed onto ``path`` when the block ends without an error;
+    on an error it is removed and ``path`` keeps its earlier content.
+
+    Every file hwsim writes goes through here, so a failed or interrupted run never
+    leaves a half-written file and never destroys an earlier result.
+    """
+    target = Path(path)
+    tmp = target.with_name(f".{target.stem}.partial-{os.getpid()}{target.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    finally:
+        with suppress(OSError):
+            tmp.unlink()
+
+
+def write_text_atomic(path: PathLike, text: str) -> Path:
+    """Write ``text`` to ``path`` through :func:`atomic_write`; returns ``path``."""
+    with atomic_write(path) as tmp:
+        tmp.write_text(text)
+    return Path(path)

@@ -7,17 +7,36 @@ from __future__ import annotations
 
 from typing import Any
 
+from hwsim.core.errors import InputError
 from hwsim.energy.model import estimate
 from hwsim.energy.technology import Technology, builtin_technologies, load_technology
 
 __all__ = [
     "Technology",
+    "arch_technology",
     "builtin_technologies",
     "estimate",
     "estimate_frame",
     "load_technology",
     "units_below_clock",
 ]
+
+
+def arch_technology(arch, technology: str | None = None) -> Technology:
+    """The technology a frame on ``arch`` is estimated in: ``technology`` (``--technology``)
+    when given, else the machine's ``[silicon] technology``, an unknown one refused naming
+    the architecture file and that key (never a flag the user did not give).  The render
+    calls this before the frame, so a bad node costs no simulation."""
+    if technology is not None or arch is None:
+        return load_technology(technology)
+    try:
+        return load_technology(arch.technology)
+    except InputError as exc:
+        if exc.key != "--technology":  # a fault inside the technology file: its own name
+            raise
+        raise InputError(
+            exc.message, source=arch.source, key="silicon.technology", allowed=exc.allowed
+        ) from None
 
 
 def units_below_clock(arch, technology: str | None = None) -> list[tuple[str, float]]:
@@ -28,7 +47,7 @@ def units_below_clock(arch, technology: str | None = None) -> list[tuple[str, fl
     from hwsim.energy.synth import unit_silicon
     from models.datapath import Datapath
 
-    tech = load_technology(technology or arch.technology)
+    tech = arch_technology(arch, technology)
     dp = Datapath.from_arch(arch, max(arch.value_bits))
     out = []
     for unit in (u for u in machine_units(arch) if not rtl_kind_differs(u, dp)):
@@ -49,7 +68,7 @@ def estimate_frame(
     arch = frame.arch
     if machine_for(arch).silicon is None:
         return None
-    tech = load_technology(technology or arch.technology)
+    tech = arch_technology(arch, technology)
     return estimate(
         arch=arch,
         dp=frame.datapath,

@@ -35,6 +35,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from hwsim.core.paths import write_text_atomic
 from hwsim.energy.technology import FF_GATE_EQUIVALENTS, Technology
 
 __all__ = [
@@ -206,7 +207,7 @@ def refresh(path: Path) -> dict[str, Any]:
             for u, e in report["units"].items()
         },
     }
-    path.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
+    write_text_atomic(path, json.dumps(out, indent=1, sort_keys=True) + "\n")
     return out
 
 

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hwsim.core.paths import write_text_atomic
+
 __all__ = ["VcdTrace"]
 
 _ID_CHARS = [chr(c) for c in range(33, 127)]
@@ -106,5 +108,5 @@ class VcdTrace:
                 w = widths[ident]
                 v = int(values[k])
                 lines.append(f"{v}{ident}" if w == 1 else f"b{v:b} {ident}")
-        path.write_text("\n".join(lines) + "\n")
+        write_text_atomic(path, "\n".join(lines) + "\n")  # the earlier trace kept until done
         return path

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.core.config import flatten_table
+from hwsim.core.paths import atomic_write
 from hwsim.run.output import image_to_rgb8
 
 __all__ = [
@@ -91,7 +92,8 @@ def plot_images(
         a.set_xticks([])
         a.set_yticks([])
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    with atomic_write(path) as tmp:
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
     return path
 
@@ -145,7 +147,8 @@ def _bar_figure(names: list[str], xlabel: str, draw):
 
 def _save(fig, path: Path) -> Path:
     """Write ``fig`` as PNG, cropped to everything drawn (legends outside the axes)."""
-    fig.savefig(path, dpi=100, bbox_inches="tight")
+    with atomic_write(path) as tmp:
+        fig.savefig(tmp, dpi=100, bbox_inches="tight")
     _plt().close(fig)
     return path
 

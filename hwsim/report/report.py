@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.core.errors import HwsimError, InputError
+from hwsim.core.paths import atomic_write, write_text_atomic
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
 from hwsim.report.energy import energy_blocks
@@ -425,7 +426,8 @@ def _trade_blocks(folder: Path, out: Path) -> list[Block]:
     png = folder / "trade.png"
     if png.is_file():
         copy = out / f"trade-{len(list(out.glob('trade-*.png')))}.png"
-        copy.write_bytes(png.read_bytes())
+        with atomic_write(copy) as tmp:
+            tmp.write_bytes(png.read_bytes())
         blocks.append(("img", copy, "speed against error, Pareto front dashed"))
     return blocks
 
@@ -565,6 +567,26 @@ def _figures_blocks(path: Path, out: Path) -> list[Block]:
     return blocks
 
 
+def report_paths(out_dir: str | Path) -> dict[str, Path]:
+    """The documents :func:`write_report` writes in ``out_dir`` (its plots, named as
+    they are drawn, go there too)."""
+    return {kind: Path(out_dir) / f"report.{kind}" for kind in ("md", "html")}
+
+
+#: The files a report reads in each run, trade or figures folder it is given.
+READS = ("stats.json", "image.npy", "trade.json", "trade.png", "figures.json", "sweep.json")
+
+
+def report_inputs(runs: list[str | Path]) -> list[tuple[str, Path]]:
+    """The files a report of ``runs`` reads (a sweep database itself, else each of
+    :data:`READS` in the folder), as :func:`hwsim.core.paths.plan_outputs` takes them."""
+    found = []
+    for run in map(Path, runs):
+        names = READS if run.is_dir() else ("",)
+        found += [("RUN_DIR", run / name if name else run) for name in names]
+    return found
+
+
 def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Path]:
     """Write ``report.md``, ``report.html`` and the PNG plots into ``out_dir``."""
     from hwsim.core.paths import output_folder
@@ -573,7 +595,7 @@ def write_report(folders: list[str | Path], out_dir: str | Path) -> dict[str, Pa
         raise InputError("give at least one run folder", key="RUN_DIR")
     out = output_folder(out_dir).resolve()
     blocks = build_report(folders, out)
-    paths = {"md": out / "report.md", "html": out / "report.html"}
-    paths["md"].write_text(markdown(blocks, out) + "\n")
-    paths["html"].write_text(html_page(blocks, "hwsim report") + "\n")
+    paths = report_paths(out)
+    write_text_atomic(paths["md"], markdown(blocks, out) + "\n")
+    write_text_atomic(paths["html"], html_page(blocks, "hwsim report") + "\n")
     return paths

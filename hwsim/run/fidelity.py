@@ -97,7 +97,11 @@ def builtin_archs() -> dict[str, ArchConfig]:
 def resolve_arch(name_or_path: str) -> ArchConfig:
     """An architecture by built-in name or from a user's TOML file."""
     if name_or_path.endswith(".toml") or "/" in name_or_path:
-        return load_arch_file(name_or_path)
+        from hwsim.energy import arch_technology
+
+        config = load_arch_file(name_or_path)
+        arch_technology(config)  # an unknown [silicon] technology: refused at load
+        return config
     archs = builtin_archs()
     if name_or_path not in archs:
         raise InputError(
@@ -326,10 +330,10 @@ def _prepare(scene: Scene, request: RenderRequest) -> RenderJob:
         machine: ArchConfig | None = wanted
     else:
         machine = resolve_arch(wanted) if wanted is not None else None
-    if request.technology is not None:  # a bad technology is refused before the frame
-        from hwsim.energy import load_technology
+    if request.technology is not None or machine is not None:  # refused before the frame
+        from hwsim.energy import arch_technology
 
-        load_technology(request.technology)
+        arch_technology(machine, request.technology)
     extensions = []
     chosen = IDEAL  # the ideal renderer's shading (its gradients: the scene's, or voxel)
     if machine is not None:

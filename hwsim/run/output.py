@@ -3,14 +3,15 @@
 Derived metrics (``frame_seconds``, ``samples_per_second``) are computed here and only
 here, from the raw counts a rung returns.  Files are written in the order
 ``image.npy``, ``image.png``, ``stats.json``, each through a temporary name and an
-atomic rename, so an interrupted write never leaves a half file and never loses what
-was already computed.
+atomic rename (:func:`hwsim.core.paths.atomic_write`), so an interrupted write never
+leaves a half file or destroys an earlier result, and one file that fails does not stop
+the others: what was computed is kept.  :func:`render_outputs` lists every path a
+render writes, for the command to check before the frame.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import platform
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -18,8 +19,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hwsim import __version__
-from hwsim.core.errors import InputError
-from hwsim.core.paths import display_path, output_file, output_folder
+from hwsim.core.errors import HwsimError, InputError
+from hwsim.core.paths import (
+    atomic_write,
+    display_path,
+    in_folder,
+    output_file,
+    output_folder,
+    plan_outputs,
+    write_text_atomic,
+)
 from hwsim.core.threads import frame_threads
 
 if TYPE_CHECKING:
@@ -33,6 +42,9 @@ __all__ = [
     "stats_plain",
     "transfer_stats",
     "write_render",
+    "render_outputs",
+    "scene_inputs",
+    "CSV_NAMES",
     "image_to_rgb8",
     "output_folder",
     "output_file",
@@ -163,10 +175,38 @@ def image_to_rgb8(
     return np.repeat(grey[..., None], 3, axis=2), {"display": "grey", "window": [lo, hi]}
 
 
-def _atomic_write(path: Path, write) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    write(tmp)
-    os.replace(tmp, path)
+#: The CSVs a timed run writes next to its image (:mod:`hwsim.run.output_csvs`).
+CSV_NAMES = ("throughput.csv", "units.csv", "memory.csv")
+
+
+def render_outputs(out_dir: str | Path, key: str = "--out") -> list[tuple[str, Path, str]]:
+    """Every path :func:`write_render` may write in ``out_dir``, as
+    :func:`hwsim.core.paths.plan_outputs` takes them (checked before the frame)."""
+    names = ("image.npy", "image.png", "stats.json", *CSV_NAMES)
+    return in_folder(key, out_dir, (Path(out_dir) / name for name in names))
+
+
+def scene_inputs(scene: Scene) -> list[tuple[str, Path | None]]:
+    """The files a render of ``scene`` reads: the scene file and its volume (a file or a
+    DICOM folder), as :func:`hwsim.core.paths.plan_outputs` takes them."""
+    source = None if scene.source.startswith("<") else Path(scene.source)
+    volume = scene.volume.path
+    if volume:
+        volume = Path(volume).expanduser()
+        volume = volume if volume.is_absolute() else scene.base_dir / volume
+    return [("scene", source), ("volume", volume)]
+
+
+def _save_npy(image: np.ndarray, path: Path) -> None:
+    with atomic_write(path) as tmp, open(tmp, "wb") as fh:
+        np.save(fh, image, allow_pickle=False)
+
+
+def _save_png(rgb: np.ndarray, path: Path) -> None:
+    from matplotlib import image as mpimage
+
+    with atomic_write(path) as tmp:
+        mpimage.imsave(tmp, rgb, format="png")
 
 
 def write_render(
@@ -174,39 +214,59 @@ def write_render(
 ) -> dict[str, Path]:
     """Write ``image.npy``, ``image.png`` and ``stats.json`` (plus ``extra`` blocks, e.g.
     a turntable's) into ``out_dir``; ``stats.json`` alone for a frame timed without its
-    image."""
+    image.
+
+    Each file is written through :func:`hwsim.core.paths.atomic_write`.  A file that
+    fails does not stop the others (the frame's numbers are kept); the error then says
+    which file failed and which were saved.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
-    from matplotlib import image as mpimage
+    from hwsim.run.output_csvs import write_csvs
 
-    out = output_folder(out_dir)
+    plan_outputs(scene_inputs(run.scene), render_outputs(out_dir))  # never onto an input
+    out = Path(out_dir)
     paths = {"npy": out / "image.npy", "png": out / "image.png", "stats": out / "stats.json"}
-    try:
-        stats = stats_dict(run, out)
-        if run.image is None:  # timed without its image: stats only
-            del paths["npy"], paths["png"]
-        else:
-
-            def save_npy(p: Path) -> None:
-                with open(p, "wb") as fh:
-                    np.save(fh, run.image, allow_pickle=False)
-
-            _atomic_write(paths["npy"], save_npy)
-            rgb, display = image_to_rgb8(run.image)
-            _atomic_write(paths["png"], lambda p: mpimage.imsave(p, rgb, format="png"))
-            stats["image"].update(display)
-        stats.update(extra or {})
-        text = json.dumps(stats, indent=2, default=_json_default)
-        _atomic_write(paths["stats"], lambda p: p.write_text(text + "\n"))
-        from hwsim.run.output_csvs import write_csvs
-
-        paths.update(write_csvs(run, out))
-    except OSError as exc:
-        raise InputError(
-            f"cannot write output: {exc.strerror}", source=str(out), key="--out"
-        ) from None
+    stats = stats_dict(run, out)
+    steps = []
+    if run.image is None:  # timed without its image: stats only
+        del paths["npy"], paths["png"]
+    else:
+        rgb, display = image_to_rgb8(run.image)
+        stats["image"].update(display)
+        steps += [("npy", lambda: _save_npy(run.image, paths["npy"]))]
+        steps += [("png", lambda: _save_png(rgb, paths["png"]))]
+    stats.update(extra or {})
+    text = json.dumps(stats, indent=2, default=_json_default) + "\n"
+    steps += [("stats", lambda: write_text_atomic(paths["stats"], text))]
+    steps += [("csvs", lambda: paths.update(write_csvs(run, out)))]
+    failed = None
+    for name, step in steps:
+        try:
+            step()
+        except Exception as exc:  # keep writing the rest, then say what failed
+            failed = failed or (name, exc)
+            paths.pop(name, None)
+    if failed is not None:
+        _raise_write_failure(out, failed, paths)
     return paths
+
+
+def _raise_write_failure(out: Path, failed: tuple[str, Exception], paths: dict) -> None:
+    """One line: which output could not be written, why, and what was saved."""
+    name, exc = failed
+    saved = ", ".join(p.name for p in paths.values()) or "nothing"
+    what = {"csvs": "the CSVs"}.get(name, f"image.{name}" if name != "stats" else "stats.json")
+    if isinstance(exc, OSError):
+        raise InputError(
+            f"cannot write {what}: {exc.strerror or exc}; saved {saved}",
+            source=str(out),
+            key="--out",
+        ) from None
+    raise HwsimError(
+        f"writing {what} failed ({type(exc).__name__}: {exc}); saved {saved} in {out}"
+    ) from exc
 
 
 def _json_default(value: Any) -> Any:

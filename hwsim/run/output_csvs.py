@@ -2,7 +2,8 @@
 
 Built only from the raw counters a rung returns (component paths such as
 ``pipeline[2].interp.busy_cycles``) and the frame totals, so downstream tools read
-numbers, never text (conventions.md item 7).
+numbers, never text (conventions.md item 7).  Each is written to a temporary name and
+renamed into place (:func:`hwsim.core.paths.atomic_write`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import csv
 import re
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from hwsim.core.paths import atomic_write
 
 if TYPE_CHECKING:
     from hwsim.run.fidelity import RenderRun
@@ -49,7 +52,7 @@ def write_csvs(run: RenderRun, out: Path) -> dict[str, Path]:
         return {}
     paths = {k: out / f"{k}.csv" for k in ("throughput", "units", "memory")}
     seconds = run.cycles / run.clock_hz if run.clock_hz else None
-    with open(paths["throughput"], "w", newline="") as fh:
+    with atomic_write(paths["throughput"]) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(
             [
@@ -86,12 +89,12 @@ def write_csvs(run: RenderRun, out: Path) -> dict[str, Path]:
             row["energy_joules"] = int(row.get("inputs", 0)) * energy[unit]["joules_per_action"]
         if unit in area:
             row["area_mm2"] = area[unit]["per_pipeline_mm2"]
-    with open(paths["units"], "w", newline="") as fh:
+    with atomic_write(paths["units"]) as tmp, open(tmp, "w", newline="") as fh:
         fields = ["unit", "pipeline", *_KINDS, "total_cycles", "energy_joules", "area_mm2"]
         w = csv.DictWriter(fh, fieldnames=fields)
         w.writeheader()
         w.writerows(rows)
-    with open(paths["memory"], "w", newline="") as fh:
+    with atomic_write(paths["memory"]) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["counter", "value"])
         for path, value in run.counters.items():

@@ -6,7 +6,9 @@ reuse it, so the per-frame figure is the median of frames 2..N.  Every frame goe
 through :func:`hwsim.run.fidelity.render` with the same loaded volume (the caches are keyed
 by it).  The frames stream to disk (:func:`stream_turntable`): each PNG is written as
 its frame ends and the frame let go, and the animated GIF (Pillow) is assembled from the
-files at the end, so a long turntable holds one frame, not all of them.
+files at the end, so a long turntable holds one frame, not all of them; every file goes
+through a temporary name (:func:`hwsim.core.paths.atomic_write`).  Every path it writes
+(:func:`turntable_outputs`) is checked before the first frame.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.core.errors import InputError
-from hwsim.core.paths import output_folder
+from hwsim.core.paths import FILE, FOLDER, atomic_write, output_folder
 from hwsim.run.fidelity import RenderRun, render
 from hwsim.spec.scene import Scene
 from hwsim.volumes import load_volume
@@ -35,6 +37,7 @@ __all__ = [
     "stream_turntable",
     "turntable_frames",
     "write_frames",
+    "turntable_outputs",
     "turntable_bytes",
     "turntable_stats",
     "write_turntable",
@@ -59,6 +62,20 @@ def check_turntable(frames: int, turn: float, trace: str | None = None) -> None:
         raise InputError(f"a turn of {turn:g} degrees", key="--turn", allowed="-360 .. 360")
     if frames > 1 and trace is not None:
         raise InputError("a waveform holds one frame", key="--trace", allowed="--frames 1")
+
+
+def turntable_outputs(out_dir: str | Path, frames: int) -> list[tuple[str, Path, str]]:
+    """Every path :func:`write_turntable` writes for ``frames`` frames (frame 1's render
+    files, ``frames/`` and each ``frame_NNNN.png`` in it, ``turntable.gif``), as
+    :func:`hwsim.core.paths.plan_outputs` takes them: checked before the first frame."""
+    from hwsim.run.output import render_outputs
+
+    check_turntable(frames, 0.0)
+    out = Path(out_dir)
+    folder = out / "frames"
+    pngs = [("--out", folder / f"frame_{k:04d}.png", FILE) for k in range(frames)]
+    gif = ("--out", out / "turntable.gif", FILE)
+    return [*render_outputs(out), ("--out", folder, FOLDER), *pngs, gif]
 
 
 def turntable_frames(
@@ -198,7 +215,8 @@ def _write_png(image: np.ndarray, window: tuple[float, float] | None, path: Path
     from hwsim.run.output import image_to_rgb8
 
     rgb, _ = image_to_rgb8(image, window)
-    Image.fromarray(rgb).save(path, format="PNG")
+    with atomic_write(path) as tmp:
+        Image.fromarray(rgb).save(tmp, format="PNG")
 
 
 def _write_gif(pngs: list[Path], gif: Path) -> Path:
@@ -210,12 +228,13 @@ def _write_gif(pngs: list[Path], gif: Path) -> Path:
             picture.load()
             return picture.copy()
 
-    read(pngs[0]).save(
-        gif,
-        format="GIF",
-        save_all=True,
-        append_images=(read(p) for p in pngs[1:]),
-        duration=1000 // GIF_FPS,
-        loop=0,
-    )
+    with atomic_write(gif) as tmp:
+        read(pngs[0]).save(
+            tmp,
+            format="GIF",
+            save_all=True,
+            append_images=(read(p) for p in pngs[1:]),
+            duration=1000 // GIF_FPS,
+            loop=0,
+        )
     return gif

@@ -50,12 +50,17 @@ EVIDENCE_LEGEND = (
 )
 
 
+def figures_paths(out_dir: str | Path) -> dict[str, Path]:
+    """The files :func:`write_figures` writes in ``out_dir``, by kind."""
+    return {kind: Path(out_dir) / f"figures.{kind}" for kind in ("json", "csv", "md")}
+
+
 def write_figures(
     rows: list[FigureRow], out_dir: str | Path, clocks: dict[str, float] | None = None
 ) -> dict[str, Path]:
     """``figures.json``, ``figures.csv`` and ``figures.md`` in ``out_dir``; ``clocks``
     (machine -> file clock) adds the leave-one-out table."""
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import atomic_write, output_folder, write_text_atomic
 
     out = output_folder(out_dir)
     loo = leave_one_out(rows, clocks or {})
@@ -66,16 +71,16 @@ def write_figures(
         "rows": [asdict(r) for r in rows],
         "leave_one_out": [asdict(r) for r in loo],
     }
-    paths = {"json": out / "figures.json", "csv": out / "figures.csv", "md": out / "figures.md"}
-    paths["json"].write_text(json.dumps(data, indent=2) + "\n")
-    with paths["csv"].open("w", newline="") as fh:
+    paths = figures_paths(out)
+    write_text_atomic(paths["json"], json.dumps(data, indent=2) + "\n")
+    with atomic_write(paths["csv"]) as tmp, tmp.open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(asdict(rows[0])) if rows else ["arch"])
         writer.writeheader()
         for r in rows:
             d = asdict(r)
             d["fitted_from"] = " ".join(d["fitted_from"] or [])
             writer.writerow(d)
-    paths["md"].write_text(markdown_tables(data))
+    write_text_atomic(paths["md"], markdown_tables(data))
     return paths
 
 
@@ -160,12 +165,13 @@ def table(rows: list[dict[str, Any]] | list[FigureRow]) -> tuple[list[str], list
 
 def figures_command(args, progress_bar: Any) -> int:
     """``hwsim figures``: measure, write the three files, print the table."""
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import in_folder, plan_outputs
     from hwsim.run.fidelity import builtin_archs, resolve_arch
 
     if args.max_size < 1:
         raise InputError(f"invalid {args.max_size}", key="--max-size", allowed=">= 1")
-    output_folder(args.out)
+    outputs = in_folder("--out", args.out, figures_paths(args.out).values())
+    plan_outputs([("--arch", a) for a in args.arch], outputs)
     if args.arch:
         archs = [resolve_arch(a) for a in args.arch]
     else:

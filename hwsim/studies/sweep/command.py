@@ -16,7 +16,7 @@ __all__ = ["sweep_command"]
 def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the sweep the parsed ``args`` describe; exit status 1 if any run failed."""
     from hwsim.core.cluster import check_address, connect, local_client
-    from hwsim.core.paths import output_file, output_folder
+    from hwsim.core.paths import FILE, FOLDER, plan_outputs
     from hwsim.studies.sweep.db import RunsDB, check_ours
     from hwsim.studies.sweep.runner import run_sweep
     from hwsim.studies.sweep.spec import load_sweep
@@ -24,12 +24,11 @@ def sweep_command(args: argparse.Namespace, progress_bar: Any) -> int:
     if not 1 <= args.workers <= 256:
         raise InputError(f"{args.workers} is out of range", key="--workers", allowed="1 .. 256")
     sweep = load_sweep(args.file)
-    output_file(args.db, "--db")
+    outputs = [("--db", args.db, FILE), ("--out", args.out or None, FOLDER)]
+    plan_outputs([("SWEEP.toml", args.file)], outputs)  # never onto the sweep file
     check_ours(Path(args.db))
     if args.scheduler:
         check_address(args.scheduler)
-    if args.out:
-        output_folder(args.out)
     with contextlib.ExitStack() as stack:
         if args.scheduler:  # reached before the database is opened or changed
             client = stack.enter_context(connect(args.scheduler))

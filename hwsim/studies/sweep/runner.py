@@ -40,7 +40,7 @@ from hwsim.core.cluster import (
     scheduler_workers,
 )
 from hwsim.core.errors import HwsimError, InputError
-from hwsim.core.paths import display_path, display_text
+from hwsim.core.paths import display_path, display_text, write_text_atomic
 from hwsim.studies.sweep.db import RunsDB
 from hwsim.studies.sweep.spec import RunSpec, Sweep, build_run, code_version, run_key, technology_of
 
@@ -161,7 +161,7 @@ def execute_run(run: RunSpec, key: str, out_dir: str | None = None) -> dict[str,
             folder = Path(out_dir) / key[:16]
             write_render(result, folder)
             sweep_facts = {"key": key, "params": p, "arch_overrides": overrides}
-            (folder / "sweep.json").write_text(json.dumps(sweep_facts, indent=2) + "\n")
+            write_text_atomic(folder / "sweep.json", json.dumps(sweep_facts, indent=2) + "\n")
             row["run_dir"] = display_path(folder)
     except Exception as exc:  # recorded, not raised: one bad run must not stop a sweep
         text = str(exc) if isinstance(exc, HwsimError) else f"{type(exc).__name__}: {exc}"

@@ -13,11 +13,15 @@ __all__ = ["trade_command"]
 
 def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the trade ``args`` asks for, write its files and print its table."""
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import in_folder, plan_outputs
+    from hwsim.studies.trade.ladder import ladder_paths
+    from hwsim.studies.trade.widths import width_paths
 
     if not 8 <= args.image <= 1024:
         raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")
-    output_folder(args.out)
+    files = (width_paths if args.widths else ladder_paths)(args.out).values()
+    inputs = [*(("--volume", v) for v in args.volume), *(("--arch", a) for a in args.arch)]
+    plan_outputs(inputs, in_folder("--out", args.out, files))  # before any render
     if args.widths:
         return _widths(args, progress_bar)
     from hwsim.studies.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from hwsim.core.paths import atomic_write, write_text_atomic
 from hwsim.numerics import EXACT_MATCHES, ROUND_OFF
 
 __all__ = ["write_rows", "fmt_cell", "psnr_cell", "EXACT_LEGEND"]
@@ -48,7 +49,7 @@ def write_rows(
     """
     if csv_path is not None:
         fields = list(dict.fromkeys(k for r in rows for k in r))
-        with open(csv_path, "w", newline="") as fh:
+        with atomic_write(csv_path) as tmp, open(tmp, "w", newline="") as fh:
             writer = csv.DictWriter(fh, fieldnames=fields)
             writer.writeheader()
             for r in rows:
@@ -67,4 +68,4 @@ def write_rows(
 
     body = {"schema": 1, **extra, "rows": [finite(r) for r in rows]}
     if json_path is not None:
-        json_path.write_text(json.dumps(body, indent=2) + "\n")
+        write_text_atomic(json_path, json.dumps(body, indent=2) + "\n")

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.core.errors import InputError, NotAvailableError
-from hwsim.core.paths import output_folder
+from hwsim.core.paths import output_folder, write_text_atomic
 from hwsim.numerics import agreement, max_abs_error, per_channel, psnr, rmse
 from hwsim.spec.scene import Scene, ViewSpec, VolumeSpec, load_scene
 from hwsim.studies.trade.files import write_rows
@@ -361,21 +361,21 @@ def _row(case: TradeCase, arch: str, run: Any, *, status: str, note: str = "") -
     return row
 
 
+def ladder_paths(out_dir: str | Path) -> dict[str, Path]:
+    """The files :func:`write_ladder_trade` writes in ``out_dir``, by kind."""
+    return {kind: Path(out_dir) / f"trade.{kind}" for kind in ("csv", "json", "md", "png")}
+
+
 def write_ladder_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[str, Path]:
     """Write ``trade.csv``, ``trade.json`` (with ``not_run`` when ``rows`` is a
     :class:`TradeRows`), the table with its reasons as ``trade.md`` and the Pareto plot
     ``trade.png``."""
-    out = output_folder(out_dir)
-    paths = {
-        "csv": out / "trade.csv",
-        "json": out / "trade.json",
-        "md": out / "trade.md",
-        "png": out / "trade.png",
-    }
+    output_folder(out_dir)
+    paths = ladder_paths(out_dir)
     not_run = list(getattr(rows, "not_run", []))
     flat = [{k: v for k, v in r.items() if k != "numerical_per_channel"} for r in rows]
     write_rows(flat, paths["csv"], None)
     write_rows(list(rows), None, paths["json"], not_run=not_run)
-    paths["md"].write_text(ladder_markdown(rows, not_run))
+    write_text_atomic(paths["md"], ladder_markdown(rows, not_run))
     plot_ladder(rows, paths["png"], reason_lines(rows, not_run))
     return paths

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from hwsim.core.paths import atomic_write
 from hwsim.numerics import EXACT_MATCHES
 
 __all__ = ["pareto_front", "plot_ladder"]
@@ -71,7 +72,8 @@ def plot_ladder(rows: list[dict[str, Any]], path: Path, reasons: Sequence[str] =
     for i, line in enumerate(notes):
         fig.text(0.01, (foot - 0.8 - 0.13 * (i + 1)) / height, line, fontsize=6, va="bottom")
     fig.tight_layout(rect=(0, foot / height, 1, 1))
-    fig.savefig(path, dpi=110)
+    with atomic_write(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
 

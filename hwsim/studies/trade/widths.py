@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hwsim.core.paths import output_folder
+from hwsim.core.paths import atomic_write, output_folder
 from hwsim.golden import make_plan, render_golden
 from hwsim.numerics import max_abs_error, psnr, rmse
 from hwsim.spec.arch import ArchConfig
@@ -140,6 +140,13 @@ def width_trade(
     return rows
 
 
+def width_paths(out_dir: str | Path) -> dict[str, Path]:
+    """The files :func:`write_width_trade` writes in ``out_dir``, by kind."""
+    out = Path(out_dir)
+    names = {"csv": "widths.csv", "json": "widths.json", "png": "widths.png"}
+    return {kind: out / name for kind, name in (*names.items(), ("pareto", "widths-pareto.png"))}
+
+
 def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[str, Path]:
     """Write ``widths.csv``, ``widths.json`` and ``widths.png`` into ``out_dir``."""
     import matplotlib
@@ -147,13 +154,8 @@ def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[s
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out = output_folder(out_dir)
-    paths = {
-        "csv": out / "widths.csv",
-        "json": out / "widths.json",
-        "png": out / "widths.png",
-        "pareto": out / "widths-pareto.png",
-    }
+    output_folder(out_dir)
+    paths = width_paths(out_dir)
     write_rows(rows, paths["csv"], paths["json"])
     knobs = list(dict.fromkeys(r["knob"] for r in rows))
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
@@ -174,7 +176,8 @@ def write_width_trade(rows: list[dict[str, Any]], out_dir: str | Path) -> dict[s
         ax.set_ylabel("PSNR vs golden (dB)")
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(paths["png"], dpi=110)
+    with atomic_write(paths["png"]) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     _pareto_plot(plt, rows, knobs, scenes, paths["pareto"])
     return paths
@@ -216,5 +219,6 @@ def _pareto_plot(plt, rows, knobs, scenes, path: Path) -> None:
         ax.set_ylabel("PSNR vs golden (dB)")
     axes[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_write(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
