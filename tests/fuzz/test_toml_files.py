@@ -23,7 +23,7 @@ from hwsim import energy
 from hwsim.core.errors import InputError
 from hwsim.energy.technology import MAX_BASE_DEPTH, builtin_technologies, load_technology
 from hwsim.run.fidelity import algorithms, resolve_arch
-from hwsim.spec.scene import load_scene
+from hwsim.spec.scene import load_scene, load_transfer
 from hwsim.studies.sweep.spec import load_sweep
 from models.machines import families, machine_for
 
@@ -31,7 +31,10 @@ pytestmark = pytest.mark.fuzz
 
 REPO = Path(__file__).resolve().parents[2]
 ARCH_FILES = sorted(p for f in families() for p in f.arch_files())
-SCENE_FILES = sorted((REPO / "hwsim" / "scenes").glob("*.toml"))
+#: The built-in scenes and the documented example, which has every section a scene can have.
+SCENE_FILES = sorted((REPO / "hwsim" / "scenes").glob("*.toml")) + [
+    REPO / "docs" / "examples" / "scene.toml"
+]
 TECH_FILES = sorted(builtin_technologies().values())
 TECH_BASE = builtin_technologies()["cmos45"]  # gives every value itself
 SWEEP_FILE = REPO / "docs" / "examples" / "sweep.toml"
@@ -157,3 +160,18 @@ def test_sweep_file(tmp_path, m):
     sweep = loads_or_refuses(_sweep, path)
     if sweep is not None:
         assert sweep.runs and all(isinstance(v, list) for v in sweep.axes.values())
+
+
+#: A transfer-function file (``--transfer FILE``): the example scene's [transfer] table.
+TRANSFER = {"schema": 1, **_doc(REPO / "docs" / "examples" / "scene.toml")["transfer"]}
+
+
+@FUZZ
+@given(m=mutations(TRANSFER))
+@example(m=Mutation("replace", ("points",), [[1, 2]]))
+@example(m=Mutation("replace", ("points", 0), "x"))
+def test_transfer_file(tmp_path, m):
+    path = write_toml(tmp_path, f"transfer-{next(_NAMES)}.toml", mutated(TRANSFER, m))
+    spec = loads_or_refuses(load_transfer, path)
+    if spec is not None:
+        check_types(spec)
