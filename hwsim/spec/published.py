@@ -307,7 +307,6 @@ def parse_published(
     sizes = [int(m.group(2)) for k in headline if (m := _HEADLINE.match(k))]
     out: list[PublishedFigure] = []
     for key in headline:
-        value = top.raw(key)
         parsed = _headline_scenario(key, sizes)
         if key == "voxels_per_axis":  # a fact beside the figures, not a figure
             top.integer(key, lo=1, hi=1 << 16)
