@@ -148,10 +148,8 @@ def parse_sweep(data: dict[str, Any], *, source: str, base_dir: str | Path) -> S
     top.schema(SCHEMA)
     table = top.table("sweep", required=True)
     top.finish()
-    raw = dict(table.data)
-    formats = raw.pop("formats", {})
-    if not isinstance(formats, dict):
-        raise table.error("formats", "must be a table of <unit>.<field> lists")
+    formats = table.table("formats").data  # <unit>.<field> = [values]
+    raw = {k: v for k, v in table.data.items() if k != "formats"}
     axes: dict[str, list[Any]] = {}
     for name in raw:
         if name not in PARAMETERS:
