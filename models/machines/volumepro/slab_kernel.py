@@ -37,7 +37,6 @@ from models.fused_stage import (
     STAGE_HASH,
     StageConstants,
     eligible,
-    plane_bilinear,
     shade_and_blend,
     slice_cell,
     world_and_modulate,
@@ -55,23 +54,46 @@ def _tri(p0, p1, row, wk, wa, wb, kp, w_bits, w_code):
     """The trilinear sample of cell ``row``: ``p0`` / ``p1`` the near and far slices'
     interleaved corner planes (corner ``2 da + db``), ``wk`` the principal-axis weight
     (0: ``p0`` alone, a bilinear), ``kp`` the principal axis; the eight corners lerped
-    x, then y, then z (``TrilinearSource._tri``): per principal axis, two
-    :func:`~models.units.interp.bilinear_raw` (lerps along their ``fb``, then ``fa``) on
-    the pairs of corners the order takes first, then one lerp."""
+    x, then y, then z (``TrilinearSource._tri``), written out per principal axis."""
     if wk == 0:
-        return plane_bilinear(p0, row, wa, wb, w_bits, w_code)
-    bilinear = interp_unit.bilinear_raw
+        return np.int64(
+            interp_unit.bilinear_raw(
+                p0[row, 0], p0[row, 1], p0[row, 2], p0[row, 3], wa, wb, w_bits, w_code
+            )
+        )
+    lerp = interp_unit.lerp_raw
     if kp == 0:  # a = y, b = x: a bilinear on each slice, then z
-        near = plane_bilinear(p0, row, wa, wb, w_bits, w_code)
-        far = plane_bilinear(p1, row, wa, wb, w_bits, w_code)
-        return np.int64(interp_unit.lerp_raw(near, far, wk, w_bits, w_code))
-    if kp == 1:  # a = z, b = x: x along b, y across the slices, then z along a
-        y0 = bilinear(p0[row, 0], p0[row, 1], p1[row, 0], p1[row, 1], wk, wb, w_bits, w_code)
-        y1 = bilinear(p0[row, 2], p0[row, 3], p1[row, 2], p1[row, 3], wk, wb, w_bits, w_code)
-    else:  # kp == 2, a = z, b = y: x across the slices, y along b, then z along a
-        y0 = bilinear(p0[row, 0], p1[row, 0], p0[row, 1], p1[row, 1], wb, wk, w_bits, w_code)
-        y1 = bilinear(p0[row, 2], p1[row, 2], p0[row, 3], p1[row, 3], wb, wk, w_bits, w_code)
-    return np.int64(interp_unit.lerp_raw(y0, y1, wa, w_bits, w_code))
+        near = interp_unit.bilinear_raw(
+            p0[row, 0], p0[row, 1], p0[row, 2], p0[row, 3], wa, wb, w_bits, w_code
+        )
+        far = interp_unit.bilinear_raw(
+            p1[row, 0], p1[row, 1], p1[row, 2], p1[row, 3], wa, wb, w_bits, w_code
+        )
+        return np.int64(lerp(near, far, wk, w_bits, w_code))
+    if kp == 1:  # a = z, b = x: x along b, y across the slices, z along a
+        y0 = lerp(
+            lerp(p0[row, 0], p0[row, 1], wb, w_bits, w_code),
+            lerp(p1[row, 0], p1[row, 1], wb, w_bits, w_code),
+            wk, w_bits, w_code,
+        )  # fmt: skip
+        y1 = lerp(
+            lerp(p0[row, 2], p0[row, 3], wb, w_bits, w_code),
+            lerp(p1[row, 2], p1[row, 3], wb, w_bits, w_code),
+            wk, w_bits, w_code,
+        )  # fmt: skip
+        return np.int64(lerp(y0, y1, wa, w_bits, w_code))
+    # kp == 2: a = z, b = y: x across the slices, y along b, z along a
+    y0 = lerp(
+        lerp(p0[row, 0], p1[row, 0], wk, w_bits, w_code),
+        lerp(p0[row, 1], p1[row, 1], wk, w_bits, w_code),
+        wb, w_bits, w_code,
+    )  # fmt: skip
+    y1 = lerp(
+        lerp(p0[row, 2], p1[row, 2], wk, w_bits, w_code),
+        lerp(p0[row, 3], p1[row, 3], wk, w_bits, w_code),
+        wb, w_bits, w_code,
+    )  # fmt: skip
+    return np.int64(lerp(y0, y1, wa, w_bits, w_code))
 
 
 def _make_kernels(stage_hash: str):
