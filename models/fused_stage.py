@@ -42,7 +42,6 @@ __all__ = [
     "UNITS_HASH",
     "StageConstants",
     "eligible",
-    "plane_bilinear",
     "shade_and_blend",
     "slice_cell",
     "world_and_modulate",
@@ -105,18 +104,6 @@ def slice_cell(p, w_bits, w_code):
     corner planes have margins), as the slice kernels ask for a gradient neighbour's."""
     c = np.floor(p)
     return np.int64(c), np.int64(round_scaled((p - c) * 2.0**w_bits, w_code))
-
-
-@numba.njit(inline="always")
-def plane_bilinear(plane, row, wa, wb, w_bits, w_code):
-    """:func:`~models.units.interp.bilinear_raw` of the four promoted corners of cell
-    ``row`` of an interleaved ``(cells, 4)`` corner plane (corner ``2 da + db``;
-    ``HardwareSource._bilinear``): the slice machines' in-slice sample."""
-    return np.int64(
-        interp_unit.bilinear_raw(
-            plane[row, 0], plane[row, 1], plane[row, 2], plane[row, 3], wa, wb, w_bits, w_code
-        )
-    )
 
 
 @numba.njit(inline="always")

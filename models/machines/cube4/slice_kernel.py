@@ -36,12 +36,12 @@ from models.fused_stage import (
     STAGE_HASH,
     StageConstants,
     eligible,
-    plane_bilinear,
     shade_and_blend,
     slice_cell,
     world_and_modulate,
 )
 from models.units import classify as classify_unit
+from models.units import interp as interp_unit
 
 __all__ = ["SliceKernel"]
 
@@ -79,7 +79,7 @@ def _make_kernel(stage_hash: str):
             if row < 0 or row >= rows:
                 sat[_OUTSIDE] = 1
                 return
-            value = plane_bilinear(cur, row, wa[i], wb[i], w_bits, w_code)
+            value = _corners(cur, row, wa[i], wb[i], w_bits, w_code)
             idx = classify_unit.lut_index_raw(value, lut_shift, entries)
             alpha = alpha12[idx]
             if cut:
@@ -94,9 +94,9 @@ def _make_kernel(stage_hash: str):
                 if min(r_ahead, r_behind) < 0 or max(r_ahead, r_behind) >= rows:
                     sat[_OUTSIDE] = 1
                     return
-                g[g_k, m] = plane_bilinear(
-                    ahead, r_ahead, wa[i], wb[i], w_bits, w_code
-                ) - plane_bilinear(behind, r_behind, wa[i], wb[i], w_bits, w_code)
+                g[g_k, m] = _corners(ahead, r_ahead, wa[i], wb[i], w_bits, w_code) - _corners(
+                    behind, r_behind, wa[i], wb[i], w_bits, w_code
+                )
                 diff_a = np.int64(0)
                 diff_b = np.int64(0)
                 for sign in (1.0, -1.0):
@@ -107,8 +107,8 @@ def _make_kernel(stage_hash: str):
                     if r < 0 or r >= rows or r2 < 0 or r2 >= rows:
                         sat[_OUTSIDE] = 1
                         return
-                    s_a = plane_bilinear(cur, r, w, wb[i], w_bits, w_code)
-                    s_b = plane_bilinear(cur, r2, wa[i], w2, w_bits, w_code)
+                    s_a = _corners(cur, r, w, wb[i], w_bits, w_code)
+                    s_b = _corners(cur, r2, wa[i], w2, w_bits, w_code)
                     diff_a = s_a if sign > 0 else diff_a - s_a
                     diff_b = s_b if sign > 0 else diff_b - s_b
                 g[g_a, m], g[g_b, m] = diff_a, diff_b
@@ -126,6 +126,17 @@ def _make_kernel(stage_hash: str):
         )  # fmt: skip
 
     return numba.njit(cache=True, nogil=True)(kernel)
+
+
+@numba.njit(inline="always")
+def _corners(plane, row, wa, wb, w_bits, w_code):
+    """:func:`~models.units.interp.bilinear_raw` of the four promoted corners of cell
+    ``row`` of an interleaved ``(cells, 4)`` corner plane (``HardwareSource._bilinear``)."""
+    return np.int64(
+        interp_unit.bilinear_raw(
+            plane[row, 0], plane[row, 1], plane[row, 2], plane[row, 3], wa, wb, w_bits, w_code
+        )
+    )
 
 
 @functools.cache
