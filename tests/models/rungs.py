@@ -93,12 +93,14 @@ def scene_of(
     preset="ct",
     zoom=1.2,
     render=None,
+    volume=None,
     **extra,
 ) -> Scene:
-    """A square view of a phantom; ``render`` holds further RenderSpec fields, ``extra``
-    further Scene fields (crop, cut planes, a transfer that replaces ``preset``)."""
+    """A square view of a phantom (or of ``volume``, a VolumeSpec that replaces
+    ``phantom``); ``render`` holds further RenderSpec fields, ``extra`` further Scene fields
+    (crop, cut planes, a transfer that replaces ``preset``)."""
     return Scene(
-        volume=VolumeSpec(phantom=phantom),
+        volume=volume or VolumeSpec(phantom=phantom),
         transfer=extra.pop("transfer", TransferSpec(preset=preset)),
         view=ViewSpec(
             azimuth=az, elevation=el, width=size, height=size, zoom=zoom, projection=projection

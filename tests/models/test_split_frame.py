@@ -32,16 +32,14 @@ import dataclasses
 
 import numpy as np
 import pytest
+import rungs
 
 from hwsim.core.errors import InputError
 from hwsim.run.fidelity import resolve_arch
 from hwsim.spec.scene import (
     CropSpec,
     CutPlane,
-    RenderSpec,
-    Scene,
     TransferSpec,
-    ViewSpec,
     VolumeSpec,
 )
 from hwsim.spec.transfer import resolve_transfer
@@ -61,16 +59,9 @@ MODULATED = TransferSpec(preset="ct", gradient_opacity=((100.0, 0.0), (1500.0, 1
 CUT = (CutPlane(normal=(0.3, 0.2, 1.0), offset=1.0, thickness=6, falloff=3),)
 
 
-def _scene(az=30, el=20, volume=HEAD, size=32, transfer=None, projection="parallel", **kw):
-    return Scene(
-        volume=volume,
-        transfer=transfer or TransferSpec(preset="ct"),
-        view=ViewSpec(
-            azimuth=az, elevation=el, width=size, height=size, zoom=1.3, projection=projection
-        ),
-        render=RenderSpec(**{"mode": "composite", **kw.pop("render", {})}),
-        **kw,
-    )
+def _scene(az=30, el=20, volume=HEAD, size=32, **kw):
+    """:func:`rungs.scene_of` at this file's view: 32 pixels, zoom 1.3, the 28^3 head."""
+    return rungs.scene_of(az, el, volume=volume, size=size, zoom=1.3, **kw)
 
 
 CASES = {
@@ -81,9 +72,9 @@ CASES = {
     "y-principal": ("cube4", _scene(az=10, el=75), None),
     "perspective": ("cube4", _scene(az=25, el=15, projection="perspective"), None),
     "anisotropic": ("cube4", _scene(az=-60, el=30, volume=THICK), None),
-    "mip": ("cube4", _scene(render={"mode": "mip"}), None),
-    "xray": ("cube4", _scene(render={"mode": "xray"}), None),
-    "iso": ("cube4", _scene(render={"mode": "iso", "iso_value": 300.0}), None),
+    "mip": ("cube4", _scene(mode="mip"), None),
+    "xray": ("cube4", _scene(mode="xray"), None),
+    "iso": ("cube4", _scene(mode="iso", render={"iso_value": 300.0}), None),
     "unlit": ("cube4", _scene(render={"lighting": False}), None),
     "pre-classified": ("cube4", _scene(transfer=TransferSpec(preset="ct", order="pre")), None),
     "modulated-ert": (
