@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_errors import run_cli
 
 from hwsim.cli.commands import main
 
@@ -30,19 +27,6 @@ STATS_KEYS = {
     "elided_units",
     "counters",
 }
-
-
-def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """Run the installed entry point as a user would, in a child process."""
-    env = {**os.environ, "PYTHONWARNINGS": "error"}
-    return subprocess.run(
-        [sys.executable, "-m", "hwsim.cli.commands", *args],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        env=env,
-        timeout=600,
-    )
 
 
 def test_render_writes_image_png_npy_and_stats(tmp_path):

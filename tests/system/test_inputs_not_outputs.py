@@ -14,14 +14,12 @@ import json
 import os
 import re
 import shutil
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_errors import one_line_error
+from cli_errors import one_line_error, run_cli
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -259,16 +257,6 @@ def test_an_unknown_arch_technology_is_refused_before_the_frame(tmp_path, capsys
     assert "--technology" not in err
 
 
-def _hwsim(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "hwsim.cli.commands", *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-
-
 @pytest.mark.parametrize(
     "argv",
     [
@@ -292,7 +280,7 @@ def test_the_issue_examples_from_the_command_line(tmp_path, argv):
     (tmp_path / "tt" / "turntable.gif").mkdir(parents=True)
     files = [p for p in tmp_path.rglob("*") if p.is_file()]
     before = {p: _digest(p) for p in files}
-    done = _hwsim(*argv, cwd=tmp_path)
+    done = run_cli(*argv, cwd=tmp_path)
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and done.stderr.startswith("hwsim: error: ")
     assert "output" in done.stderr or "folder" in done.stderr, done.stderr  # not a usage error

@@ -27,19 +27,17 @@ def write_slice(
     series: str = "1.2.3",
     instance: int | None = None,
     rows_cols: tuple[int, int] | None = None,
+    pixels: bool = True,
     **tags: object,
 ) -> None:
     """Write one single-frame image slice of unsigned stored values ``stored`` (2-D, saved
     as little-endian 16-bit words) to ``path``: explicit VR little endian, a fresh SOP
     instance UID, MONOCHROME2.  ``rows_cols`` overrides the Rows/Columns tags (a header
-    that disagrees with the pixels); ``instance`` None leaves InstanceNumber out; ``tags``
-    are further attributes set as given (``RescaleIntercept=-1024``)."""
-    meta = FileMetaDataset()
-    meta.MediaStorageSOPClassUID = sop_class
-    meta.MediaStorageSOPInstanceUID = generate_uid()
-    meta.TransferSyntaxUID = ExplicitVRLittleEndian
-    ds = Dataset()
-    ds.file_meta = meta
+    that disagrees with the pixels); ``instance`` None leaves InstanceNumber out; ``pixels``
+    False leaves PixelData out; ``tags`` are further attributes set as given
+    (``RescaleIntercept=-1024``)."""
+    ds = _dataset(sop_class)
+    meta = ds.file_meta
     ds.SOPClassUID, ds.SOPInstanceUID = sop_class, meta.MediaStorageSOPInstanceUID
     ds.Modality, ds.StudyInstanceUID, ds.SeriesInstanceUID = modality, study, series
     ds.Rows, ds.Columns = rows_cols or stored.shape
@@ -53,5 +51,26 @@ def write_slice(
         ds.InstanceNumber = instance
     for name, value in tags.items():
         setattr(ds, name, value)
-    ds.PixelData = np.asarray(stored).astype("<u2").tobytes()
+    if pixels:
+        ds.PixelData = np.asarray(stored).astype("<u2").tobytes()
     ds.save_as(path, enforce_file_format=True)
+
+
+def write_dicomdir(path: Path, file_set_id: str = "SERIES") -> None:
+    """Write a DICOMDIR (media storage directory) file to ``path``."""
+    from pydicom.uid import MediaStorageDirectoryStorage
+
+    ds = _dataset(MediaStorageDirectoryStorage)
+    ds.FileSetID = file_set_id
+    ds.save_as(path, enforce_file_format=True)
+
+
+def _dataset(sop_class: str) -> Dataset:
+    """An empty dataset with its file meta: explicit VR little endian, a fresh UID."""
+    meta = FileMetaDataset()
+    meta.MediaStorageSOPClassUID = sop_class
+    meta.MediaStorageSOPInstanceUID = generate_uid()
+    meta.TransferSyntaxUID = ExplicitVRLittleEndian
+    ds = Dataset()
+    ds.file_meta = meta
+    return ds

@@ -14,6 +14,7 @@ import sys
 
 import numpy as np
 import pytest
+from dicom_files import write_dicomdir, write_slice
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -210,26 +211,14 @@ def test_a_truncated_file_of_every_format_says_expected_and_actual(tmp_path, nam
 
 
 def _dicom_slice(path, z, *, pixels=True):
-    from pydicom.dataset import Dataset, FileMetaDataset
-    from pydicom.uid import CTImageStorage, ExplicitVRLittleEndian, generate_uid
+    """A 4 x 4 CT slice at height ``z`` of one series (tests/volumes/dicom_files.py)."""
+    from pydicom.uid import CTImageStorage
 
-    meta = FileMetaDataset()
-    meta.MediaStorageSOPClassUID = CTImageStorage
-    meta.MediaStorageSOPInstanceUID = generate_uid()
-    meta.TransferSyntaxUID = ExplicitVRLittleEndian
-    ds = Dataset()
-    ds.file_meta = meta
-    ds.SOPClassUID, ds.SOPInstanceUID = CTImageStorage, meta.MediaStorageSOPInstanceUID
-    ds.SeriesInstanceUID, ds.Modality = "1.2.3.4", "CT"
-    ds.Rows, ds.Columns = 4, 4
-    ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 16, 16, 15, 1
-    ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
-    ds.ImagePositionPatient = [0.0, 0.0, float(z)]
-    ds.ImageOrientationPatient = [1, 0, 0, 0, 1, 0]
-    ds.PixelSpacing = [1.0, 1.0]
-    if pixels:
-        ds.PixelData = np.full((4, 4), z, np.int16).tobytes()
-    ds.save_as(path, enforce_file_format=True)
+    stored = np.full((4, 4), z, np.uint16)
+    write_slice(
+        path, stored, sop_class=CTImageStorage, modality="CT", position=(0.0, 0.0, z),
+        series="1.2.3.4", pixels=pixels,
+    )  # fmt: skip
 
 
 @pytest.mark.parametrize("name", ["s2.dcm", "IM0002"])
@@ -243,19 +232,9 @@ def test_a_dicom_slice_without_pixel_data_is_refused_naming_it(tmp_path, name):
 
 
 def test_a_dicomdir_beside_the_series_is_still_skipped(tmp_path):
-    from pydicom.dataset import Dataset, FileMetaDataset
-    from pydicom.uid import ExplicitVRLittleEndian, MediaStorageDirectoryStorage, generate_uid
-
     for z in (0, 1, 2):
         _dicom_slice(tmp_path / f"s{z}.dcm", z)
-    meta = FileMetaDataset()
-    meta.MediaStorageSOPClassUID = MediaStorageDirectoryStorage
-    meta.MediaStorageSOPInstanceUID = generate_uid()
-    meta.TransferSyntaxUID = ExplicitVRLittleEndian
-    ds = Dataset()
-    ds.file_meta = meta
-    ds.FileSetID = "SERIES"
-    ds.save_as(tmp_path / "DICOMDIR", enforce_file_format=True)
+    write_dicomdir(tmp_path / "DICOMDIR")
     assert read_volume(tmp_path).data.shape == (3, 4, 4)
 
 
