@@ -103,6 +103,10 @@ class first_run_notice:
                 self._hide()
 
     def _show(self, what: str) -> None:
+        if not sys.stderr.isatty():  # a log or a pipe: one line, no spinner redrawn into it
+            print(f"{what} ...", file=sys.stderr)
+            self.shown = (what, time.perf_counter(), None, threading.Event())
+            return
         from tqdm import tqdm
 
         bar = tqdm(
@@ -118,7 +122,8 @@ class first_run_notice:
         what, started, bar, stop = self.shown
         self.seconds[what] += time.perf_counter() - started
         stop.set()
-        bar.close()  # type: ignore[attr-defined]
+        if bar is not None:
+            bar.close()  # type: ignore[attr-defined]
         self.shown = None
 
     def __exit__(self, *exc) -> None:

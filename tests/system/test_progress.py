@@ -159,4 +159,9 @@ def test_the_compile_notice_appears_exactly_when_the_kernel_cache_is_cold(tmp_pa
 
     cold, warm = stderr(), stderr()
     assert COMPILING in cold and f"{COMPILING}: " in cold
+    # To a pipe (a log): a start line and the summary, no spinner redrawn into it.
+    assert [line for line in cold.splitlines() if COMPILING in line or not line.strip()] == [
+        f"{COMPILING} ...",
+        cold.splitlines()[-1],
+    ], cold
     assert COMPILING not in warm, warm
