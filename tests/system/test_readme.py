@@ -39,7 +39,7 @@ SHRINK = {
 PROMISED = {
     "render": ["image.png", "image.npy", "stats.json"],
     "trade --widths": ["widths.csv", "widths.json", "widths.png"],
-    "trade": ["trade.csv", "trade.json", "trade.png"],
+    "trade": ["trade.csv", "trade.json", "trade.png", "trade.md"],
     "figures": ["figures.json", "figures.csv", "figures.md"],
     "sweep": [],
     "report": ["report.md", "report.html"],
