@@ -11,7 +11,7 @@ import tomllib
 from pathlib import Path
 
 import pytest
-from mutate import replaced, toml_dumps
+from fuzz_documents import replaced, toml_dumps
 
 pytestmark = pytest.mark.fuzz
 

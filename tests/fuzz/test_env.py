@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
-from mutate import FUZZ
+from fuzz_documents import FUZZ
 
 from hwsim.cli.commands import main
 from hwsim.core import env

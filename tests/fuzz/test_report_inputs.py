@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
-from mutate import FUZZ, JSON_VALUES, Mutation, loads_or_refuses, mutated, mutations
+from fuzz_documents import FUZZ, JSON_VALUES, Mutation, loads_or_refuses, mutated, mutations
 
 from hwsim.cli.commands import main
 from hwsim.core.errors import InputError

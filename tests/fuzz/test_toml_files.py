@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
-from mutate import FUZZ, Mutation, check_types, loads_or_refuses, mutated, mutations, write_toml
+from fuzz_documents import FUZZ, Mutation, check_types, loads_or_refuses, mutated, mutations, write_toml
 
 from hwsim import energy
 from hwsim.core.errors import InputError
