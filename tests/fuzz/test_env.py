@@ -9,9 +9,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from fuzz_documents import FUZZ
 from hypothesis import example, given
 from hypothesis import strategies as st
-from fuzz_documents import FUZZ
 
 from hwsim.cli.commands import main
 from hwsim.core import env

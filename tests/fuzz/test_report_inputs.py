@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fuzz_documents import FUZZ, JSON_VALUES, Mutation, loads_or_refuses, mutated, mutations
 from hypothesis import assume, example, given
 from hypothesis import strategies as st
-from fuzz_documents import FUZZ, JSON_VALUES, Mutation, loads_or_refuses, mutated, mutations
 
 from hwsim.cli.commands import main
 from hwsim.core.errors import InputError

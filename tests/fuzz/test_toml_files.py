@@ -15,9 +15,17 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from fuzz_documents import (
+    FUZZ,
+    Mutation,
+    check_types,
+    loads_or_refuses,
+    mutated,
+    mutations,
+    write_toml,
+)
 from hypothesis import example, given
 from hypothesis import strategies as st
-from fuzz_documents import FUZZ, Mutation, check_types, loads_or_refuses, mutated, mutations, write_toml
 
 from hwsim import energy
 from hwsim.core.errors import InputError
