@@ -1,0 +1,81 @@
+"""hwsim.core.models: the one translator from a schema mismatch to the house's error line.
+
+Every file kind's model is built from these types; the fuzz tier (tests/fuzz) drives the
+real models, these tests pin the wording and the key paths of each kind of mismatch.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import msgspec
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from hwsim.core.errors import InputError
+from hwsim.core.models import Finite, Schema, between, count, integer, validate
+
+
+class Inner(Schema):
+    bits: integer(1, 64) = 8
+    kind: Literal["a", "b"] = "a"
+    scale: between(0, 10, open_lo=True) = msgspec.field(name="scale-x", default=1.0)
+    size: tuple[count(), count(), count()] = (1, 1, 1)
+
+
+class Doc(Schema):
+    inner: Inner
+    values: list[integer(0)] = []
+    named: dict[str, Inner] = {}
+    weights: dict[str, Finite] = {}
+
+
+def error(doc) -> str:
+    with pytest.raises(InputError) as info:
+        validate(doc, Doc, "f.toml")
+    return str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("doc", "line"),
+    [
+        ({"inner": 7}, "f.toml: inner: must be a table, got 7"),
+        ({"inner": {"bits": "x"}}, "f.toml: inner.bits: must be an integer, got 'x'"),
+        ({"inner": {"bits": True}}, "f.toml: inner.bits: must be an integer, got true"),
+        ({"inner": {"bits": 0}}, "f.toml: inner.bits: out of range, got 0 (allowed: 1 .. 64)"),
+        ({"inner": {"kind": "c"}}, "f.toml: inner.kind: unknown value 'c' (allowed: a, b)"),
+        ({}, "f.toml: inner: is required"),
+        ({"inner": {"size": [1, 2]}}, "f.toml: inner.size: must be an array of length 3, got 2"),
+        ({"inner": {}, "values": [1, "a"]}, "f.toml: values[1]: must be an integer, got 'a'"),
+        (
+            {"inner": {"bitz": 1}},
+            "f.toml: inner.bitz: unknown key 'bitz' (allowed: bits, kind, scale-x, size)",
+        ),
+        (
+            {"inner": {}, "named": {"z": {"bits": -1}}},
+            "f.toml: named.z.bits: out of range, got -1 (allowed: 1 .. 64)",
+        ),
+        ([1, 2], "f.toml: <top>: must be a table, got [1, 2]"),
+    ],
+)
+def test_each_mismatch_is_one_line_naming_file_key_and_allowed(doc, line):
+    assert error(doc) == line
+
+
+@given(st.sampled_from([math.nan, math.inf, -math.inf]))
+def test_floats_are_finite(value):
+    assert "scale-x: out of range" in error({"inner": {"scale-x": value}})
+    assert "weights.w: out of range" in error({"inner": {}, "weights": {"w": value}})
+
+
+def test_a_valid_document_converts_with_defaults_and_widened_ints():
+    doc = validate({"inner": {"scale-x": 3, "size": [2, 3, 4]}}, Doc, "f.toml")
+    assert doc.inner.scale == 3.0 and isinstance(doc.inner.scale, float)
+    assert doc.inner.size == (2, 3, 4) and doc.inner.bits == 8
+
+
+def test_prefix_places_a_sub_document_in_its_file():
+    with pytest.raises(InputError, match=r"^f.toml: memory.inner.bits: must be an integer"):
+        validate({"inner": {"bits": "x"}}, Doc, "f.toml", prefix="memory")
