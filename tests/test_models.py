@@ -7,7 +7,7 @@ real models, these tests pin the wording and the key paths of each kind of misma
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 import msgspec
 import pytest
@@ -79,3 +79,12 @@ def test_a_valid_document_converts_with_defaults_and_widened_ints():
 def test_prefix_places_a_sub_document_in_its_file():
     with pytest.raises(InputError, match=r"^f.toml: memory.inner.bits: must be an integer"):
         validate({"inner": {"bits": "x"}}, Doc, "f.toml", prefix="memory")
+
+
+def test_a_string_off_its_pattern_names_the_pattern():
+    class Named(Schema):
+        family: Annotated[str, msgspec.Meta(pattern=r"^[a-z]+$")] = "a"
+
+    with pytest.raises(InputError) as info:
+        validate({"family": "Bad"}, Named, "f.toml")
+    assert str(info.value) == "f.toml: family: invalid 'Bad' (allowed: matching ^[a-z]+$)"

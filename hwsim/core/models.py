@@ -87,6 +87,7 @@ _UNKNOWN = re.compile(r"^Object contains unknown field `(?P<name>[^`]+)`$")
 _MISSING = re.compile(r"^Object missing required field `(?P<name>[^`]+)`$")
 _ENUM = re.compile(r"^Invalid enum value (?P<value>.+)$")
 _LENGTH = re.compile(r"^Expected `(?P<want>[^`]+)` of length (?P<length>.+)$")
+_PATTERN = re.compile(r"^Expected `str` matching regex '(?P<pattern>.*)'$", re.S)
 
 _NAMES = {
     "int": "an integer",
@@ -139,6 +140,10 @@ def _translate(text: str, data: Any, model: Any, source: str, prefix: str) -> In
         allowed = _allowed(_info_at(model, parts))
         return InputError(
             f"out of range, got {_brief(value)}", source=source, key=key, allowed=allowed
+        )
+    if m := _PATTERN.match(what):
+        return InputError(
+            f"invalid {_brief(value)}", source=source, key=key, allowed=f"matching {m['pattern']}"
         )
     if m := _LENGTH.match(what):
         want = _NAMES.get(m["want"], m["want"])
