@@ -24,14 +24,20 @@ import math
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Literal
 
-from hwsim.core.config import Table, read_toml
+import msgspec
+from msgspec import UNSET, UnsetType
+
+from hwsim.core.config import read_toml
 from hwsim.core.errors import InputError
+from hwsim.core.models import Schema, between, validate
 
 __all__ = [
     "FF_GATE_EQUIVALENTS",
     "SRAM_MIN_BITS",
     "Technology",
+    "TechnologyFile",
     "builtin_technologies",
     "load_technology",
 ]
@@ -43,28 +49,87 @@ SRAM_MIN_BITS = 4096
 #: 0.798 um^2 [R]).
 FF_GATE_EQUIVALENTS = 5.67
 
-#: Keys of each table and their units, as the files name them.
-_KEYS = {
-    "energy": (
-        "add_32b_pj",
-        "mult_32b_pj",
-        "sram_8kb_64b_pj",
-        "dram_read_bit_pj",
-        "dram_activate_pj",
-        "dram_refresh_pj",
-        "register_bit_pj",
-    ),
-    "area": ("add_32b_um2", "mult_32b_um2", "sram_bit_um2", "nand2_um2"),
-    "timing": ("fo4_ps", "gate_level_fo4"),
-    "leakage": ("w_per_mm2",),
-}
+
+# --------------------------------------------------------------------------- the file's model
+# A technology file, declared once (issue 33): types, ranges, tags and the keys of each
+# table are the model's; what a type cannot say (a base file's keys may be left out and
+# scaled, a derived file must give its own external memory and leakage) is checked below.
+
+
+class Value(Schema):
+    """One value of a table, its tag ([V] verified, [R] recalled, [I] inferred) and source."""
+
+    value: between(0.0, 1e12)
+    tag: Literal["V", "R", "I"]
+    source: str
+
+
+class DivisorValue(Schema):
+    """A value that divides somewhere (gate equivalents = area / NAND2 area, fmax =
+    1 / (levels x FO4 delay)): zero is refused."""
+
+    value: between(0.0, 1e12, open_lo=True)
+    tag: Literal["V", "R", "I"]
+    source: str
+
+
+class EnergyTable(Schema):
+    """Energy per operation in pJ (widths scale by the module docstring's rules)."""
+
+    add_32b_pj: Value | UnsetType = UNSET
+    mult_32b_pj: Value | UnsetType = UNSET
+    sram_8kb_64b_pj: Value | UnsetType = UNSET
+    dram_read_bit_pj: Value | UnsetType = UNSET
+    dram_activate_pj: Value | UnsetType = UNSET
+    dram_refresh_pj: Value | UnsetType = UNSET
+    register_bit_pj: Value | UnsetType = UNSET
+
+
+class AreaTable(Schema):
+    """Area per component in um^2."""
+
+    add_32b_um2: DivisorValue | UnsetType = UNSET
+    mult_32b_um2: DivisorValue | UnsetType = UNSET
+    sram_bit_um2: DivisorValue | UnsetType = UNSET
+    nand2_um2: DivisorValue | UnsetType = UNSET
+
+
+class TimingTable(Schema):
+    fo4_ps: DivisorValue | UnsetType = UNSET
+    gate_level_fo4: DivisorValue | UnsetType = UNSET
+
+
+class LeakageTable(Schema):
+    w_per_mm2: Value | UnsetType = UNSET
+
+
+class TechnologyHeader(Schema):
+    name: str
+    node_nm: between(1.0, 10000.0)
+    vdd: between(0.1, 15.0, open_lo=True)
+    description: str = ""
+    #: A built-in technology or a .toml file beside this one, scaled to this node.
+    base: str = ""
+
+
+class TechnologyFile(Schema):
+    """A technology TOML file."""
+
+    technology: TechnologyHeader
+    schema: Literal[1] = SCHEMA
+    energy: EnergyTable = EnergyTable()
+    area: AreaTable = AreaTable()
+    timing: TimingTable = TimingTable()
+    leakage: LeakageTable = LeakageTable()
+
+
+_TABLES = {"energy": EnergyTable, "area": AreaTable, "timing": TimingTable, "leakage": LeakageTable}
+#: Keys of each table and their units, as the files name them (the model's fields).
+_KEYS = {name: tuple(f.name for f in msgspec.structs.fields(t)) for name, t in _TABLES.items()}
 #: How each table scales from the base node: (exponent of L / L0, exponent of V / V0).
 _SCALING = {"energy": (1, 2), "area": (2, 0), "timing": (1, 0), "leakage": (0, 0)}
 #: Keys that never scale by the logic rules (external memory): a derived file gives them.
 _OWN = {"dram_read_bit_pj", "dram_activate_pj", "dram_refresh_pj", "w_per_mm2"}
-#: Tables whose values are divisors somewhere (gate equivalents = area / NAND2 area,
-#: fmax = 1 / (levels x FO4 delay)): zero is refused at load.
-_POSITIVE = {"area", "timing"}
 #: A derived file's ``base`` chain: at most this many files deep.
 MAX_BASE_DEPTH = 8
 #: Ratios that hold at every node (a gate level in FO4): taken from the base as they are.
@@ -146,52 +211,41 @@ class Technology:
         }
 
 
-def _parse(data: dict, source: str, base: Technology | None) -> Technology:
-    top = Table(data, source)
-    top.schema(SCHEMA)
-    t = top.table("technology", required=True)
-    name = t.string("name")
-    node = t.number("node_nm", lo=1.0, hi=10000.0)
-    vdd = t.number("vdd", lo=0.1, hi=15.0, lo_open=True)
-    description = t.string("description", "")
-    base_name = t.string("base", "")
-    t.finish()
-    if base is None and base_name:
-        raise t.error("base", f"base technology {base_name!r} not given")
+def _parse(doc: TechnologyFile, source: str, base: Technology | None) -> Technology:
+    """The technology of a validated file; keys it leaves out scale from ``base``."""
+    t = doc.technology
+    if base is None and t.base:
+        raise InputError(
+            f"base technology {t.base!r} not given", source=source, key="technology.base"
+        )
     values: dict[str, dict[str, float]] = {}
     tags: dict[str, dict[str, tuple[str, str]]] = {}
     for table_name, keys in _KEYS.items():
-        table = top.table(table_name)
+        table = getattr(doc, table_name)
         values[table_name], tags[table_name] = {}, {}
         for key in keys:
-            if table.has(key):
-                entry = table.table(key)
-                # Areas and delays divide (gate equivalents, fmax): strictly positive.
-                positive = table_name in _POSITIVE
-                values[table_name][key] = entry.number("value", lo=0.0, hi=1e12, lo_open=positive)
-                tag = entry.choice("tag", ("V", "R", "I"))
-                tags[table_name][key] = (tag, entry.string("source"))
-                entry.finish()
+            entry = getattr(table, key)
+            if entry is not UNSET:
+                values[table_name][key] = entry.value
+                tags[table_name][key] = (entry.tag, entry.source)
             elif base is not None and key in _RATIOS:
                 values[table_name][key] = base.values[table_name][key]
                 tags[table_name][key] = base.tags[table_name][key]
             elif base is not None and key not in _OWN:
                 le, ve = _SCALING[table_name]
-                factor = (node / base.node_nm) ** le * (vdd / base.vdd) ** ve
+                factor = (t.node_nm / base.node_nm) ** le * (t.vdd / base.vdd) ** ve
                 values[table_name][key] = base.values[table_name][key] * factor
                 tag, text = base.tags[table_name][key]
                 rule = f"{base.name} x {factor:.4g} (L^{le} V^{ve} scaling)"
                 tags[table_name][key] = ("I" if tag != "I" else tag, f"{rule}; base: {text}")
             else:
                 why = " (external memory and leakage do not scale)" if base else ""
-                raise table.error(key, "is required" + why)
-        table.finish()
-    top.finish()
+                raise InputError("is required" + why, source=source, key=f"{table_name}.{key}")
     return Technology(
-        name=name,
-        node_nm=node,
-        vdd=vdd,
-        description=description,
+        name=t.name,
+        node_nm=t.node_nm,
+        vdd=t.vdd,
+        description=t.description,
         source=source,
         values=values,
         tags=tags,
@@ -263,11 +317,11 @@ def _load(name_or_path: str, chain: tuple[tuple[str, str], ...]) -> Technology:
             key="technology.base",
             allowed=exc.allowed or "a built-in technology or a .toml file beside this one",
         ) from None
-    base_name = Table(data, source).table("technology", required=True).string("base", "")
-    base = None
+    doc = validate(data, TechnologyFile, source)
+    base_name, base = doc.technology.base, None
     if base_name:
         found = base_name if base_name in builtin_technologies() else str(path.parent / base_name)
         base = _load(found, (*chain, (resolved, source)))
-    tech = _parse(data, source, base)
+    tech = _parse(doc, source, base)
     _CACHE[name_or_path] = tech
     return tech
