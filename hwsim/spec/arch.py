@@ -11,29 +11,16 @@ looks built-in names up in ``models/machines/<family>/*.toml``.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from hwsim.core.config import Table, read_toml
+from hwsim.core.config import read_toml
+from hwsim.core.errors import InputError
+from hwsim.core.models import validate
+from hwsim.spec.arch_schema import FEATURE_CHOICES, ORDERS, SCHEMA, ArchFile
 
 __all__ = ["ArchConfig", "FEATURE_CHOICES", "parse_arch", "load_arch_file", "ORDERS", "SCHEMA"]
-
-SCHEMA = 1
-#: Processing orders, named by the sample positions they produce (hwsim.golden plans).
-ORDERS = ("shear-warp", "slice-parallel", "shear-image", "ray")
-#: The declared feature lists of ``[features]`` and what each may hold (the scene's
-#: ``render.mode``, ``transfer.order``, ``render.interpolation``; gradients estimated at
-#: interpolated samples or at voxels and then interpolated).
-FEATURE_CHOICES = {
-    "modes": ("composite", "mip", "minip", "xray", "iso"),
-    "classification": ("post", "pre"),
-    "interpolation": ("trilinear", "nearest", "cubic"),
-    "gradients": ("sample", "voxel"),
-    "shading": ("phong", "reflectance-map"),
-    "blend_orders": ("front-to-back", "back-to-front"),
-}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -163,123 +150,72 @@ class ArchConfig:
 
 
 def load_arch_file(path: str | Path, name: str | None = None) -> ArchConfig:
-    """Read and validate an architecture TOML file."""
+    """Read and validate an architecture TOML file (its generic shape, ``[published]``
+    and ``[memory]``; the machine registry checks the family's own tables)."""
     path = Path(path)
     return parse_arch(read_toml(path), source=str(path), name=name or path.stem)
 
 
-def _family(pipeline: Table) -> str:
-    family = pipeline.string("family", "")
-    if family and not re.fullmatch(r"[a-z][a-z0-9_]*", family):
-        raise pipeline.error("family", f"invalid name {family!r}", "a Python package name")
-    return family
-
-
-#: Every key of ``[features]`` that declares something the machine had (``sources`` may
-#: cite each; ``extend`` is the user's opt-in, not a feature).
-_FEATURE_KEYS = (
-    "perspective",
-    "early_termination",
-    "space_leaping",
-    "supersampling",
-    "cut_planes",
-    "classification_luts",
-    "embedded_geometry",
-    *FEATURE_CHOICES,
-    "crop",
-    "gradient_illumination",
-    "cursor",
-    "supervolumes",
-    "sections",
-    "voxel_bits",
-    "max_volume",
-)
-
-
-def _declared(features: Table, name: str, default: tuple[str, ...]) -> tuple[str, ...]:
-    """A declared feature list: a non-empty list of :data:`FEATURE_CHOICES` values."""
-    return features.choices(name, FEATURE_CHOICES[name], list(default))
-
-
-def _sources(features: Table) -> dict[str, str]:
-    """``[features.sources]``: one tagged string per declared feature."""
-    table = features.table("sources")
-    out = {}
-    for key in list(table.data):
-        if key not in _FEATURE_KEYS:
-            raise table.error(key, "unknown feature", ", ".join(_FEATURE_KEYS))
-        out[key] = table.string(key)
-    table.finish()
-    return out
-
-
 def parse_arch(data: dict[str, Any], *, source: str, name: str) -> ArchConfig:
-    """Validate parsed TOML into an :class:`ArchConfig`."""
-    top = Table(data, source)
-    top.schema(SCHEMA)
-    p = top.table("pipeline", required=True)
-    limits = top.table("limits")
-    features = top.table("features")
-    overheads = top.table("overheads")
-    silicon = top.table("silicon")
-    bits = limits.choices("voxel_bits", (8, 12, 16, 32), [8, 12, 16])
-    max_volume = tuple(int(v) for v in limits.vector("max_volume", 3, [256] * 3, 1, 1 << 16))
-    ss = features.vector("supersampling", 2, [1.0, 1.0], 0.125, 16)
-    if ss[1] < ss[0]:
-        raise features.error("supersampling", "empty range", "[lo, hi] with lo <= hi")
+    """Validate parsed TOML against :class:`~hwsim.spec.arch_schema.ArchFile` into an
+    :class:`ArchConfig`; then the rules across keys: a supersampling range ``lo <= hi``,
+    every ``[published]`` figure labelled (fitted, peak or prediction) and checked against
+    the file, a consistent ``[memory]`` table."""
+    doc = validate(data, ArchFile, source)
+    p, limits, features, overheads = doc.pipeline, doc.limits, doc.features, doc.overheads
+    lo, hi = features.supersampling
+    if hi < lo:
+        raise InputError(
+            "empty range",
+            source=source,
+            key="features.supersampling",
+            allowed="[lo, hi] with lo <= hi",
+        )
+    lists = {key: getattr(features, key) for key in FEATURE_CHOICES}
+    cited = data.get("features", {}).get("sources", {})  # file order, every value a string
     cfg = ArchConfig(
-        name=top.string("name", name),
-        description=top.string("description", ""),
+        name=name if doc.name is None else doc.name,
+        description=doc.description,
         source=source,
-        order=p.choice("order", ORDERS),
-        family=_family(p),
-        pipelines=p.integer("count", lo=1, hi=4096),
-        clock_hz=p.number("clock_hz", lo=1.0, hi=10e9),
-        voxel_bits=bits,
-        max_volume=max_volume,  # type: ignore[arg-type]
-        perspective=features.boolean("perspective", False),
-        early_termination=features.boolean("early_termination", False),
-        space_leaping=features.boolean("space_leaping", False),
-        supersampling=ss,  # type: ignore[arg-type]
-        cut_planes=features.integer("cut_planes", 0, 0, 64),
-        classification_luts=features.integer("classification_luts", 1, 1, 4),
-        embedded_geometry=features.boolean("embedded_geometry", False),
-        modes=_declared(features, "modes", ("composite",)),
-        classification=_declared(features, "classification", ("post",)),
-        interpolation=_declared(features, "interpolation", ("trilinear",)),
-        gradients=_declared(features, "gradients", ("sample", "voxel")),
-        shading=_declared(features, "shading", ("phong",)),
-        blend_orders=_declared(features, "blend_orders", ("front-to-back",)),
-        crop=features.boolean("crop", False),
-        gradient_illumination=features.boolean("gradient_illumination", False),
-        cursor=features.boolean("cursor", False),
-        supervolumes=features.boolean("supervolumes", False),
-        feature_sources=_sources(features),
-        extend=features.boolean("extend", False),
-        formats=dict(top.table("formats").data),
-        memory=dict(top.table("memory").data),
-        buffers=dict(top.table("buffers").data),
-        published=dict(top.table("published").data),
-        slice_overhead_cycles=overheads.integer("slice_cycles", 0, 0, 1 << 20),
-        section_width=overheads.integer("section_width", 0, 0, 1 << 16),
-        section_overhead_cycles=overheads.integer("section_cycles", 0, 0, 1 << 24),
-        host_bus_bytes_per_second=overheads.number("host_bus_bytes_per_second", 0.0, 0, 1e12),
-        technology=silicon.string("technology", "cmos45"),
+        order=p.order,
+        family=p.family,
+        pipelines=p.count,
+        clock_hz=p.clock_hz,
+        voxel_bits=limits.voxel_bits,
+        max_volume=limits.max_volume,
+        perspective=features.perspective,
+        early_termination=features.early_termination,
+        space_leaping=features.space_leaping,
+        supersampling=(lo, hi),
+        cut_planes=features.cut_planes,
+        classification_luts=features.classification_luts,
+        embedded_geometry=features.embedded_geometry,
+        **lists,
+        crop=features.crop,
+        gradient_illumination=features.gradient_illumination,
+        cursor=features.cursor,
+        supervolumes=features.supervolumes,
+        feature_sources=dict(cited),
+        extend=features.extend,
+        formats=dict(doc.formats),
+        memory=dict(doc.memory),
+        buffers=dict(doc.buffers),
+        published=dict(doc.published),
+        slice_overhead_cycles=overheads.slice_cycles,
+        section_width=overheads.section_width,
+        section_overhead_cycles=overheads.section_cycles,
+        host_bus_bytes_per_second=overheads.host_bus_bytes_per_second,
+        technology=doc.silicon.technology,
     )
-    for t in (p, limits, features, overheads, silicon):
-        t.finish()
-    top.finish()
     from hwsim.spec.published import parse_published
 
-    # Every figure labelled (fitted, peak or prediction) and checked against the file.
     parse_published(
         cfg.published,
         source=source,
         peak_samples_per_second=cfg.peak_samples_per_second,
         arch_data=data,
     )
-    if cfg.memory:
-        from hwsim.memory.sdram import parse_memory
+    from hwsim.memory.sdram import parse_memory
 
-        parse_memory(cfg.memory, source=source)  # a bad [memory] table fails at load
+    parse_memory(cfg.memory, source=source)  # a bad [memory] table fails at load
     return cfg

@@ -32,9 +32,12 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, Literal
 
-from hwsim.core.config import Table
+from msgspec import Meta
+
+from hwsim.core.errors import InputError
+from hwsim.core.models import Schema, between, finite_at_least, integer, validate
 
 __all__ = [
     "EVIDENCE",
@@ -182,101 +185,204 @@ def _keys_in(data: dict[str, Any]) -> set[str]:
     return out
 
 
-def _fitted_from(
-    table: Table, name: str, evidence: str, arch_keys: set[str] | None
+Positive = finite_at_least(0.0, open_lo=True)
+Evidence = Literal[EVIDENCE]  # type: ignore[valid-type]
+Tolerance = between(0.0, 10.0)
+Side = integer(2, 1 << 12)
+Pixels = integer(1, 1 << 13)
+Angle = between(-360.0, 360.0)
+#: The tables of ``[published]`` that are not headline figures.
+_TABLES = ("tolerance", "notes", "evidence", "fitted_from", "measured")
+
+
+class Measured(Schema):
+    """One ``[[published.measured]]`` figure: give exactly one of :data:`METRICS`."""
+
+    name: Annotated[str, Meta(pattern=_NAME.pattern)]
+    volume: tuple[Side, Side, Side]
+    source: str
+    kind: Literal["measured", "simulated", "stated"]
+    fps: Positive | None = None
+    seconds: Positive | None = None
+    samples_per_second: Positive | None = None
+    cache_hit_rate: between(0.0, 1.0, open_lo=True) | None = None
+    image: tuple[Pixels, Pixels] | None = None
+    supersampling: between(0.125, 16.0) = 1.0
+    early_termination: between(0.0, 1.0, open_lo=True) = 1.0
+    mode: Literal["composite", "mip"] = "composite"
+    view: tuple[Angle, Angle] = (0.0, 0.0)
+    projection: Literal["parallel", "perspective"] = "parallel"
+    scenario: str = ""
+    evidence: Evidence = "prediction"
+    fitted_from: tuple[str, ...] = ()
+    tolerance: Tolerance | None = None
+    note: str = ""
+
+
+class Labels(Schema):
+    """The label tables of ``[published]``, each keyed by headline figure, and the
+    measured figures."""
+
+    tolerance: dict[str, Tolerance] = {}
+    notes: dict[str, str] = {}
+    evidence: dict[str, Evidence] = {}
+    fitted_from: dict[str, tuple[str, ...]] = {}
+    measured: tuple[Measured, ...] = ()
+    voxels_per_axis: integer(1, 1 << 16) | None = None  # a fact beside the figures
+
+
+def _check_fitted(
+    fitted: tuple[str, ...], evidence: str, arch_keys: set[str] | None, source: str, key: str
 ) -> tuple[str, ...]:
-    value = table.raw(name, [])
+    """``fitted_from`` against the figure's evidence and the file's keys."""
     allowed = 'a list of the file\'s dotted keys, e.g. ["pipeline.clock_hz"]'
-    if not isinstance(value, list) or any(not isinstance(v, str) for v in value):
-        raise table.error(name, f"must be a list of key names, got {value!r}", allowed)
-    for v in value:
+    for v in fitted:
         if arch_keys is not None and v not in arch_keys:
-            raise table.error(name, f"{v!r} is not a key of this file", allowed)
-    if evidence == "fitted" and not value:
-        raise table.error(name, "a fitted figure must name the keys set from it", allowed)
-    if evidence == "prediction" and value:
-        raise table.error(name, "a prediction has no fitted keys", "[] (or label it fitted)")
-    return tuple(value)
-
-
-def _labels(
-    evidence: str,
-    arch_keys: set[str] | None,
-    fitted_from: tuple[Table, str],
-    tolerance: tuple[Table, str],
-    note: tuple[Table, str],
-) -> dict[str, Any]:
-    """A figure's ``fitted_from``, ``tolerance`` and ``note``, each read from its
-    ``(table, key)``: the figure's own table (``[[published.measured]]``) or the file's
-    label table keyed by the figure (a headline figure)."""
-    (tol_t, tol_key), (note_t, note_key) = tolerance, note
-    return {
-        "fitted_from": _fitted_from(*fitted_from, evidence, arch_keys),
-        "tolerance": tol_t.number(tol_key, None, 0.0, 10.0) if tol_t.has(tol_key) else None,
-        "note": note_t.string(note_key, ""),
-    }
+            raise InputError(
+                f"{v!r} is not a key of this file", source=source, key=key, allowed=allowed
+            )
+    if evidence == "fitted" and not fitted:
+        raise InputError(
+            "a fitted figure must name the keys set from it",
+            source=source,
+            key=key,
+            allowed=allowed,
+        )
+    if evidence == "prediction" and fitted:
+        raise InputError(
+            "a prediction has no fitted keys",
+            source=source,
+            key=key,
+            allowed="[] (or label it fitted)",
+        )
+    return fitted
 
 
 def _check_label(
-    table: Table, name: str, fig: PublishedFigure, peak: float | None
+    fig: PublishedFigure, peak: float | None, source: str, key: str
 ) -> PublishedFigure:
     if (
         peak
         and fig.evidence == "prediction"
         and restates_peak(fig.metric, fig.value, fig.scenario, peak)
     ):
-        raise table.error(
-            name,
+        raise InputError(
             f"{fig.value:g} is the file's pipelines x clock ({peak:g} samples/s) restated, "
             "not a prediction",
-            "peak or fitted",
+            source=source,
+            key=key,
+            allowed="peak or fitted",
         )
     return fig
 
 
 def _measured(
-    t: Table, keys: set[str], arch_keys: set[str] | None, peak: float | None
+    m: Measured, i: int, keys: set[str], arch_keys: set[str] | None, peak: float | None, source: str
 ) -> PublishedFigure:
-    name = t.string("name")
-    if not _NAME.match(name):
-        raise t.error("name", f"invalid {name!r}", "lowercase letters, digits, _ . -")
-    if name in keys:
-        raise t.error("name", f"{name!r} is already a figure of this file", "a new name")
-    given = [m for m in METRICS if t.has(m)]
+    at = f"published.measured[{i}]"
+    if m.name in keys:
+        raise InputError(
+            f"{m.name!r} is already a figure of this file",
+            source=source,
+            key=f"{at}.name",
+            allowed="a new name",
+        )
+    given = [metric for metric in METRICS if getattr(m, metric) is not None]
     if len(given) != 1:
-        raise t.error("fps", f"give exactly one of {', '.join(METRICS)}", "one")
-    metric = given[0]
-    hi = 1.0 if metric == "cache_hit_rate" else None
-    value = t.number(metric, lo=0.0, hi=hi, lo_open=True)
-    volume = tuple(int(v) for v in t.vector("volume", 3, lo=2, hi=1 << 12))
-    if any(float(v) != int(v) for v in t.data["volume"]) or len(set(volume)) != 1:
-        raise t.error("volume", f"invalid {t.data['volume']!r}", "[n, n, n] whole voxels")
-    image = t.raw("image", None)
-    if image is not None:
-        image = tuple(int(v) for v in t.vector("image", 2, lo=1, hi=1 << 13))
+        raise InputError(
+            f"give exactly one of {', '.join(METRICS)}",
+            source=source,
+            key=f"{at}.fps",
+            allowed="one",
+        )
+    if len(set(m.volume)) != 1:
+        raise InputError(
+            f"invalid {list(m.volume)!r}",
+            source=source,
+            key=f"{at}.volume",
+            allowed="[n, n, n] whole voxels",
+        )
     scenario = Scenario(
-        volume=volume,  # type: ignore[arg-type]
-        image=image,  # type: ignore[arg-type]
-        supersampling=t.number("supersampling", 1.0, 0.125, 16.0),
-        early_termination=t.number("early_termination", 1.0, 0.0, 1.0, lo_open=True),
-        mode=t.choice("mode", ("composite", "mip"), "composite"),
-        view=t.vector("view", 2, [0.0, 0.0], -360.0, 360.0),  # type: ignore[arg-type]
-        projection=t.choice("projection", ("parallel", "perspective"), "parallel"),
-        description=t.string("scenario", ""),
+        volume=m.volume,
+        image=m.image,
+        supersampling=m.supersampling,
+        early_termination=m.early_termination,
+        mode=m.mode,
+        view=m.view,
+        projection=m.projection,
+        description=m.scenario,
     )
-    evidence = t.choice("evidence", EVIDENCE, "prediction")
     fig = PublishedFigure(
-        key=name,
-        value=value,
-        metric=metric,
+        key=m.name,
+        value=getattr(m, given[0]),
+        metric=given[0],
         scenario=scenario,
-        evidence=evidence,
-        **_labels(evidence, arch_keys, (t, "fitted_from"), (t, "tolerance"), (t, "note")),
-        source=t.string("source"),
-        kind=t.choice("kind", ("measured", "simulated", "stated")),
+        evidence=m.evidence,
+        fitted_from=_check_fitted(
+            m.fitted_from, m.evidence, arch_keys, source, f"{at}.fitted_from"
+        ),
+        tolerance=m.tolerance,
+        note=m.note,
+        source=m.source,
+        kind=m.kind,
     )
-    t.finish()
-    return _check_label(t, "evidence", fig, peak)
+    return _check_label(fig, peak, source, f"{at}.evidence")
+
+
+def _headline(
+    data: dict[str, Any],
+    labels: Labels,
+    arch_keys: set[str] | None,
+    peak: float | None,
+    source: str,
+) -> list[PublishedFigure]:
+    """The headline figures (``fps_N``, ``seconds_N``, ``samples_per_second``) with the
+    labels the label tables give them; a label for a figure the file lacks is a typo."""
+    values = {k: v for k, v in data.items() if k not in _TABLES and k != "voxels_per_axis"}
+    sizes = [int(m.group(2)) for k in values if (m := _HEADLINE.match(k))]
+    parsed = {key: _headline_scenario(key, sizes) for key in values}
+    for key, found in parsed.items():
+        if found is None:
+            raise InputError(
+                "unknown figure",
+                source=source,
+                key=f"published.{key}",
+                allowed="fps_N, seconds_N, samples_per_second",
+            )
+    values = validate(values, dict[str, Positive], source, prefix="published")
+    for table in ("tolerance", "notes", "evidence", "fitted_from"):
+        for key in getattr(labels, table):
+            if key not in values:
+                allowed = ", ".join(values) or "none"
+                raise InputError(
+                    "unknown key", source=source, key=f"published.{table}.{key}", allowed=allowed
+                )
+    out = []
+    for key, value in values.items():
+        if key not in labels.evidence:
+            raise InputError(
+                "is required",
+                source=source,
+                key=f"published.evidence.{key}",
+                allowed=", ".join(EVIDENCE),
+            )
+        metric, scenario = parsed[key]  # type: ignore[misc]
+        evidence = labels.evidence[key]
+        fitted = labels.fitted_from.get(key, ())
+        fig = PublishedFigure(
+            key=key,
+            value=value,
+            metric=metric,
+            scenario=scenario,
+            evidence=evidence,
+            fitted_from=_check_fitted(
+                fitted, evidence, arch_keys, source, f"published.fitted_from.{key}"
+            ),
+            tolerance=labels.tolerance.get(key),
+            note=labels.notes.get(key, ""),
+        )
+        out.append(_check_label(fig, peak, source, f"published.evidence.{key}"))
+    return out
 
 
 def parse_published(
@@ -289,44 +395,24 @@ def parse_published(
     """The figures of a ``[published]`` table, in file order (headline keys, then the
     ``[[published.measured]]`` entries).
 
-    Every figure must carry ``evidence``; a bad label, an unknown ``fitted_from`` key
-    (checked against ``arch_data``, the whole file, when given) or a prediction that
-    restates ``peak_samples_per_second`` raises :class:`InputError` naming the key.
+    Types and ranges are :class:`Labels` and :class:`Measured`; then every figure must
+    carry ``evidence``; a bad label, an unknown ``fitted_from`` key (checked against
+    ``arch_data``, the whole file, when given) or a prediction that restates
+    ``peak_samples_per_second`` raises :class:`InputError` naming the key.
     """
-    top = Table(data, source, "published")
-    tolerance = top.table("tolerance")
-    notes = top.table("notes")
-    evidence_t = top.table("evidence")
-    fitted_t = top.table("fitted_from")
+    data = validate(data, dict[str, Any], source, prefix="published")
+    labels = validate(
+        {k: v for k, v in data.items() if k in (*_TABLES, "voxels_per_axis")},
+        Labels,
+        source,
+        prefix="published",
+    )
     arch_keys = _keys_in(arch_data) if arch_data is not None else None
-    headline = [
-        k
-        for k, v in top.data.items()
-        if k not in ("tolerance", "notes", "evidence", "fitted_from", "measured")
-    ]
-    sizes = [int(m.group(2)) for k in headline if (m := _HEADLINE.match(k))]
-    out: list[PublishedFigure] = []
-    for key in headline:
-        parsed = _headline_scenario(key, sizes)
-        if key == "voxels_per_axis":  # a fact beside the figures, not a figure
-            top.integer(key, lo=1, hi=1 << 16)
-            continue
-        if parsed is None:
-            raise top.error(key, "unknown figure", "fps_N, seconds_N, samples_per_second")
-        metric, scenario = parsed
-        value = top.number(key, lo=0.0, lo_open=True)
-        evidence = evidence_t.choice(key, EVIDENCE)
-        labels = _labels(evidence, arch_keys, (fitted_t, key), (tolerance, key), (notes, key))
-        fig = PublishedFigure(
-            key=key, value=value, metric=metric, scenario=scenario, evidence=evidence, **labels
-        )
-        out.append(_check_label(evidence_t, key, fig, peak_samples_per_second))
+    peak = peak_samples_per_second
+    out = _headline(data, labels, arch_keys, peak, source)
     keys = {f.key for f in out}
-    for t in top.tables("measured"):
-        fig = _measured(t, keys, arch_keys, peak_samples_per_second)
+    for i, m in enumerate(labels.measured):
+        fig = _measured(m, i, keys, arch_keys, peak, source)
         keys.add(fig.key)
         out.append(fig)
-    for t in (tolerance, notes, evidence_t, fitted_t):
-        t.finish()  # a label for a figure the file does not have is a typo
-    top.finish()
     return out
