@@ -42,13 +42,22 @@ def error(doc) -> str:
     ("doc", "line"),
     [
         ({"inner": 7}, "f.toml: inner: must be a table, got 7"),
-        ({"inner": {"bits": "x"}}, "f.toml: inner.bits: must be an integer, got 'x'"),
-        ({"inner": {"bits": True}}, "f.toml: inner.bits: must be an integer, got true"),
+        (
+            {"inner": {"bits": "x"}},
+            "f.toml: inner.bits: must be an integer, got 'x' (allowed: 1 .. 64)",
+        ),
+        (
+            {"inner": {"bits": True}},
+            "f.toml: inner.bits: must be an integer, got true (allowed: 1 .. 64)",
+        ),
         ({"inner": {"bits": 0}}, "f.toml: inner.bits: out of range, got 0 (allowed: 1 .. 64)"),
         ({"inner": {"kind": "c"}}, "f.toml: inner.kind: unknown value 'c' (allowed: a, b)"),
         ({}, "f.toml: inner: is required"),
         ({"inner": {"size": [1, 2]}}, "f.toml: inner.size: must be an array of length 3, got 2"),
-        ({"inner": {}, "values": [1, "a"]}, "f.toml: values[1]: must be an integer, got 'a'"),
+        (
+            {"inner": {}, "values": [1, "a"]},
+            "f.toml: values[1]: must be an integer, got 'a' (allowed: >= 0)",
+        ),
         (
             {"inner": {"bitz": 1}},
             "f.toml: inner.bitz: unknown key 'bitz' (allowed: bits, kind, scale-x, size)",
@@ -88,3 +97,33 @@ def test_a_string_off_its_pattern_names_the_pattern():
     with pytest.raises(InputError) as info:
         validate({"family": "Bad"}, Named, "f.toml")
     assert str(info.value) == "f.toml: family: invalid 'Bad' (allowed: matching ^[a-z]+$)"
+
+
+class Op(Schema):
+    rgb: Literal["zz", "a", "m"] = "a"
+
+
+class Choices(Schema):
+    """Choices in a union with a table, absent keys (UNSET) and bounded lists."""
+
+    op: Literal["zz", "a", "m"] | Op | msgspec.UnsetType = msgspec.UNSET
+    mode: Literal["zz", "a"] | msgspec.UnsetType = msgspec.UNSET
+    inner: Inner | msgspec.UnsetType = msgspec.UNSET
+    luts: Annotated[list[int], msgspec.Meta(min_length=1, max_length=4)] = []
+
+
+@pytest.mark.parametrize(
+    ("doc", "line"),
+    [
+        ({"op": "b"}, "f.toml: op: unknown value 'b' (allowed: zz, a, m)"),
+        ({"op": 3}, "f.toml: op: must be a string or a table, got 3 (allowed: zz, a, m)"),
+        ({"op": {"rgb": "b"}}, "f.toml: op.rgb: unknown value 'b' (allowed: zz, a, m)"),
+        ({"mode": 1}, "f.toml: mode: must be a string, got 1 (allowed: zz, a)"),
+        ({"inner": {"bits": 0}}, "f.toml: inner.bits: out of range, got 0 (allowed: 1 .. 64)"),
+        ({"luts": []}, "f.toml: luts: must be an array of length >= 1 (allowed: length 1 .. 4)"),
+    ],
+)
+def test_choices_keep_their_order_and_unset_keys_are_followed(doc, line):
+    with pytest.raises(InputError) as info:
+        validate(doc, Choices, "f.toml")
+    assert str(info.value) == line

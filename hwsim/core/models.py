@@ -132,9 +132,12 @@ def _translate(text: str, data: Any, model: Any, source: str, prefix: str) -> In
     key = here or "<top>"
     if m := _TYPE.match(what):
         want = " or ".join(_NAMES.get(w.strip(), w.strip()) for w in m["want"].split("|"))
-        return InputError(f"must be {want}, got {_brief(value)}", source=source, key=key)
+        allowed = _choices(model, parts) or _allowed(_info_at(model, parts))
+        return InputError(
+            f"must be {want}, got {_brief(value)}", source=source, key=key, allowed=allowed
+        )
     if _ENUM.match(what):
-        allowed = _allowed(_info_at(model, parts))
+        allowed = _choices(model, parts) or _allowed(_info_at(model, parts))
         return InputError(f"unknown value {_brief(value)}", source=source, key=key, allowed=allowed)
     if _RANGE.match(what):
         allowed = _allowed(_info_at(model, parts))
@@ -147,7 +150,10 @@ def _translate(text: str, data: Any, model: Any, source: str, prefix: str) -> In
         )
     if m := _LENGTH.match(what):
         want = _NAMES.get(m["want"], m["want"])
-        return InputError(f"must be {want} of length {m['length']}", source=source, key=key)
+        allowed = _allowed(_info_at(model, parts))
+        return InputError(
+            f"must be {want} of length {m['length']}", source=source, key=key, allowed=allowed
+        )
     return InputError(f"invalid: {what}", source=source, key=key)
 
 
@@ -169,18 +175,42 @@ def _in_mapping(path: str, data: Any, model: Any, source: str, prefix: str) -> I
 
 
 def _strip(annotation: Any) -> Any:
-    """``annotation`` without ``Annotated`` and ``| None``."""
+    """``annotation`` without ``Annotated``, ``| None`` and ``| UnsetType``."""
     while True:
         origin = typing.get_origin(annotation)
         if origin is Annotated:
             annotation = typing.get_args(annotation)[0]
         elif origin in (typing.Union, types.UnionType):
-            members = [a for a in typing.get_args(annotation) if a is not type(None)]
+            members = [a for a in typing.get_args(annotation) if a not in _ABSENT]
             if len(members) != 1:
                 return annotation
             annotation = members[0]
         else:
             return annotation
+
+
+#: Union members that stand for an absent key, not for a type a file can hold.
+_ABSENT = (type(None), msgspec.UnsetType)
+
+
+def _choices(model: Any, parts: list[str | int]) -> str | None:
+    """The ``Literal`` values declared at ``parts`` (a union's Literal member included),
+    in their declared order (msgspec's type info holds them as an unordered set)."""
+    annotation = _strip(_annotation_at(model, parts))
+    members = (
+        typing.get_args(annotation)
+        if typing.get_origin(annotation)
+        in (
+            typing.Union,
+            types.UnionType,
+        )
+        else (annotation,)
+    )
+    for member in members:
+        member = _strip(member)
+        if typing.get_origin(member) is typing.Literal:
+            return ", ".join(str(v) for v in typing.get_args(member))
+    return None
 
 
 def _annotation_at(model: Any, parts: list[str | int]) -> Any:
