@@ -17,7 +17,8 @@ the module count, the skew scheme and the device keys, flat::
     cas_latency = 2
     ...
 
-:func:`parse_memory` validates that table; every bad value raises
+:data:`MemoryTable` is that table's model (built from :class:`SdramConfig`'s fields and
+:data:`_RANGES`), :func:`parse_memory` validates it; every bad value raises
 :class:`hwsim.core.errors.InputError` naming the file, the key (``memory.t_rcd``) and the
 allowed range.  The model reads only (volume rendering never writes the volume during a
 frame), so write timings (tWR, tWTR) are not parameters.
@@ -27,17 +28,19 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
+import msgspec
 import numpy as np
 
-from hwsim.core.config import Table
 from hwsim.core.errors import InputError
+from hwsim.core.models import Schema, between, integer, validate
 
 __all__ = [
     "PAGE_POLICIES",
     "SKEWS",
     "MemoryConfig",
+    "MemoryTable",
     "SdramConfig",
     "parse_memory",
 ]
@@ -231,6 +234,26 @@ class MemoryConfig:
         return dataclasses.asdict(self)
 
 
+def _memory_table() -> type[Schema]:
+    """The model of a ``[memory]`` table: every :class:`SdramConfig` field with its
+    default and :data:`_RANGES` range, the module count and the skew."""
+    fields: list[tuple[str, Any, Any]] = []
+    for f in dataclasses.fields(SdramConfig):
+        if f.name == "page_policy":
+            kind: Any = Literal[PAGE_POLICIES]  # type: ignore[valid-type]
+        elif f.name == "clock_ratio":
+            kind = between(*_RANGES[f.name])
+        else:
+            kind = integer(*(int(v) for v in _RANGES[f.name]))
+        fields.append((f.name, kind, f.default))
+    fields += [("modules", integer(1, 4096), 4), ("skew", Literal[SKEWS], "miniblock")]  # type: ignore[valid-type]
+    return msgspec.defstruct("MemoryTable", fields, bases=(Schema,), module=__name__)
+
+
+#: ``[memory]``: types, ranges and defaults of every key (:func:`parse_memory`).
+MemoryTable = _memory_table()
+
+
 def parse_memory(data: dict[str, Any], *, source: str) -> MemoryConfig:
     """Validate an architecture's ``[memory]`` table (``ArchConfig.memory``).
 
@@ -248,27 +271,14 @@ def parse_memory(data: dict[str, Any], *, source: str) -> MemoryConfig:
     Raises
     ------
     hwsim.core.errors.InputError
-        One line naming ``source``, ``memory.KEY`` and the allowed range.
+        One line naming ``source``, ``memory.KEY`` and what is allowed: the types and
+        ranges of :data:`MemoryTable`, then the rules across keys.
     """
-    table = Table(data, source, "memory")
-    defaults = SdramConfig()
-    values: dict[str, Any] = {}
-    for f in dataclasses.fields(SdramConfig):
-        name = f.name
-        if name == "page_policy":
-            values[name] = table.choice(name, PAGE_POLICIES, defaults.page_policy)
-        elif name == "clock_ratio":
-            lo, hi = _RANGES[name]
-            values[name] = table.number(name, defaults.clock_ratio, lo, hi)
-        else:
-            lo, hi = _RANGES[name]
-            values[name] = table.integer(name, getattr(defaults, name), int(lo), int(hi))
-    modules = table.integer("modules", 4, 1, 4096)
-    skew = table.choice("skew", SKEWS, "miniblock")
-    table.finish()
+    table = validate(data, MemoryTable, source, prefix="memory")
+    values = {f.name: getattr(table, f.name) for f in dataclasses.fields(SdramConfig)}
 
     def error(key: str, message: str, allowed: str) -> InputError:
-        return table.error(key, message, allowed)
+        return InputError(message, source=source, key=f"memory.{key}", allowed=allowed)
 
     _check_consistency(values, error)
-    return MemoryConfig(modules=modules, skew=skew, sdram=SdramConfig(**values))
+    return MemoryConfig(modules=table.modules, skew=table.skew, sdram=SdramConfig(**values))
