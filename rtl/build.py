@@ -145,7 +145,7 @@ _LTP = re.compile(r"Longest topological path in \S+ \(length=(\d+)\)")
 _MEMORY = re.compile(r"^\s*reg\s+\[(\d+):0\]\s+\S+\s+\[(\d+):0\];", re.M)
 #: A memory's power-up contents (``initial begin mem[i] = ...; end``): the SRAMs are
 #: loaded at run time, and Yosys spends minutes on tens of thousands of init words.
-_MEMORY_INIT = re.compile(
+MEMORY_INIT = re.compile(
     r"(^\s*reg\s+\[\d+:0\]\s+(\S+)\s+\[\d+:0\];\n)\s*initial begin\n"
     r"(?:\s*\2\[\d+\] = [^;]+;\n)*\s*end\n",
     re.M,
@@ -167,7 +167,7 @@ def synthesize(verilog: str, top: str, abc: bool = False) -> dict:
         + "opt_clean; tee -q -o stat.json stat -json; tee -q -o ltp.txt ltp -noff"
     )
     with tempfile.TemporaryDirectory(prefix="hwsim-synth-") as tmp:
-        Path(tmp, "top.v").write_text(_MEMORY_INIT.sub(r"\1", verilog))
+        Path(tmp, "top.v").write_text(MEMORY_INIT.sub(r"\1", verilog))
         done = subprocess.run(
             [_yosys(), "-q", "-p", script], cwd=tmp, capture_output=True, text=True, check=False
         )

@@ -600,10 +600,23 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 def _cmd_rtl(args: argparse.Namespace) -> int:
     if args.rtl_command == "diff":
         return _rtl_diff(args)
+    if args.rtl_command == "fpga":
+        return _rtl_fpga(args)
     from rtl.cli import run
 
     with _progress_bar(args.quiet, "rtl build") as progress:
         return run(args, progress)
+
+
+def _rtl_fpga(args: argparse.Namespace) -> int:
+    """Place and route on an ECP5; a top's record gets the frame-rate what-if."""
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.studies.fpga import what_if
+    from rtl.cli import run_fpga
+
+    arch = resolve_arch(args.arch)
+    with _progress_bar(args.quiet, "rtl fpga") as progress:
+        return run_fpga(args, arch, progress, what_if)
 
 
 def _rtl_diff(args: argparse.Namespace) -> int:
