@@ -6,7 +6,12 @@
 Every value is checked when the file is read, so a typo fails the whole sweep at once
 with one line naming the file and key, instead of failing every run later::
 
-    sweep.toml: sweep.pipelines[1]: 0 is out of range (allowed: 1 .. 4096)
+    sweep.toml: sweep.pipelines[1]: out of range, got 0 (allowed: 1 .. 4096)
+
+The file's shape (which parameters, each a non-empty list of values of which type and
+range) is one msgspec model, :class:`SweepFile`; what a type cannot say (a scene, phantom,
+volume, architecture or technology that exists, a format key the machine has) is checked
+after it.
 
 A run is plain data (:class:`RunSpec`, picklable for Dask workers): the parameters
 that vary, plus the folder relative paths are resolved against.  :func:`build_run`
@@ -24,11 +29,16 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
+
+import msgspec
+from msgspec import UNSET, Meta, UnsetType
 
 from hwsim import __version__
-from hwsim.core.config import Table, check_number, read_toml
+from hwsim.core.config import read_toml
 from hwsim.core.errors import InputError
+from hwsim.core.models import Finite, Schema, between, count, validate
+from hwsim.run.render_request import FIDELITIES
 from hwsim.spec.arch import ArchConfig
 from hwsim.spec.scene import MAX_IMAGE, MODES, Scene, VolumeSpec, load_scene
 
@@ -39,6 +49,7 @@ __all__ = [
     "RunProduct",
     "RunSpec",
     "Sweep",
+    "SweepFile",
     "load_sweep",
     "parse_sweep",
     "build_run",
@@ -48,22 +59,49 @@ __all__ = [
 ]
 
 SCHEMA = 1
+
+
+def _values(item: Any) -> Any:
+    """A parameter's values: a non-empty list of ``item``."""
+    return Annotated[list[item], Meta(min_length=1)]
+
+
+_SIZE = count(MAX_IMAGE)
+#: ``image``: N (square) or [W, H].  (A list, not a tuple: msgspec 0.22 misreports, and
+#: may crash on, a tuple of the wrong length inside a union with a constrained int.)
+_IMAGE = _SIZE | Annotated[list[_SIZE], Meta(min_length=2, max_length=2)]
+
+
+class SweepTable(Schema):
+    """The ``[sweep]`` table: each parameter the non-empty list of values it takes, in
+    the order the product iterates them (the last varies fastest)."""
+
+    scene: _values(str) | UnsetType = UNSET  # a built-in scene or a FILE.toml
+    phantom: _values(str) | UnsetType = UNSET  # NAME[:k=v,...]
+    volume: _values(str) | UnsetType = UNSET  # a volume file beside the sweep file
+    arch: _values(str) | UnsetType = UNSET  # a built-in architecture or a FILE.toml
+    fidelity: _values(Literal[FIDELITIES]) | UnsetType = UNSET
+    mode: _values(Literal[MODES]) | UnsetType = UNSET
+    view: _values(tuple[between(-360, 360), between(-90, 90)]) | UnsetType = UNSET
+    image: _values(_IMAGE) | UnsetType = UNSET
+    pipelines: _values(count(4096)) | UnsetType = UNSET
+    clock_hz: _values(between(1.0, 10e9)) | UnsetType = UNSET
+    timing_only: _values(bool) | UnsetType = UNSET
+    technology: _values(str) | UnsetType = UNSET  # a built-in technology or a FILE.toml
+    #: Architecture format overrides: ``formats.<unit>.<field> = [values]``.
+    formats: dict[str, dict[str, _values(int | Finite | str)]] = {}
+
+
+class SweepFile(Schema):
+    """A sweep TOML file."""
+
+    sweep: SweepTable
+    schema: Literal[1] = SCHEMA
+
+
 #: Parameters a ``[sweep]`` table may list, in the order the product iterates them.
 #: ``formats.<unit>.<field>`` keys (architecture format overrides) come on top.
-PARAMETERS = (
-    "scene",
-    "phantom",
-    "volume",
-    "arch",
-    "fidelity",
-    "mode",
-    "view",
-    "image",
-    "pipelines",
-    "clock_hz",
-    "timing_only",
-    "technology",
-)
+PARAMETERS = tuple(f.name for f in msgspec.structs.fields(SweepTable) if f.name != "formats")
 _ARCH_OVERRIDES = ("pipelines", "clock_hz")
 #: The most runs one sweep file may describe (the product of its lists' lengths).
 MAX_RUNS = 10**7
@@ -144,29 +182,19 @@ def load_sweep(path: str | Path) -> Sweep:
 
 def parse_sweep(data: dict[str, Any], *, source: str, base_dir: str | Path) -> Sweep:
     """Validate parsed sweep TOML; every run is built once here so bad values fail early."""
-    top = Table(data, source)
-    top.schema(SCHEMA)
-    table = top.table("sweep", required=True)
-    top.finish()
-    formats = table.table("formats").data  # <unit>.<field> = [values]
-    raw = {k: v for k, v in table.data.items() if k != "formats"}
-    axes: dict[str, list[Any]] = {}
-    for name in raw:
-        if name not in PARAMETERS:
-            allowed = ", ".join(PARAMETERS) + ", formats.<unit>.<field>"
-            raise table.error(name, "unknown sweep parameter", allowed)
+    table = validate(data, SweepFile, source).sweep
     base = str(Path(base_dir))
+    axes: dict[str, list[Any]] = {}
     for name in PARAMETERS:
-        if name in raw:
-            axes[name] = [
-                _check(name, v, source, f"sweep.{name}[{i}]", base)
-                for i, v in enumerate(_as_list(raw[name], source, f"sweep.{name}"))
-            ]
-    for key, values in _flatten(formats, "formats").items():
-        axes[key] = [
-            _check_format(key, v, source, f"sweep.{key}[{i}]")
-            for i, v in enumerate(_as_list(values, source, f"sweep.{key}"))
-        ]
+        values = getattr(table, name)
+        if values is not UNSET:
+            for i, value in enumerate(values):
+                _check(name, value, source, f"sweep.{name}[{i}]", base)
+            axes[name] = [_plain(name, v) for v in values]
+    for unit, fields in table.formats.items():
+        for field, values in fields.items():
+            _check_format(f"formats.{unit}.{field}", source)
+            axes[f"formats.{unit}.{field}"] = list(values)
     if "phantom" in axes and "volume" in axes:
         raise InputError("give phantom or volume, not both", source=source, key="sweep.volume")
     sweep = Sweep(source=source, axes=axes, base_dir=base)
@@ -317,17 +345,18 @@ def run_key(run: RunSpec) -> str:
 # --------------------------------------------------------------------------- checking
 
 
-def _as_list(value: Any, source: str, key: str) -> list[Any]:
-    if not isinstance(value, list) or not value:
-        raise InputError(f"must be a non-empty list, got {value!r}", source=source, key=key)
-    return value
+def _plain(name: str, value: Any) -> Any:
+    """A validated value as a run holds it (JSON-able): ``[az, el]``, ``[W, H]``."""
+    if name == "image" and isinstance(value, int):
+        return [value, value]
+    return list(value) if isinstance(value, tuple) else value
 
 
-def _check(name: str, value: Any, source: str, key: str, base: str) -> Any:
-    from hwsim.run.fidelity import FIDELITIES, builtin_archs
+def _check(name: str, value: Any, source: str, key: str, base: str) -> None:
+    """What the model cannot say: the scene, phantom, volume, architecture or technology
+    a value names exists (each error names the sweep file and ``key``)."""
+    from hwsim.run.fidelity import builtin_archs
 
-    if name in ("scene", "phantom", "volume", "arch") and not isinstance(value, str):
-        raise InputError(f"must be a string, got {value!r}", source=source, key=key)
     if name == "scene":
         try:
             load_scene(Path(base) / value if value.endswith(".toml") or "/" in value else value)
@@ -353,53 +382,14 @@ def _check(name: str, value: Any, source: str, key: str, base: str) -> Any:
     elif name == "technology":
         from hwsim.energy import load_technology
 
-        if not isinstance(value, str):
-            raise InputError(f"must be a string, got {value!r}", source=source, key=key)
         try:
             load_technology(str(Path(base) / value) if value.endswith(".toml") else value)
         except InputError as exc:
             raise InputError(exc.message, source=source, key=key, allowed=exc.allowed) from None
-    elif name == "timing_only":
-        if not isinstance(value, bool):
-            raise InputError(f"must be true or false, got {value!r}", source=source, key=key)
-    elif name == "fidelity":
-        if value not in FIDELITIES:
-            raise InputError(
-                f"unknown fidelity {value!r}", source=source, key=key, allowed=", ".join(FIDELITIES)
-            )
-    elif name == "mode":
-        if value not in MODES:
-            raise InputError(
-                f"unknown mode {value!r}", source=source, key=key, allowed=", ".join(MODES)
-            )
-    elif name == "view":
-        if not isinstance(value, list) or len(value) != 2:
-            raise InputError(f"must be [azimuth, elevation], got {value!r}", source=source, key=key)
-        return [
-            check_number(value[0], source, f"{key}[0]", -360, 360),
-            check_number(value[1], source, f"{key}[1]", -90, 90),
-        ]
-    elif name == "image":
-        pair = value if isinstance(value, list) else [value, value]
-        if len(pair) != 2 or any(isinstance(v, bool) or not isinstance(v, int) for v in pair):
-            raise InputError(f"must be N or [W, H] integers, got {value!r}", source=source, key=key)
-        for v in pair:
-            if not 1 <= v <= MAX_IMAGE:
-                raise InputError(
-                    f"{v} is out of range", source=source, key=key, allowed=f"1 .. {MAX_IMAGE}"
-                )
-        return list(pair)
-    elif name == "pipelines":
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 4096:
-            raise InputError(
-                f"{value!r} is out of range", source=source, key=key, allowed="1 .. 4096"
-            )
-    elif name == "clock_hz":
-        return check_number(value, source, key, 1.0, 10e9)
-    return value
 
 
-def _check_format(name: str, value: Any, source: str, key: str) -> Any:
+def _check_format(name: str, source: str) -> None:
+    """``formats.<unit>.<field>``: a field of a unit the datapath has."""
     from models.datapath import UNIT_CONFIGS
 
     unit, _, field = name.removeprefix("formats.").partition(".")
@@ -410,15 +400,7 @@ def _check_format(name: str, value: Any, source: str, key: str) -> Any:
         allowed = ", ".join(
             f"formats.{u}.{f.name}" for u, c in UNIT_CONFIGS.items() for f in dataclasses.fields(c)
         )
-        raise InputError(
-            "unknown format key",
-            source=source,
-            key=name.replace("formats.", "sweep.formats.", 1),
-            allowed=allowed,
-        )
-    if not isinstance(value, (int, float, str)) or isinstance(value, bool):
-        raise InputError(f"must be a number or a name, got {value!r}", source=source, key=key)
-    return value
+        raise InputError("unknown format key", source=source, key=f"sweep.{name}", allowed=allowed)
 
 
 def _flatten(table: dict[str, Any], prefix: str) -> dict[str, Any]:
