@@ -4,19 +4,24 @@
 #      docs/numerics.md (every format, rounding and bound).
 
 ``[formats]`` keys are ``<unit>.<field>`` (``interp.weight_bits = 9``); anything absent
-takes the unit's default (VolumePro 500 values).  An unknown key or a value outside the
-unit's range is refused with the file and key named.
+takes the unit's default (VolumePro 500 values).  :data:`FormatsTable` is the table's
+model (built from the unit configs' fields); an unknown key, a wrong type or a value
+outside the unit's range is refused with the file and key named, when the architecture
+file is loaded (:func:`models.machines.check_tables`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import msgspec
+from msgspec.structs import asdict
+
 from hwsim.core.config import flatten_table
 from hwsim.core.errors import InputError
+from hwsim.core.models import Finite, Schema, integer, validate
 from hwsim.spec.arch import ArchConfig
 from models.units.classify import ClassifyConfig
 from models.units.composite import CompositeConfig
@@ -24,7 +29,14 @@ from models.units.gradient import GradientConfig
 from models.units.interp import InterpConfig
 from models.units.shade import ShadeConfig
 
-__all__ = ["DATAPATH_UNITS", "Datapath", "UNIT_CONFIGS", "units_needed"]
+__all__ = [
+    "DATAPATH_UNITS",
+    "Datapath",
+    "FormatsTable",
+    "UNIT_CONFIGS",
+    "formats_of",
+    "units_needed",
+]
 
 UNIT_CONFIGS = {
     "interp": InterpConfig,
@@ -74,46 +86,23 @@ class Datapath:
 
         The voxel width is the narrowest the machine accepts that holds the data, else its
         widest.  ``overrides`` (``{"interp.weight_bits": 6}``) win over the file, for
-        bit-width sweeps.
+        bit-width sweeps.  The table is validated against :data:`FormatsTable` (keys and
+        types), then by each unit's config (its ranges).
         """
         fitting = [b for b in sorted(arch.value_bits) if data_bits and b >= data_bits]
-        voxel_bits = fitting[0] if fitting else max(arch.value_bits)
-        table = {**flatten_table(arch.formats), **(overrides or {})}
-        units: dict[str, dict[str, Any]] = {name: {} for name in UNIT_CONFIGS}
-        for key, value in table.items():
-            unit, _, name = key.partition(".")
-            if unit == "voxel" and name == "bits":
-                voxel_bits = _typed(value, 0, arch.source, "formats.voxel.bits")
-                continue
-            fields = (
-                {f.name for f in dataclasses.fields(UNIT_CONFIGS.get(unit, object))}
-                if unit in UNIT_CONFIGS
-                else set()
-            )
-            if name not in fields:
-                allowed = ", ".join(
-                    f"{u}.{f.name}" for u, c in UNIT_CONFIGS.items() for f in dataclasses.fields(c)
-                )
+        doc = formats_of(arch, overrides)
+        configs: dict[str, Any] = {}
+        for unit, config in UNIT_CONFIGS.items():
+            fields = asdict(getattr(doc, unit))
+            if unit == "shade":  # one source of truth: the shader reads the gradient's normals
+                fields["normal_frac_bits"] = configs["gradient"].normal_frac_bits
+            try:
+                configs[unit] = config(**fields)  # the unit's own ranges
+            except (TypeError, ValueError) as exc:
                 raise InputError(
-                    "unknown format key", source=arch.source, key=f"formats.{key}", allowed=allowed
-                )
-            default = next(f for f in dataclasses.fields(UNIT_CONFIGS[unit]) if f.name == name)
-            units[unit][name] = _typed(value, default.default, arch.source, f"formats.{key}")
-        if "normal_frac_bits" in units["shade"]:
-            raise InputError(
-                "the shader reads the gradient unit's normals",
-                source=arch.source,
-                key="formats.shade.normal_frac_bits",
-                allowed="set gradient.normal_frac_bits instead",
-            )
-        try:
-            configs = {unit: UNIT_CONFIGS[unit](**kw) for unit, kw in units.items()}
-            # One source of truth: the shader's input format is the gradient's output.
-            configs["shade"] = dataclasses.replace(
-                configs["shade"], normal_frac_bits=configs["gradient"].normal_frac_bits
-            )
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"invalid format: {exc}", source=arch.source, key="formats") from None
+                    f"invalid format: {exc}", source=arch.source, key=f"formats.{unit}"
+                ) from None
+        voxel_bits = doc.voxel.bits or (fitting[0] if fitting else max(arch.value_bits))
         return cls(voxel_bits=voxel_bits, **configs)
 
     @classmethod
@@ -130,28 +119,53 @@ class Datapath:
         return out
 
 
-def _typed(value: Any, default: Any, source: str, key: str) -> Any:
-    """``value`` if it has the type of the field's ``default`` (an int is a float too).
+def _unit_table(unit: str, config: type) -> type[Schema]:
+    """The ``[formats.<unit>]`` model: the unit config's fields, typed and defaulted as the
+    config declares them (its ranges stay the config's own checks).  The shader has no
+    ``normal_frac_bits`` of its own: it reads the gradient unit's."""
+    kinds = {int: int, str: str, bool: bool, float: Finite}
+    fields = [
+        (f.name, kinds[type(f.default)], f.default)
+        for f in dataclasses.fields(config)
+        if (unit, f.name) != ("shade", "normal_frac_bits")
+    ]
+    return msgspec.defstruct(f"{unit}_formats", fields, bases=(Schema,), module=__name__)
 
-    A float where a bit width belongs is refused here, naming the key, rather than deep
-    inside the compiled kernels.
-    """
-    kind = type(default)
-    if kind is bool:
-        ok = isinstance(value, bool)
-    elif kind is int:
-        ok = isinstance(value, int) and not isinstance(value, bool)
-    elif kind is float:
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-        ok = ok and math.isfinite(value)
-    else:
-        ok = isinstance(value, kind)
-    if not ok:
-        names = {bool: "true or false", int: "an integer", float: "a finite number"}
+
+class VoxelFormats(Schema):
+    """``[formats.voxel]``: a voxel width that overrides the machine's choice."""
+
+    bits: integer(1, 32) | None = None
+
+
+#: ``[formats]``: one table per unit of :data:`UNIT_CONFIGS` and ``voxel``.
+FormatsTable = msgspec.defstruct(
+    "FormatsTable",
+    [("voxel", VoxelFormats, msgspec.field(default_factory=VoxelFormats))]
+    + [
+        (unit, model, msgspec.field(default_factory=model))
+        for unit, model in ((u, _unit_table(u, c)) for u, c in UNIT_CONFIGS.items())
+    ],
+    bases=(Schema,),
+    module=__name__,
+)
+
+
+def formats_of(arch: ArchConfig, overrides: dict[str, Any] | None = None) -> Any:
+    """``arch.formats`` (nested, as TOML reads ``interp.weight_bits = 9``, or flat, as a
+    sweep's overrides name keys) with ``overrides``, validated as :data:`FormatsTable`."""
+    nested: dict[str, Any] = {}
+    for key, value in {**flatten_table(arch.formats), **(overrides or {})}.items():
+        unit, dot, name = key.partition(".")
+        if not dot:
+            nested[unit] = value  # a unit given a value, not a table: the model says so
+        elif isinstance(nested.setdefault(unit, {}), dict):
+            nested[unit][name] = value
+    if "normal_frac_bits" in (nested.get("shade") or {}):
         raise InputError(
-            f"{value!r} is not {names.get(kind, kind.__name__)}",
-            source=source,
-            key=key,
-            allowed=names.get(kind, kind.__name__),
+            "the shader reads the gradient unit's normals",
+            source=arch.source,
+            key="formats.shade.normal_frac_bits",
+            allowed="set gradient.normal_frac_bits instead",
         )
-    return float(value) if kind is float else value
+    return validate(nested, FormatsTable, arch.source, prefix="formats")

@@ -16,6 +16,7 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -45,6 +46,7 @@ __all__ = [
     "RenderRun",
     "render",
     "builtin_archs",
+    "load_machine",
     "resolve_arch",
 ]
 
@@ -89,9 +91,18 @@ def builtin_archs() -> dict[str, ArchConfig]:
     files = [path for family in families() for path in family.arch_files()]
     out = {}
     for path in sorted(files, key=lambda p: p.name):
-        cfg = load_arch_file(path)
+        cfg = load_machine(path)
         out[cfg.name] = cfg
     return out
+
+
+def load_machine(path: str | Path) -> ArchConfig:
+    """An architecture file, validated whole before any work: its generic shape
+    (:func:`hwsim.spec.arch.load_arch_file`), then the tables the models own (``[formats]``,
+    the family's ``[buffers]`` and rules: :func:`models.machines.check_tables`)."""
+    from models.machines import check_tables
+
+    return check_tables(load_arch_file(path))
 
 
 def resolve_arch(name_or_path: str) -> ArchConfig:
@@ -99,7 +110,7 @@ def resolve_arch(name_or_path: str) -> ArchConfig:
     if name_or_path.endswith(".toml") or "/" in name_or_path:
         from hwsim.energy import arch_technology
 
-        config = load_arch_file(name_or_path)
+        config = load_machine(name_or_path)
         arch_technology(config)  # an unknown [silicon] technology: refused at load
         return config
     archs = builtin_archs()

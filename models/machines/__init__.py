@@ -25,11 +25,13 @@ from pathlib import Path
 from typing import Any
 
 from hwsim.core.errors import NotAvailableError
+from hwsim.core.models import Schema, validate
 from hwsim.spec.arch import ArchConfig
 
 __all__ = [
     "FAMILIES",
     "Machine",
+    "check_tables",
     "families",
     "machine_for",
     "orders",
@@ -97,6 +99,14 @@ class Machine:
         ``split(frame, faults)``: the family's frame split by rays across workers (its
         ``bands(n)``, ``task`` and ``combine(results)``; e.g.
         :class:`models.machines.cube4.bands.BandSplit`); None: frames run in one process.
+    buffers : type or None
+        The model of the family's ``[buffers]`` table (a :class:`hwsim.core.models.Schema`:
+        its keys, types and ranges); None: the family has no buffers to size.
+    check_arch : callable or None
+        ``check_arch(arch)``: the family's rules across an architecture file's tables
+        (e.g. VIZARD II's one memory channel), raising :class:`InputError` naming the key.
+
+    :func:`check_tables` asks ``buffers`` and ``check_arch`` when a file is loaded.
     """
 
     name: str
@@ -111,6 +121,8 @@ class Machine:
     silicon: Callable[..., Any] | None = None
     accesses: Callable[..., Any] | None = None
     split: type | None = None
+    buffers: type | None = None
+    check_arch: Callable[..., None] | None = None
 
     def arch_files(self) -> list[Path]:
         """The family's built-in architecture files."""
@@ -146,6 +158,38 @@ def unregister(machine: Machine) -> None:
     """Remove ``machine`` (a family added at run time, e.g. by a test)."""
     if _registry.get(machine.name) is machine:
         del _registry[machine.name]
+
+
+class _NoBuffers(Schema):
+    """``[buffers]`` of a machine no family models, or of a family with no buffers."""
+
+
+def check_tables(arch: ArchConfig) -> ArchConfig:
+    """Validate the tables of ``arch`` whose meaning the models own, before any work:
+    ``[formats]`` (:data:`models.datapath.FormatsTable`), ``[buffers]`` (the family's
+    :attr:`Machine.buffers` model) and the family's rules across tables
+    (:attr:`Machine.check_arch`).  Called by every path that loads an architecture file
+    (:func:`hwsim.run.fidelity.resolve_arch`, :func:`~hwsim.run.fidelity.builtin_archs`).
+    A file whose family is unknown is refused later, by the rung that needs the family
+    (:func:`machine_for`); its ``[buffers]`` must then be empty.
+
+    Raises
+    ------
+    InputError
+        One line naming the file, the key path and what is allowed.
+    """
+    from models.datapath import Datapath
+
+    Datapath.from_arch(arch, 0)
+    try:
+        family: Machine | None = machine_for(arch)
+    except NotAvailableError:
+        family = None
+    model = family.buffers if family is not None and family.buffers is not None else _NoBuffers
+    validate(arch.buffers, model, arch.source, prefix="buffers")
+    if family is not None and family.check_arch is not None:
+        family.check_arch(arch)
+    return arch
 
 
 def families() -> list[Machine]:

@@ -45,7 +45,7 @@ def test_empty_table_gives_the_defaults():
     [
         ({"banks": 0}, "memory.banks", "1 .. 64"),
         ({"t_rcd": -1}, "memory.t_rcd", "0 .. 64"),
-        ({"cas_latency": 2.5}, "memory.cas_latency", "must be an integer"),
+        ({"cas_latency": 2.5}, "memory.cas_latency", "1 .. 16"),
         ({"page_policy": "lazy"}, "memory.page_policy", "open, closed"),
         ({"skew": "diagonal"}, "memory.skew", "cube4, miniblock, block"),
         ({"clock_ratio": 0}, "memory.clock_ratio", "0.015625 .. 64"),

@@ -10,14 +10,13 @@ family live in its package, e.g. :mod:`models.machines.cube4.timing`).
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from hwsim.core.config import Table
 from hwsim.core.errors import InputError
+from hwsim.core.models import integer, validate
 from hwsim.engine import Counters, DrainFifo
 from hwsim.engine.metrics import derive
 from hwsim.spec.arch import ArchConfig
@@ -32,8 +31,8 @@ from models.units import shade as shade_unit
 __all__ = [
     "UNITS",
     "CycleResult",
+    "Entries",
     "buffer_table",
-    "check_buffer_keys",
     "publish_pixel_bus",
     "frame_result",
     "elaborate_units",
@@ -64,22 +63,20 @@ class CycleResult:
     derived: dict[str, Any] = field(default_factory=dict)
 
 
-def check_buffer_keys(arch: ArchConfig, known: Iterable[str]) -> None:
-    """Refuse a ``[buffers]`` key the machine does not have, naming the file and key."""
-    table = Table(arch.buffers, arch.source, "buffers")
-    for key in known:
-        table.raw(key, None)
-    table.finish()
+#: A buffer's capacity in entries (a family's ``[buffers]`` model declares its keys as
+#: ``Entries | None``: None takes the size its machine derives from ``[limits]``).
+Entries = integer(0, 10**8)
 
 
 def buffer_table(
-    arch: ArchConfig, defaults: dict[str, int], needs: dict[str, int]
+    arch: ArchConfig, model: type, defaults: dict[str, int], needs: dict[str, int]
 ) -> dict[str, int]:
-    """The ``[buffers]`` table read against ``defaults`` (unknown keys and bad values
-    refused naming the file and key) and checked against what this volume ``needs``."""
-    check_buffer_keys(arch, defaults)
-    table = Table(arch.buffers, arch.source, "buffers")
-    out = {key: table.integer(key, default, lo=0) for key, default in defaults.items()}
+    """The ``[buffers]`` table as the family's ``model`` declares it (checked when the file
+    was loaded, :func:`models.machines.check_tables`; again here for a config built in
+    code), absent keys taking ``defaults``, checked against what this volume ``needs``."""
+    given = validate(arch.buffers, model, arch.source, prefix="buffers")
+    out = {key: getattr(given, key) for key in defaults}
+    out = {key: defaults[key] if value is None else value for key, value in out.items()}
     for key, need in needs.items():
         if out[key] < need:
             raise InputError(

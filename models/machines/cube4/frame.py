@@ -11,14 +11,24 @@ the registers a driver would, so the RTL never imports the cycle model.
 from __future__ import annotations
 
 from hwsim.core.errors import InputError
+from hwsim.core.models import Schema
 from hwsim.spec.arch import ArchConfig
 from models.backend import Backend
 from models.frame import Frame
-from models.machines.common.results import buffer_table
+from models.machines.common.results import Entries, buffer_table
 from models.machines.common.sections import refuse_sections
 from models.machines.common.slice_order import SliceOrderMachine
 
-__all__ = ["Cube4Frame", "check_cube4_frame", "cube4_buffers"]
+__all__ = ["Cube4Buffers", "Cube4Frame", "check_cube4_frame", "cube4_buffers"]
+
+
+class Cube4Buffers(Schema):
+    """``[buffers]`` of a Cube-4 machine: entries per pipeline; absent, sized for
+    ``limits.max_volume`` (:func:`cube4_buffers`)."""
+
+    beam_fifo_entries: Entries | None = None
+    slice_fifo_entries: Entries | None = None
+    pixel_fifo_entries: Entries | None = None
 
 
 def check_cube4_frame(frame: Frame) -> None:
@@ -70,4 +80,5 @@ def cube4_buffers(arch: ArchConfig, C: int, T: int) -> dict[str, int]:
         "slice_fifo_entries": n_max * c_max,  # 9.2: n^2 / P per slice delay
         "pixel_fifo_entries": n_max * n_max,  # one slice of base-plane pixels
     }
-    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1, "slice_fifo_entries": T})
+    needs = {"beam_fifo_entries": C + 1, "slice_fifo_entries": T}
+    return buffer_table(arch, Cube4Buffers, defaults, needs)

@@ -9,7 +9,7 @@ from models.machines import Machine, single_frames
 from models.machines.cube4 import silicon
 from models.machines.cube4.bands import BandSplit
 from models.machines.cube4.cycle import Cube4Machine, Faults
-from models.machines.cube4.frame import check_cube4_frame
+from models.machines.cube4.frame import Cube4Buffers, check_cube4_frame
 from models.machines.cube4.transaction import Cube4Transaction
 
 MACHINE = Machine(
@@ -24,4 +24,5 @@ MACHINE = Machine(
     silicon=silicon.silicon,
     accesses=silicon.accesses,
     split=BandSplit,
+    buffers=Cube4Buffers,
 )

@@ -1,4 +1,4 @@
-"""VIZARD II machine parameters: the ``[buffers]`` table, ``[memory]`` and fault injection.
+"""VIZARD II machine parameters: the ``[buffers]`` model, ``[memory]`` and fault injection.
 
 # Ref: architectures.md section 5 (ray queueing, Doggett ISCAS 2000 [V]; VoxelCache's
 #      4^3-voxel blocks [V]); the sizes below are [I] (not published).
@@ -9,10 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from hwsim.core.errors import InputError
+from hwsim.core.models import Schema, count, integer, validate
 from hwsim.memory import MemoryConfig, parse_memory
 from hwsim.spec.arch import ArchConfig
 from models.frame import Frame
-from models.machines.common.results import UNITS, check_buffer_keys
+from models.machines.common.results import UNITS, Entries
 from models.machines.common.sections import refuse_sections
 
 __all__ = [
@@ -22,6 +23,7 @@ __all__ = [
     "LOOKUP_LATENCY",
     "VizardFaults",
     "VizardBuffers",
+    "check_arch",
     "check_frame",
     "parse_buffers",
     "memory_of",
@@ -56,27 +58,20 @@ class VizardFaults:
     pixel_fifo_depth: int | None = None
 
 
-@dataclass(frozen=True)
-class VizardBuffers:
-    """On-chip structures: ray tile and queue, cache geometry, pixel FIFO."""
+class VizardBuffers(Schema):
+    """``[buffers]``: the on-chip structures (sizes [I]): the ray tile (rays of one packet,
+    image rows x columns) and queue (rays in flight), the block cache's sets (z, y, x:
+    lines of one 4^3 block each) and the pixel FIFO."""
 
-    ray_tile: tuple[int, int]
-    ray_queue_entries: int
-    cache_sets: tuple[int, int, int]
-    pixel_fifo_entries: int
+    ray_tile: tuple[count(), count()] = (8, 8)
+    ray_queue_entries: Entries = 64
+    cache_sets: tuple[integer(2), integer(2), integer(2)] = (4, 4, 4)
+    pixel_fifo_entries: Entries = 64
 
     @property
     def cache_lines(self) -> int:
         z, y, x = self.cache_sets
         return z * y * x
-
-
-_DEFAULTS = {
-    "ray_tile": [8, 8],  # rays of one packet, image rows x columns [I]
-    "ray_queue_entries": 64,  # rays in flight at once [I]
-    "cache_sets": [4, 4, 4],  # 64 lines of one 4^3 block each [I]
-    "pixel_fifo_entries": 64,  # [I]
-}
 
 
 def check_frame(frame: Frame) -> None:
@@ -102,32 +97,15 @@ def check_frame(frame: Frame) -> None:
 
 
 def parse_buffers(arch: ArchConfig) -> VizardBuffers:
-    """Validate ``arch.buffers`` (missing keys: the defaults above)."""
-    check_buffer_keys(arch, _DEFAULTS)
-    table = {**_DEFAULTS, **arch.buffers}
+    """``arch.buffers`` as :class:`VizardBuffers` (checked when the file was loaded; again
+    here for a config built in code)."""
+    return validate(arch.buffers, VizardBuffers, arch.source, prefix="buffers")
 
-    def ints(key: str, count: int, lo: int) -> list[int]:
-        value = table[key]
-        values = value if isinstance(value, list) else [value]
-        ok = len(values) == count and all(
-            isinstance(v, int) and not isinstance(v, bool) and v >= lo for v in values
-        )
-        if not ok:
-            shape = "an integer" if count == 1 else f"a list of {count} integers"
-            raise InputError(
-                f"invalid {value!r}",
-                source=arch.source,
-                key=f"buffers.{key}",
-                allowed=f"{shape} >= {lo}",
-            )
-        return values
 
-    return VizardBuffers(
-        ray_tile=tuple(ints("ray_tile", 2, 1)),  # type: ignore[arg-type]
-        ray_queue_entries=ints("ray_queue_entries", 1, 0)[0],
-        cache_sets=tuple(ints("cache_sets", 3, 2)),  # type: ignore[arg-type]
-        pixel_fifo_entries=ints("pixel_fifo_entries", 1, 0)[0],
-    )
+def check_arch(arch: ArchConfig) -> None:
+    """The rules of a VIZARD II file across its tables, asked when it is loaded
+    (:attr:`models.machines.Machine.check_arch`)."""
+    memory_of(arch)
 
 
 def memory_of(arch: ArchConfig) -> MemoryConfig:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from models.machines import Machine, single_frames
 from models.machines.vizard2 import silicon
-from models.machines.vizard2.config import VizardFaults, check_frame
+from models.machines.vizard2.config import VizardBuffers, VizardFaults, check_arch, check_frame
 from models.machines.vizard2.cycle import VizardMachine
 from models.machines.vizard2.transaction import VizardTransaction
 
@@ -21,4 +21,6 @@ MACHINE = Machine(
     package="models.machines.vizard2",
     silicon=silicon.silicon,
     accesses=silicon.accesses,
+    buffers=VizardBuffers,
+    check_arch=check_arch,
 )

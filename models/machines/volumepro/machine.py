@@ -12,6 +12,7 @@ from models.frame import Frame
 from models.machines import Machine
 from models.machines.volumepro import silicon
 from models.machines.volumepro.cycle import SlabFaults, SlabMachine
+from models.machines.volumepro.slab_timing import SlabBuffers
 from models.machines.volumepro.transaction import SlabTransaction
 from models.machines.volumepro.vp1000_transaction import Vp1000Transaction
 
@@ -40,4 +41,5 @@ MACHINE = Machine(
     package="models.machines.volumepro",
     silicon=silicon.silicon,
     accesses=silicon.accesses,
+    buffers=SlabBuffers,
 )

@@ -26,13 +26,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hwsim.core.models import Schema
 from hwsim.engine import Counters, DeadlockError, DrainFifo
 from hwsim.memory import MemoryConfig, SdramController, SdramStats
 from hwsim.spec.arch import ArchConfig
-from models.machines.common.results import UNITS, buffer_table
+from models.machines.common.results import UNITS, Entries, buffer_table
 from models.units import skew as skew_unit
 
-__all__ = ["SliceWork", "Delivery", "FrameTiming", "pipeline_latency", "run_timing", "slab_buffers"]
+__all__ = [
+    "SlabBuffers",
+    "SliceWork",
+    "Delivery",
+    "FrameTiming",
+    "pipeline_latency",
+    "run_timing",
+    "slab_buffers",
+]
 
 
 def pipeline_latency(beam_cycles: int) -> int:
@@ -187,6 +196,15 @@ def run_timing(
     return out
 
 
+class SlabBuffers(Schema):
+    """``[buffers]`` of a VolumePro-family machine: entries per pipeline; absent, sized
+    for ``limits.max_volume`` (:func:`slab_buffers`)."""
+
+    slab_buffer_entries: Entries | None = None
+    beam_fifo_entries: Entries | None = None
+    pixel_fifo_entries: Entries | None = None
+
+
 def slab_buffers(arch: ArchConfig, C: int) -> dict[str, int]:
     """A VolumePro-family machine's capacities per pipeline (``[buffers]``, entries),
     checked against a volume of ``C`` clocks per beam.  One copy for the cycle and
@@ -203,4 +221,4 @@ def slab_buffers(arch: ArchConfig, C: int) -> dict[str, int]:
         "beam_fifo_entries": c_max + 1,
         "pixel_fifo_entries": n_max * n_max,
     }
-    return buffer_table(arch, defaults, {"beam_fifo_entries": C + 1})
+    return buffer_table(arch, SlabBuffers, defaults, {"beam_fifo_entries": C + 1})
