@@ -3,10 +3,12 @@
 # Ref: shared/docs/reference/architectures.md (published figures, each tagged
 #      verified / recalled / inferred; the built-in files cite the tag per value).
 
-The core only validates the generic shape of a machine (pipelines, clock, processing
-order, limits, features).  The ``[formats]`` and ``[memory]`` tables are handed to the
-models layer, which owns their meaning; the application layer (``hwsim.run.fidelity``)
-looks built-in names up in ``models/machines/<family>/*.toml``.
+The file's model is :class:`hwsim.spec.arch_schema.ArchFile` (with ``[published]``'s and
+``[memory]``'s, checked here too).  The tables whose meaning the models layer owns
+(``[formats]``, a family's ``[buffers]`` and its rules across tables) are checked by the
+machine registry right after this load (:func:`models.machines.check_tables`), which the
+application layer asks for every file it loads (:func:`hwsim.run.fidelity.load_machine`:
+built-in names are looked up in ``models/machines/<family>/*.toml``).
 """
 
 from __future__ import annotations
@@ -79,8 +81,10 @@ class ArchConfig:
         ``[features] extend = true``: render scenes outside the declared set as what-ifs
         (``stats.json`` lists them in ``extensions``) instead of refusing them.
     formats, memory, buffers : dict
-        Raw tables for the unit formats, the memory system and on-chip buffer capacities
-        (the models layer owns their meaning and validates them).
+        The tables of the unit formats, the memory system and on-chip buffer capacities,
+        as the file gives them (their models: ``models.datapath.FormatsTable``,
+        :data:`hwsim.memory.sdram.MemoryTable`, the family's ``Machine.buffers``; all
+        checked when the file is loaded).
     slice_overhead_cycles, section_width, section_overhead_cycles : int
         Closed-form timing overheads: cycles lost per slice, the width of a section in
         base-plane pixels (0: no sectioning) and cycles lost per section.
