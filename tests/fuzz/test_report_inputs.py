@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
-from hwsim.core.schema import MAX_DEPTH
+from hwsim.core.json_input import MAX_DEPTH
 from hwsim.report import plots, report
 from hwsim.report.energy import energy_blocks
 
@@ -172,7 +172,15 @@ _SWEEP_ROW = {
     "includes_compile": 1,
     "error": None,
     "params": {"arch": "cube4"},
-    "stats": {"samples": 10},
+    "stats": {  # the run's stats.json: what hwsim.run.stats_schema.Stats requires of it
+        "fidelity": "functional",
+        "sampling": "ray",
+        "arch": "cube4",
+        "scene": {"render": {"mode": "composite"}},
+        "volume": {"name": "ball", "shape_zyx": [16, 16, 16], "dtype": "uint8"},
+        "samples": 10,
+        "wall_seconds": 0.1,
+    },
 }
 
 
@@ -203,10 +211,21 @@ def test_sweep_database_row(tmp_path, m):
     loads_or_refuses(_sweep, path)
 
 
-@pytest.mark.parametrize("text", ["{", "[" * 100_000 + "]" * 100_000, "[1, 2]"])
-def test_sweep_database_stats_column(tmp_path, text):
+def test_the_unmutated_sweep_row_reads(tmp_path):
+    assert _sweep(_sweep_db(tmp_path, _SWEEP_ROW))[1] == ("p", "1 run(s), 0 failed.")
+
+
+_NOT_JSON = ["{", "[" * 100_000 + "]" * 100_000]
+
+
+@pytest.mark.parametrize(
+    ("column", "text"),
+    [("params", t) for t in [*_NOT_JSON, "[1, 2]"]]
+    + [("stats", t) for t in [*_NOT_JSON, "[1, 2]", '{"samples": 10}']],
+)
+def test_sweep_database_json_columns(tmp_path, column, text):
     path = _sweep_db(tmp_path, _SWEEP_ROW)
     with sqlite3.connect(path) as conn:
-        conn.execute("UPDATE runs SET params = ?", (text,))
+        conn.execute(f"UPDATE runs SET {column} = ?", (text,))
     with pytest.raises(InputError, match=r"runs-\d+\.db: runs"):
         report._sweep_blocks(path)
