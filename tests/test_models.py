@@ -127,3 +127,29 @@ def test_choices_keep_their_order_and_unset_keys_are_followed(doc, line):
     with pytest.raises(InputError) as info:
         validate(doc, Choices, "f.toml")
     assert str(info.value) == line
+
+
+class Sizes(Schema):
+    """A value that is N or [W, H] (a list: msgspec 0.22 misreports the length of a tuple in
+    a union with a constrained int, and may crash)."""
+
+    image: list[
+        count(4096) | Annotated[list[count(4096)], msgspec.Meta(min_length=2, max_length=2)]
+    ]
+
+
+@pytest.mark.parametrize(
+    ("doc", "line"),
+    [
+        ({"image": [0]}, "f.toml: image[0]: out of range, got 0 (allowed: 1 .. 4096)"),
+        ({"image": [[16, 0]]}, "f.toml: image[0][1]: out of range, got 0 (allowed: 1 .. 4096)"),
+        (
+            {"image": [[16, 16, 16]]},
+            "f.toml: image[0]: must be an array of length <= 2 (allowed: length 2 .. 2)",
+        ),
+    ],
+)
+def test_a_union_member_out_of_range_says_what_it_allows(doc, line):
+    with pytest.raises(InputError) as info:
+        validate(doc, Sizes, "f.toml")
+    assert str(info.value) == line

@@ -19,7 +19,10 @@ Conventions of the models:
 * ``Schema`` (the base) forbids unknown keys and takes keyword fields;
 * floats must be finite (:data:`Finite` and the range helpers exclude NaN and
   infinities); ints are never booleans (msgspec's strict mode);
-* a TOML key with a hyphen is declared with ``msgspec.field(name="the-key")``.
+* a TOML key with a hyphen is declared with ``msgspec.field(name="the-key")``;
+* inside a union, a pair is a length-bounded list, never a tuple: msgspec 0.22 misreports
+  the length of a tuple in a union with a constrained int (``count() | tuple[...]``) and
+  may then crash the interpreter.
 """
 
 from __future__ import annotations
@@ -140,7 +143,7 @@ def _translate(text: str, data: Any, model: Any, source: str, prefix: str) -> In
         allowed = _choices(model, parts) or _allowed(_info_at(model, parts))
         return InputError(f"unknown value {_brief(value)}", source=source, key=key, allowed=allowed)
     if _RANGE.match(what):
-        allowed = _allowed(_info_at(model, parts))
+        allowed = _allowed(_member(_info_at(model, parts), value))
         return InputError(
             f"out of range, got {_brief(value)}", source=source, key=key, allowed=allowed
         )
@@ -150,7 +153,7 @@ def _translate(text: str, data: Any, model: Any, source: str, prefix: str) -> In
         )
     if m := _LENGTH.match(what):
         want = _NAMES.get(m["want"], m["want"])
-        allowed = _allowed(_info_at(model, parts))
+        allowed = _allowed(_member(_info_at(model, parts), value))
         return InputError(
             f"must be {want} of length {m['length']}", source=source, key=key, allowed=allowed
         )
@@ -296,6 +299,23 @@ def _step(info: Any, part: str | int) -> Any:
             return info.item_types[part] if part < len(info.item_types) else None
         return info.item_type
     return None
+
+
+def _member(info: Any, value: Any) -> Any:
+    """The member of a union (``N | [W, H]``) a value out of range or of the wrong length
+    was read as: the one of its JSON kind; ``info`` itself if not a union."""
+    if not isinstance(info, mi.UnionType):
+        return info
+    kinds = {
+        int: mi.IntType | mi.FloatType,
+        float: mi.FloatType,
+        str: mi.StrType,
+        list: mi.ListType | mi.TupleType | mi.VarTupleType,
+        dict: mi.DictType | mi.StructType,
+    }
+    kind = kinds.get(type(value))
+    found = [t for t in info.types if kind is not None and isinstance(t, kind)]
+    return found[0] if len(found) == 1 else info
 
 
 def _allowed(info: Any) -> str | None:

@@ -114,7 +114,7 @@ def test_an_override_to_the_default_value_is_the_same_machine(tmp_path):
             {"view": [[0, 91]]},
             "s.toml: sweep.view[0][1]: out of range, got 91 (allowed: -90 .. 90)",
         ),
-        ({"image": [0]}, "s.toml: sweep.image[0]: out of range, got 0"),
+        ({"image": [0]}, "s.toml: sweep.image[0]: out of range, got 0 (allowed: 1 .. 4096)"),
         ({"image": [[16, 16, 16]]}, "s.toml: sweep.image[0]: must be an array of length <= 2"),
         ({"phantom": ["cube"]}, "s.toml: sweep.phantom[0]: unknown phantom 'cube'"),
         ({"volume": ["missing.nrrd"]}, "s.toml: sweep.volume[0]: no such volume"),
