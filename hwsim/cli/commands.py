@@ -12,6 +12,7 @@ import os
 import sys
 from collections.abc import Sequence
 
+from hwsim.cli.energy import add_energy_parser, cmd_energy
 from hwsim.cli.progress import progress_bar as _progress_bar
 from hwsim.cli.render import DEFAULT_RENDER_OUT, cmd_convert, cmd_render
 from hwsim.cli.scene import add_scene_options
@@ -362,6 +363,7 @@ _SUBPARSERS = (
     _add_report_parser,
     _add_figures_parser,
     _add_bench_parser,
+    add_energy_parser,
     _add_rtl_parsers,
     add_warm_parser,
 )
@@ -643,6 +645,7 @@ _COMMANDS = {
     "report": _cmd_report,
     "figures": _cmd_figures,
     "bench": _cmd_bench,
+    "energy": cmd_energy,
     "rtl": _cmd_rtl,
     "warm": cmd_warm,
 }

@@ -46,10 +46,18 @@ from importlib import metadata, resources
 from pathlib import Path
 from typing import Any
 
-from hwsim.core.errors import NotAvailableError
+from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.energy.technology import Technology, load_technology
 
-__all__ = ["EXTRA", "band", "library_versions", "live_prices", "main", "stored_prices"]
+__all__ = [
+    "EXTRA",
+    "band",
+    "band_of_run",
+    "library_versions",
+    "live_prices",
+    "main",
+    "stored_prices",
+]
 
 #: The pyproject extra that installs the library.
 EXTRA = "energy"
@@ -287,6 +295,22 @@ def band(
             "estimate_total_joules": est["energy"]["total_joules"],
         },
     }
+
+
+def band_of_run(run, arch, technology: str | None = None) -> dict[str, Any]:
+    """:func:`band` of a rendered frame (a :class:`hwsim.run.fidelity.RenderRun` on
+    ``arch``, its :class:`~hwsim.spec.arch.ArchConfig`): only where the render priced its
+    energy (the cycle and transaction rungs, one frame of the whole volume)."""
+    from models.frame import frame_of
+
+    if run.silicon is None:
+        raise InputError(
+            "this render counted no priced actions",
+            key="--fidelity",
+            allowed="cycle or transaction, on a machine with silicon, not a supervolume",
+        )
+    frame = frame_of(run.scene, run.volume, run.transfer, arch)
+    return band(frame, run.counters, run.elaborated_units, run.cycles, technology)
 
 
 def _builtin_archs() -> list:

@@ -11,6 +11,7 @@ line naming the extra, exit status 2.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import subprocess
 import sys
@@ -171,3 +172,18 @@ def test_a_stored_entry_rederived_live():
     mult = al.AladdinMultiplier(tech_node=node, width_a=12, width_b=17).multiply().energy * 1e12
     assert adder == pytest.approx(stored["add_32b_pj"] * 13 / 32, rel=1e-9)
     assert mult == pytest.approx(stored["mult_32x32_pj"] * 12 * 17 / 1024, rel=1e-9)
+
+
+def test_the_energy_command_prints_and_writes_the_band(tmp_path, capsys):
+    from hwsim.cli.commands import main
+
+    out = tmp_path / "band.json"
+    argv = ["energy", "--phantom", "head:size=16", "--image", "16", "--arch", "em-cube"]
+    assert main([*argv, "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    band = json.loads(out.read_text())
+    assert band["technology"]["name"] == "cmos350"
+    assert {"interp", "gradient", "classify", "shade", "composite"} <= set(band["units"])
+    assert band["frame"]["ratio"] > 0
+    frame_line = next(line for line in printed.splitlines() if line.startswith("frame "))
+    assert f"{band['frame']['ratio']:.3g}" in frame_line
