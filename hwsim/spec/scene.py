@@ -1,8 +1,10 @@
 """Scene = volume + transfer function + view + lights + material + render mode.
 
-A scene is versioned TOML (``schema = 1``) read into frozen dataclasses; every value is
-validated and a bad one raises :class:`hwsim.core.errors.InputError` naming the file, the
-key path and the allowed range.  The format is documented in ``docs/scenes.md``.
+A scene is versioned TOML (``schema = 1``) validated against its model
+(:mod:`hwsim.spec.scene_schema`: every key's type, range and choices) and built into the
+frozen dataclasses below, whose defaults fill the keys a file leaves out; a bad value
+raises :class:`hwsim.core.errors.InputError` naming the file, the key path and what is
+allowed.  The format is documented in ``docs/scenes.md``.
 
 Vectors a user writes are in ``(x, y, z)`` order (light directions, cut-plane normals);
 arrays are ``(z, y, x)``.  Crop limits are named per axis (``crop.x = [lo, hi]``).
@@ -16,14 +18,33 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from hwsim.core.config import Table, check_points, read_toml
+from msgspec import UNSET
+
+from hwsim.core.config import read_toml
 from hwsim.core.errors import InputError
+from hwsim.core.models import validate
 from hwsim.spec.scene_cursor import CursorSpec, parse_cursor
 from hwsim.spec.scene_features import (
     ClassificationSpec,
     GeometrySpec,
     parse_classification,
     parse_geometry,
+)
+from hwsim.spec.scene_schema import (
+    BLEND_ORDERS,
+    CLASSIFICATION_ORDERS,
+    CROP_MODES,
+    GRADIENT_SOURCES,
+    INTERPOLATIONS,
+    MAX_IMAGE,
+    MODES,
+    PROJECTIONS,
+    SCHEMA,
+    TF_PRESETS,
+    SceneFile,
+    TransferFile,
+    TransferModel,
+    given,
 )
 
 __all__ = [
@@ -49,23 +70,11 @@ __all__ = [
     "builtin_scenes",
     "DEFAULT_SCENE",
     "SCHEMA",
+    "MAX_IMAGE",
+    "CROP_MODES",
 ]
 
-SCHEMA = 1
-MODES = ("composite", "mip", "minip", "xray", "iso")
-#: Compositing orders (VLI's kVLIBlendFTB / kVLIBlendBTF): the order samples are blended.
-BLEND_ORDERS = ("front-to-back", "back-to-front")
-PROJECTIONS = ("parallel", "perspective")
-INTERPOLATIONS = ("trilinear", "nearest", "cubic")
-GRADIENT_SOURCES = ("voxel", "sample")
-CLASSIFICATION_ORDERS = ("post", "pre")
-#: Transfer presets (hwsim.spec.transfer.preset_points); ``auto`` chooses one of the others
-#: from the volume (hwsim.spec.preset_choice).
-TF_PRESETS = ("auto", "ct", "mr", "ramp", "warm")
 DEFAULT_SCENE = "head"
-#: Largest image side.  Whether a large image fits is the memory budget's call
-#: (hwsim.run.fidelity.check_work: about 512 bytes per pixel, 4096^2 needs 8 GiB).
-MAX_IMAGE = 4096
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -209,10 +218,6 @@ class CropSpec:
         return CROP_MODES[self.mode]
 
 
-#: Crop mode -> slabs a sample must lie in (VTK's region flags: SUBVOLUME, CROSS, FENCE).
-CROP_MODES = {"subvolume": 3, "cross": 2, "fence": 1}
-
-
 @dataclass(frozen=True, kw_only=True)
 class CutPlane:
     """A thick cut plane: ``normal . p = offset`` (world units, ``p`` relative to the volume
@@ -305,245 +310,188 @@ def load_scene(name_or_path: str | Path | None = None) -> Scene:
 
 
 def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "scene") -> Scene:
-    """Validate parsed TOML into a :class:`Scene`."""
-    top = Table(data, source)
-    top.schema(SCHEMA)
-    top.string("description", "")
-    scene = Scene(
-        name=top.string("name", name),
-        source=source,
-        volume=_volume(top.table("volume")),
-        transfer=_transfer(top.table("transfer")),
-        view=_view(top.table("view")),
-        lights=tuple(_light(t) for t in top.tables("lights")) if top.has("lights") else (Light(),),
-        material=_material(top.table("material")),
-        render=_render(top.table("render")),
-        crop=_crop(top.table("crop")) if top.has("crop") else None,
-        cut_planes=tuple(_cut_plane(t) for t in top.tables("cut_planes")),
-        classification=_classification(top),
-        geometry=parse_geometry(top.table("geometry")) if top.has("geometry") else None,
-        cursor=parse_cursor(top.table("cursor")) if top.has("cursor") else None,
+    """Validate parsed TOML (against :class:`~hwsim.spec.scene_schema.SceneFile`) into a
+    :class:`Scene`."""
+    m = validate(data, SceneFile, source)
+    lights = (
+        (Light(),)
+        if m.lights is UNSET
+        else tuple(_light(x, source, i) for i, x in enumerate(m.lights))
     )
-    top.finish()
-    return scene
+    classification = None
+    if m.classification is not UNSET:
+        _transfer_beside_luts(m.transfer, source)
+        classification = parse_classification(m.classification, source, transfer_spec)
+    return Scene(
+        name=name if m.name is UNSET else m.name,
+        source=source,
+        volume=_volume(m.volume, source),
+        transfer=transfer_spec(m.transfer, source, "transfer"),
+        view=ViewSpec(**given(m.view)),
+        lights=lights,
+        material=Material(**given(m.material)),
+        render=_render(m.render, source),
+        crop=None if m.crop is UNSET else _crop(m.crop, source),
+        cut_planes=tuple(_cut_plane(p, source, i) for i, p in enumerate(m.cut_planes)),
+        classification=classification,
+        geometry=None if m.geometry is UNSET else parse_geometry(m.geometry, source),
+        cursor=None if m.cursor is UNSET else parse_cursor(m.cursor),
+    )
 
 
 def load_transfer(path: str | Path) -> TransferSpec:
     """A transfer-function file (``--transfer FILE.toml``): TOML holding the keys of a
     scene's ``[transfer]`` table at its top level, plus ``schema = 1`` and an optional
-    ``description``.  A relative ``table`` path is resolved against the file's folder."""
+    ``description`` (:class:`~hwsim.spec.scene_schema.TransferFile`).  A relative
+    ``table`` path is resolved against the file's folder."""
     path = Path(path)
-    data = dict(read_toml(path))
-    head = Table({k: data.pop(k) for k in ("schema", "description") if k in data}, str(path))
-    head.schema(SCHEMA)
-    head.string("description", "")
-    head.finish()
-    spec = _transfer(Table(data, str(path)))
+    spec = transfer_spec(validate(read_toml(path), TransferFile, str(path)), str(path), "")
     if spec.table is not None and not Path(spec.table).is_absolute():
         spec = dataclasses.replace(spec, table=str((path.parent / spec.table).resolve()))
     return spec
 
 
-def _magnitude_rows(t: Table, key: str) -> tuple[tuple[float, float], ...] | None:
-    """``[|gradient|, factor]`` rows: magnitudes >= 0 ascending, factors 0..1."""
-    if not t.has(key):
-        return None
-    rows = check_points(t.raw(key), t.source, t.key(key), 2)
-    for i, row in enumerate(rows):
-        if row[0] < 0 or (i and row[0] < rows[i - 1][0]):
-            raise t.error(f"{key}[{i}][0]", "magnitudes must be >= 0 and ascending")
-        if not 0.0 <= row[1] <= 1.0:
-            raise t.error(f"{key}[{i}][1]", f"{row[1]:g} is out of range", "0 .. 1")
-    return tuple(tuple(r) for r in rows)  # type: ignore[misc]
+def _key(prefix: str, name: str) -> str:
+    return f"{prefix}.{name}" if prefix else name
 
 
-def _classification(top: Table) -> ClassificationSpec | None:
-    """``[classification]`` (multi-LUT); it replaces ``[transfer]``'s RGBA function."""
-    if not top.has("classification"):
-        return None
-    transfer = top.data.get("transfer", {})
-    for key in ("points", "table", "preset"):
-        if isinstance(transfer, dict) and key in transfer:
-            raise top.error(
-                f"transfer.{key}",
-                "[classification] LUTs replace the transfer function",
-                "transfer.gradient_opacity, gradient_illumination and order only",
+def _ascending(rows: list, source: str, key: str, what: str) -> tuple[tuple[float, ...], ...]:
+    """``rows`` as tuples; their first column must not decrease."""
+    for i in range(1, len(rows)):
+        if rows[i][0] < rows[i - 1][0]:
+            raise InputError(
+                f"{what} must be ascending",
+                source=source,
+                key=f"{key}[{i}][0]",
+                allowed=f">= {rows[i - 1][0]:g}",
             )
-    return parse_classification(top.table("classification"), _transfer)
+    return tuple(tuple(r) for r in rows)
 
 
-def _volume(t: Table) -> VolumeSpec:
-    if not t.data:  # no [volume] table: the default phantom
+def transfer_spec(m: TransferModel, source: str, prefix: str) -> TransferSpec:
+    """A :class:`TransferSpec` from a validated ``[transfer]`` table (also a LUT's function
+    and a ``--transfer`` file's); ``prefix`` is the table's key path."""
+    sources = [k for k in ("points", "table", "preset") if getattr(m, k) is not UNSET]
+    if len(sources) > 1:
+        raise InputError(
+            f"give only one of transfer.{', transfer.'.join(sources)}",
+            source=source,
+            key=_key(prefix, sources[1]),
+            allowed="points, table or preset",
+        )
+    if m.table_range is not UNSET and not m.table_range[1] > m.table_range[0]:
+        raise InputError(
+            "upper end must exceed lower end",
+            source=source,
+            key=_key(prefix, "table_range"),
+            allowed="[lo, hi] with hi > lo",
+        )
+    out: dict[str, Any] = {"order": m.order} if m.order is not UNSET else {}
+    for name in ("gradient_opacity", "gradient_illumination"):
+        rows = getattr(m, name)
+        if rows is not UNSET:
+            out[name] = _ascending(rows, source, _key(prefix, name), "magnitudes")
+    if m.points is not UNSET:
+        out.update(
+            preset=None, points=_ascending(m.points, source, _key(prefix, "points"), "values")
+        )
+    elif m.table is not UNSET:
+        out.update(preset=None, table=m.table)
+    elif m.preset is not UNSET:
+        out["preset"] = m.preset
+    if m.table_range is not UNSET:
+        out["table_range"] = m.table_range
+    return TransferSpec(**out)
+
+
+def _transfer_beside_luts(m: TransferModel, source: str) -> None:
+    """``[classification]`` LUTs replace ``[transfer]``'s RGBA function."""
+    for key in ("points", "table", "preset"):
+        if getattr(m, key) is not UNSET:
+            raise InputError(
+                "[classification] LUTs replace the transfer function",
+                source=source,
+                key=f"transfer.{key}",
+                allowed="transfer.gradient_opacity, gradient_illumination and order only",
+            )
+
+
+def _volume(m: Any, source: str) -> VolumeSpec:
+    kw = given(m)
+    if not kw:  # no [volume] table: the default phantom
         return VolumeSpec(phantom="head")
-    if t.has("path") == t.has("phantom"):
-        raise t.error(
+
+    def error(key: str, message: str, allowed: str) -> InputError:
+        return InputError(message, source=source, key=f"volume.{key}", allowed=allowed)
+
+    if ("path" in kw) == ("phantom" in kw):
+        raise error(
             "path",
             "give exactly one of volume.path or volume.phantom",
             'path = "file" or phantom = "ball"',
         )
-    if t.has("phantom"):
+    if "phantom" in kw:
         for key in ("shape", "dtype", "byte_order", "header_bytes"):
-            if t.has(key):
-                raise t.error(
+            if key in kw:
+                raise error(
                     key,
                     "describes a .raw file, not a phantom",
                     "phantom size goes in volume.params, e.g. params = { size = 64 }",
                 )
-    elif t.has("params"):
-        raise t.error("params", "phantom parameters need volume.phantom", "remove it")
-    params = t.table("params")
-    items = tuple(sorted((k, params.raw(k)) for k in list(params.data)))
-    shape = t.raw("shape", None)
-    if shape is not None:
-        shape = tuple(int(v) for v in t.vector("shape", 3, lo=1))
-    spacing = t.vector("spacing", 3, lo=1e-6, hi=1e6) if t.has("spacing") else None
-    spec = VolumeSpec(
-        path=t.string("path") if t.has("path") else None,
-        phantom=t.string("phantom") if t.has("phantom") else None,
-        params=items,
-        shape=shape,  # type: ignore[arg-type]
-        dtype=t.string("dtype", None) if t.has("dtype") else None,
-        byte_order=t.choice("byte_order", ("little", "big"), "little"),
-        header_bytes=t.integer("header_bytes", 0, lo=0),
-        spacing=spacing,  # type: ignore[arg-type]
-    )
-    t.finish()
-    return spec
+    elif "params" in kw:
+        raise error("params", "phantom parameters need volume.phantom", "remove it")
+    kw["params"] = tuple(sorted(kw.get("params", {}).items()))
+    return VolumeSpec(**kw)
 
 
-def _transfer(t: Table) -> TransferSpec:
-    sources = [k for k in ("points", "table", "preset") if t.has(k)]
-    if len(sources) > 1:
-        raise t.error(
-            sources[1],
-            f"give only one of transfer.{', transfer.'.join(sources)}",
-            "points, table or preset",
+def _nonzero(vector: tuple[float, ...], source: str, key: str) -> None:
+    if not any(vector):
+        raise InputError(
+            "must not be the zero vector", source=source, key=key, allowed="any non-zero [x, y, z]"
         )
-    points = None
-    if t.has("points"):
-        rows = check_points(t.raw("points"), t.source, t.key("points"), 5)
-        for i, row in enumerate(rows):
-            for j in range(1, 5):
-                if not 0.0 <= row[j] <= 1.0:
-                    raise t.error(f"points[{i}][{j}]", f"{row[j]:g} is out of range", "0 .. 1")
-            if i and row[0] < rows[i - 1][0]:
-                raise t.error(
-                    f"points[{i}][0]", "values must be ascending", f">= {rows[i - 1][0]:g}"
-                )
-        points = tuple(tuple(r) for r in rows)
-    table_range = t.vector("table_range", 2) if t.has("table_range") else None
-    if table_range is not None and not table_range[1] > table_range[0]:
-        raise t.error("table_range", "upper end must exceed lower end", "[lo, hi] with hi > lo")
-    spec = TransferSpec(
-        preset=t.choice("preset", TF_PRESETS, "auto") if not (points or t.has("table")) else None,
-        points=points,  # type: ignore[arg-type]
-        table=t.string("table") if t.has("table") else None,
-        table_range=table_range,  # type: ignore[arg-type]
-        gradient_opacity=_magnitude_rows(t, "gradient_opacity"),  # type: ignore[arg-type]
-        order=t.choice("order", CLASSIFICATION_ORDERS, "post"),
-        gradient_illumination=_magnitude_rows(t, "gradient_illumination"),  # type: ignore[arg-type]
-    )
-    t.finish()
-    return spec
 
 
-def _view(t: Table) -> ViewSpec:
-    d = ViewSpec()
-    spec = ViewSpec(
-        azimuth=t.number("azimuth", d.azimuth, -360, 360),
-        elevation=t.number("elevation", d.elevation, -90, 90),
-        projection=t.choice("projection", PROJECTIONS, d.projection),
-        fov=t.number("fov", d.fov, 1, 170),
-        distance=t.number("distance", d.distance, 1, 1000, lo_open=True),
-        zoom=t.number("zoom", d.zoom, 0.01, 100),
-        width=t.integer("width", d.width, 1, MAX_IMAGE),
-        height=t.integer("height", d.height, 1, MAX_IMAGE),
-    )
-    t.finish()
-    return spec
-
-
-def _light(t: Table) -> Light:
-    d = Light()
-    direction = t.direction("direction", d.direction)
-    light = Light(
-        direction=direction,
-        intensity=t.number("intensity", d.intensity, 0, 100),
-        space=t.choice("space", ("view", "world"), d.space),
-    )
-    t.finish()
+def _light(m: Any, source: str, i: int) -> Light:
+    light = Light(**given(m))
+    _nonzero(light.direction, source, f"lights[{i}].direction")
     return light
 
 
-def _material(t: Table) -> Material:
-    d = Material()
-    m = Material(
-        ambient=t.number("ambient", d.ambient, 0, 1),
-        diffuse=t.number("diffuse", d.diffuse, 0, 1),
-        specular=t.number("specular", d.specular, 0, 1),
-        shininess=t.number("shininess", d.shininess, 1, 1024),
-    )
-    t.finish()
-    return m
+def _cut_plane(m: Any, source: str, i: int) -> CutPlane:
+    plane = CutPlane(**given(m))
+    _nonzero(plane.normal, source, f"cut_planes[{i}].normal")
+    return plane
 
 
-def _render(t: Table) -> RenderSpec:
-    d = RenderSpec()
-    spec = RenderSpec(
-        mode=t.choice("mode", MODES, d.mode),
-        lighting=t.boolean("lighting", d.lighting),
-        interpolation=t.choice("interpolation", INTERPOLATIONS, d.interpolation),
-        gradient=t.choice("gradient", GRADIENT_SOURCES) if t.has("gradient") else None,
-        sample_spacing=t.number("sample_spacing", d.sample_spacing, 0.0625, 16),
-        supersampling=t.number("supersampling", d.supersampling, 0.125, 16),
-        early_termination=t.number("early_termination", d.early_termination, 0, 1, lo_open=True),
-        iso_value=t.number("iso_value") if t.has("iso_value") else None,
-        iso_color=t.vector("iso_color", 3, d.iso_color, 0, 1),  # type: ignore[arg-type]
-        blend_order=t.choice("blend_order", BLEND_ORDERS, d.blend_order),
-    )
-    if spec.blend_order != d.blend_order:
+def _render(m: Any, source: str) -> RenderSpec:
+    spec = RenderSpec(**given(m))
+    if spec.blend_order != RenderSpec.blend_order:
         if spec.mode != "composite":
-            raise t.error(
-                "blend_order",
+            raise InputError(
                 f"{spec.mode} has no blending order",
-                'mode = "composite" (or omit blend_order)',
+                source=source,
+                key="render.blend_order",
+                allowed='mode = "composite" (or omit blend_order)',
             )
         if spec.early_termination < 1.0:
-            raise t.error(
-                "early_termination",
+            raise InputError(
                 f"{spec.early_termination:g}: a back-to-front ray ends at its front",
-                "1 (off) with blend_order = back-to-front",
+                source=source,
+                key="render.early_termination",
+                allowed="1 (off) with blend_order = back-to-front",
             )
-    t.finish()
     return spec
 
 
-def _crop(t: Table) -> CropSpec:
-    limits = {}
+def _crop(m: Any, source: str) -> CropSpec:
+    crop = CropSpec(**given(m))
     for axis in ("x", "y", "z"):
-        if t.has(axis):
-            lo, hi = t.vector(axis, 2)
-            if hi < lo:
-                raise t.error(axis, f"[{lo:g}, {hi:g}] is empty", "[lo, hi] with lo <= hi")
-            limits[axis] = (lo, hi)
-    crop = CropSpec(
-        **limits,
-        invert=t.boolean("invert", False),
-        mode=t.choice("mode", CROP_MODES, "subvolume"),
-    )
-    t.finish()
+        limits = getattr(crop, axis)
+        if limits is not None and limits[1] < limits[0]:
+            raise InputError(
+                f"[{limits[0]:g}, {limits[1]:g}] is empty",
+                source=source,
+                key=f"crop.{axis}",
+                allowed="[lo, hi] with lo <= hi",
+            )
     return crop
-
-
-def _cut_plane(t: Table) -> CutPlane:
-    d = CutPlane()
-    normal = t.direction("normal", d.normal)
-    plane = CutPlane(
-        normal=normal,
-        offset=t.number("offset", d.offset),
-        thickness=t.number("thickness", d.thickness, 0),
-        falloff=t.number("falloff", d.falloff, 0),
-        invert=t.boolean("invert", d.invert),
-    )
-    t.finish()
-    return plane

@@ -28,13 +28,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hwsim.core.config import Table
+from hwsim.spec.scene_schema import CURSOR_TYPES, CURSOR_WIDTHS, CursorModel, given
 
 __all__ = ["CURSOR_TYPES", "CURSOR_WIDTHS", "CursorAxis", "CursorSpec", "parse_cursor"]
 
-CURSOR_TYPES = ("crosshair", "plane")
-#: vli.h SetWidth: "width (1.0, 3.0, 5.0 or 7.0)".
-CURSOR_WIDTHS = (1, 3, 5, 7)
 _DEFAULT_COLORS = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
@@ -67,29 +64,11 @@ class CursorSpec:
         return (self.x, self.y, self.z)
 
 
-def _axis(t: Table, name: str) -> CursorAxis:
-    a = CursorAxis(
-        color=t.vector("color", 3, _DEFAULT_COLORS[name], 0, 1),  # type: ignore[arg-type]
-        opacity=t.number("opacity", 1.0, 0, 1),
-        enabled=t.boolean("enabled", True),
-    )
-    t.finish()
-    return a
-
-
-def parse_cursor(t: Table) -> CursorSpec:
-    """Validate a ``[cursor]`` table."""
-    width = t.integer("width", 1)
-    if width not in CURSOR_WIDTHS:
-        raise t.error("width", f"{width} voxels", ", ".join(map(str, CURSOR_WIDTHS)))
-    spec = CursorSpec(
-        type=t.choice("type", CURSOR_TYPES, "crosshair"),
-        position=t.vector("position", 3, lo=-1e6, hi=1e6),  # type: ignore[arg-type]
-        width=width,
-        length=t.number("length", 0.0, 0, 1e6),
-        exclude_overlap=t.boolean("exclude_overlap", False),
-        disable_crop=t.boolean("disable_crop", True),
-        **{name: _axis(t.table(name), name) for name in ("x", "y", "z")},
-    )
-    t.finish()
-    return spec
+def parse_cursor(m: CursorModel) -> CursorSpec:
+    """A :class:`CursorSpec` from a validated ``[cursor]`` table (its keys' types and
+    ranges: :class:`hwsim.spec.scene_schema.CursorModel`)."""
+    axes = {
+        name: CursorAxis(**{"color": _DEFAULT_COLORS[name], **given(getattr(m, name))})
+        for name in ("x", "y", "z")
+    }
+    return CursorSpec(**given(m) | axes)

@@ -5,8 +5,10 @@ combiners (``[classification]``) and embedded opaque geometry (``[geometry]``).
 #      combination ALUs, only one leaf may use a 4096-entry LUT; up to 4 voxel fields of
 #      4..16 bits; image + 24-bit depth buffers with depth tests <, <=, =, >=, >, !=).
 
-Both sections are optional; a scene without them renders exactly as before.  Whether a
-machine has the feature is checked where the machine is known (``models.backend``).
+Both sections are optional; a scene without them renders exactly as before.  Their keys'
+types and ranges are the model's (:mod:`hwsim.spec.scene_schema`); the rules between keys
+are checked here.  Whether a machine has the feature is checked where the machine is known
+(``models.backend``).
 The format is documented in ``docs/scenes.md``.
 """
 
@@ -15,10 +17,25 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from hwsim.core.config import Table
+from msgspec import UNSET
+
 from hwsim.core.errors import InputError
+from hwsim.spec.scene_schema import (
+    DEPTH_TESTS,
+    FINAL_ONLY,
+    LEAF_OPCODES,
+    LUT_ENTRIES,
+    MAX_FIELDS,
+    MAX_LUTS,
+    OPCODES,
+    ClassificationModel,
+    GeometryModel,
+    given,
+)
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from hwsim.spec.scene import TransferSpec
 
 __all__ = [
@@ -42,32 +59,6 @@ __all__ = [
     "check_machine",
 ]
 
-LUT_ENTRIES = (256, 4096)
-MAX_LUTS = 4
-MAX_FIELDS = 4
-FIELD_BITS = (4, 16)
-#: Depth tests of the embedded-geometry buffer (vli.h's six comparisons).
-DEPTH_TESTS = ("<", "<=", "==", ">=", ">", "!=")
-#: Combiner opcodes (semantics: ``models.units.combine``); FINAL_ONLY ones only in the
-#: final ALU.
-LEAF_OPCODES = (
-    "a",
-    "b",
-    "and",
-    "or",
-    "xor",
-    "add",
-    "sub",
-    "rsub",
-    "min",
-    "max",
-    "mul",
-    "mul2",
-    "mul4",
-    "mul8",
-)
-FINAL_ONLY = ("mul_b_alpha",)
-OPCODES = LEAF_OPCODES + FINAL_ONLY
 #: The implicit field: the whole voxel, in the volume's own units.
 VALUE_FIELD = "value"
 
@@ -160,126 +151,137 @@ class GeometrySpec:
     depth: str | None = None
 
 
-# --------------------------------------------------------------------------- parsing
+# --------------------------------------------------------------------------- building
 
 
-def _alu(t: Table, name: str, allowed: tuple[str, ...]) -> AluSpec:
-    value = t.raw(name)
-    if isinstance(value, str):
-        rgb = alpha = value
-    elif isinstance(value, dict):
-        sub = Table(value, t.source, t.key(name))
-        rgb, alpha = sub.string("rgb", "a"), sub.string("alpha", "a")
-        sub.finish()
-    else:
-        raise t.error(name, f"must be an opcode or {{rgb = ..., alpha = ...}}, got {value!r}")
-    for channel, op in (("rgb", rgb), ("alpha", alpha)):
-        if op not in allowed:
-            key = name if isinstance(value, str) else f"{name}.{channel}"
-            raise t.error(key, f"unknown or misplaced opcode {op!r}", ", ".join(allowed))
-    return AluSpec(rgb=rgb, alpha=alpha)
+def _error(key: str, message: str, source: str, allowed: str | None = None) -> InputError:
+    return InputError(message, source=source, key=f"classification.{key}", allowed=allowed)
 
 
-def parse_classification(t: Table, parse_transfer) -> ClassificationSpec:
-    """Validate a ``[classification]`` table (``parse_transfer``: the scene's
-    ``[transfer]`` parser, reused for each LUT's function)."""
-    fields = []
-    for f in t.tables("fields"):
-        name = f.string("name")
-        if name == VALUE_FIELD or any(g.name == name for g in fields):
-            raise f.error("name", f"duplicate or reserved field name {name!r}", "a new name")
-        bits = f.integer("bits", lo=FIELD_BITS[0], hi=FIELD_BITS[1])
-        lsb = f.integer("lsb", 0, 0, 32 - bits)
-        fields.append(VoxelField(name=name, lsb=lsb, bits=bits))
-        f.finish()
-    if len(fields) > MAX_FIELDS:
-        raise t.error("fields", f"{len(fields)} fields", f"1 .. {MAX_FIELDS}")
-    names = [VALUE_FIELD] + [f.name for f in fields]
-    value_field = t.choice("value_field", names[1:]) if t.has("value_field") else None
+def _fields(m: ClassificationModel, source: str) -> tuple[VoxelField, ...]:
+    fields: list[VoxelField] = []
+    for i, f in enumerate(m.fields):
+        if f.name == VALUE_FIELD or any(g.name == f.name for g in fields):
+            raise _error(
+                f"fields[{i}].name",
+                f"duplicate or reserved field name {f.name!r}",
+                source,
+                "a new name",
+            )
+        lsb = 0 if f.lsb is UNSET else f.lsb
+        if lsb > 32 - f.bits:
+            raise _error(
+                f"fields[{i}].lsb",
+                f"bits {lsb} .. {lsb + f.bits - 1} pass bit 31",
+                source,
+                f"0 .. {32 - f.bits}",
+            )
+        fields.append(VoxelField(name=f.name, lsb=lsb, bits=f.bits))
+    return tuple(fields)
+
+
+def _luts(
+    m: ClassificationModel, names: list[str], source: str, transfer_spec
+) -> tuple[LutSpec, ...]:
     luts = []
-    for lt in t.tables("luts"):
-        field = lt.choice("field", names, VALUE_FIELD)
-        entries = lt.integer("entries", 4096)
-        if entries not in LUT_ENTRIES:
-            raise lt.error("entries", f"{entries} entries", "256, 4096")
-        for key in ("gradient_opacity", "order"):
-            if lt.has(key):
-                raise lt.error(key, "set it in [transfer] (it applies to the combined output)")
-        rest = {k: v for k, v in lt.data.items() if k not in ("field", "entries")}
-        if field != VALUE_FIELD and "points" not in rest and "table_range" not in rest:
-            raise lt.error(
-                "points",
+    for i, lut in enumerate(m.luts):
+        key = f"luts[{i}]"
+        field = VALUE_FIELD if lut.field is UNSET else lut.field
+        if field not in names:
+            raise _error(f"{key}.field", f"unknown value {field!r}", source, ", ".join(names))
+        for name in ("gradient_opacity", "order"):
+            if getattr(lut, name) is not UNSET:
+                raise _error(
+                    f"{key}.{name}",
+                    "set it in [transfer] (it applies to the combined output)",
+                    source,
+                )
+        if field != VALUE_FIELD and lut.points is UNSET and lut.table_range is UNSET:
+            raise _error(
+                f"{key}.points",
                 f"a LUT on field {field!r} needs its function in field integers",
+                source,
                 "points, or table with table_range",
             )
-        tf = parse_transfer(Table(rest, t.source, lt.path))
-        luts.append(LutSpec(field=field, entries=entries, transfer=tf))
-    if not 1 <= len(luts) <= MAX_LUTS:
-        raise t.error("luts", f"{len(luts)} LUTs", f"1 .. {MAX_LUTS} [[classification.luts]]")
+        tf = transfer_spec(lut, source, f"classification.{key}")
+        entries = {} if lut.entries is UNSET else {"entries": lut.entries}
+        luts.append(LutSpec(field=field, transfer=tf, **entries))
     big = [i // 2 for i, lut in enumerate(luts) if lut.entries == 4096]
     if len(set(big)) > 1:
-        raise t.error(
+        raise _error(
             "luts",
             "4096-entry LUTs feed both leaf ALUs",
+            source,
             "4096 entries on lut0/lut1 or on lut2/lut3 only, 256 on the other leaf",
         )
-    c = t.table("combine")
+    return tuple(luts)
+
+
+def parse_classification(
+    m: ClassificationModel, source: str, transfer_spec: Callable[..., TransferSpec]
+) -> ClassificationSpec:
+    """A :class:`ClassificationSpec` from a validated ``[classification]`` table
+    (``transfer_spec``: the scene's ``[transfer]`` builder, reused for each LUT's
+    function)."""
+    fields = _fields(m, source)
+    names = [VALUE_FIELD] + [f.name for f in fields]
+    if m.value_field is not UNSET and m.value_field not in names[1:]:
+        raise _error(
+            "value_field",
+            f"unknown value {m.value_field!r}",
+            source,
+            ", ".join(names[1:]) or "none",
+        )
+    luts = _luts(m, names, source, transfer_spec)
     n = len(luts)
     needed = {"leaf0": n >= 2, "leaf1": n >= 4, "final": n >= 3}
     alus = {}
     for name, must in needed.items():
-        if c.has(name):
-            alus[name] = _alu(c, name, OPCODES if name == "final" else LEAF_OPCODES)
-        elif must:
-            raise c.error(name, f"is required with {n} LUTs", ", ".join(OPCODES))
-        else:
-            alus[name] = AluSpec()
-    c.finish()
-    t.finish()
+        op = getattr(m.combine, name)
+        if op is UNSET and must:
+            raise _error(
+                f"combine.{name}", f"is required with {n} LUTs", source, ", ".join(OPCODES)
+            )
+        if op is not UNSET:
+            alus[name] = AluSpec(rgb=op, alpha=op) if isinstance(op, str) else AluSpec(**given(op))
     return ClassificationSpec(
-        fields=tuple(fields), value_field=value_field, luts=tuple(luts), **alus
+        fields=fields,
+        value_field=None if m.value_field is UNSET else m.value_field,
+        luts=luts,
+        **alus,
     )
 
 
-def _sphere(t: Table) -> Sphere:
-    s = Sphere(
-        center=t.vector("center", 3),  # type: ignore[arg-type]
-        radius=t.number("radius", lo=0, lo_open=True),
-        color=t.vector("color", 3, (1.0, 1.0, 1.0), 0, 1),  # type: ignore[arg-type]
-    )
-    t.finish()
-    return s
+def parse_geometry(m: GeometryModel, source: str) -> GeometrySpec:
+    """A :class:`GeometrySpec` from a validated ``[geometry]`` table."""
 
+    def error(key: str, message: str, allowed: str | None = None) -> InputError:
+        return InputError(message, source=source, key=f"geometry.{key}", allowed=allowed)
 
-def _box(t: Table) -> Box:
-    lo, hi = t.vector("lo", 3), t.vector("hi", 3)
-    for i in range(3):
-        if not hi[i] > lo[i]:
-            raise t.error(f"hi[{i}]", f"{hi[i]:g} must exceed lo[{i}] = {lo[i]:g}", f"> {lo[i]:g}")
-    b = Box(lo=lo, hi=hi, color=t.vector("color", 3, (1.0, 1.0, 1.0), 0, 1))  # type: ignore[arg-type]
-    t.finish()
-    return b
-
-
-def parse_geometry(t: Table) -> GeometrySpec:
-    """Validate a ``[geometry]`` table."""
+    for i, b in enumerate(m.boxes):
+        for k in range(3):
+            if not b.hi[k] > b.lo[k]:
+                raise error(
+                    f"boxes[{i}].hi[{k}]",
+                    f"{b.hi[k]:g} must exceed lo[{k}] = {b.lo[k]:g}",
+                    f"> {b.lo[k]:g}",
+                )
     spec = GeometrySpec(
-        depth_test=t.choice("depth_test", DEPTH_TESTS, "<"),
-        spheres=tuple(_sphere(s) for s in t.tables("spheres")),
-        boxes=tuple(_box(b) for b in t.tables("boxes")),
-        color=t.string("color") if t.has("color") else None,
-        depth=t.string("depth") if t.has("depth") else None,
+        **given(m)
+        | {
+            "spheres": tuple(Sphere(**given(s)) for s in m.spheres),
+            "boxes": tuple(Box(**given(b)) for b in m.boxes),
+        }
     )
     if (spec.color is None) != (spec.depth is None):
         missing = "depth" if spec.depth is None else "color"
-        raise t.error(missing, "give both geometry.color and geometry.depth", "two .npy files")
+        raise error(missing, "give both geometry.color and geometry.depth", "two .npy files")
     if spec.color is not None and (spec.spheres or spec.boxes):
-        raise t.error("color", "give primitives or a color/depth pair, not both")
+        raise error("color", "give primitives or a color/depth pair, not both")
     if spec.color is None and not (spec.spheres or spec.boxes):
-        raise t.error(
+        raise error(
             "spheres", "no geometry", "[[geometry.spheres]], [[geometry.boxes]] or color/depth"
         )
-    t.finish()
     return spec
 
 

@@ -98,7 +98,7 @@ def test_full_scene_round_trips_every_section():
         ("[render]\nmode = 'dvr'", "render.mode", "composite, mip, minip, xray, iso"),
         ("[render]\nsample_spacing = 0", "render.sample_spacing", "0.0625 .. 16"),
         ("[render]\nsupersampling = 64", "render.supersampling", "0.125 .. 16"),
-        ("[render]\nearly_termination = 0", "render.early_termination", "> 0 .. 1"),
+        ("[render]\nearly_termination = 0", "render.early_termination", "0 (exclusive) .. 1"),
         ("[render]\nmode = 'mip'\ncolour = 1", "render.colour", "unknown key"),
         ("[volume]\nphantom = 'ball'\npath = 'x.nrrd'", "volume.path", "exactly one"),
         ("[transfer]\npoints = [[0, 0, 0, 0, 2]]", "transfer.points[0][4]", "0 .. 1"),
@@ -122,8 +122,10 @@ def test_bad_values_name_the_key_and_the_allowed_range(text, key, allowed):
 
 
 def test_nan_and_inf_are_refused():
-    assert "not finite" in error_of("[view]\nazimuth = nan")
-    assert "not finite" in error_of("[render]\niso_value = inf")
+    assert "out of range, got nan" in error_of("[view]\nazimuth = nan")
+    assert "out of range, got inf (allowed: a finite number)" in error_of(
+        "[render]\niso_value = inf"
+    )
 
 
 def test_malformed_toml_names_the_file(tmp_path):

@@ -81,7 +81,7 @@ F = "[[classification.fields]]\nname='d'\n"
 G = "[geometry]\n"
 BALL = "[[geometry.spheres]]\ncenter = [0, 0, 0]\n"
 BAD = [
-    ("[classification]\n", "classification.luts", "1 .. 4"),
+    ("[classification]\n", "classification.luts", "is required"),
     (LUT * 5 + C + "leaf0='a'\nleaf1='a'\nfinal='a'", "classification.luts", "1 .. 4"),
     (
         LUT.replace("points", "entries = 1024\npoints"),
@@ -97,7 +97,7 @@ BAD = [
     (LUT * 2 + SMALL + C + "leaf0='add'", "classification.combine.final", "is required"),
     (LUT * 2 + C + "leaf0='mul_b_alpha'", "classification.combine.leaf0", "mul8"),
     (LUT * 2 + C + "leaf0={rgb='nand'}", "classification.combine.leaf0.rgb", "xor"),
-    (LUT * 2 + C + "leaf0=3", "classification.combine.leaf0", "opcode"),
+    (LUT * 2 + C + "leaf0=3", "classification.combine.leaf0", "a string or a table"),
     (LUT * 2 + C + "leaf0='add'\nleaf2='add'", "classification.combine.leaf2", "unknown key"),
     (F + "bits=3\n" + LUT, "classification.fields[0].bits", "4 .. 16"),
     (F + "bits=17\n" + LUT, "classification.fields[0].bits", "4 .. 16"),
