@@ -220,20 +220,6 @@ def check_number(
     return value
 
 
-def check_points(value: Any, source: str, key: str, width: int) -> list[Sequence[float]]:
-    """A list of control points, each a list of ``width`` finite numbers."""
-    if not isinstance(value, list) or not value:
-        raise InputError("must be a non-empty list of control points", source=source, key=key)
-    out = []
-    for i, row in enumerate(value):
-        if not isinstance(row, list) or len(row) != width:
-            raise InputError(
-                f"point {row!r} must have {width} numbers", source=source, key=f"{key}[{i}]"
-            )
-        out.append([check_number(v, source, f"{key}[{i}][{j}]") for j, v in enumerate(row)])
-    return out
-
-
 def flatten_table(table: dict[str, Any], prefix: str = "") -> dict[str, Any]:
     """Nested tables as dotted keys: ``{"interp": {"weight_bits": 9}}`` (how TOML reads
     ``interp.weight_bits = 9``) becomes ``{"interp.weight_bits": 9}``."""
