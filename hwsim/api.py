@@ -475,7 +475,8 @@ def trade(
 ) -> list[dict[str, Any]]:
     """The fidelity-ladder trade (``hwsim trade``), or with ``widths`` the bit-width trade
     (``hwsim trade --widths``): its rows; written to ``out`` as the CLI does when given."""
-    from hwsim.core.paths import output_folder
+    from hwsim.core.paths import recording_reads
+    from hwsim.studies.trade.command import plan_trade
 
     vols = [str(volumes)] if isinstance(volumes, (str, Path)) else [str(v) for v in volumes]
     machines = [archs] if isinstance(archs, str) else list(archs or [])
@@ -484,24 +485,31 @@ def trade(
     for key, value, lo, hi in (("image", image, 8, 1024), ("size", size, 8, 512)):
         if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
             raise InputError(f"{value!r} is out of range", key=key, allowed=f"{lo} .. {hi}")
-    if out is not None:
-        output_folder(out)
-    with _budget(max_memory):
-        if widths:
-            from hwsim.run.fidelity import resolve_arch
-            from hwsim.studies.trade.widths import default_cases, width_trade, write_width_trade
+    with contextlib.ExitStack() as stack:
+        if out is not None:  # the command line's plan: no output is an input
+            stack.enter_context(recording_reads())
+            plan_trade(vols, machines, widths, out)
+        stack.enter_context(_budget(max_memory))
+        return _trade_rows(vols, machines, rungs, image, size, extend, widths, out, progress)
 
-            if len(machines) > 1:
-                raise InputError("widths measures one machine", key="archs", allowed="one")
-            machine = resolve_arch(machines[0] if machines else "volumepro500")
-            rows = width_trade(default_cases(vols, image), machine, progress=progress)
-            if out is not None:
-                write_width_trade(rows, out)
-            return rows
-        from hwsim.studies.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade
 
-        cases = ladder_cases(vols, image, size)
-        rows = ladder_trade(cases, machines or None, rungs, progress=progress, extend=extend)
+def _trade_rows(vols, machines, rungs, image, size, extend, widths, out, progress):
+    """:func:`trade`'s measurement and files, once its arguments are checked."""
+    if widths:
+        from hwsim.run.fidelity import resolve_arch
+        from hwsim.studies.trade.widths import default_cases, width_trade, write_width_trade
+
+        if len(machines) > 1:
+            raise InputError("widths measures one machine", key="archs", allowed="one")
+        machine = resolve_arch(machines[0] if machines else "volumepro500")
+        rows = width_trade(default_cases(vols, image), machine, progress=progress)
         if out is not None:
-            write_ladder_trade(rows, out)
+            write_width_trade(rows, out)
         return rows
+    from hwsim.studies.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade
+
+    cases = ladder_cases(vols, image, size)
+    rows = ladder_trade(cases, machines or None, rungs, progress=progress, extend=extend)
+    if out is not None:
+        write_ladder_trade(rows, out)
+    return rows

@@ -408,14 +408,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """Run the command of ``args``; its errors as one line and an exit status."""
+    from hwsim.core.paths import recording_reads
+
     try:
         env.validate()  # every HWSIM_* variable, before any work (hwsim.core.env)
-        if getattr(args, "max_memory", None) is not None:
-            from hwsim.core.budget import memory_budget_of, parse_size
+        with recording_reads():  # every file read is an input no output may replace
+            if getattr(args, "max_memory", None) is not None:
+                from hwsim.core.budget import memory_budget_of, parse_size
 
-            with memory_budget_of(parse_size(args.max_memory, key="--max-memory")):
-                return _COMMANDS[args.command](args)
-        return _COMMANDS[args.command](args)
+                with memory_budget_of(parse_size(args.max_memory, key="--max-memory")):
+                    return _COMMANDS[args.command](args)
+            return _COMMANDS[args.command](args)
     except InputError as exc:
         print(f"hwsim: error: {exc}", file=sys.stderr)
         return 2
@@ -524,7 +527,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     from hwsim.core.paths import display_path, in_folder, plan_outputs
     from hwsim.report.report import report_inputs, report_paths, write_report
 
-    outputs = in_folder("--out", args.out, report_paths(args.out).values())
+    outputs = in_folder("--out", args.out, report_paths(args.out, args.runs).values())
     plan_outputs(report_inputs(args.runs), outputs)  # never onto a file it reads
     paths = write_report(args.runs, args.out)
     if not args.quiet:
@@ -562,8 +565,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                 allowed = ", ".join(TABLE_GOALS) + ", none"
                 raise InputError(f"no row {row!r}", key="--rows", allowed=allowed)
     out = Path(args.out)
+    resolve_arch(args.arch)  # first: each file it reads is an input of the plan
     plan_outputs([("--arch", args.arch)], in_folder("--out", out, [out / "bench.json"]))
-    resolve_arch(args.arch)
 
     def save(report: dict) -> None:  # its notes' paths relative (hwsim.core.paths)
         write_text_atomic(out / "bench.json", display_text(json.dumps(report, indent=2)) + "\n")

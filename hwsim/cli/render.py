@@ -61,16 +61,30 @@ def _plan_render(scene: Scene, args: argparse.Namespace, out_dir: str, turntable
     from hwsim.run.output import render_outputs, scene_inputs
     from hwsim.run.turntable import turntable_outputs
 
+    _load_machine(args)  # the files they name are read now, so counted as inputs
     inputs = [
         ("--volume" if key == "volume" and args.volume else key, path)
         for key, path in scene_inputs(scene)
     ]
-    for flag in ("arch", "technology", "transfer"):
-        value = getattr(args, flag, None)
+    for flag in ("arch", "technology", "transfer"):  # named by their flags; what they
+        value = getattr(args, flag, None)  # read in turn is recorded as they load
         if value and (value.endswith((".toml", ".npy")) or "/" in value):
             inputs.append((f"--{flag}", value))
     outputs = turntable_outputs(out_dir, args.frames) if turntable else render_outputs(out_dir)
     plan_outputs(inputs, [*outputs, ("--trace", args.trace, FILE)])
+
+
+def _load_machine(args: argparse.Namespace) -> None:
+    """Load ``--arch`` and ``--technology`` (each a name or a file) before the outputs
+    are planned: every file they read (the arch file, the technology it names, each
+    ``base`` of it) is recorded as an input (:func:`hwsim.core.paths.recording_reads`),
+    and a bad one costs no frame.  The render loads them again from the cache."""
+    from hwsim.energy import arch_technology
+    from hwsim.run.fidelity import resolve_arch
+
+    machine = resolve_arch(args.arch) if args.arch else None
+    if machine is not None or args.technology:
+        arch_technology(machine, args.technology)
 
 
 def _render_options(args: argparse.Namespace) -> dict[str, Any]:

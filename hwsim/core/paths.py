@@ -43,6 +43,9 @@ __all__ = [
     "in_folder",
     "atomic_write",
     "write_text_atomic",
+    "naming",
+    "recording_reads",
+    "reads",
 ]
 
 
@@ -161,9 +164,48 @@ def input_file(path: str | Path, key: str | None = None, *, folder: bool = False
     if kind is None:
         raise InputError("file not found", source=str(target), key=key)
     if kind == "a file" or (folder and kind == "a folder"):
+        _note_read(target, key)
         return target
     expected = "a file or a folder" if folder else "a file"
     raise InputError(f"is {kind}, expected {expected}", source=str(target), key=key)
+
+
+# ------------------------------------------------------------------ the files a command read
+
+#: Every file :func:`input_file` passed while :func:`recording_reads` is active (the
+#: command line records a whole command): (key, path) by path.  One dict for the process,
+#: not a context variable, so that a file a frame thread reads is counted too.
+_READS: dict[str, tuple[str, Path]] | None = None
+
+
+def _note_read(path: Path, key: str | None) -> None:
+    found = _READS
+    if found is not None:
+        found.setdefault(os.path.abspath(path), (key or "read", path))
+
+
+@contextmanager
+def recording_reads() -> Iterator[None]:
+    """Inside the block, every file a reader opens (each one calls :func:`input_file`
+    first: scenes, architectures, technologies and their ``base`` files, transfer
+    files and tables, volumes, sweeps, report inputs) is recorded: :func:`plan_outputs`
+    counts them as inputs and :func:`atomic_write` never replaces one.  So a file named
+    only inside another (a technology path in an architecture file) is an input by
+    construction, not by a list kept per command."""
+    global _READS
+    if _READS is not None:  # nested (an API call inside a command): one record
+        yield
+        return
+    _READS = {}
+    try:
+        yield
+    finally:
+        _READS = None
+
+
+def reads() -> list[tuple[str, Path]]:
+    """The files read so far inside :func:`recording_reads`, as (key, path)."""
+    return list((_READS or {}).values())
 
 
 @cache
@@ -312,7 +354,7 @@ def plan_outputs(
     file's folder checked writable (:func:`output_folder`, :func:`output_file`).
     ``None`` paths are skipped.  Returns the outputs' paths in order.
     """
-    found = _input_entries(inputs)
+    found = _input_entries([*inputs, *reads()])
     planned = [(key, Path(path), kind) for key, path, kind in outputs if path is not None]
     for key, path, kind in planned:
         _check_kind(path, key, kind)
@@ -339,16 +381,37 @@ def atomic_write(path: PathLike) -> Iterator[Path]:
     on an error it is removed and ``path`` keeps its earlier content.
 
     Every file hwsim writes goes through here, so a failed or interrupted run never
-    leaves a half-written file and never destroys an earlier result.
+    leaves a half-written file and never destroys an earlier result.  A file the command
+    read (:func:`recording_reads`) is refused, and an operating-system error inside the
+    block (no space left, which ``write`` reports without a name) names ``path``.
     """
     target = Path(path)
+    _check_not_input(target, "output", _input_entries(reads()))
     tmp = target.with_name(f".{target.stem}.partial-{os.getpid()}{target.suffix}")
     try:
-        yield tmp
-        os.replace(tmp, target)
+        with naming(target, tmp):
+            yield tmp
+            os.replace(tmp, target)
     finally:
         with suppress(OSError):
             tmp.unlink()
+
+
+@contextmanager
+def naming(path: PathLike, *aliases: PathLike) -> Iterator[None]:
+    """An ``OSError`` raised inside the block without a file name (``ENOSPC`` from
+    ``write``, ``EIO``, ...) or naming one of ``aliases`` (a temporary name) is raised
+    again naming ``path``, so the error boundary's line says which file."""
+    try:
+        yield
+    except OSError as exc:
+        hidden = {os.fspath(a) for a in aliases}
+        name = exc.filename
+        if name is not None and os.fsdecode(name) not in hidden:
+            raise
+        code = exc.errno
+        why = exc.strerror or (os.strerror(code) if code else str(exc) or type(exc).__name__)
+        raise OSError(code, why, os.fspath(path)) from exc
 
 
 def write_text_atomic(path: PathLike, text: str) -> Path:

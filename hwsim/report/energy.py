@@ -41,8 +41,8 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
         )
     )  # fmt: skip
     for plot, alt in (
-        (plots.plot_energy(energy, out / f"run{index}-energy.png"), "energy breakdown"),
-        (plots.plot_area(area, out / f"run{index}-area.png"), "area breakdown"),
+        (plots.plot_energy(energy, plots.plot_path(out, "energy", index)), "energy breakdown"),
+        (plots.plot_area(area, plots.plot_path(out, "area", index)), "area breakdown"),
     ):
         if plot is not None:
             blocks.append(("img", plot, alt))

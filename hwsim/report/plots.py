@@ -24,7 +24,25 @@ __all__ = [
     "plot_utilisation",
     "plot_stalls",
     "plot_bandwidth",
+    "RUN_PLOTS",
+    "plot_path",
 ]
+
+#: The plots a report may draw for each run folder, ``run{index}-{kind}.png``; a trade
+#: folder's plot is copied as ``trade-{index}.png``.  :func:`plot_path` is the one place
+#: a plot is named, so the report can list every PNG before it draws one.
+RUN_PLOTS = ("images", "utilisation", "stalls", "bandwidth", "energy", "area")
+
+
+def plot_path(out: Path, kind: str, index: int) -> Path:
+    """Where the report draws plot ``kind`` (one of :data:`RUN_PLOTS`, or ``"trade"``)
+    of its ``index``-th run or trade folder."""
+    if kind == "trade":
+        return Path(out) / f"trade-{index}.png"
+    if kind not in RUN_PLOTS:
+        raise ValueError(f"unplanned plot {kind!r}")
+    return Path(out) / f"run{index}-{kind}.png"
+
 
 _UNIT_COUNTER = re.compile(
     r"^(?P<unit>.+)\.(?P<kind>busy|stall|idle)(?:_cycles|\.(?P<why>[\w-]+))?$"

@@ -17,6 +17,7 @@ self-contained.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -267,7 +268,7 @@ def _image_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) 
         if s["fidelity"] == "golden"
         else ("golden, same positions", f"{s['fidelity']} on {s['arch']}")
     )
-    png = plots.plot_images(run.image, reference, out / f"run{index}-images.png", titles)
+    png = plots.plot_images(run.image, reference, plots.plot_path(out, "images", index), titles)
     blocks: list[Block] = [
         ("h3", "Images"),
         ("p", f"Reference: {origin}."),
@@ -292,8 +293,10 @@ def _unit_blocks(s: dict[str, Any], out: Path, index: int) -> list[Block]:
     """Per-unit utilisation and stall plots, or why there are none."""
     units = plots.unit_counters(s.get("counters", {}))
     blocks: list[Block] = [("h3", "Unit utilisation and stalls")]
-    util = plots.plot_utilisation(units, s.get("cycles") or 0, out / f"run{index}-utilisation.png")
-    stalls = plots.plot_stalls(units, out / f"run{index}-stalls.png")
+    util = plots.plot_utilisation(
+        units, s.get("cycles") or 0, plots.plot_path(out, "utilisation", index)
+    )
+    stalls = plots.plot_stalls(units, plots.plot_path(out, "stalls", index))
     if util is None and stalls is None:
         blocks.append(
             ("p", f"Per-unit busy and stall counters: {NOT_RECORDED} by the {s['fidelity']} rung.")
@@ -309,7 +312,7 @@ def _bandwidth_blocks(s: dict[str, Any], out: Path, index: int) -> list[Block]:
     blocks: list[Block] = [("h3", "Memory bandwidth")]
     memory = plots.memory_counters(s.get("counters", {}))
     bw = plots.plot_bandwidth(
-        memory, s.get("frame_seconds") or 0.0, out / f"run{index}-bandwidth.png"
+        memory, s.get("frame_seconds") or 0.0, plots.plot_path(out, "bandwidth", index)
     )
     if bw is None:
         blocks.append(
@@ -380,7 +383,7 @@ def _split_blocks(s: dict[str, Any]) -> list[Block]:
     return [("h3", "Split across workers"), ("p", text), ("table", head, rows)]
 
 
-def _trade_blocks(folder: Path, out: Path) -> list[Block]:
+def _trade_blocks(folder: Path, out: Path, index: int) -> list[Block]:
     rows = read_trade(folder / "trade.json")["rows"]
     blocks: list[Block] = [("h2", f"Fidelity-ladder trade ({folder})")]
     header = [
@@ -425,7 +428,7 @@ def _trade_blocks(folder: Path, out: Path) -> list[Block]:
     blocks.append(("table", header, table))
     png = folder / "trade.png"
     if png.is_file():
-        copy = out / f"trade-{len(list(out.glob('trade-*.png')))}.png"
+        copy = plots.plot_path(out, "trade", index)
         with atomic_write(copy) as tmp:
             tmp.write_bytes(png.read_bytes())
         blocks.append(("img", copy, "speed against error, Pareto front dashed"))
@@ -468,17 +471,8 @@ def _sweep_blocks(path: Path) -> list[Block]:
 
 def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     """The report's blocks; plots are written into ``out`` as they are made."""
-    runs, trades, sweeps, figures = [], [], [], []
-    for f in folders:
-        folder = Path(f)
-        if folder.is_file():  # a sweep database (refused if it is not one)
-            sweeps.append(folder)
-        elif (folder / "trade.json").is_file():
-            trades.append(folder)
-        elif (folder / "figures.json").is_file():
-            figures.append(folder / "figures.json")
-        else:
-            runs.append(load_run(folder))
+    run_folders, trades, sweeps, figures = _classify(folders)
+    runs = [load_run(folder) for folder in run_folders]
     blocks: list[Block] = [("h1", "hwsim report")]
     from hwsim import __version__
 
@@ -511,8 +505,8 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
         )
     for i, run in enumerate(runs, start=1):
         blocks += _run_blocks(run, runs, out, i)
-    for folder in trades:
-        blocks += _trade_blocks(folder, out)
+    for index, folder in enumerate(trades):
+        blocks += _trade_blocks(folder, out, index)
     for db in sweeps:
         blocks += _sweep_blocks(db)
     if not figures and SHIPPED_FIGURES.is_file():
@@ -567,10 +561,35 @@ def _figures_blocks(path: Path, out: Path) -> list[Block]:
     return blocks
 
 
-def report_paths(out_dir: str | Path) -> dict[str, Path]:
-    """The documents :func:`write_report` writes in ``out_dir`` (its plots, named as
-    they are drawn, go there too)."""
-    return {kind: Path(out_dir) / f"report.{kind}" for kind in ("md", "html")}
+def _classify(folders: Iterable[str | Path]) -> tuple[list[Path], ...]:
+    """``folders`` as (run folders, trade folders, sweep databases, figures.json files)."""
+    runs, trades, sweeps, figures = [], [], [], []
+    for f in folders:
+        folder = Path(f)
+        if folder.is_file():  # a sweep database (refused if it is not one)
+            sweeps.append(folder)
+        elif (folder / "trade.json").is_file():
+            trades.append(folder)
+        elif (folder / "figures.json").is_file():
+            figures.append(folder / "figures.json")
+        else:
+            runs.append(folder)
+    return runs, trades, sweeps, figures
+
+
+def report_paths(out_dir: str | Path, folders: Iterable[str | Path] = ()) -> dict[str, Path]:
+    """The files :func:`write_report` writes in ``out_dir``: ``report.md``,
+    ``report.html`` and, given the report's ``folders``, every plot it may draw for them
+    (:func:`hwsim.report.plots.plot_path`), so each is planned before any is drawn."""
+    out = Path(out_dir)
+    paths = {kind: out / f"report.{kind}" for kind in ("md", "html")}
+    runs, trades, _, _ = _classify(folders)
+    for index in range(1, len(runs) + 1):
+        for kind in plots.RUN_PLOTS:
+            paths[f"run{index}-{kind}"] = plots.plot_path(out, kind, index)
+    for index in range(len(trades)):
+        paths[f"trade-{index}"] = plots.plot_path(out, "trade", index)
+    return paths
 
 
 #: The files a report reads in each run, trade or figures folder it is given.

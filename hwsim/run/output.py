@@ -11,8 +11,11 @@ render writes, for the command to check before the frame.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import platform
+from collections.abc import Iterator
+from contextlib import suppress
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -187,14 +190,44 @@ def render_outputs(out_dir: str | Path, key: str = "--out") -> list[tuple[str, P
 
 
 def scene_inputs(scene: Scene) -> list[tuple[str, Path | None]]:
-    """The files a render of ``scene`` reads: the scene file and its volume (a file or a
-    DICOM folder), as :func:`hwsim.core.paths.plan_outputs` takes them."""
+    """The files a render of ``scene`` reads: the scene file, its volume (a file or a
+    DICOM folder) and every file a value of the scene names (a transfer table, geometry
+    buffers, whatever key names one), as :func:`hwsim.core.paths.plan_outputs` takes
+    them; the files read while it loads are recorded by the loaders themselves."""
     source = None if scene.source.startswith("<") else Path(scene.source)
     volume = scene.volume.path
     if volume:
         volume = Path(volume).expanduser()
         volume = volume if volume.is_absolute() else scene.base_dir / volume
-    return [("scene", source), ("volume", volume)]
+    named = _named_files(scene, scene.base_dir, "")
+    return [("scene", source), ("volume", volume), *named]
+
+
+def _named_files(value: Any, base: Path, key: str) -> Iterator[tuple[str, Path]]:
+    """(key path, file) for every string in ``value`` (a scene's dataclasses or structs, tuples
+    and dicts, walked whole) that names an existing file, relative to ``base`` unless
+    absolute: files a scene names are inputs whichever key names them."""
+    if isinstance(value, type):
+        return
+    names = getattr(value, "__struct_fields__", None)  # a msgspec.Struct
+    if names is None and dataclasses.is_dataclass(value):
+        names = [f.name for f in dataclasses.fields(value)]
+    if names is not None:
+        for name in names:
+            if name not in ("name", "source"):
+                yield from _named_files(getattr(value, name), base, f"{key}.{name}".lstrip("."))
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _named_files(item, base, key)
+    elif isinstance(value, dict):
+        for name, item in value.items():
+            yield from _named_files(item, base, f"{key}.{name}".lstrip("."))
+    elif isinstance(value, (str, Path)) and 0 < len(str(value)) < 4096:
+        with suppress(OSError, ValueError, RuntimeError):  # too long, a NUL, no ~user
+            path = Path(value).expanduser()
+            path = path if path.is_absolute() else base / path
+            if path.is_file():
+                yield key, path
 
 
 def _save_npy(image: np.ndarray, path: Path) -> None:

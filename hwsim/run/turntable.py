@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from hwsim.core.errors import InputError
-from hwsim.core.paths import FILE, FOLDER, atomic_write, output_folder
+from hwsim.core.paths import FILE, FOLDER, atomic_write, naming, output_folder
 from hwsim.run.fidelity import RenderRun, render
 from hwsim.spec.scene import Scene
 from hwsim.volumes import load_volume
@@ -186,7 +186,8 @@ def write_frames(
             k, first = len(stats), first or run
             stats.append(FrameStats.of(run))
             if run.image.ndim == 2:  # a scalar image: its PNG needs every frame's range
-                np.save(Path(scratch) / f"{k:04d}.npy", run.image.astype(np.float32))
+                with naming(Path(scratch) / f"{k:04d}.npy"):  # no space: which file
+                    np.save(Path(scratch) / f"{k:04d}.npy", run.image.astype(np.float32))
             else:
                 _write_png(run.image, None, folder / f"frame_{k:04d}.png")
             del run

@@ -170,12 +170,12 @@ def figures_command(args, progress_bar: Any) -> int:
 
     if args.max_size < 1:
         raise InputError(f"invalid {args.max_size}", key="--max-size", allowed=">= 1")
-    outputs = in_folder("--out", args.out, figures_paths(args.out).values())
-    plan_outputs([("--arch", a) for a in args.arch], outputs)
-    if args.arch:
+    if args.arch:  # loaded first: each file they read is an input of the plan below
         archs = [resolve_arch(a) for a in args.arch]
     else:
         archs = [a for a in builtin_archs().values() if a.published]
+    outputs = in_folder("--out", args.out, figures_paths(args.out).values())
+    plan_outputs([("--arch", a) for a in args.arch], outputs)
     rungs = tuple(r.strip() for r in args.rungs.split(",")) if args.rungs else TIMING_RUNGS
     with progress_bar(args.quiet, "figures", unit="voxel") as progress:
         rows = measure_figures(archs, rungs, max_size=args.max_size, progress=progress)

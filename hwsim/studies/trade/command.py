@@ -8,20 +8,32 @@ from typing import Any
 from hwsim.core.errors import InputError
 from hwsim.studies.trade.table import format_ladder
 
-__all__ = ["trade_command"]
+__all__ = ["trade_command", "plan_trade"]
+
+
+def plan_trade(volumes: list[str], archs: list[str], widths: bool, out: Any) -> None:
+    """Check every file a trade writes in ``out`` against its inputs before any render:
+    the machines are loaded first, so each file they read (an arch file, the technology
+    it names) is an input too (:func:`hwsim.core.paths.recording_reads`).  The command
+    line and :func:`hwsim.api.trade` both plan here."""
+    from hwsim.core.paths import in_folder, plan_outputs, recording_reads
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.studies.trade.ladder import ladder_paths
+    from hwsim.studies.trade.widths import width_paths
+
+    with recording_reads():
+        for name in archs:
+            resolve_arch(name)
+        files = (width_paths if widths else ladder_paths)(out).values()
+        inputs = [*(("--volume", v) for v in volumes), *(("--arch", a) for a in archs)]
+        plan_outputs(inputs, in_folder("--out", out, files))
 
 
 def trade_command(args: argparse.Namespace, progress_bar: Any) -> int:
     """Run the trade ``args`` asks for, write its files and print its table."""
-    from hwsim.core.paths import in_folder, plan_outputs
-    from hwsim.studies.trade.ladder import ladder_paths
-    from hwsim.studies.trade.widths import width_paths
-
     if not 8 <= args.image <= 1024:
         raise InputError(f"{args.image} is out of range", key="--image", allowed="8 .. 1024")
-    files = (width_paths if args.widths else ladder_paths)(args.out).values()
-    inputs = [*(("--volume", v) for v in args.volume), *(("--arch", a) for a in args.arch)]
-    plan_outputs(inputs, in_folder("--out", args.out, files))  # before any render
+    plan_trade(args.volume, args.arch, args.widths, args.out)  # before any render
     if args.widths:
         return _widths(args, progress_bar)
     from hwsim.studies.trade.ladder import ladder_cases, ladder_trade, write_ladder_trade
