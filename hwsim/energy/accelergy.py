@@ -37,6 +37,8 @@ import argparse
 import importlib
 import importlib.util
 import json
+import shutil
+import subprocess
 import sys
 import types
 import warnings
@@ -92,7 +94,9 @@ def _library() -> types.SimpleNamespace:
 
     On Python 3.11 (installed with ``--ignore-requires-python``) ``hwcomponents``'
     ``__init__`` fails on one Python 3.12 f-string in ``select_models`` (model selection
-    by name, unused here): the package is then entered without it."""
+    by name, unused here): the package is then entered without it.  The components come
+    from their modules, ``hwcomponents_library``'s ``__init__`` not run: it imports every
+    model set it holds, one of them from hwcomponents-neurosim (35 MB, undeclared)."""
     try:
         try:
             import hwcomponents  # noqa: F401
@@ -104,6 +108,8 @@ def _library() -> types.SimpleNamespace:
             pkg.ComponentModel, pkg.action = model.ComponentModel, model.action
             pkg.ActionCost = model.ActionCost
             pkg.scaling = importlib.import_module("hwcomponents.scaling")
+        if "hwcomponents_library" not in sys.modules:
+            _bare_package("hwcomponents_library")
         aladdin = importlib.import_module("hwcomponents_library.library.aladdin")
         cacti = importlib.import_module("hwcomponents_cacti.hwcomponents_cacti")
     except ImportError:
@@ -345,6 +351,30 @@ def _shapes() -> list[tuple[int, int]]:
     return sorted(shapes)
 
 
+def build_cacti() -> str:
+    """Make hwcomponents-cacti's CACTI program run here: its wheel ships one built for
+    glibc 2.38 (Debian 12 has 2.36) beside CACTI's source, rebuilt with ``make`` (about
+    20 s, no network) when the shipped one does not start.  Returns what was done."""
+    spec = importlib.util.find_spec("hwcomponents_cacti")
+    if spec is None or spec.origin is None:
+        raise NotAvailableError(_INSTALL)
+    folder = Path(spec.origin).parent / "cacti"
+
+    def runs() -> bool:
+        probe = [str(folder / "cacti"), "-h"]
+        done = subprocess.run(probe, capture_output=True, text=True, cwd=folder, check=False)
+        return "how to use CACTI" in done.stdout + done.stderr
+
+    if (folder / "cacti").is_file() and runs():
+        return f"{folder / 'cacti'} runs"
+    shutil.rmtree(folder / "obj_dbg", ignore_errors=True)  # objects of the wheel's build
+    (folder / "cacti").unlink(missing_ok=True)
+    subprocess.run(["make", "-s", "-C", str(folder)], check=True, capture_output=True)
+    if not runs():
+        raise NotAvailableError(f"CACTI rebuilt in {folder} does not run")
+    return f"{folder / 'cacti'} rebuilt from its source"
+
+
 def regenerate(path: Path) -> dict[str, Any]:
     """Price every stored entry live and write the table to ``path``."""
     shapes = _shapes()
@@ -365,12 +395,19 @@ def regenerate(path: Path) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m hwsim.energy.accelergy [--out FILE]``: regenerate the stored prices."""
+    """``python -m hwsim.energy.accelergy [--out FILE] [--build-cacti]``: regenerate the
+    stored prices, or only make the library's CACTI run here."""
     parser = argparse.ArgumentParser(prog="python -m hwsim.energy.accelergy")
     default = Path(str(resources.files("hwsim.energy") / "data" / _DATA))
     parser.add_argument("--out", type=Path, default=default)
+    parser.add_argument(
+        "--build-cacti", action="store_true", help="only make the library's CACTI run here"
+    )
     args = parser.parse_args(argv)
     try:
+        if args.build_cacti:
+            print(build_cacti())
+            return 0
         data = regenerate(args.out)
     except NotAvailableError as exc:
         print(f"hwsim: error: {exc}", file=sys.stderr)
