@@ -22,6 +22,7 @@ __all__ = [
     "Interrupted",
     "check",
     "dask_setup",
+    "exit_now",
     "handling_sigint",
     "requested",
     "say",
@@ -60,10 +61,19 @@ def say() -> None:
 
 def _on_sigint(signum, frame) -> None:
     if _stop.is_set():  # the second Ctrl-C: no clean-up, now
-        say()
-        os._exit(EXIT_STATUS)
+        exit_now(signum, frame)
     _stop.set()
     raise KeyboardInterrupt
+
+
+def exit_now(signum=None, frame=None) -> None:
+    """A SIGINT handler that prints :data:`MESSAGE` and ends the process at once (status
+    130): a second Ctrl-C, and every Ctrl-C while the command line is still starting
+    (``hwsim.cli``'s entry point installs it before importing the commands), when there
+    is nothing to clean up and a ``KeyboardInterrupt`` could surface as a traceback of an
+    import, or be printed and swallowed inside a callback ("Exception ignored in ...")."""
+    say()
+    os._exit(EXIT_STATUS)
 
 
 def dask_setup(worker) -> None:
