@@ -1,6 +1,8 @@
 """A scene's overrides as the command line spells them (``--view 30,10``, ``--image 256x128``,
-``--volume ct.nrrd``, ``--phantom head:size=64``, ``--transfer mr``): parsed, range-checked
-and applied to a loaded scene, every bad value a one-line error naming the flag.  ``hwsim
+``--volume ct.nrrd``, ``--phantom head:size=64``, ``--transfer mr``): parsed, checked by the
+scene file's model (:mod:`hwsim.spec.scene_schema`: a flag and the key it overrides share
+one type and range) and applied to a loaded scene, every bad value a one-line error naming
+the flag.  ``hwsim
 render`` and ``hwsim rtl diff`` pass their parsed arguments; :func:`hwsim.load_scene`
 passes :class:`SceneFlags` built from its keywords."""
 
@@ -11,6 +13,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from hwsim.core.errors import InputError
+from hwsim.core.models import validate
 from hwsim.core.paths import file_kind, input_file
 
 __all__ = ["SceneFlags", "apply_overrides"]
@@ -45,14 +48,17 @@ class _Flags(Protocol):
 
 def apply_overrides(scene: Any, args: _Flags) -> Any:
     """Every flag given (not None) overrides the scene's value."""
-    from hwsim.core.config import check_number
-    from hwsim.spec.scene import MAX_IMAGE, VolumeSpec
+    from hwsim.spec.scene import VolumeSpec
+    from hwsim.spec.scene_schema import RenderModel, ViewModel, VolumeModel
     from hwsim.volumes import parse_phantom_spec
 
     if args.volume is not None:
         if not args.volume.strip():
             raise InputError("empty path", key="--volume", allowed="a volume file or DICOM folder")
-        shape = _ints(args.shape, "--shape", 3) if args.shape is not None else None
+        shape = None
+        if args.shape is not None:
+            shape = _ints(args.shape, "--shape", 3)
+            _check("--shape", VolumeModel, shape=list(shape))
         spec = VolumeSpec(path=str(Path(args.volume).resolve()), shape=shape, dtype=args.dtype)
         scene = scene.replace(volume=spec)
     elif args.shape is not None or args.dtype is not None:
@@ -62,6 +68,7 @@ def apply_overrides(scene: Any, args: _Flags) -> Any:
         scene = scene.replace(volume=VolumeSpec(phantom=name, params=tuple(sorted(params.items()))))
     render_spec, view = scene.render, scene.view
     if args.mode:
+        _check("--mode", RenderModel, mode=args.mode)
         render_spec = dataclasses.replace(render_spec, mode=args.mode)
     if args.view is not None:
         parts = args.view.split(",")
@@ -69,16 +76,17 @@ def apply_overrides(scene: Any, args: _Flags) -> Any:
             raise InputError(
                 f"expected AZ,EL, got {args.view!r}", key="--view", allowed="-360 .. 360, -90 .. 90"
             )
-        az = check_number(_float(parts[0], "--view"), "--view", "azimuth", -360, 360)
-        el = check_number(_float(parts[1], "--view"), "--view", "elevation", -90, 90)
+        az, el = _float(parts[0], "--view"), _float(parts[1], "--view")
+        validate({"azimuth": az, "elevation": el}, ViewModel, "--view")  # names the angle
         view = dataclasses.replace(view, azimuth=az, elevation=el)
     if args.image is not None:
         text = args.image.lower()
         w, h = text.split("x", 1) if "x" in text else (text, text)
-        width = _int_in(w, "--image", 1, MAX_IMAGE)
-        height = _int_in(h, "--image", 1, MAX_IMAGE)
+        width, height = _int(w, "--image"), _int(h, "--image")
+        _check("--image", ViewModel, width=width, height=height)
         view = dataclasses.replace(view, width=width, height=height)
     if args.projection:
+        _check("--projection", ViewModel, projection=args.projection)
         view = dataclasses.replace(view, projection=args.projection)
     if args.transfer is not None:
         scene = scene.replace(transfer=_transfer(scene, args.transfer))
@@ -128,18 +136,24 @@ def _float(text: str, flag: str) -> float:
         raise InputError(f"{text!r} is not a number", key=flag) from None
 
 
-def _int_in(text: str, flag: str, lo: int, hi: int) -> int:
+def _int(text: str, flag: str) -> int:
     try:
-        value = int(text)
+        return int(text)
     except ValueError:
-        raise InputError(f"{text!r} is not an integer", key=flag, allowed=f"{lo} .. {hi}") from None
-    if not lo <= value <= hi:
-        raise InputError(f"{value} is out of range", key=flag, allowed=f"{lo} .. {hi}")
-    return value
+        raise InputError(f"{text!r} is not an integer", key=flag) from None
 
 
 def _ints(text: str, flag: str, count: int) -> tuple[int, ...]:
     parts = text.split(",")
     if len(parts) != count:
         raise InputError(f"expected {count} comma-separated integers, got {text!r}", key=flag)
-    return tuple(_int_in(p, flag, 1, 1 << 16) for p in parts)
+    return tuple(_int(p, flag) for p in parts)
+
+
+def _check(flag: str, model: Any, **values: Any) -> None:
+    """``values`` (keys of the scene file) by the file's ``model``; a bad one is refused
+    naming ``flag``, with the range the file's key allows."""
+    try:
+        validate(values, model, flag)
+    except InputError as exc:
+        raise InputError(exc.message, key=flag, allowed=exc.allowed) from None

@@ -116,10 +116,10 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--mode", "dvr"], "invalid choice"),
         (
             ["render", "--view", "400,0"],
-            "--view: azimuth: 400 is out of range (allowed: -360 .. 360)",
+            "--view: azimuth: out of range, got 400.0 (allowed: -360 .. 360)",
         ),
         (["render", "--view", "10"], "expected AZ,EL"),
-        (["render", "--image", "0"], "--image: 0 is out of range (allowed: 1 .. 4096)"),
+        (["render", "--image", "0"], "--image: out of range, got 0 (allowed: 1 .. 4096)"),
         (["render", "--image", "axb"], "not an integer"),
         (["render", "--phantom", "teapot"], "teapot"),
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
@@ -163,7 +163,7 @@ def test_malformed_scene_file_names_file_and_key(tmp_path):
     proc = run_cli("render", str(scene), "--out", str(tmp_path / "x"))
     assert proc.returncode == 2
     assert proc.stderr.strip() == (
-        f"hwsim: error: {scene}: render.sample_spacing: -1 is out of range (allowed: 0.0625 .. 16)"
+        f"hwsim: error: {scene}: render.sample_spacing: out of range, got -1 (allowed: 0.0625 .. 16)"
     )
 
 
