@@ -13,14 +13,16 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from hwsim.core.errors import InputError
 
-__all__ = ["VARIABLES", "Variable", "validate", "value"]
+__all__ = ["VARIABLES", "Carried", "Variable", "carrying", "settings", "validate", "value"]
 
 #: Most threads per frame (``HWSIM_THREADS``, ``--threads``).
 MAX_THREADS = 256
@@ -37,6 +39,8 @@ class Variable:
     allowed: str
     default: str
     parse: Callable[[str, str], Any]
+    #: Sent with work to Dask workers (:func:`settings`); a folder of this machine is not.
+    sent: bool = True
 
 
 def _count(lo: int, hi: int) -> Callable[[str, str], int]:
@@ -96,9 +100,11 @@ VARIABLES: dict[str, Variable] = {
         Variable("HWSIM_DEBUG", "show the traceback of an internal error",
                  "0 or 1 (also true/false, yes/no, on/off)", "0", _flag),
         Variable("HWSIM_RTL_BUILD", "folder of the rtl rung's Verilator and Icarus builds",
-                 "a folder path (made if missing)", "build/rtl in the source tree", _folder),
+                 "a folder path (made if missing)", "build/rtl in the source tree", _folder,
+                 sent=False),
         Variable("HWSIM_SHARED_DATA", "benchmarks only: folder of the shared volumes",
-                 "a folder path", "../shared/data next to the source tree", _folder),
+                 "a folder path", "../shared/data next to the source tree", _folder,
+                 sent=False),
     )
 }  # fmt: skip
 
@@ -111,7 +117,11 @@ def value(name: str) -> Any:
     InputError
         Naming the variable and its allowed values when the text does not parse.
     """
-    text = os.environ.get(name, "")
+    carried = _carried.get()
+    if carried is not None and name in carried:
+        text = carried[name]
+    else:
+        text = os.environ.get(name, "")
     if not text.strip():
         return None
     return VARIABLES[name].parse(name, text)
@@ -121,3 +131,51 @@ def validate() -> None:
     """Parse every variable of :data:`VARIABLES` (the command line, before any work)."""
     for name in VARIABLES:
         value(name)
+
+
+# ----------------------------------------------------------------- settings sent with work
+
+#: The client's settings while a worker runs its work (:func:`carrying`); None: this
+#: process's own environment.
+_carried: ContextVar[dict[str, str] | None] = ContextVar("hwsim_env_carried", default=None)
+
+
+def settings(**defaults: str) -> dict[str, str]:
+    """The texts of every variable sent with work (``sent``), checked here first: what a
+    Dask worker, local or remote, is to use instead of its own environment.  An unset
+    variable is sent as ``defaults[name]`` when given (a sweep's workers: one thread),
+    else empty (the default), so a worker's own value never applies."""
+    validate()
+    texts = {n: os.environ.get(n, "") for n, v in VARIABLES.items() if v.sent}
+    for name, text in defaults.items():
+        if not texts[name].strip():
+            texts[name] = text
+    return texts
+
+
+@contextmanager
+def carrying(texts: dict[str, str]) -> Iterator[None]:
+    """Inside the block, :func:`value` reads ``texts`` (from :func:`settings`) for the
+    variables they hold, not this process's environment (a worker running the client's
+    work; the threads of the block's own thread only, so concurrent tasks of other
+    clients keep theirs)."""
+    token = _carried.set(dict(texts))
+    try:
+        yield
+    finally:
+        _carried.reset(token)
+
+
+class Carried:
+    """``fn`` run under the client's :func:`settings`: what the command line submits to
+    Dask (``client.submit(Carried(fn, settings()), ...)``), so a worker started with
+    other ``HWSIM_*`` values (a remote ``--scheduler`` cluster) renders as the client
+    asked."""
+
+    def __init__(self, fn: Callable[..., Any], texts: dict[str, str]) -> None:
+        self.fn, self.texts = fn, dict(texts)
+        self.__name__ = getattr(fn, "__name__", "carried")  # Dask names tasks by it
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        with carrying(self.texts):
+            return self.fn(*args, **kwargs)

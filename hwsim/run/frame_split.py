@@ -24,6 +24,7 @@ from collections.abc import Callable
 from dataclasses import asdict
 from typing import Any
 
+from hwsim.core import env
 from hwsim.core.errors import InputError
 
 __all__ = ["split_frame", "PROGRESS_EVERY"]
@@ -103,9 +104,10 @@ def _run(split, frame, client, bands, faults, progress, start) -> tuple[Any, dic
     groups = split.bands(int(bands or n_workers))
     token = uuid.uuid4().hex[:12]
     queue = Queue(f"hwsim-progress-{token}", client=client)
+    task = env.Carried(_band_task, env.settings(HWSIM_THREADS="1"))  # the client's values
     futures = [
         client.submit(
-            _band_task,
+            task,
             frame.scene,
             frame.arch,
             frame.transfer,

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.core import env
 from hwsim.core.cluster import (
     ALLOWED_FAILURES,
     connect,
@@ -209,6 +210,7 @@ def run_sweep(
     out = str(Path(out_dir).resolve()) if out_dir is not None else None
     flow = _Flow(client, db, sweep.size, progress, retry_failed)
     flow.report()
+    task = env.Carried(execute_run, env.settings(HWSIM_THREADS="1"))  # not the worker's own
     for batch in _batches(_keyed(sweep.runs), flow.limit):
         statuses = db.statuses(key for key, _ in batch)
         for key, run in batch:
@@ -218,7 +220,7 @@ def run_sweep(
                 flow.skipped += 1
                 flow.report()
                 continue
-            flow.submit(client.submit(execute_run, run, key, out, pure=False), key, run)
+            flow.submit(client.submit(task, run, key, out, pure=False), key, run)
             while len(flow.futures) >= flow.limit:
                 flow.collect()
     while flow.futures:
