@@ -48,7 +48,7 @@ def add_parser(sub):
 
 def _add_fpga_parser(actions) -> None:
     from rtl.build import UNITS
-    from rtl.fpga import CUBE4_MAX_AXIS, DEFAULT_DEVICE
+    from rtl.fpga import CUBE4_MAX_AXIS, CUBE4_PIPELINES, DEFAULT_DEVICE
 
     f = actions.add_parser(
         "fpga", help="synthesise, place and route on an ECP5 FPGA (Yosys, nextpnr): fpga.json"
@@ -56,8 +56,9 @@ def _add_fpga_parser(actions) -> None:
     f.add_argument(
         "target",
         metavar="UNIT|top|cube4",
-        help=f"one of {', '.join(UNITS)}; top (--set top.pipelines=N ...); cube4 (the top "
-        f"at the cube4 machine's pipelines, max_axis {CUBE4_MAX_AXIS}, 12-bit voxels)",
+        help=f"one of {', '.join(UNITS)}; top (--set top.pipelines=N ...); cube4 (the "
+        f"largest top that fits an LFE5U-85F: {CUBE4_PIPELINES} pipeline, max_axis "
+        f"{CUBE4_MAX_AXIS}, 12-bit voxels; --set top.KEY=VALUE changes them)",
     )
     f.add_argument(
         "--device", default=DEFAULT_DEVICE, metavar="PART", help="ECP5 part (%(default)s)"
@@ -120,7 +121,14 @@ def run_fpga(args: argparse.Namespace, arch, progress=None, what_if=None) -> int
     frame-rate what-if of the top)."""
     from hwsim.core.paths import in_folder, plan_outputs, write_text_atomic
     from rtl.build import UNITS, parse_settings
-    from rtl.fpga import CUBE4_MAX_AXIS, LOGS, parse_device, place_and_route, tool_versions
+    from rtl.fpga import (
+        CUBE4_MAX_AXIS,
+        CUBE4_PIPELINES,
+        LOGS,
+        parse_device,
+        place_and_route,
+        tool_versions,
+    )
 
     targets = (*UNITS, "top", "cube4")
     if args.target not in targets:
@@ -138,7 +146,7 @@ def run_fpga(args: argparse.Namespace, arch, progress=None, what_if=None) -> int
         )
     own = settings.get(unit, {})
     if args.target == "cube4":
-        own = {"pipelines": arch.pipelines, "max_axis": CUBE4_MAX_AXIS, **own}
+        own = {"pipelines": CUBE4_PIPELINES, "max_axis": CUBE4_MAX_AXIS, **own}
     out = Path(args.out)
     files = [out / f"{args.target}.v", out / "fpga.json", *(out / log for log in LOGS)]
     plan_outputs([("--arch", args.arch)], in_folder("--out", out, files))

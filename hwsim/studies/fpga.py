@@ -14,9 +14,11 @@ the clock its routed wires allow on an ECP5: a what-if of today's FPGA, not a pu
 machine.  Beside it, the Teramac prototype's 0.96 MHz at the same cycles, and its
 published 0.65 s.
 
-``python -m hwsim.studies.fpga [--device PART] [--jobs N]`` re-measures every unit and the
-Cube-4 top at P = 1 and the pipeline counts in :data:`TOP_PIPELINES` and writes
-``hwsim/energy/data/units_fpga.json`` (tens of minutes on two cores).
+``python -m hwsim.studies.fpga [--units all|none|LIST] [--pipelines 1,N] [--jobs N]``
+re-measures every unit and the ``cube4`` top at the pipeline counts given (default
+:data:`TOP_PIPELINES`) and merges them into ``hwsim/energy/data/units_fpga.json``, each
+run with the command that repeats it and the commit of ``rtl/`` and ``models/units/`` it
+was measured on (``+``: with uncommitted changes); tens of minutes on two cores.
 """
 
 from __future__ import annotations
@@ -36,36 +38,60 @@ from typing import Any
 __all__ = ["WHAT_IF", "what_if", "refresh"]
 
 WHAT_IF = "what-if: the routed RTL on today's ECP5 at its routed fmax, not a published machine"
-#: The Cube-4 top's pipeline counts :func:`refresh` routes (P = 1 and the largest that
-#: fits an LFE5U-85F, found by trying: docs/rtl.md).
-TOP_PIPELINES = (1, 4)
+#: The ``cube4`` top's pipeline counts :func:`refresh` routes: P = 1, the largest that
+#: fits an LFE5U-85F, and P = 2, the smallest that does not (found by trying: docs/rtl.md);
+#: a run that does not fit is stored with its one-line error.
+TOP_PIPELINES = (1, 2)
+_DATA = "units_fpga.json"
+#: The Teramac's rendered size: the what-if's frame.
+TERAMAC_SIZE = 128
+
+
+def _cycles(pipelines: int, voxel_bits: int, size: int) -> int:
+    """The cycle rung's cycles of the dense ``size^3`` scenario on ``cube4`` at P."""
+    from hwsim.core.config import flatten_table
+    from hwsim.run.fidelity import render, resolve_arch
+    from hwsim.studies.figures import figure_scene
+
+    cube4 = resolve_arch("cube4")
+    formats = {**flatten_table(cube4.formats), "voxel.bits": voxel_bits}
+    machine = dataclasses.replace(cube4, pipelines=pipelines, formats=formats)
+    return int(render(figure_scene(size), fidelity="cycle", arch=machine).cycles)
 
 
 def what_if(record: dict[str, Any], arch) -> dict[str, Any]:
-    """``what_if_frame_rate`` and its basis for a routed top (``{}`` for a unit)."""
-    from hwsim.run.fidelity import render, resolve_arch
-    from hwsim.studies.figures import figure_machine, figure_scene, published_figures
+    """``what_if_frame_rate`` (the 128^3 dense frame at the routed fmax) and its basis for
+    a routed top (``{}`` for a unit or an unrouted one)."""
+    from hwsim.run.fidelity import resolve_arch
+    from hwsim.studies.figures import published_figures
 
     if record["target"] not in ("top", "cube4") or not record.get("fmax_mhz"):
         return {}
-    pipelines = record["params"]["pipelines"]
-    size = min(record["params"]["max_axis"], 128)
-    machine = figure_machine(dataclasses.replace(resolve_arch("cube4"), pipelines=pipelines))
-    run = render(figure_scene(size), fidelity="cycle", arch=machine)
-    fmax_hz = record["fmax_mhz"] * 1e6
+    params, fmax_hz = record["params"], record["fmax_mhz"] * 1e6
+    pipelines, holds = params["pipelines"], params["max_axis"]
+    cycles = _cycles(pipelines, params["voxel_bits"], TERAMAC_SIZE)
+    own = _cycles(pipelines, params["voxel_bits"], holds) if holds < TERAMAC_SIZE else cycles
     teramac = resolve_arch("cube4-teramac")
     published = {f.key: f.value for f in published_figures(teramac)}
     return {
-        "what_if_frame_rate": fmax_hz / run.cycles,
+        "what_if_frame_rate": fmax_hz / cycles,
         "what_if": {
             "what": WHAT_IF,
-            "scene": f"dense head {size}^3 (the figures' scenario), cycle rung",
-            "machine": f"cube4 at P = {pipelines}, {max(machine.value_bits)}-bit voxels",
-            "cycles": int(run.cycles),
+            "scene": f"dense head {TERAMAC_SIZE}^3 (the figures' scenario), cycle rung",
+            "machine": f"cube4 at P = {pipelines}, {params['voxel_bits']}-bit voxels",
+            "cycles": cycles,
             "fmax_mhz": record["fmax_mhz"],
-            "seconds": run.cycles / fmax_hz,
+            "seconds": cycles / fmax_hz,
+            "holds": (
+                f"the routed top holds volumes up to {holds}^3: at {TERAMAC_SIZE}^3 its "
+                "compositing buffer grows, so the rate assumes the routed fmax holds there "
+                "(an upper bound)"
+                if holds < TERAMAC_SIZE
+                else f"the routed top holds {TERAMAC_SIZE}^3"
+            ),
+            "own_frame": {"size": holds, "cycles": own, "frame_rate": fmax_hz / own},
             "teramac_clock_mhz": teramac.clock_hz / 1e6,
-            "teramac_frame_rate_same_cycles": teramac.clock_hz / run.cycles,
+            "teramac_frame_rate_same_cycles": teramac.clock_hz / cycles,
             "teramac_published_seconds_128": published.get("seconds_128"),
         },
     }
@@ -88,30 +114,49 @@ def _measure(target: str, sets: list[str], device: str, root: Path) -> dict[str,
     return record
 
 
-def refresh(path: Path, device: str, jobs: int) -> dict[str, Any]:
-    """Route every unit and the top (P = each of :data:`TOP_PIPELINES`); write ``path``."""
-    from rtl.build import UNITS
+def _rtl_commit() -> str | None:
+    """The last commit of the RTL and unit models here, ``+`` if the tree differs."""
+    repo = Path(__file__).parents[2]
+    where = ["--", "rtl", "models/units"]
+    log = subprocess.run(
+        ["git", "log", "-1", "--format=%h", *where], capture_output=True, text=True, cwd=repo
+    )
+    status = subprocess.run(
+        ["git", "status", "--porcelain", *where], capture_output=True, text=True, cwd=repo
+    )
+    if log.returncode != 0 or not log.stdout.strip():
+        return None
+    return log.stdout.strip() + ("+" if status.stdout.strip() else "")
 
-    runs = [(u, []) for u in UNITS]
-    runs += [("cube4", [f"top.pipelines={p}"]) for p in TOP_PIPELINES]
-    head = subprocess.run(
-        ["git", "log", "-1", "--format=%h", "--", "rtl", "models/units"],
-        capture_output=True, text=True, check=False, cwd=Path(__file__).parents[2],
-    )  # fmt: skip
+
+def refresh(
+    path: Path,
+    device: str,
+    jobs: int,
+    units: list[str],
+    pipelines: list[int],
+    rtl_commit: str | None = None,
+) -> dict[str, Any]:
+    """Route ``units`` and the ``cube4`` top at each of ``pipelines``; merge them into the
+    data file at ``path`` (the other entries stay) and write it."""
+    runs = [(u, []) for u in units] + [("cube4", [f"top.pipelines={p}"]) for p in pipelines]
     with tempfile.TemporaryDirectory(prefix="hwsim-fpga-") as tmp:
-        with ThreadPoolExecutor(jobs) as pool:
+        with ThreadPoolExecutor(max(jobs, 1)) as pool:
             done = list(pool.map(lambda r: _measure(*r, device, Path(tmp)), runs))
-    units = dict(zip(UNITS, done, strict=False))
-    tops = {f"cube4-P{p}": r for p, r in zip(TOP_PIPELINES, done[len(UNITS) :], strict=True)}
+    old = json.loads(path.read_text()) if path.is_file() else {}
+    commit = rtl_commit or _rtl_commit()
+    for record in done:
+        record["rtl_commit"] = commit
     out = {
         "schema": 1,
         "what": "every unit and the Cube-4 top placed and routed on an ECP5 (rtl/fpga.py)",
-        "command": f"python -m hwsim.studies.fpga --device {device}",
-        "rtl_commit": head.stdout.strip() or None,
-        "date": time.strftime("%Y-%m-%d"),
+        "command": "python -m hwsim.studies.fpga [--units all] [--pipelines 1,N]",
         "device": device,
-        "units": units,
-        "tops": tops,
+        "units": {**old.get("units", {}), **dict(zip(units, done, strict=False))},
+        "tops": {
+            **old.get("tops", {}),
+            **{f"cube4-P{p}": r for p, r in zip(pipelines, done[len(units) :], strict=True)},
+        },
     }
     from hwsim.core.paths import write_text_atomic
 
@@ -120,14 +165,23 @@ def refresh(path: Path, device: str, jobs: int) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from rtl.build import UNITS
     from rtl.fpga import DEFAULT_DEVICE
 
     parser = argparse.ArgumentParser(prog="python -m hwsim.studies.fpga")
     parser.add_argument("--device", default=DEFAULT_DEVICE)
     parser.add_argument("--jobs", type=int, default=2, help="runs at once (2)")
+    parser.add_argument("--units", default="all", help="all, none or a comma list (all)")
+    parser.add_argument(
+        "--pipelines", default=",".join(map(str, TOP_PIPELINES)), help="the top's P, a list"
+    )
+    parser.add_argument("--rtl-commit", help="record this commit (a tree without .git)")
+    parser.add_argument("--data", type=Path, help="the data file (hwsim/energy/data/...)")
     args = parser.parse_args(argv)
-    target = Path(str(resources.files("hwsim.energy") / "data" / "units_fpga.json"))
-    refresh(target, args.device, args.jobs)
+    units = {"all": list(UNITS), "none": []}.get(args.units) or args.units.split(",")
+    pipelines = [int(p) for p in args.pipelines.split(",") if p]
+    target = args.data or Path(str(resources.files("hwsim.energy") / "data" / _DATA))
+    refresh(target, args.device, args.jobs, units, pipelines, args.rtl_commit)
     print(f"wrote {target}", file=sys.stderr)
     return 0
 

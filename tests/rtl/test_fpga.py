@@ -70,7 +70,8 @@ def test_the_skew_unit_places_and_routes_with_a_positive_fmax(tmp_path, capsys):
     for log in rtl.fpga.LOGS:
         assert (tmp_path / log).stat().st_size > 0, log
     report = json.loads((tmp_path / "nextpnr-report.json").read_text())
-    assert report["utilization"]["TRELLIS_FF"]["used"] == record["ffs"]
+    assert report["utilization"]["TRELLIS_FF"]["used"] == record["ffs_routed"]
+    assert record["ffs_routed"] == record["ffs"] + record["port_register_bits"]
     assert "what_if_frame_rate" not in record  # a unit is not a machine
 
 
