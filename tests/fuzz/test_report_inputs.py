@@ -131,7 +131,7 @@ def test_issue_image_examples(runs, tmp_path, image):
 
 
 def _trade(path: Path):
-    return report._trade_blocks(path.parent, path.parent)
+    return report._trade_blocks(path.parent, path.parent, 1)
 
 
 @FUZZ
