@@ -161,10 +161,17 @@ class _Prices:
     """The library's price of each action at one node: stored, else live."""
 
     def __init__(self, tech: Technology):
-        self.node = tech.node_nm
-        self.table = stored_prices()["nodes"].get(_node_key(tech.node_nm)) or live_prices(
-            tech.node_nm
-        )
+        self.node, stored = tech.node_nm, stored_prices()["nodes"]
+        self.table = stored.get(_node_key(tech.node_nm))
+        if self.table is None:
+            try:
+                self.table = live_prices(tech.node_nm)
+            except NotAvailableError:
+                nodes = ", ".join(f"{k} nm" for k in sorted(stored, key=float))
+                raise NotAvailableError(
+                    f"no stored Accelergy prices at {self.node:g} nm (stored: {nodes}), "
+                    f"and {_INSTALL}"
+                ) from None
 
     def sram_pj(self, word: int, bits: int, kind: str) -> float:
         key = f"{word}/{bits}"

@@ -156,6 +156,9 @@ def test_a_shape_not_stored_without_the_library_names_the_extra(monkeypatch):
     prices = accelergy._Prices(load_technology("cmos45"))
     with pytest.raises(NotAvailableError, match=r"hwsim\[energy\]"):
         prices.sram_pj(24, 12345, "read")
+    node = dataclasses.replace(load_technology("cmos45"), node_nm=130.0)
+    with pytest.raises(NotAvailableError, match=r"at 130 nm \(stored: 45 nm, 250 nm, 350 nm\)"):
+        accelergy._Prices(node)
 
 
 @needs_library
