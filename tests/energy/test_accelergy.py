@@ -200,3 +200,44 @@ def test_a_render_that_priced_nothing_is_refused():
     run = render(scene, fidelity="functional", arch=resolve_arch("cube4"), volume=volume)
     with pytest.raises(InputError, match="counted no priced actions"):
         accelergy.band_of_run(run, resolve_arch("cube4"))
+
+
+def _docs_architecture(tmp_path):
+    """The architecture file of docs/architectures.md: Cube-4 with 16 pipelines and its
+    own buffers, SRAM shapes the stored table does not hold."""
+    import re
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parents[2] / "docs" / "architectures.md"
+    (example,) = re.findall(r"```toml\n(.*?)```", docs.read_text(), flags=re.S)
+    path = tmp_path / "my-cube4.toml"
+    path.write_text(example)
+    return path
+
+
+def test_another_machine_without_the_library_is_one_line_naming_the_extra(tmp_path):
+    arch = _docs_architecture(tmp_path)
+    code = (
+        "import sys\n"
+        "for m in ('hwcomponents', 'hwcomponents_library', 'hwcomponents_cacti'):\n"
+        "    sys.modules[m] = None\n"
+        "from hwsim.cli.commands import main\n"
+        f"raise SystemExit(main(['energy', '--arch', {str(arch)!r}, '--phantom',"
+        " 'head:size=16', '--image', '16', '--quiet']))\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 2, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no stored Accelergy price" in lines[0], run.stderr
+    assert "pip install 'hwsim[energy]'" in lines[0]
+
+
+@needs_library
+def test_another_machine_is_priced_live(tmp_path):
+    from hwsim.cli.commands import main
+
+    out = tmp_path / "band.json"
+    argv = ["energy", "--arch", str(_docs_architecture(tmp_path)), "--phantom", "head:size=16"]
+    assert main([*argv, "--image", "16", "--quiet", "--out", str(out)]) == 0
+    band = json.loads(out.read_text())
+    assert all(math.isfinite(r["ratio"]) and r["ratio"] > 0 for r in band["memories"].values())
