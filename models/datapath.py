@@ -119,13 +119,17 @@ class Datapath:
         return out
 
 
+#: A unit config field's type in the model, by the type of its default (any other: the
+#: config's own checks decide).
+_KINDS: dict[type, Any] = {int: int, str: str, bool: bool, float: Finite}
+
+
 def _unit_table(unit: str, config: type) -> type[Schema]:
     """The ``[formats.<unit>]`` model: the unit config's fields, typed and defaulted as the
     config declares them (its ranges stay the config's own checks).  The shader has no
     ``normal_frac_bits`` of its own: it reads the gradient unit's."""
-    kinds = {int: int, str: str, bool: bool, float: Finite}
     fields = [
-        (f.name, kinds[type(f.default)], f.default)
+        (f.name, _KINDS.get(type(f.default), Any), f.default)
         for f in dataclasses.fields(config)
         if (unit, f.name) != ("shade", "normal_frac_bits")
     ]
