@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 from scene_text import error_of, parse
 
 from hwsim.core.errors import InputError
+from hwsim.spec.overrides import SceneFlags, apply_overrides
 from hwsim.spec.scene import (
     DEFAULT_SCENE,
     MODES,
@@ -172,3 +173,24 @@ def test_any_value_is_accepted_or_refused_with_input_error(section, data, value)
     else:  # accepted values are stored as given and are finite
         stored = getattr(getattr(scene, section), key)
         assert stored == value or stored == float(value)
+
+
+@pytest.mark.parametrize(
+    ("flags", "text"),
+    [
+        (SceneFlags(image="0"), "[view]\nwidth = 0"),
+        (SceneFlags(image="64x5000"), "[view]\nheight = 5000"),
+        (SceneFlags(view="400,0"), "[view]\nazimuth = 400"),
+        (SceneFlags(view="0,-91"), "[view]\nelevation = -91"),
+        (SceneFlags(volume="x.raw", shape="0,8,8"), "[volume]\npath = 'x.raw'\nshape = [0, 8, 8]"),
+        (SceneFlags(mode="dvr"), "[render]\nmode = 'dvr'"),
+    ],
+)
+def test_a_flag_and_the_key_it_overrides_share_one_range(flags, text):
+    """Flags are checked by the scene file's model: the same range, the same wording."""
+    with pytest.raises(InputError) as flag:
+        apply_overrides(load_scene("head"), flags)
+    with pytest.raises(InputError) as key:
+        parse(text)
+    assert flag.value.allowed == key.value.allowed and flag.value.allowed
+    assert flag.value.message.split(",")[0] == key.value.message.split(",")[0]
