@@ -502,7 +502,20 @@ def _cmd_archs(args: argparse.Namespace) -> int:
         print(f"units whose synthesised RTL is estimated slower than the clock ({basis}; "
               "docs/energy.md):")  # fmt: skip
         print("\n".join(flags))
+    _print_routed_fmax()
     return 0
+
+
+def _print_routed_fmax() -> None:
+    """The third measure of each unit's clock: placed and routed on an ECP5."""
+    from hwsim.energy.fpga import fpga_measured
+
+    data = fpga_measured()
+    units = data.get("units", {})
+    routed = [f"{u} {e['fmax_mhz']:.0f} MHz" for u, e in units.items() if e.get("fmax_mhz")]
+    if routed:
+        print(f"each unit's RTL placed and routed on an {data['device']} (hwsim rtl fpga; "
+              "docs/energy.md): " + ", ".join(routed))  # fmt: skip
 
 
 def _cmd_trade(args: argparse.Namespace) -> int:

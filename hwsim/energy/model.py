@@ -24,6 +24,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
+from hwsim.energy.fpga import unit_fpga
 from hwsim.energy.synth import INDEPENDENCE, synthesised, unit_datapath, unit_silicon
 from hwsim.energy.technology import Technology
 from models.machines.common.silicon import Silicon, counter_sum
@@ -232,6 +233,8 @@ def machine_area(arch, dp, tech: Technology) -> dict[str, Any]:
             "gate_equivalents": P * per / tech.gate_um2(1.0),
             # Area two ways only where the RTL is this machine's kind of unit.
             "synthesized": None if other else synthesized_unit(u, silicon, tech, arch),
+            # The third way: the same RTL placed and routed on an ECP5 (hwsim.energy.fpga).
+            "fpga": None if other else unit_fpga(u, arch.clock_hz),
             "rtl_differs": other,
         }
     buffers = {

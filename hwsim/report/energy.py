@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from hwsim.energy.fpga import FPGA_BASIS
 from hwsim.energy.synth import INDEPENDENCE
 from hwsim.report import plots
 
@@ -66,6 +67,7 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
                     str(syn["logic_levels"]),
                     _g(syn["fmax_hz"] / 1e6 if syn["fmax_hz"] else None, ".0f"),
                     meets,
+                    *_fpga_cells(entry.get("fpga")),
                 ]
             )
     if rows:
@@ -77,13 +79,17 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
                 "cells in gate equivalents; the storage bits each side counts. "
                 f"Independence: {independence or INDEPENDENCE}, so only the logic ratio "
                 "tests the table. The clock its longest path allows, against the machine's "
-                f"{_g(stats['clock_hz'] / 1e6)} MHz, is an {basis or 'estimate'} "
-                "(docs/energy.md).",
+                f"{_g(stats['clock_hz'] / 1e6)} MHz, is an {basis or 'estimate'}. "
+                "The third way shares only the RTL with the other two: the same Verilog "
+                "placed and routed on an ECP5 FPGA (LUT4s, flip-flops, 18x18 multipliers, "
+                f"16 kbit block RAMs; fmax {FPGA_BASIS}), so the routed fmax beside the "
+                "estimate shows the estimate's error on a real device (docs/energy.md).",
             )
         )
         header = ["unit", "table logic mm^2", "RTL logic mm^2", "logic table / RTL",
                   "table storage bits", "RTL storage bits", "storage mm^2 (shared price)",
-                  "gate levels", "est. fmax MHz", "meets clock (est.)"]  # fmt: skip
+                  "gate levels", "est. fmax MHz", "meets clock (est.)",
+                  "FPGA LUT/FF/DSP/BRAM", "routed fmax MHz (ECP5)"]  # fmt: skip
         blocks.append(("table", header, rows))
     other = {u: e["rtl_differs"] for u, e in area["units"].items() if e.get("rtl_differs")}
     if other:
@@ -92,3 +98,11 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
             ("p", f"Not compared two ways, the RTL being another kind of unit: {listed}.")
         )
     return blocks
+
+
+def _fpga_cells(fpga: dict[str, Any] | None) -> list[str]:
+    """The FPGA columns of a unit: its resources and routed fmax (``-``: not routed)."""
+    if not fpga:
+        return ["-", "-"]
+    counts = "/".join(str(fpga[k]) for k in ("luts", "ffs", "dsps", "brams"))
+    return [counts, _g(fpga["fmax_hz"] / 1e6, ".0f")]
