@@ -273,9 +273,18 @@ class Scene:
         for key in (*unused, *(("params",) if self.volume.path else ())):
             volume.pop(key)
         out["transfer"].pop("chosen_by")  # stats.json's "transfer" says it; the dict parses back
-        for lut in (out.get("classification") or {}).get("luts", ()):
-            if lut.get("transfer"):
-                lut["transfer"].pop("chosen_by")
+        if out.get("classification"):  # as the file has it: the LUTs hold the functions
+            for key in ("preset", "points", "table", "table_range"):
+                out["transfer"].pop(key)
+            out["classification"]["luts"] = [
+                {"field": lut["field"], "entries": lut["entries"], **(lut["transfer"] or {})}
+                for lut in out["classification"]["luts"]
+            ]
+            for lut in out["classification"]["luts"]:  # [transfer] holds these
+                for key in ("chosen_by", "order", "gradient_opacity"):
+                    lut.pop(key, None)
+            alus = ("leaf0", "leaf1", "final")
+            out["classification"]["combine"] = {k: out["classification"].pop(k) for k in alus}
         out["schema"] = SCHEMA
         return out
 
