@@ -163,7 +163,8 @@ def test_malformed_scene_file_names_file_and_key(tmp_path):
     proc = run_cli("render", str(scene), "--out", str(tmp_path / "x"))
     assert proc.returncode == 2
     assert proc.stderr.strip() == (
-        f"hwsim: error: {scene}: render.sample_spacing: out of range, got -1 (allowed: 0.0625 .. 16)"
+        f"hwsim: error: {scene}: render.sample_spacing: out of range, got -1"
+        " (allowed: 0.0625 .. 16)"
     )
 
 
