@@ -330,12 +330,12 @@ def parse_scene(data: dict[str, Any], *, source: str = "<scene>", name: str = "s
     classification = None
     if m.classification is not UNSET:
         _transfer_beside_luts(m.transfer, source)
-        classification = parse_classification(m.classification, source, transfer_spec)
+        classification = parse_classification(m.classification, source, _transfer_spec)
     return Scene(
         name=name if m.name is UNSET else m.name,
         source=source,
         volume=_volume(m.volume, source),
-        transfer=transfer_spec(m.transfer, source, "transfer"),
+        transfer=_transfer_spec(m.transfer, source, "transfer"),
         view=ViewSpec(**given(m.view)),
         lights=lights,
         material=Material(**given(m.material)),
@@ -354,7 +354,7 @@ def load_transfer(path: str | Path) -> TransferSpec:
     ``description`` (:class:`~hwsim.spec.scene_schema.TransferFile`).  A relative
     ``table`` path is resolved against the file's folder."""
     path = Path(path)
-    spec = transfer_spec(validate(read_toml(path), TransferFile, str(path)), str(path), "")
+    spec = _transfer_spec(validate(read_toml(path), TransferFile, str(path)), str(path), "")
     if spec.table is not None and not Path(spec.table).is_absolute():
         spec = dataclasses.replace(spec, table=str((path.parent / spec.table).resolve()))
     return spec
@@ -377,7 +377,7 @@ def _ascending(rows: list, source: str, key: str, what: str) -> tuple[tuple[floa
     return tuple(tuple(r) for r in rows)
 
 
-def transfer_spec(m: TransferModel, source: str, prefix: str) -> TransferSpec:
+def _transfer_spec(m: TransferModel, source: str, prefix: str) -> TransferSpec:
     """A :class:`TransferSpec` from a validated ``[transfer]`` table (also a LUT's function
     and a ``--transfer`` file's); ``prefix`` is the table's key path."""
     sources = [k for k in ("points", "table", "preset") if getattr(m, k) is not UNSET]
