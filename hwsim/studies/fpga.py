@@ -38,8 +38,8 @@ from typing import Any
 __all__ = ["WHAT_IF", "what_if", "refresh"]
 
 WHAT_IF = "what-if: the routed RTL on today's ECP5 at its routed fmax, not a published machine"
-#: The ``cube4`` top's pipeline counts :func:`refresh` routes: P = 1, the largest that
-#: fits an LFE5U-85F, and P = 2, the smallest that does not (found by trying: docs/rtl.md);
+#: The ``cube4`` top's pipeline counts :func:`refresh` routes: P = 1, routed on an
+#: LFE5U-85F, and P = 2, which Yosys maps to 150 of its 156 multipliers (docs/rtl.md);
 #: a run that does not fit is stored with its one-line error.
 TOP_PIPELINES = (1, 2)
 _DATA = "units_fpga.json"
