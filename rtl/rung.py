@@ -227,7 +227,12 @@ def run_simulator(
         *(f"+r_{name}={int(value):x}" for name, value in regs.items()),
     ]
     cmd = [str(exe)] if simulator == "verilator" else ["vvp", "-n", str(exe)]
-    returncode, output = _simulate(cmd + plusargs, program.plan.samples, progress)
+    try:
+        returncode, output = _simulate(cmd + plusargs, program.plan.samples, progress)
+    except BaseException:  # Ctrl-C: this run's scratch files go with its simulator
+        for path in (loads_hex, volume_hex, pixels_hex, events_txt):
+            path.unlink(missing_ok=True)
+        raise
     t2 = time.perf_counter()
     for path in (loads_hex, volume_hex):
         path.unlink(missing_ok=True)
