@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import errno
 import os
+import sqlite3
 
 import numpy as np
 import pytest
@@ -61,3 +62,29 @@ def test_the_command_line_names_the_file(tmp_path, capsys, monkeypatch, writer):
     assert main(argv) == 2
     err = one_line_error(capsys, target)
     assert "no space left on device" in err.lower() and "internal error" not in err
+
+
+def test_a_full_disk_under_the_sweep_database_names_it(tmp_path):
+    """SQLite says "database or disk is full" (SQLITE_FULL) without a file name."""
+    from hwsim.core.paths import os_problem
+    from hwsim.studies.sweep.db import RunsDB
+
+    class Full:  # the connection, its writes failing as on a full disk
+        def __init__(self, conn):
+            self.conn = conn
+
+        def execute(self, sql, *args):
+            if sql.startswith("INSERT"):
+                exc = sqlite3.OperationalError("database or disk is full")
+                exc.sqlite_errorcode = 13  # SQLITE_FULL
+                raise exc
+            return self.conn.execute(sql, *args)
+
+    path = tmp_path / "runs.db"
+    with RunsDB(path) as db:
+        db.conn = Full(db.conn)
+        with pytest.raises(OSError) as caught:
+            db.insert({"key": "k", "status": "ok"})
+        db.conn = db.conn.conn
+    assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(path)
+    assert str(path) in str(os_problem(caught.value))  # the boundary's one line names it

@@ -14,7 +14,10 @@ return their rows to it.
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
+import os
 import sqlite3
 from collections.abc import Iterable
 from pathlib import Path
@@ -182,8 +185,11 @@ class RunsDB:
                 values,
             )
             self.conn.execute("COMMIT")
-        except BaseException:
-            self.conn.execute("ROLLBACK")
+        except BaseException as exc:
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("ROLLBACK")
+            if isinstance(exc, sqlite3.OperationalError) and (err := _os_error(exc, self.path)):
+                raise err from exc  # the error boundary's line names the database
             raise
         return cur.rowcount == 1
 
@@ -207,6 +213,18 @@ class RunsDB:
     def integrity(self) -> str:
         """``PRAGMA integrity_check``: ``"ok"`` for a sound file."""
         return self.conn.execute("PRAGMA integrity_check").fetchone()[0]
+
+
+#: SQLite's result codes for a failed write that are the file system's doing, as the
+#: operating system's error numbers: a full disk, an I/O error, a read-only file.
+_SQLITE_OS_ERRORS = {13: errno.ENOSPC, 10: errno.EIO, 8: errno.EROFS}
+
+
+def _os_error(exc: sqlite3.OperationalError, path: Path) -> OSError | None:
+    """The ``OSError`` naming ``path`` that a failed SQLite write stands for, else None.
+    SQLite reports a full disk as "database or disk is full" without a file name."""
+    code = _SQLITE_OS_ERRORS.get(getattr(exc, "sqlite_errorcode", -1) & 0xFF)
+    return None if code is None else OSError(code, os.strerror(code), str(path))
 
 
 def by_parameters(rows: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
