@@ -19,12 +19,11 @@ being written reads the old value.
 
 from __future__ import annotations
 
-from amaranth import Module, Mux, Signal, unsigned
+from amaranth import Module, Mux, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In
 
-from models.units import classify as model
 from models.units.classify import ClassifyConfig
 from rtl.common import (
     StallingPipeline,
@@ -37,8 +36,11 @@ from rtl.common import (
 
 __all__ = ["Classify", "LATENCY", "II", "input_layout", "output_layout", "load_layout"]
 
-LATENCY = model.LATENCY
-II = model.II
+#: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
+#: ``models.units.classify.LATENCY`` must equal it, as the unit tests check).
+STAGES = ("index", "read", "expand", "modulate")
+LATENCY = len(STAGES)
+II = 1
 ONE_BITS = 13  # UQ1.12: 4096 = 1.0
 GM_SCALE_BITS = 24  # models.units.classify._GM_SCALE_BITS
 
@@ -135,30 +137,40 @@ class Classify(wiring.Component):
                 wr.en.eq(self.load.valid & (self.load.payload.table == table)),
             ]
 
-        # Stage 1: indices, SRAM reads.
+        # "index": the two tables' entries.
         shift = self.sample_bits - (cfg.entries.bit_length() - 1)
         index = round_shift(self.i.payload.sample, shift, "nearest-up")
+        lut_index = pipe.register(
+            Mux(index > cfg.entries - 1, cfg.entries - 1, index), name="lut_index"
+        )
+        product = pipe.register(self.i.payload.magnitude * self.gm_scale, name="gm_product")
+
+        # "read": the two synchronous SRAMs.
+        scaled = round_shift(product, GM_SCALE_BITS, "nearest-up")
+        gm_index = Mux(scaled > cfg.gm_entries - 1, cfg.gm_entries - 1, scaled)
         lut_rd = lut.read_port()
-        m.d.comb += [
-            lut_rd.addr.eq(Mux(index > cfg.entries - 1, cfg.entries - 1, index)),
-            lut_rd.en.eq(pipe.advance),
-        ]
-        scaled = round_shift(self.i.payload.magnitude * self.gm_scale, GM_SCALE_BITS, "nearest-up")
         gm_rd = gm.read_port()
         m.d.comb += [
-            gm_rd.addr.eq(Mux(scaled > cfg.gm_entries - 1, cfg.gm_entries - 1, scaled)),
+            lut_rd.addr.eq(lut_index),
+            lut_rd.en.eq(pipe.advance),
+            gm_rd.addr.eq(gm_index),
             gm_rd.en.eq(pipe.advance),
         ]
 
-        # Stage 2: expansion and modulation.
+        # "expand": unorm -> UQ1.12.
         entry = lut_rd.data
+        rgb = [
+            pipe.register(_expand(entry[k * c : (k + 1) * c], c), name=f"rgb{k}", shape=ONE_BITS)
+            for k in range(3)
+        ]
+        alpha = pipe.register(_expand(entry[3 * c : 3 * c + a], a), name="alpha12", shape=ONE_BITS)
+        gm_value = pipe.register(gm_rd.data, name="gm_value")
+
+        # "modulate": alpha times the magnitude table's entry.
         out = self.o.payload
         for k in range(3):
-            rgb = _expand(entry[k * c : (k + 1) * c], c)
-            m.d.comb += out.rgb[k].eq(pipe.register(rgb, name=f"rgb{k}", shape=unsigned(ONE_BITS)))
-        alpha = Signal(unsigned(ONE_BITS), name="alpha12")
-        m.d.comb += alpha.eq(_expand(entry[3 * c : 3 * c + a], a))
-        modulated = round_shift(alpha * gm_rd.data, 12, "nearest-up")
+            m.d.comb += out.rgb[k].eq(pipe.register(rgb[k], name=f"rgb_out{k}"))
+        modulated = round_shift(alpha * gm_value, 12, "nearest-up")
         m.d.comb += out.alpha.eq(
             pipe.register(
                 Mux(self.modulate, modulated, alpha), name="alpha", shape=unsigned(ONE_BITS)

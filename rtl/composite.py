@@ -22,7 +22,7 @@ Accumulators entering must lie in ``[0, 1]`` (``2**F``): the unit's own outputs 
 
 from __future__ import annotations
 
-from amaranth import Module, Mux, Signal, unsigned
+from amaranth import Module, Mux, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In
@@ -33,8 +33,11 @@ from rtl.common import StallingPipeline, load_port, round_shift, unit_ports
 
 __all__ = ["Composite", "LATENCY", "II", "input_layout", "output_layout", "load_layout"]
 
-LATENCY = model.LATENCY
-II = model.II
+#: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
+#: ``models.units.composite.LATENCY`` must equal it, as the unit tests check).
+STAGES = ("correct", "weight", "products", "accumulate")
+LATENCY = len(STAGES)
+II = 1
 ALPHA_BITS = 12
 ONE_A = 1 << ALPHA_BITS
 TABLE_ENTRIES = ONE_A + 1
@@ -114,7 +117,7 @@ class Composite(wiring.Component):
         pipe = StallingPipeline(m, self.i, self.o, LATENCY)
         payload = self.i.payload
 
-        # Stage 1: opacity-correction table, colour saturation, MIP.
+        # "correct": opacity-correction table, colour saturation, MIP.
         m.submodules.correction = table = Memory(
             shape=unsigned(ALPHA_BITS + 1), depth=TABLE_ENTRIES, init=[]
         )
@@ -130,6 +133,7 @@ class Composite(wiring.Component):
             rd.en.eq(pipe.advance),
         ]
         acc1 = [pipe.register(payload.acc[k], name=f"acc1_{k}") for k in range(4)]
+        transparency = pipe.register(one - payload.acc[3], name="transparency", shape=acc_shape)
         rgb1 = [
             pipe.register(
                 Mux(payload.rgb[k] > ONE_A, ONE_A, payload.rgb[k]),
@@ -142,27 +146,34 @@ class Composite(wiring.Component):
             Mux(payload.sample > payload.mip, payload.sample, payload.mip), name="mip1"
         )
 
-        # Stage 2: w = round((1 - A) a').
-        w = round_shift((one - acc1[3]) * rd.data, ALPHA_BITS, "nearest-up")
+        # "weight": w = round((1 - A) a').
+        w = round_shift(transparency * rd.data, ALPHA_BITS, "nearest-up")
         w2 = pipe.register(w, name="w2", shape=acc_shape)
         acc2 = [pipe.register(acc1[k], name=f"acc2_{k}") for k in range(4)]
         rgb2 = [pipe.register(rgb1[k], name=f"rgb2_{k}") for k in range(3)]
         mip2 = pipe.register(mip1, name="mip2")
 
-        # Stage 3: accumulate, saturate at 1.0, termination flag.
+        # "products": round(w c / 2**12).
+        products = [
+            pipe.register(round_shift(w2 * rgb2[k], ALPHA_BITS, "nearest-up"), name=f"wc{k}")
+            for k in range(3)
+        ]
+        w3 = pipe.register(w2, name="w3")
+        acc3 = [pipe.register(acc2[k], name=f"acc3_{k}") for k in range(4)]
+        mip3 = pipe.register(mip2, name="mip3")
+
+        # "accumulate": C += w c, A += w, each saturated at 1.0; the termination flag.
         out = self.o.payload
-        new = [acc2[k] + round_shift(w2 * rgb2[k], ALPHA_BITS, "nearest-up") for k in range(3)]
-        new.append(acc2[3] + w2)
-        alpha_out = Signal(acc_shape, name="alpha_out")
+        new = [acc3[k] + products[k] for k in range(3)]
+        new.append(acc3[3] + w3)
         for k in range(4):
             value = Mux(new[k] > one, one, new[k])
-            reg = pipe.register(value, name=f"acc3_{k}", shape=acc_shape)
-            m.d.comb += out.acc[k].eq(reg)
-            if k == 3:
-                m.d.comb += alpha_out.eq(value)
-        stop = self.ert_enable & (alpha_out >= self.ert_threshold)
+            m.d.comb += out.acc[k].eq(pipe.register(value, name=f"acc4_{k}", shape=acc_shape))
+        # min(A, 1) >= threshold, as two compares side by side.
+        reachable = self.ert_threshold <= one
+        stop = self.ert_enable & reachable & (new[3] >= self.ert_threshold)
         m.d.comb += [
             out.terminated.eq(pipe.register(stop, name="terminated")),
-            out.mip.eq(pipe.register(mip2, name="mip3")),
+            out.mip.eq(pipe.register(mip3, name="mip4")),
         ]
         return m

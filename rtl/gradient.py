@@ -4,36 +4,55 @@ bit-exact with ``models.units.gradient`` (``to_world``, ``magnitude``, ``normals
 # Ref: architectures.md section 9.1 (central differences on samples); Levoy 1988;
 #      models/units/gradient.py.
 
-Hardware split (``LATENCY = 3``, ``II = 1``):
+Stages (``STAGES``; ``LATENCY = 25``, ``II = 1``), each at most ~40 generic gates deep
+(the clock of a 125 MHz machine at 0.35 um by hwsim.energy.synth's estimate):
 
-1. differences ``ahead - behind`` per axis (``source = "sample"``; with ``"voxel"`` the
-   three interpolated voxel differences enter directly) times the per-axis UQ1.12
-   ``ratio`` (``to_world``), rounded nearest-up;
-2. ``s0 = |g|^2``; the leading-zero normaliser picks ``shift = max(F + 2 - ceil(bits(s0)
-   / 2), 0)`` (``ceil(bits(s0) / 2)`` is the bit length of ``isqrt(s0)``, so no first
-   square root is needed); ``m = isqrt(s0 << 2 shift)`` (restoring, one step per bit);
-3. three exact dividers ``N = floor((2 (-g << shift) 2**F + m) / 2m)``, clipped to
-   ``+-2**F``; the magnitude ``isqrt(s0) = m >> shift``.
-
-Stages 2 and 3 are deep combinational blocks (a square root of ``2 (B + S) + 4`` bits and
-three ``F + 1``-step dividers): they meet the model's 3-cycle latency, at the cost of
-clock rate; a faster clock would pipeline them over ``~(B + S + F) / 4`` more stages.
+1. ``difference``: ``ahead - behind`` per axis (``source = "sample"``; with ``"voxel"``
+   the three interpolated voxel differences enter directly);
+2. ``to_world``: times the per-axis UQ1.12 ``ratio``, rounded nearest-up;
+3. ``square``, 4. ``sum``: ``s0 = |g|^2``;
+5. ``normalise``: ``shift = max(F + 2 - ceil(bits(s0) / 2), 0)`` (``ceil(bits(s0) / 2)``
+   is the bit length of ``isqrt(s0)``, so no first square root is needed), as the count
+   of the zero tests ``s0 < 4**(F + 2 - j)``; ``s = s0 << 2 shift``;
+6-17. ``sqrt``: ``m = isqrt(s)``, restoring, its ``(bits(s) + 1) / 2`` steps spread over
+   ``SQRT_STAGES = 12`` stages (two per stage at the default and at 16-bit voxels);
+18. ``numerator``: ``num = m - (g << shift) 2**(F + 1)`` and its magnitude (``2m + ~num``
+   when negative, for a quotient rounded half up);
+19-24. ``divide``: three exact dividers ``floor(|num| / 2m)``, ``F + 2`` steps over
+   ``DIVIDE_STAGES = 6`` stages;
+25. ``sign``: the quotient's sign, clipped to ``+-2**F``; the magnitude ``isqrt(s0) = m
+   >> shift``.
 """
 
 from __future__ import annotations
 
-from amaranth import Module, Mux, Signal, signed, unsigned
+from amaranth import Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In
 
-from models.units import gradient as model
 from models.units.gradient import GradientConfig
 from rtl.common import StallingPipeline, divide_bounded, isqrt, round_shift, unit_ports
 
 __all__ = ["Gradient", "LATENCY", "II", "input_layout", "output_layout", "RATIO_BITS"]
 
-LATENCY = model.LATENCY
-II = model.II
+#: Restoring square-root and divider steps are spread over these many stages.
+SQRT_STAGES = 12
+DIVIDE_STAGES = 6
+#: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
+#: ``models.units.gradient.LATENCY`` must equal it, as tests/rtl/test_gradient.py checks).
+STAGES = (
+    "difference",
+    "to_world",
+    "square",
+    "sum",
+    "normalise",
+    *("sqrt",) * SQRT_STAGES,
+    "numerator",
+    *("divide",) * DIVIDE_STAGES,
+    "sign",
+)
+LATENCY = len(STAGES)
+II = 1
 #: ``to_world`` ratios are UQ1.12 (``models.units.gradient._RATIO_BITS``).
 RATIO_BITS = 12
 
@@ -99,57 +118,85 @@ class Gradient(wiring.Component):
         pipe = StallingPipeline(m, self.i, self.o, LATENCY)
         payload = self.i.payload
 
-        # Stage 1: differences, to_world.
-        g = []
+        # "difference": ahead - behind per axis.
+        diffs = []
         for axis in range(3):
             if self.cfg.source == "sample":
                 diff = payload.ahead[axis] - payload.behind[axis]  # signed(B + S + 1)
             else:
                 diff = payload.diff[axis]
-            scaled = round_shift(diff * self.ratio[axis], RATIO_BITS, "nearest-up")
+            diffs.append(pipe.register(diff, name=f"d{axis}"))
+        # "to_world": times the UQ1.12 ratio, rounded nearest-up.
+        g = []
+        for axis in range(3):
+            scaled = round_shift(diffs[axis] * self.ratio[axis], RATIO_BITS, "nearest-up")
             g.append(pipe.register(scaled, name=f"g{axis}", shape=signed(gbits)))
 
-        # Stage 2: |g|^2, normaliser shift, square root.
+        # "square", "sum": s0 = |g|^2.
         s0_bits = 2 * gbits + 1
-        s0 = Signal(s0_bits, name="s0")
-        m.d.comb += s0.eq(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
-        s0_len = Signal(range(s0_bits + 1), name="s0_len")
-        for b in range(s0_bits):
-            with m.If(s0[b]):
-                m.d.comb += s0_len.eq(b + 1)
-        root_len = (s0_len + 1) >> 1
+        squares = [pipe.register(g[a] * g[a], name=f"sq{a}", shape=2 * gbits) for a in range(3)]
+        s0 = pipe.register(squares[0] + squares[1] + squares[2], name="s0", shape=s0_bits)
+        g2 = [pipe.delay(g[a], 2, name=f"g2_{a}") for a in range(3)]
+
+        # "normalise": the leading-zero shift, s = s0 << 2 shift.
+        # shift = max(F + 2 - ceil(bits(s0) / 2), 0) = #{j in 1..F+2: s0 < 4**(F + 2 - j)}
+        # (a thermometer code of zero tests, summed: no priority chain).
+        zeros = [
+            s0[2 * (f + 2 - j) :] == 0 if 2 * (f + 2 - j) < s0_bits else Const(1, 1)
+            for j in range(1, f + 3)
+        ]
         shift = Signal(range(f + 3), name="shift")
-        m.d.comb += shift.eq(Mux(root_len >= f + 2, 0, (f + 2) - root_len))
+        m.d.comb += shift.eq(sum(zeros))
         s_bits = max(s0_bits, 2 * (f + 2))
-        s = Signal(s_bits, name="s")
-        m.d.comb += s.eq(s0 << (shift << 1))
-        root = isqrt(m, s, s_bits, name="root")
+        s = pipe.register(s0 << (shift << 1), name="s", shape=s_bits)
         gs = [
-            pipe.register(g[a] << shift, name=f"gs{a}", shape=signed(gbits + f + 2))
+            pipe.register(g2[a] << shift, name=f"gs{a}", shape=signed(gbits + f + 2))
             for a in range(3)
         ]
-        m_reg = pipe.register(root, name="m")
         shift_reg = pipe.register(shift, name="shift_reg")
         zero = pipe.register(s0 == 0, name="zero")
 
-        # Stage 3: three exact dividers, rounding half up (floor of (2 num + m) / 2m).
+        # "sqrt" x SQRT_STAGES: m = isqrt(s), restoring, its steps spread over the stages.
+        root = isqrt(m, s, s_bits, name="root", pipe=pipe, stages=SQRT_STAGES)
+        m_reg = pipe.register(root, name="m")
+        gs = [pipe.delay(gs[a], SQRT_STAGES, name=f"gs_sqrt{a}") for a in range(3)]
+        shift_reg = pipe.delay(shift_reg, SQRT_STAGES, name="shift_sqrt")
+        zero = pipe.delay(zero, SQRT_STAGES, name="zero_sqrt")
+
+        # "numerator": |2 (-g << shift) 2**F + m| and its sign, for floor((2 num + m) / 2m).
         divisor = m_reg << 1
+        nbits = gbits + 2 * f + 5
+        magnitudes, negatives = [], []
+        for a in range(3):
+            num = Signal(signed(nbits), name=f"num{a}")
+            m.d.comb += num.eq(m_reg - (gs[a] << (f + 1)))
+            negative = num < 0
+            magnitude = Mux(negative, divisor + ~num, num)  # ~num = -num - 1
+            magnitudes.append(pipe.register(magnitude, name=f"abs{a}", shape=unsigned(nbits)))
+            negatives.append(pipe.register(negative, name=f"neg{a}"))
+        divisor = pipe.register(divisor, name="divisor")
+        m_reg = pipe.register(m_reg, name="m_num")
+        shift_reg = pipe.register(shift_reg, name="shift_num")
+        zero = pipe.register(zero, name="zero_num")
+
+        # "divide" x DIVIDE_STAGES: three exact dividers; then the sign and clip.
         limit = 1 << f
         out = self.o.payload
         for a in range(3):
-            num = Signal(signed(gbits + 2 * f + 5), name=f"num{a}")
-            m.d.comb += num.eq(((-gs[a]) << (f + 1)) + m_reg)
-            negative = num < 0
-            magnitude = Signal(unsigned(gbits + 2 * f + 5), name=f"abs{a}")
-            m.d.comb += magnitude.eq(Mux(negative, -num + divisor - 1, num))
-            q = divide_bounded(m, magnitude, divisor, f + 2, name=f"div{a}")
+            q = divide_bounded(
+                m, magnitudes[a], divisor, f + 2, name=f"div{a}", pipe=pipe, stages=DIVIDE_STAGES
+            )
+            qs = pipe.register(q, name=f"q{a}")
+            negative = pipe.delay(negatives[a], DIVIDE_STAGES, name=f"neg_div{a}")
             n = Signal(signed(f + 4), name=f"n{a}")
-            m.d.comb += n.eq(Mux(negative, -q, q))
-            clipped = Mux(zero, 0, Mux(n > limit, limit, Mux(n < -limit, -limit, n)))
+            m.d.comb += n.eq(Mux(negative, -qs, qs))
+            zero_a = pipe.delay(zero, DIVIDE_STAGES, name=f"zero_div{a}")
+            clipped = Mux(zero_a, 0, Mux(n > limit, limit, Mux(n < -limit, -limit, n)))
             m.d.comb += out.normal[a].eq(
                 pipe.register(clipped, name=f"normal{a}", shape=signed(f + 2))
             )
+        magnitude = pipe.delay(m_reg >> shift_reg, DIVIDE_STAGES, name="magnitude")
         m.d.comb += out.magnitude.eq(
-            pipe.register(m_reg >> shift_reg, name="magnitude", shape=out.magnitude.shape())
+            pipe.register(magnitude, name="magnitude", shape=out.magnitude.shape())
         )
         return m

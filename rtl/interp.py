@@ -13,14 +13,27 @@ from __future__ import annotations
 from amaranth import Module, signed, unsigned
 from amaranth.lib import data, wiring
 
-from models.units import interp as model
 from models.units.interp import InterpConfig
 from rtl.common import StallingPipeline, round_shift, unit_ports
 
-__all__ = ["Interp", "LATENCY", "II", "input_layout", "lerp", "output_layout", "sample_shape"]
+__all__ = [
+    "Interp",
+    "LATENCY",
+    "II",
+    "STAGES",
+    "input_layout",
+    "lerp",
+    "lerp_stages",
+    "output_layout",
+    "sample_shape",
+]
 
-LATENCY = model.LATENCY
-II = model.II
+#: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
+#: ``models.units.interp.LATENCY`` must equal it, as the unit tests check).  Each lerp is
+#: two stages: the product ``(b - a) f``, then ``a +`` its rounded shift.
+STAGES = ("promote", "x_product", "x_sum", "y_product", "y_sum", "z_product", "z_sum")
+LATENCY = len(STAGES)
+II = 1
 
 
 def sample_shape(cfg: InterpConfig, voxel_bits: int):
@@ -30,7 +43,30 @@ def sample_shape(cfg: InterpConfig, voxel_bits: int):
 
 def lerp(a, b, f, cfg: InterpConfig):
     """``a + (b - a) f`` for a ``W``-bit weight ``f``, rounded as the model's lerp."""
-    return a + round_shift((b - a) * f, cfg.weight_bits, cfg.rounding)
+    return lerp_sum(a, lerp_product(a, b, f), cfg)
+
+
+def lerp_product(a, b, f):
+    """The first stage of a pipelined :func:`lerp`: ``(b - a) f``."""
+    return (b - a) * f
+
+
+def lerp_sum(a, product, cfg: InterpConfig):
+    """The second stage of a pipelined :func:`lerp`: ``a + round(product / 2**W)``."""
+    return a + round_shift(product, cfg.weight_bits, cfg.rounding)
+
+
+def lerp_stages(pipe, pairs, f, cfg: InterpConfig, wide, name: str) -> list:
+    """The lerps of ``pairs`` ``(a, b)`` at weight ``f`` over two stages of ``pipe``
+    (product, then sum): the registered results, ``wide`` each."""
+    products = [
+        pipe.register(lerp_product(a, b, f), name=f"{name}{k}_p") for k, (a, b) in enumerate(pairs)
+    ]
+    ends = [pipe.register(a, name=f"{name}{k}_a") for k, (a, _) in enumerate(pairs)]
+    return [
+        pipe.register(lerp_sum(ends[k], products[k], cfg), name=f"{name}{k}", shape=wide)
+        for k in range(len(pairs))
+    ]
 
 
 def input_layout(cfg: InterpConfig, voxel_bits: int, signed_input: bool = False):
@@ -83,16 +119,10 @@ class Interp(wiring.Component):
         v = [pipe.register(payload.voxels[c] << s, name=f"v{c}", shape=wide) for c in range(8)]
         fz, fy, fx = (pipe.register(payload.frac[k], name=f"f{k}") for k in range(3))
         # The fractions travel with their samples, one register per stage.
-        x = [
-            pipe.register(lerp(v[c], v[c + 1], fx, cfg), name=f"x{c}", shape=wide)
-            for c in (0, 2, 4, 6)
-        ]
-        fy2, fz2 = pipe.register(fy, name="fy2"), pipe.register(fz, name="fz2")
-        y = [
-            pipe.register(lerp(x[0], x[1], fy2, cfg), name="y0", shape=wide),
-            pipe.register(lerp(x[2], x[3], fy2, cfg), name="y1", shape=wide),
-        ]
-        fz3 = pipe.register(fz2, name="fz3")
-        z = pipe.register(lerp(y[0], y[1], fz3, cfg), name="z", shape=wide)
+        x = lerp_stages(pipe, [(v[c], v[c + 1]) for c in (0, 2, 4, 6)], fx, cfg, wide, "x")
+        fy, fz = pipe.delay(fy, 2, name="fy"), pipe.delay(fz, 2, name="fz")
+        y = lerp_stages(pipe, [(x[0], x[1]), (x[2], x[3])], fy, cfg, wide, "y")
+        fz = pipe.delay(fz, 2, name="fz_y")
+        (z,) = lerp_stages(pipe, [(y[0], y[1])], fz, cfg, wide, "z")
         m.d.comb += self.o.payload.sample.eq(z)
         return m

@@ -29,12 +29,11 @@ for the light sum of ``I kd`` up to 256).
 
 from __future__ import annotations
 
-from amaranth import Module, Mux, Signal, signed, unsigned
+from amaranth import Cat, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In
 
-from models.units import shade as model
 from models.units.shade import ShadeConfig
 from rtl.common import (
     StallingPipeline,
@@ -47,8 +46,19 @@ from rtl.common import (
 
 __all__ = ["Shade", "LATENCY", "II", "input_layout", "output_layout", "load_layout", "MAP_BITS"]
 
-LATENCY = model.LATENCY
-II = model.II
+#: The reflectance-map cell dividers' steps are spread over these many stages.
+DIVIDE_STAGES = 4
+#: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
+#: ``models.units.shade.LATENCY`` must equal it, as the unit tests check).  The Phong
+#: method fills the same ``FRONT`` stages before the combine (its own plan in
+#: :meth:`Shade._phong`, padded).
+FRONT = ("face", "numerator", *("divide",) * DIVIDE_STAGES, "cell", "read")
+STAGES = (*FRONT, "products", "sum")
+LATENCY = len(STAGES)
+II = 1
+#: The Phong front end's own stages: products, dot products, clamp and table index, table
+#: read and coefficient products, per-light terms, light sums.
+PHONG_FRONT = 6
 ONE = 1 << 12
 ONE_BITS = 13
 COEF_BITS = 12  # UQ4.8 (models.units.shade._COEF = 8 fraction bits)
@@ -140,19 +150,22 @@ class Shade(wiring.Component):
         m = Module()
         pipe = StallingPipeline(m, self.i, self.o, LATENCY)
         if self.cfg.method == "phong":
-            rgb3, diffuse, specular = self._phong(m, pipe)
+            diffuse, specular = self._phong(m, pipe)
         else:
-            rgb3, diffuse, specular = self._reflectance_maps(m, pipe)
-        self._combine(m, pipe, rgb3, diffuse, specular)
+            diffuse, specular = self._reflectance_maps(m, pipe)
+        rgb = [
+            pipe.delay(self.i.payload.rgb[k], len(FRONT), name=f"rgb_front{k}") for k in range(3)
+        ]
+        self._combine(m, pipe, rgb, diffuse, specular)
         return m
 
     def _reflectance_maps(self, m, pipe):
-        """Stages 1-3 of the reflectance-map method: face, cell, map reads."""
+        """The ``FRONT`` stages of the reflectance-map method: face, cell, map reads."""
         f, r = self.cfg.normal_frac_bits, self.cfg.map_size
         nbits = f + 2
         n = self.i.payload.normal
 
-        # Stage 1: major axis, sign, the two other components.
+        # "face": major axis, sign, the two other components.
         mag = []
         for k in range(3):
             a = Signal(unsigned(nbits), name=f"abs{k}")
@@ -174,25 +187,38 @@ class Shade(wiring.Component):
         sign1 = pipe.register(sign, name="sign1")
         u1 = pipe.register(u, name="u1", shape=signed(nbits))
         w1 = pipe.register(w, name="w1", shape=signed(nbits))
-        rgb1 = [pipe.register(self.i.payload.rgb[k], name=f"rgb1_{k}") for k in range(3)]
 
-        # Stage 2: cube-map cell.
+        # "numerator": (c + |N|max) R and the divisor 2 |N|max (1 for the zero normal).
         safe = Signal(unsigned(nbits), name="safe")
         m.d.comb += safe.eq(Mux(major1 == 0, 1, major1))
         qbits = bit_length(r)
+        nums = [
+            pipe.register(
+                (comp + safe).as_unsigned() * r, name=f"{name}_num", shape=nbits + 1 + qbits
+            )
+            for name, comp in (("iu", u1), ("iw", w1))
+        ]
+        divisor = pipe.register(safe << 1, name="divisor")
+        face = pipe.register(Cat(sign1, axis1, major1 == 0), name="face")
+
+        # "divide" x DIVIDE_STAGES: the cell along u and w.
         cells = []
-        for name, comp in (("iu", u1), ("iw", w1)):
-            num = Signal(unsigned(nbits + 1 + qbits), name=f"{name}_num")
-            m.d.comb += num.eq((comp + safe).as_unsigned() * r)
-            q = divide_bounded(m, num, safe << 1, qbits, name=f"{name}_div")
+        for name, num in zip(("iu", "iw"), nums, strict=True):
+            q = divide_bounded(
+                m, num, divisor, qbits, name=f"{name}_div", pipe=pipe, stages=DIVIDE_STAGES
+            )
+            q = pipe.register(q, name=f"{name}_q")
             cells.append(Mux(q > r - 1, r - 1, q))
-        index = Mux(major1 == 0, 6 * r * r, (((axis1 << 1) | sign1) * r + cells[0]) * r + cells[1])
+        face = pipe.delay(face, DIVIDE_STAGES, name="face_div")
+
+        # "cell": the map entry, ``6 R^2`` for the zero normal.
+        side, zero = face[:3], face[3]
+        index = Mux(zero, 6 * r * r, (side * r + cells[0]) * r + cells[1])
         index2 = pipe.register(
             index, name="cell", shape=unsigned(bit_length(map_entries(self.cfg) - 1))
         )
-        rgb2 = [pipe.register(rgb1[k], name=f"rgb2_{k}") for k in range(3)]
 
-        # Stage 3: map reads.
+        # "read": the two maps (synchronous SRAMs).
         reads = []
         for table, label in ((0, "diffuse"), (1, "specular")):
             mem = Memory(shape=unsigned(MAP_BITS), depth=map_entries(self.cfg), init=[])
@@ -206,12 +232,11 @@ class Shade(wiring.Component):
             rd = mem.read_port()
             m.d.comb += [rd.addr.eq(index2), rd.en.eq(pipe.advance)]
             reads.append(rd.data)
-        rgb3 = [pipe.register(rgb2[k], name=f"rgb3_{k}") for k in range(3)]
-        return rgb3, reads[0], reads[1]
+        return reads[0], reads[1]
 
     def _phong(self, m, pipe):
-        """Stages 1-3 of the per-sample Phong method: dot products, specular table,
-        light sums."""
+        """The ``FRONT`` stages of the per-sample Phong method: dot products, specular
+        table, light sums (``PHONG_FRONT`` stages), then delays to the combine."""
         f, e = self.cfg.normal_frac_bits, self.cfg.spec_table_entries
         n = self.i.payload.normal
         spec = Memory(shape=unsigned(ONE_BITS), depth=e + 1, init=[])
@@ -222,13 +247,18 @@ class Shade(wiring.Component):
             wr.data.eq(self.load.payload.data),
             wr.en.eq(self.load.valid),
         ]
-        rgb1 = [pipe.register(self.i.payload.rgb[c], name=f"rgb1_{c}") for c in range(3)]
-        diffuse2, reads = [], []
+        diffuse4, specular4 = [], []
         for k in range(self.lights):
             light, half = self.light[k], self.half[k]
-            ndl = round_shift(sum(n[a] * light[a] for a in range(3)), 2 * f - 12, "nearest-up")
-            ndh = round_shift(sum(n[a] * half[a] for a in range(3)), 2 * f - 12, "nearest-up")
-            ndl1 = pipe.register(
+            # Products, then their sums: N.L, N.H.
+            pl = [pipe.register(n[a] * light[a], name=f"nl{k}_{a}") for a in range(3)]
+            ph = [pipe.register(n[a] * half[a], name=f"nh{k}_{a}") for a in range(3)]
+            ndl = pipe.register(sum(pl), name=f"ndl_raw{k}")
+            ndh = pipe.register(sum(ph), name=f"ndh_raw{k}")
+            # Rounded to UQ1.12 and clamped; the specular table's index.
+            ndl = round_shift(ndl, 2 * f - 12, "nearest-up")
+            ndh = round_shift(ndh, 2 * f - 12, "nearest-up")
+            ndl2 = pipe.register(
                 Mux(ndl < 0, 0, Mux(ndl > ONE, ONE, ndl)), name=f"ndl{k}", shape=unsigned(ONE_BITS)
             )
             ndh_c = Mux(ndh < 0, 0, Mux(ndh > ONE, ONE, ndh))
@@ -237,31 +267,38 @@ class Shade(wiring.Component):
                 name=f"spec_index{k}",
                 shape=unsigned(bit_length(e)),
             )
+            # The table read; the light's coefficients I kd and I ks.
             rd = spec.read_port()
             m.d.comb += [rd.addr.eq(index), rd.en.eq(pipe.advance)]
-            reads.append(rd.data)
-            term = round_shift(self.intensity[k] * self.kd * ndl1, 2 * 8, "nearest-up")
-            diffuse2.append(pipe.register(term, name=f"diffuse{k}", shape=unsigned(MAP_BITS)))
-        rgb2 = [pipe.register(rgb1[c], name=f"rgb2_{c}") for c in range(3)]
-        specular = sum(
-            round_shift(self.intensity[k] * self.ks * reads[k], 2 * 8, "nearest-up")
-            for k in range(self.lights)
-        )
+            ndl3 = pipe.register(ndl2, name=f"ndl3_{k}")
+            ikd = pipe.register(self.intensity[k] * self.kd, name=f"ikd{k}")
+            iks = pipe.register(self.intensity[k] * self.ks, name=f"iks{k}")
+            # The light's terms.
+            term = round_shift(ikd * ndl3, 2 * 8, "nearest-up")
+            diffuse4.append(pipe.register(term, name=f"diffuse{k}", shape=unsigned(MAP_BITS)))
+            term = round_shift(iks * rd.data, 2 * 8, "nearest-up")
+            specular4.append(pipe.register(term, name=f"specular{k}", shape=unsigned(MAP_BITS)))
+        # Summed over the lights.
         total = unsigned(MAP_BITS + bit_length(self.lights))
-        specular3 = pipe.register(specular, name="specular", shape=total)
-        diffuse3 = pipe.register(sum(diffuse2), name="diffuse", shape=total)
-        rgb3 = [pipe.register(rgb2[c], name=f"rgb3_{c}") for c in range(3)]
-        return rgb3, diffuse3, specular3
+        specular5 = pipe.register(sum(specular4), name="specular", shape=total)
+        diffuse5 = pipe.register(sum(diffuse4), name="diffuse", shape=total)
+        pad = len(FRONT) - PHONG_FRONT
+        return (
+            pipe.delay(diffuse5, pad, name="diffuse_pad"),
+            pipe.delay(specular5, pad, name="specular_pad"),
+        )
 
-    def _combine(self, m, pipe, rgb3, diffuse, specular):
-        """Stage 4: ``clamp(round(ka c / 2**8) + round(diffuse c / 2**12) + specular)``."""
+    def _combine(self, m, pipe, rgb, diffuse, specular):
+        """ "products": ``round(ka c / 2**8)``, ``round(diffuse c / 2**12)``; "sum": their
+        sum with the specular term, clamped at 1.0."""
+        ambient = [round_shift(self.ka * rgb[k], 8, "nearest-up") for k in range(3)]
+        lit = [round_shift(diffuse * rgb[k], 12, "nearest-up") for k in range(3)]
+        ambient = [pipe.register(ambient[k], name=f"ambient{k}") for k in range(3)]
+        lit = [pipe.register(lit[k], name=f"diffuse_lit{k}") for k in range(3)]
+        specular = pipe.register(specular, name="specular_lit")
         for k in range(3):
-            lit = (
-                round_shift(self.ka * rgb3[k], 8, "nearest-up")
-                + round_shift(diffuse * rgb3[k], 12, "nearest-up")
-                + specular
-            )
-            out = Mux(lit > ONE, ONE, lit)
+            total = ambient[k] + lit[k] + specular
+            out = Mux(total > ONE, ONE, total)
             m.d.comb += self.o.payload.rgb[k].eq(
                 pipe.register(out, name=f"lit{k}", shape=unsigned(ONE_BITS))
             )

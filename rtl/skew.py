@@ -16,14 +16,16 @@ from amaranth import Module, Signal, unsigned
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In
 
-from models.units import skew as model
 from models.units.skew import SkewConfig
 from rtl.common import StallingPipeline, bit_length, divide_by_constant, unit_ports
 
 __all__ = ["Skew", "LATENCY", "II", "input_layout", "output_layout", "address_bits"]
 
-LATENCY = model.LATENCY
-II = model.II
+#: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
+#: ``models.units.skew.LATENCY`` must equal it, as the unit tests check).
+STAGES = ("address",)
+LATENCY = len(STAGES)
+II = 1
 
 
 def _pitch(n: int, p: int) -> int:

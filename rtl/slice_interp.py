@@ -19,8 +19,9 @@ interpolator's x, y, z lerp order with a zero principal weight).  Per cell this 
   clamped to the edge voxel, so its sample is exactly one of these lerps: they are the
   gradient neighbours no other slot evaluates (``lerp(x, x, w) = x`` exactly).
 
-Stages (``LATENCY = 4`` = the trilinear interpolator's, ``II = 1``): input register
-(promote), the ``b`` lerps and the column lerps, the ``a`` lerps, output register.
+Stages (``LATENCY`` = the trilinear interpolator's, ``II = 1``): input register
+(promote), the ``b`` lerps and the column lerps (product, sum), the ``a`` lerps (product,
+sum), then registers to the interpolator's depth.
 """
 
 from __future__ import annotations
@@ -28,15 +29,18 @@ from __future__ import annotations
 from amaranth import Module, unsigned
 from amaranth.lib import data, wiring
 
-from models.units import interp as model
 from models.units.interp import InterpConfig
+from rtl import interp
 from rtl.common import StallingPipeline, unit_ports
-from rtl.interp import lerp, sample_shape
+from rtl.interp import lerp_stages, sample_shape
 
 __all__ = ["SliceInterp", "LATENCY", "II", "input_layout", "output_layout"]
 
-LATENCY = model.LATENCY
-II = model.II
+#: The stage plan: the trilinear interpolator's depth (the Cube-4 rungs time the slice
+#: interpolator as ``models.units.interp.LATENCY``).
+STAGES = ("promote", "b_product", "b_sum", "a_product", "a_sum")
+LATENCY = interp.LATENCY
+II = 1
 
 
 def input_layout(cfg: InterpConfig, voxel_bits: int):
@@ -89,31 +93,20 @@ class SliceInterp(wiring.Component):
         wa1 = pipe.register(payload.wa, name="wa1")
         wb1 = pipe.register(payload.wb, name="wb1")
         rows = [
-            [
-                pipe.register(
-                    lerp(v[k][2 * i], v[k][2 * i + 1], wb1, cfg), name=f"r{k}_{i}", shape=wide
-                )
-                for i in range(2)
-            ]
+            lerp_stages(pipe, [(v[k][0], v[k][1]), (v[k][2], v[k][3])], wb1, cfg, wide, f"r{k}_")
             for k in range(3)
         ]
-        cols = [
-            pipe.register(lerp(v[1][j], v[1][2 + j], wa1, cfg), name=f"c{j}", shape=wide)
-            for j in range(2)
-        ]
-        wa2 = pipe.register(wa1, name="wa2")
-        samples = [
-            pipe.register(lerp(rows[k][0], rows[k][1], wa2, cfg), name=f"s{k}", shape=wide)
-            for k in range(3)
-        ]
-        rows3 = [pipe.register(rows[1][i], name=f"row3_{i}", shape=wide) for i in range(2)]
-        cols3 = [pipe.register(cols[j], name=f"col3_{j}", shape=wide) for j in range(2)]
+        cols = lerp_stages(pipe, [(v[1][0], v[1][2]), (v[1][1], v[1][3])], wa1, cfg, wide, "c")
+        wa2 = pipe.delay(wa1, 2, name="wa2")
+        samples = lerp_stages(
+            pipe, [(rows[k][0], rows[k][1]) for k in range(3)], wa2, cfg, wide, "s"
+        )
+        pad = LATENCY - len(STAGES)
+        rows3 = [pipe.delay(rows[1][i], 2 + pad, name=f"row3_{i}") for i in range(2)]
+        cols3 = [pipe.delay(cols[j], 2 + pad, name=f"col3_{j}") for j in range(2)]
         out = self.o.payload
         for k in range(3):
-            m.d.comb += out.sample[k].eq(pipe.register(samples[k], name=f"sample{k}"))
+            m.d.comb += out.sample[k].eq(pipe.delay(samples[k], pad, name=f"sample{k}"))
         for i in range(2):
-            m.d.comb += [
-                out.row[i].eq(pipe.register(rows3[i], name=f"row{i}")),
-                out.col[i].eq(pipe.register(cols3[i], name=f"col{i}")),
-            ]
+            m.d.comb += [out.row[i].eq(rows3[i]), out.col[i].eq(cols3[i])]
         return m

@@ -56,6 +56,7 @@ from amaranth.lib.wiring import In, Out
 
 from models.datapath import Datapath
 from rtl.common import bit_length, divide_by_constant
+from rtl.composite import LATENCY as COMPOSITE_LATENCY
 from rtl.gradient import RATIO_BITS
 from rtl.shade import COEF_BITS
 from rtl.top_layouts import (
@@ -73,13 +74,14 @@ from rtl.top_pipeline import EVAL_BASE, MAX_LIGHTS, STAGE_BASE, back_end, front_
 # The load targets and word layouts are rtl.top_layouts'; the pipeline stages rtl.top_pipeline's.
 __all__ = ["Cube4Top", "TopConfig", "RMW_WINDOW"]
 
-#: Clocks between a ray's compositing-buffer read and its write becoming visible.
-RMW_WINDOW = 5
+#: Clocks between a ray's compositing-buffer read and its write becoming visible: the
+#: read one clock ahead, the compositor's ``LATENCY``, the write.
+RMW_WINDOW = COMPOSITE_LATENCY + 2
 #: Clocks the core needs at most to empty after the sequencer's last slot, beyond ``2
 #: C_max``: the slot delay (``C + EVAL_BASE``), the front end, the beam wait (``C``) and
 #: the back end (``STAGE_BASE``), the compositor and write-back; a bound, not a timing
 #: value: the frame's ``cycles`` stop at the last pixel popped.
-DRAIN_BOUND = STAGE_BASE + 8
+DRAIN_BOUND = STAGE_BASE + COMPOSITE_LATENCY + 5
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -17,7 +17,7 @@ corner, read from memory at ``t + C + 1`` at the latest, are in the slice buffer
 * **buffer stage** (E1 -> E2): the four corners on the slices ``q - 1``, ``q``, ``q + 1``
   (each buffer keeps four slices in four banks; the period picks which bank is which
   slice; the slice being filled is read through a transparent port) and the ray table;
-* :class:`~rtl.slice_interp.SliceInterp` (4 clocks): the sample on the three slices and
+* :class:`~rtl.slice_interp.SliceInterp` (its ``LATENCY``): the sample on the three slices and
   the edge lerps;
 * **sample beam FIFO**: each pipeline keeps its last ``2 C_max + 1`` samples of slice
   ``q``; ``C`` clocks after a sample (one beam: the gradient look-ahead) its four in-slice
@@ -25,10 +25,11 @@ corner, read from memory at ``t + C + 1`` at the latest, are in the slice buffer
   from pipeline ``m - 1`` ``2 C`` clocks ago, the beam neighbours from pipelines ``m +- 1``
   ``C``, ``C -+ 1`` clocks ago; a neighbour beyond the volume's edge is the sample's own
   edge lerp;
-* :class:`~rtl.gradient.Gradient` (3) -> :class:`~rtl.classify.Classify` with
-  gradient-magnitude modulation (2) -> :class:`~rtl.shade.Shade`, per-sample Phong (4) ->
-  :class:`~rtl.composite.Composite` (3), the compositing buffer read one clock before the
-  compositor and written when it answers.
+* :class:`~rtl.gradient.Gradient` -> :class:`~rtl.classify.Classify` with
+  gradient-magnitude modulation -> :class:`~rtl.shade.Shade`, per-sample Phong ->
+  :class:`~rtl.composite.Composite` (each its own ``LATENCY``, the length of its RTL
+  stage plan), the compositing buffer read one clock before the compositor and written
+  when it answers.
 """
 
 from __future__ import annotations
@@ -36,11 +37,16 @@ from __future__ import annotations
 from amaranth import Array, Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import data
 
+from rtl.classify import LATENCY as CLASSIFY_LATENCY
 from rtl.classify import Classify
 from rtl.common import divide_by_constant
+from rtl.composite import LATENCY as COMPOSITE_LATENCY
 from rtl.composite import Composite
+from rtl.gradient import LATENCY as GRADIENT_LATENCY
 from rtl.gradient import RATIO_BITS, Gradient
 from rtl.shade import COEF_BITS, Shade
+from rtl.shade import LATENCY as SHADE_LATENCY
+from rtl.slice_interp import LATENCY as SLICE_LATENCY
 from rtl.slice_interp import SliceInterp
 from rtl.top_layouts import LOAD_CORRECTION, LOAD_GM, LOAD_LUT, LOAD_SPEC, ray_layout
 
@@ -57,8 +63,9 @@ __all__ = [
 #: Slot issue -> address stage is ``C + EVAL_BASE`` clocks (the next slice's far corner).
 EVAL_BASE = 1
 #: Slot issue -> the sample enters the compositor: ``2 C + STAGE_BASE`` (address 1, buffer
-#: 1, interp 4, look-ahead C, gradient 3, classify 2, shade 4).
-STAGE_BASE = EVAL_BASE + 2 + 4 + 3 + 2 + 4
+#: 1, the slice interpolator, look-ahead C, gradient, classify, shade: each unit's own
+#: ``LATENCY``, its RTL stage plan).
+STAGE_BASE = EVAL_BASE + 2 + SLICE_LATENCY + GRADIENT_LATENCY + CLASSIFY_LATENCY + SHADE_LATENCY
 #: Directional lights the shader sums (unused ones have intensity 0: exactly no light).
 MAX_LIGHTS = 2
 
@@ -220,8 +227,8 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
     for s in range(3):
         for idx in range(4):
             m.d.comb += ip.corners[4 * s + idx].eq(values[s][idx])
-    # Beside the interpolator (4 clocks): ray, takes, last, the slot's flags.
-    side6 = delayed(m, Cat(ray2, takes, last, flags2), 4, f"side{k}")
+    # Beside the interpolator (its LATENCY): ray, takes, last, the slot's flags.
+    side6 = delayed(m, Cat(ray2, takes, last, flags2), SLICE_LATENCY, f"side{k}")
     out = interp.o.payload
     record = {
         "valid": interp.o.valid,
@@ -356,25 +363,27 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
                 shade.light[light][axis].eq(top.light[lo : lo + f + 2]),
                 shade.half[light][axis].eq(top.half[lo : lo + f + 2]),
             ]
-    # gradient (3) -> classify (2): the sample beside the gradient unit.
+    # gradient -> classify: the sample beside the gradient unit.
     m.d.comb += [
         classify.i.valid.eq(gradient.o.valid),
-        classify.i.payload.sample.eq(delayed(m, s_cur, 3, f"sample_g{k}")),
+        classify.i.payload.sample.eq(delayed(m, s_cur, GRADIENT_LATENCY, f"sample_g{k}")),
         classify.i.payload.magnitude.eq(gradient.o.payload.magnitude),
     ]
-    # classify -> shade (4): the normal beside the classifier.
-    normal = delayed(m, gradient.o.payload.normal.as_value(), 2, f"normal{k}")
+    # classify -> shade: the normal beside the classifier.
+    normal = delayed(m, gradient.o.payload.normal.as_value(), CLASSIFY_LATENCY, f"normal{k}")
     m.d.comb += [
         shade.i.valid.eq(classify.o.valid),
         shade.i.payload.rgb.eq(classify.o.payload.rgb),
         shade.i.payload.normal.eq(normal),
     ]
     # shade -> composite: unlit scenes take the classifier's colour (the same clocks).
-    unshaded = delayed(m, classify.o.payload.rgb.as_value(), 4, f"rgb{k}")
-    alpha = delayed(m, classify.o.payload.alpha, 4, f"alpha{k}")
-    sample = delayed(m, s_cur, 3 + 2 + 4, f"sample_c{k}")
+    unshaded = delayed(m, classify.o.payload.rgb.as_value(), SHADE_LATENCY, f"rgb{k}")
+    alpha = delayed(m, classify.o.payload.alpha, SHADE_LATENCY, f"alpha{k}")
+    units = GRADIENT_LATENCY + CLASSIFY_LATENCY + SHADE_LATENCY
+    sample = delayed(m, s_cur, units, f"sample_c{k}")
     side = Cat(ray, last)
-    side8 = delayed(m, side, 8, f"side_c{k}")
+    # The compositing buffer is read one clock before the sample reaches the compositor.
+    side8 = delayed(m, side, units - 1, f"side_c{k}")
     buf_rd = ray_buffer.read_port()
     m.d.comb += [buf_rd.addr.eq(side8[: geo.ray_bits]), buf_rd.en.eq(enable)]
     side9 = delayed(m, side8, 1, f"side9_{k}")
@@ -389,7 +398,7 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
         cp.sample.eq(sample),
     ]
     # Writeback: the compositor's answer, for rays still alive.
-    after = delayed(m, Cat(side9, entry.alive), 3, f"sidew{k}")
+    after = delayed(m, Cat(side9, entry.alive), COMPOSITE_LATENCY, f"sidew{k}")
     ray_w = after[: geo.ray_bits]
     last_w = after[geo.ray_bits]
     alive_w = after[len(side)]

@@ -42,7 +42,11 @@ __all__ = [
     "II",
 ]
 
-LATENCY = 2  # cycles, [I] architectures.md 9.3 (LUT 1-2, on-chip SRAM)
+#: Cycles: the RTL's stage plan (rtl/classify.py STAGES): index, SRAM read, expansion,
+#: modulation, so every stage meets a 125 MHz clock at 0.35 um by the project's depth
+#: estimate (issue 34).  architectures.md 9.3's "LUT 1-2" [I] held only with the
+#: expansion and the modulation multiply in one stage (~60 gates deep, ~88 MHz).
+LATENCY = 4
 II = 1
 ONE = 1 << 12  # 1.0 in UQ1.12
 _GM_SCALE_BITS = 24

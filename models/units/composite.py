@@ -76,9 +76,12 @@ __all__ = [
     "ftb_error_bound",
 ]
 
-#: Cycles from sample in to accumulator updated, [I] from architectures.md 9.3
-#: ("compositor 2-4"; opacity-correction table 1 + multiply 1 + accumulate 1).
-LATENCY = 3
+#: Cycles from sample in to accumulator updated: the RTL's stage plan (rtl/composite.py
+#: STAGES: opacity-correction table 1, weight multiply 1, colour products 1, accumulate
+#: 1), so every stage meets a 125 MHz clock at 0.35 um by the project's depth estimate
+#: (issue 34); within architectures.md 9.3's "compositor 2-4" [I].  Three stages (products
+#: and accumulate in one) were ~50 gates deep (~106 MHz).
+LATENCY = 4
 #: One sample per clock per pipeline (architectures.md 9.4 row 1).
 II = 1
 

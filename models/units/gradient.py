@@ -55,7 +55,11 @@ __all__ = [
     "II",
 ]
 
-LATENCY = 3  # cycles, [I] architectures.md 9.3 (gradient 2-3)
+#: Cycles: the RTL's stage plan (rtl/gradient.py STAGES), pipelined so every stage meets a
+#: 125 MHz clock at 0.35 um by the project's depth estimate (issue 34: the square root over
+#: 12 stages and the dividers over 6, two restoring steps per stage).  architectures.md
+#: 9.3's "gradient 2-3" [I] held only as a 364-gate-deep block (~15 MHz).
+LATENCY = 25
 II = 1
 _RATIO_BITS = 12
 _PART = 8192  # samples per part in sample_differences (speed only)

@@ -50,7 +50,11 @@ __all__ = [
     "II",
 ]
 
-LATENCY = 4  # cycles, [I] architectures.md 9.3 (TriLin 3-4)
+#: Cycles: the RTL's stage plan (rtl/interp.py STAGES): each lerp as a product stage and
+#: a sum stage, so every stage meets a 125 MHz clock at 0.35 um by the project's depth
+#: estimate (issue 34).  architectures.md 9.3's "TriLin 3-4" [I] was one lerp per stage
+#: (~50 gates deep, ~106 MHz).
+LATENCY = 7
 II = 1
 
 

@@ -227,17 +227,24 @@ def unit_ops(
 _C = 13
 # Shading coefficients and light intensities: UQ4.8 (shade._COEF fraction bits).
 _COEF = 12
+# The gradient unit's square-root and divider ranks (rtl/gradient.py SQRT_STAGES and
+# DIVIDE_STAGES: the RTL may import models, not the reverse; its LATENCY checks the sum).
+_SQRT_RANKS, _DIVIDE_RANKS = 12, 6
 
 
 def _interp(s: int, voxel_bits: int, weight_bits: int, lerps: int) -> list[Op]:
-    """interp.lerp_corners: the lerps of ``lerps + 1`` corners, x, then y, then z.  Ranks:
-    the promoted corners and weights (interp.promote_raw: ``B`` bits each, the ``S``
-    promoted bits being zeros), then what each level of lerps leaves (2**k samples and the
-    weights still to use); Cube-4's bilinear sample has two levels and carries its result."""
+    """interp.lerp_corners: the lerps of ``lerps + 1`` corners, x, then y, then z.  Ranks
+    (the RTL's stage plan, rtl/interp.py): the promoted corners and weights
+    (interp.promote_raw: ``B`` bits each, the ``S`` promoted bits being zeros), then per
+    level of lerps its products ``(b - a) w`` beside their ``a`` ends, and what the level
+    leaves (2**k samples), each with the weights still to use; Cube-4's bilinear sample
+    has two levels and carries its result."""
     w = weight_bits + 1
     levels = (lerps + 1).bit_length() - 1
     live = [(lerps + 1) * voxel_bits + levels * w]
-    live += [((lerps + 1) >> k) * s + (levels - k) * w for k in range(1, levels + 1)]
+    for k in range(1, levels + 1):
+        n, later = (lerps + 1) >> k, (levels - k) * w
+        live += [n * (s + 1 + w) + n * s + later, n * s + later]
     return _lerps(lerps, s, weight_bits) + _ranks("interp", live)
 
 
@@ -281,7 +288,24 @@ def _gradient(
         Op("add", g2 + 1, count=3 * n),
         Op("add", n, count=6),
     ]
-    ranks = [3 * g, 3 * g2 + g2 + g, 3 * n + g]
+    # Ranks: the RTL's stage plan (rtl/gradient.py): differences; world-scaled; squares
+    # beside the components; |g|^2; the normalised square and shifted components; the
+    # square root's remainder, partial root and unconsumed input bits (12 ranks); the
+    # dividers' numerators, signs and divisor; their remainders, quotient bits and
+    # unconsumed numerator bits (6 ranks); the normals and the magnitude.
+    s2, shift, side = 2 * g + 1, (f + 2).bit_length(), 3 * g2 + (f + 2).bit_length() + 1
+    num = g2 + 2 * f + 5
+    ranks = [
+        3 * g,
+        3 * g,
+        3 * 2 * g + 3 * g,
+        s2 + 3 * g,
+        max(s2, 2 * (f + 2)) + side,
+        *[max(s2, 2 * (f + 2)) + 2 + side] * _SQRT_RANKS,
+        3 * (num + 1) + 2 * (g + 1) + shift + 1,
+        *[3 * (g + 2 + n) + (g + 1) + 3 + (g + 1) + 1] * _DIVIDE_RANKS,
+        3 * n + g,
+    ]
     return ops + _ranks("gradient", ranks)
 
 
@@ -323,7 +347,18 @@ def _classify(
     if features.gradient_illumination:
         ops.append(Op("table", _C, gm_entries))  # the illumination factors, same index
         out += _C
-    return ops + _ranks("classify", [0, out])
+    # Ranks (the RTL's stage plan, rtl/classify.py): the LUT index and the magnitude
+    # product; the two tables' synchronous reads; the expanded colours and opacity beside
+    # the magnitude factor; the modulated outputs.
+    ranks = [entries.bit_length() + g + scale, 0, 4 * _C + _C, out]
+    return ops + _ranks("classify", ranks)
+
+
+def _combine_ranks(d: int) -> list[int]:
+    """The combine's two ranks (rtl/shade.py): the ambient and diffuse products of each
+    channel beside the specular term; the shaded colours."""
+    ka = (((1 << _COEF) - 1) * 4096 >> 8).bit_length()
+    return [3 * (ka + d + 1) + d, 3 * _C]
 
 
 def _shade_combine(d: int) -> list[Op]:
@@ -379,7 +414,20 @@ def _shade_maps(f: int, r: int, features: Features) -> list[Op]:
     illum = _C if features.gradient_illumination else 0  # the factor, carried to its use
     rgb = 3 * _C + illum
     face = (f + 1) + 2 + 1 + 2 * n  # major, axis (sy + 2 sz), sign, u, w
-    return ops + _ranks("shade", [face + rgb, cell.bit_length() + rgb, rgb, 3 * _C])
+    # Ranks (the RTL's stage plan, rtl/shade.py): the face; the cell numerators and the
+    # divisor; the dividers' remainders, quotient and unconsumed bits (4 ranks, half the
+    # numerator's bits unconsumed on average); the cell
+    # index; the maps' synchronous reads; the combine's products; the shaded colours.
+    divide = 2 * (n + 2 + q + (n + 1 + q) // 2) + (n + 1) + 4 + rgb  # bits consumed on the way
+    ranks = [
+        face + rgb,
+        2 * (n + 1 + q) + (n + 1) + 4 + rgb,
+        *[divide] * 4,
+        cell.bit_length() + rgb,
+        rgb,
+        *_combine_ranks(_TERM),
+    ]
+    return ops + _ranks("shade", ranks)
 
 
 def _shade_phong(f: int, lights: int, entries: int, features: Features) -> list[Op]:
@@ -409,7 +457,19 @@ def _shade_phong(f: int, lights: int, entries: int, features: Features) -> list[
     ops += _illumination(features) + _shade_combine(d)
     illum = _C if features.gradient_illumination else 0
     rgb = 3 * _C + illum
-    ranks = [lights * (_TERM + index) + rgb, lights * _TERM + rgb, 2 * d + rgb, 3 * _C]
+    # Ranks (the RTL's stage plan, rtl/shade.py): per light the six products, the two
+    # dot products, the clamped N.L and table index, the table read beside N.L and the two
+    # coefficient products, the two terms; the light sums (carried to the combine); the
+    # combine's products; the shaded colours.
+    ranks = [
+        lights * 6 * 2 * n + rgb,
+        lights * 2 * dot + rgb,
+        lights * (_C + index) + rgb,
+        lights * (_C + 2 * 2 * _COEF) + rgb,
+        lights * 2 * _TERM + rgb,
+        *[2 * d + rgb] * 3,
+        *_combine_ranks(d),
+    ]
     return ops + _ranks("shade", ranks)
 
 
@@ -417,9 +477,8 @@ def _composite(s: int, acc: int, xray_frac: int, xray_acc: int, features: Featur
     """composite.correct_opacity, front_to_back (ftb_weight_raw, ftb_colour_raw, the
     accumulator's saturation), terminated, and the machine's other blends (mip, minip,
     iso_hit, xray, back_to_front's btf_raw).  Ranks (LATENCY: table 1, multiply 1,
-    accumulate 1): the ROM's synchronous read beside the ray's accumulators (read with the
-    sample, ``front_to_back``'s ``cur``) and the colours; the weight ``w`` beside them; the
-    updated accumulators (MIP, MinIP keep the ray's value in the same accumulator)."""
+    products 1, accumulate 1; listed below); MIP, MinIP keep the ray's value in the same
+    accumulator."""
     blend = features.blend
     ftb = [
         Op("add", _C, count=4),  # _saturate_unit(alpha), _check_unit_inputs(rgb): > 4096
@@ -465,7 +524,12 @@ def _composite(s: int, acc: int, xray_frac: int, xray_acc: int, features: Featur
     if "back-to-front" in features.blends:
         mult_rank = max(mult_rank, 4 * (acc + _C + 1))
     last = regs + (1 if features.early_termination else 0)  # the termination flag
-    return ops + _ranks("composite", [regs + 3 * _C, mult_rank, last])
+    # Ranks (the RTL's stage plan, rtl/composite.py): the ROM read beside the accumulators,
+    # 1 - A and the colours; the weight beside them; the colour products w c beside w and
+    # the accumulators; the updated accumulators.
+    products = max(3 * acc + acc + regs, mult_rank)
+    ranks = [regs + acc + 3 * _C, mult_rank, products, last]
+    return ops + _ranks("composite", ranks)
 
 
 def _crop(features: Features) -> list[Op]:

@@ -37,7 +37,12 @@ __all__ = [
     "II",
 ]
 
-LATENCY = 4  # cycles, [I] architectures.md 9.3 (shader 3-5)
+#: Cycles: the RTL's stage plan (rtl/shade.py STAGES), pipelined so every stage meets a
+#: 125 MHz clock at 0.35 um by the project's depth estimate (issue 34: the reflectance-map
+#: cell dividers over 4 stages, the combine's products and sum apart; the Phong method
+#: fills the same stages).  architectures.md 9.3's "shader 3-5" [I] held only as a
+#: 125-gate-deep block (~42 MHz).
+LATENCY = 10
 II = 1
 ONE = 1 << 12
 _COEF = 8

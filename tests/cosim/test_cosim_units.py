@@ -75,6 +75,9 @@ def test_unit_on_simulator_equals_model(unit: str, sim: str) -> None:
     extremes = len(next(iter(case.stimulus(np.random.default_rng(0), 0).values())))
     assert sum(p["vectors"] for p in report["phases"]) >= 10_000 + 4 * extremes
     for phase in report["phases"]:
-        assert phase["latency_min"] == case.latency
+        assert phase["latency_min"] >= case.latency
         if phase["stall"] == 0:
-            assert phase["latency_max"] == case.latency
+            assert phase["latency_min"] == phase["latency_max"] == case.latency
+        # Backpressured, a transfer sees the declared latency only if no stall falls in
+        # its LATENCY clocks: 0.7**25 ~ 1e-4 for the 25-stage gradient unit (issue 34), so
+        # there the minimum exceeds it; the unstalled phases pin it exactly.

@@ -45,7 +45,7 @@ def same_frame(a, b) -> bool:
 
 # ---------------------------------------------------------------------------- rtl vs cycle
 
-#: The compositor's output registered one clock more (its pipeline four stages deep) and
+#: The compositor's output registered one clock more (its pipeline five stages deep) and
 #: the top's write-back side delayed to match: a retimed RTL that composites the same
 #: image, its pixels one clock later.
 COMPOSITOR_STAGE = (
@@ -56,8 +56,8 @@ COMPOSITOR_STAGE = (
     ),
     Edit(
         "rtl/composite.py",
-        "m.d.comb += out.acc[k].eq(reg)",
-        'm.d.comb += out.acc[k].eq(pipe.register(reg, name=f"acc4_{k}"))',
+        'out.acc[k].eq(pipe.register(value, name=f"acc4_{k}", shape=acc_shape))',
+        'out.acc[k].eq(pipe.register(pipe.register(value, name=f"acc4_{k}"), name=f"acc5_{k}"))',
     ),
     Edit(
         "rtl/composite.py",
@@ -66,14 +66,14 @@ COMPOSITOR_STAGE = (
     ),
     Edit(
         "rtl/composite.py",
-        'out.mip.eq(pipe.register(mip2, name="mip3")),',
-        'out.mip.eq(pipe.register(pipe.register(mip2, name="mip3"), name="mip4")),',
+        'out.mip.eq(pipe.register(mip3, name="mip4")),',
+        'out.mip.eq(pipe.register(pipe.register(mip3, name="mip4"), name="mip5")),',
     ),
 )
 WRITEBACK_ALIGNED = Edit(
     "rtl/top_pipeline.py",
-    'after = delayed(m, Cat(side9, entry.alive), 3, f"sidew{k}")',
-    'after = delayed(m, Cat(side9, entry.alive), 4, f"sidew{k}")',
+    'after = delayed(m, Cat(side9, entry.alive), COMPOSITE_LATENCY, f"sidew{k}")',
+    'after = delayed(m, Cat(side9, entry.alive), COMPOSITE_LATENCY + 1, f"sidew{k}")',
 )
 
 
@@ -82,8 +82,8 @@ WRITEBACK_ALIGNED = Edit(
 def test_rtl_compositor_one_stage_deeper_is_seen_in_the_cycles(original, mutant):
     """rtl vs cycle, cycles.  Mutated: the RTL alone (rtl/composite.py, rtl/top_pipeline.py),
     the compositor one register stage deeper with the top kept consistent, so the image
-    is unchanged and only the timing moves.  Shared: the units' LATENCY constants (the
-    RTL imports them; the mutation leaves them), the host's frame tables (rtl/frame.py
+    is unchanged and only the timing moves.  Shared: the units' config dataclasses (each
+    unit's LATENCY is the RTL's own stage plan here), the host's frame tables (rtl/frame.py
     reads them off the cycle rung's sample plan); the timing is each side's own (an
     import-linter contract keeps the cycle rung's timing out of rtl/)."""
     require(SIM)
@@ -136,8 +136,8 @@ def test_rtl_pixel_fifo_one_entry_shallower_is_seen_in_the_cycles(original, muta
 @pytest.mark.parametrize(
     "edit",
     [
-        # A unit's LATENCY, which the RTL imports too: the RTL stays on the original tree.
-        Edit("models/units/composite.py", "\nLATENCY = 3\n", "\nLATENCY = 4\n"),
+        # A unit's LATENCY, the cycle rung's (the RTL's is its own stage plan).
+        Edit("models/units/composite.py", "\nLATENCY = 4\n", "\nLATENCY = 5\n"),
         # Timing rule 5's FIFO write clock, the cycle rung's own (rtl/ may not import it).
         Edit(
             "models/machines/cube4/timing.py",
@@ -150,9 +150,10 @@ def test_rtl_pixel_fifo_one_entry_shallower_is_seen_in_the_cycles(original, muta
 def test_cycle_rung_latency_one_clock_off_is_seen_against_the_rtl(original, mutant, edit):
     """cycle vs rtl, cycles.  Mutated: the cycle rung alone (its latency sum,
     models/machines/cube4/timing.py ``cube4_latency``, one clock longer); the RTL runs
-    from the original tree.  Shared: ``models.units.composite.LATENCY`` is read by both
-    (the RTL's compositor is that many stages deep), so mutating it in a tree that also
-    ran the RTL would move both sides; ``PIXEL_FIFO_WRITE`` is the cycle rung's alone."""
+    from the original tree.  Shared: nothing of the timing: ``models.units.composite.LATENCY``
+    is the cycle rung's (the RTL's compositor is as deep as its own stage plan,
+    rtl/composite.py ``STAGES``; the unit tests compare the two), ``PIXEL_FIFO_WRITE`` is
+    the cycle rung's alone."""
     require(SIM)
     reference = rtl(original)
     assert same_frame(cycle(original), reference)  # control

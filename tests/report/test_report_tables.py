@@ -142,10 +142,17 @@ def test_the_figures_table_fits_the_page(report):
 
 def test_the_slow_unit_flags_name_only_units_the_machine_has():
     """``hwsim archs`` flags units whose RTL misses the clock: the reflectance-map shader
-    on VolumePro 500, which has it; never on Cube-4, whose shader is Phong."""
+    on VolumePro 500, which has it; never on Cube-4, whose shader is Phong.  Every unit
+    meets the machines' own clocks (issue 34), so each machine runs at 200 MHz here."""
+    import dataclasses
+
     from hwsim.energy import units_below_clock
     from hwsim.run.fidelity import resolve_arch
 
-    assert "shade" in dict(units_below_clock(resolve_arch("volumepro500")))
-    assert "shade" not in dict(units_below_clock(resolve_arch("cube4")))
-    assert "gradient" not in dict(units_below_clock(resolve_arch("volumepro1000")))
+    def slow(name):
+        arch = dataclasses.replace(resolve_arch(name), clock_hz=200e6)
+        return dict(units_below_clock(arch))
+
+    assert "shade" in slow("volumepro500")
+    assert "shade" not in slow("cube4")
+    assert "gradient" not in slow("volumepro1000")

@@ -73,8 +73,8 @@ def tree(tmp_path_factory) -> Path:
 @pytest.mark.parametrize(
     ("path", "old", "new", "rebuilds"),
     [
-        # reach the Verilog: a unit's latency and format, the datapath, a number format
-        ("models/units/shade.py", "LATENCY = 4", "LATENCY = 5", True),
+        # reach the Verilog: a unit's stage plan and format, the datapath, a number format
+        ("rtl/shade.py", "DIVIDE_STAGES = 4", "DIVIDE_STAGES = 3", True),
         ("models/units/composite.py", "_ALPHA_BITS = 12", "_ALPHA_BITS = 11", True),
         ("models/datapath.py", "voxel_bits: int = 12", "voxel_bits: int = 10", True),
         (

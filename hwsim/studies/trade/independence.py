@@ -218,8 +218,9 @@ RTL_VS_CYCLE = Comparison(
     quantity="image, frame cycles and frozen clocks",
     verdict=PARTLY_SHARED,
     shared=(
-        "models.units.*.LATENCY (imported by each rtl/<unit>.py, with II and the unit's "
-        "config dataclass)",
+        "models.datapath.Datapath (the units' config dataclasses; each unit's LATENCY "
+        "is each side's own: the RTL's stage plan, rtl/<unit>.py STAGES, against the "
+        "model's constant, compared by the unit tests)",
         "models.machines.cube4.frame.Cube4Frame (slice axes, C, T, buffer capacities)",
         "hwsim.golden.positions.SamplePlan (the per-slice constants are read off the plan)",
         "models.backend.Backend (host tables: LUT, opacity correction, gradient-magnitude "
@@ -227,7 +228,8 @@ RTL_VS_CYCLE = Comparison(
         "models.units.skew.cube4_module (and cube4_address_zyx: the host's volume write)",
     ),
     own={
-        "rtl rung (Cube-4 top)": "the unit arithmetic in Amaranth; the sequencer, beam and "
+        "rtl rung (Cube-4 top)": "the unit arithmetic and pipeline stages in Amaranth; the "
+        "sequencer, beam and "
         "slice FIFOs, ring, gradient look-ahead, pixel FIFO and freeze as registers "
         "(rtl/ may not import models.machines.cube4.timing: import-linter)",
         _CYCLE: "the timing rules of docs/cycle.md (cube4_latency, cube4_pixel_pushes, "
