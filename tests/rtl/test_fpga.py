@@ -4,9 +4,9 @@ nextpnr-ecp5 (the `fpga` extra), its fpga.json, and the refusals before any work
 import json
 
 import pytest
+from cli_errors import one_line_error
 
 import rtl.fpga
-from cli_errors import one_line_error
 from hwsim.cli.commands import main
 from rtl.fpga import parse_device
 
