@@ -58,3 +58,15 @@ def test_archs_ends_with_each_units_routed_fmax(capsys):
     assert "placed and routed on an LFE5U-85F" in last
     for unit, entry in fpga_measured()["units"].items():
         assert f"{unit} {entry['fmax_mhz']:.0f} MHz" in last
+
+
+def test_each_routed_top_carries_its_what_if_marked_as_one():
+    for name, top in fpga_measured()["tops"].items():
+        if "error" in top:
+            assert top["error"] and top["command"].startswith("hwsim rtl fpga"), name
+            continue
+        assert top["fmax_mhz"] > 0 and top["luts"] > 0 and top["dsps"] > 0, name
+        what = top["what_if"]
+        assert "not a published machine" in what["what"]
+        assert top["what_if_frame_rate"] == pytest.approx(top["fmax_mhz"] * 1e6 / what["cycles"])
+        assert what["teramac_clock_mhz"] == 0.96
