@@ -24,8 +24,12 @@ WORKER_ENV = {"HWSIM_THREADS": "7", "HWSIM_MAX_SAMPLES": "1"}
 
 @pytest.fixture(scope="module")
 def cluster():
-    """A scheduler whose one worker process has WORKER_ENV in its environment."""
-    keys = {f"distributed.nanny.pre-spawn-environ.{k}": v for k, v in WORKER_ENV.items()}
+    """A scheduler whose one worker process has WORKER_ENV in its environment.
+
+    ``nanny.environ`` is set inside the worker process; ``pre-spawn-environ`` would be
+    written into this (the test) process's own environment and stay there, so every
+    later test in the same xdist worker ran with HWSIM_MAX_SAMPLES=1 (seen in CI)."""
+    keys = {f"distributed.nanny.environ.{k}": v for k, v in WORKER_ENV.items()}
     with dask.config.set(keys):
         with LocalCluster(
             n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
