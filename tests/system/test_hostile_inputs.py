@@ -64,7 +64,11 @@ def test_transfer_tables(tmp_path, tables, capsys, name, fragment):
 
 @pytest.mark.parametrize(
     ("value", "fragment"),
-    [("6.5", "6.5 is not an integer"), ("true", "True is not an integer"), ('"6"', "not an")],
+    [
+        ("6.5", "must be an integer, got 6.5"),
+        ("true", "must be an integer, got true"),
+        ('"6"', "must be an integer, got '6'"),
+    ],
 )
 def test_a_bit_width_that_is_not_an_integer(tmp_path, capsys, value, fragment):
     arch = tmp_path / "arch.toml"
