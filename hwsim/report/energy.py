@@ -47,29 +47,7 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
     ):
         if plot is not None:
             blocks.append(("img", plot, alt))
-    rows = []
-    basis = independence = None
-    for unit, entry in area["units"].items():
-        syn = entry.get("synthesized")
-        if syn:
-            meets = {True: "yes", False: "NO", None: "-"}[syn["meets_clock"]]
-            basis = syn.get("fmax_basis", basis)
-            independence = syn.get("independence", independence)
-            rows.append(
-                [
-                    unit,
-                    _g(syn.get("table_logic_mm2")),
-                    _g(syn.get("logic_mm2")),
-                    _g(syn.get("logic_table_over_synthesized"), ".2f"),
-                    _g(syn.get("table_storage_bits"), "d"),
-                    _g(syn["memory_bits"], "d"),
-                    _g(syn.get("storage_mm2")),
-                    str(syn["logic_levels"]),
-                    _g(syn["fmax_hz"] / 1e6 if syn["fmax_hz"] else None, ".0f"),
-                    meets,
-                    *_fpga_cells(entry.get("fpga")),
-                ]
-            )
+    rows, basis, independence = _unit_rows(area)
     if rows:
         blocks.append(
             (
@@ -98,6 +76,35 @@ def energy_blocks(stats: dict[str, Any], out: Path, index: int, not_recorded: st
             ("p", f"Not compared two ways, the RTL being another kind of unit: {listed}.")
         )
     return blocks
+
+
+def _unit_rows(area: dict[str, Any]) -> tuple[list, str | None, str | None]:
+    """Each synthesised unit's row (table vs RTL area, clock, FPGA), the fmax basis and
+    what the two areas share, as the units' entries state them."""
+    rows: list = []
+    basis = independence = None
+    for unit, entry in area["units"].items():
+        syn = entry.get("synthesized")
+        if syn:
+            meets = {True: "yes", False: "NO", None: "-"}[syn["meets_clock"]]
+            basis = syn.get("fmax_basis", basis)
+            independence = syn.get("independence", independence)
+            rows.append(
+                [
+                    unit,
+                    _g(syn.get("table_logic_mm2")),
+                    _g(syn.get("logic_mm2")),
+                    _g(syn.get("logic_table_over_synthesized"), ".2f"),
+                    _g(syn.get("table_storage_bits"), "d"),
+                    _g(syn["memory_bits"], "d"),
+                    _g(syn.get("storage_mm2")),
+                    str(syn["logic_levels"]),
+                    _g(syn["fmax_hz"] / 1e6 if syn["fmax_hz"] else None, ".0f"),
+                    meets,
+                    *_fpga_cells(entry.get("fpga")),
+                ]
+            )
+    return rows, basis, independence
 
 
 def _fpga_cells(fpga: dict[str, Any] | None) -> list[str]:
