@@ -166,3 +166,30 @@ def test_report_plot_names_are_the_planned_ones(tmp_path):
     planned = set(report_paths(out, [run]).values())
     drawn = set(out.glob("*.png"))
     assert drawn and drawn <= planned, drawn - planned
+
+
+def test_a_volume_on_a_sweep_axis_is_read_as_an_input(tmp_path, capsys):
+    """A sweep's volume axis is checked by input_file when the sweep loads (it was only
+    checked to exist): a named pipe there is refused in one line before any run, and a
+    real volume is recorded as read."""
+    import os
+
+    fifo = tmp_path / "pipe.nrrd"
+    os.mkfifo(fifo)
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('schema = 1\n[sweep]\nvolume = ["pipe.nrrd"]\nfidelity = ["golden"]\n'
+                     "image = [8]\n")  # fmt: skip
+    db = tmp_path / "runs.db"
+    assert main(["sweep", str(sweep), "--db", str(db), "--quiet"]) == 2
+    one_line_error(capsys, str(sweep), "sweep.volume[0]", "named pipe")
+    assert not db.exists()
+    volume = tmp_path / "ball.npy"
+    np.save(volume, np.zeros((8, 8, 8), np.uint8))
+    sweep.write_text(sweep.read_text().replace("pipe.nrrd", "ball.npy"))
+    from hwsim.core.paths import reads
+    from hwsim.studies.sweep.spec import load_sweep
+
+    with recording_reads():
+        load_sweep(sweep)
+        read = {Path(path).resolve() for _, path in reads()}
+    assert volume.resolve() in read

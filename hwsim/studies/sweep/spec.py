@@ -369,9 +369,13 @@ def _check(name: str, value: Any, source: str, key: str, base: str) -> None:
             parse_phantom_spec(value)
         except InputError as exc:
             raise InputError(exc.message, source=source, key=key, allowed=exc.allowed) from None
-    elif name == "volume":
-        if not (Path(base) / value).exists():
-            raise InputError(f"no such volume {value!r}", source=source, key=key)
+    elif name == "volume":  # read through input_file: recorded as an input of the command
+        from hwsim.core.paths import input_file
+
+        try:
+            input_file(Path(base) / value, folder=True)  # a folder: a DICOM series
+        except InputError as exc:
+            raise InputError(f"volume {value!r}: {exc.message}", source=source, key=key) from None
     elif name == "arch":
         is_file = value.endswith(".toml") or "/" in value
         if not is_file and value not in builtin_archs():
