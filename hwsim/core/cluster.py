@@ -76,9 +76,6 @@ def local_client(workers: int) -> Iterator[Any]:
         # glibc's mmap threshold at 128 KiB, so every NumPy temporary of a render is a
         # fresh mmap and page faults: a 96^3 functional render took 3x longer.
         "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
-        # One worker per core already: each render runs its frame on one thread
-        # (hwsim.core.threads.frame_threads), unless the user chose otherwise.
-        "distributed.nanny.pre-spawn-environ.HWSIM_THREADS": str(env.value("HWSIM_THREADS") or 1),
         logs.DASK_KEY: verbose,  # read in each worker by the preload, logs.dask_setup
     }
     with _scratch_directory() as scratch, dask.config.set(settings):
@@ -92,6 +89,12 @@ def local_client(workers: int) -> Iterator[Any]:
             local_directory=scratch,
             scheduler_kwargs={"local_directory": scratch},
             preload=[logs.__name__, interrupt.__name__],  # interrupt: workers ignore SIGINT
+            # One worker per core already: each render runs its frame on one thread
+            # (hwsim.core.threads.frame_threads), unless the user chose otherwise. A
+            # nanny argument, set inside each worker process: pre-spawn-environ would
+            # also write it into this process's environment and leave it there (an API
+            # user's later renders in the same process ran on one thread).
+            env={"HWSIM_THREADS": str(env.value("HWSIM_THREADS") or 1)},
             silence_logs=False if verbose else logging.ERROR,
         )
         try:

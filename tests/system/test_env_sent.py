@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import sqlite3
 
-import dask
 import pytest
 from distributed import Client, LocalCluster
 
@@ -26,16 +25,30 @@ WORKER_ENV = {"HWSIM_THREADS": "7", "HWSIM_MAX_SAMPLES": "1"}
 def cluster():
     """A scheduler whose one worker process has WORKER_ENV in its environment.
 
-    ``nanny.environ`` is set inside the worker process; ``pre-spawn-environ`` would be
-    written into this (the test) process's own environment and stay there, so every
-    later test in the same xdist worker ran with HWSIM_MAX_SAMPLES=1 (seen in CI)."""
-    keys = {f"distributed.nanny.environ.{k}": v for k, v in WORKER_ENV.items()}
-    with dask.config.set(keys):
-        with LocalCluster(
-            n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
-            dashboard_address=None,
-        ) as local, Client(local) as client:  # fmt: skip
-            yield local.scheduler_address, client
+    Given as the nannies' ``env`` argument: set inside the worker process and above this
+    process's own variables (``pre-spawn-environ`` was written into this process's
+    environment and stayed: every later test on that xdist worker ran with
+    HWSIM_MAX_SAMPLES=1; ``nanny.environ`` yields to a variable this process has)."""
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address=None, env=WORKER_ENV,
+    ) as local, Client(local) as client:  # fmt: skip
+        yield local.scheduler_address, client
+
+
+def test_a_local_cluster_leaves_this_process_s_environment_alone(monkeypatch):
+    """hwsim's own local cluster gives its workers HWSIM_THREADS=1 inside their
+    processes; through Dask's pre-spawn-environ it was also written into the calling
+    process's environment and stayed (an API user's later renders ran on one thread)."""
+    import os
+
+    from hwsim.core.cluster import local_client
+
+    monkeypatch.delenv("HWSIM_THREADS", raising=False)
+    with local_client(1) as client:
+        assert client.submit(env.value, "HWSIM_THREADS", pure=False).result() == 1
+        assert "HWSIM_THREADS" not in os.environ
+    assert "HWSIM_THREADS" not in os.environ
 
 
 def test_work_carries_the_client_s_values(cluster, monkeypatch):
