@@ -117,7 +117,10 @@ def test_an_override_to_the_default_value_is_the_same_machine(tmp_path):
         ({"image": [0]}, "s.toml: sweep.image[0]: out of range, got 0 (allowed: 1 .. 4096)"),
         ({"image": [[16, 16, 16]]}, "s.toml: sweep.image[0]: must be an array of length <= 2"),
         ({"phantom": ["cube"]}, "s.toml: sweep.phantom[0]: unknown phantom 'cube'"),
-        ({"volume": ["missing.nrrd"]}, "s.toml: sweep.volume[0]: volume 'missing.nrrd': file not found"),
+        (
+            {"volume": ["missing.nrrd"]},
+            "s.toml: sweep.volume[0]: volume 'missing.nrrd': file not found",
+        ),
         (
             {"formats": {"interp": {"nope": [1]}}},
             "s.toml: sweep.formats.interp.nope: unknown format key",
