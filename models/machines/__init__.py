@@ -105,6 +105,11 @@ class Machine:
     check_arch : callable or None
         ``check_arch(arch)``: the family's rules across an architecture file's tables
         (e.g. VIZARD II's one memory channel), raising :class:`InputError` naming the key.
+    independence : dict or None
+        What the family's transaction rung shares with its cycle rung on frame cycles
+        (``verdict``: shared, partly shared or independent; ``shared``: dotted names;
+        ``txn`` and ``cycle``: what each side computes on its own), for a family outside
+        :data:`hwsim.studies.trade.independence.TRANSACTION_VS_CYCLE`.
 
     :func:`check_tables` asks ``buffers`` and ``check_arch`` when a file is loaded.
     """
@@ -123,6 +128,7 @@ class Machine:
     split: type | None = None
     buffers: type | None = None
     check_arch: Callable[..., None] | None = None
+    independence: dict[str, Any] | None = None
 
     def arch_files(self) -> list[Path]:
         """The family's built-in architecture files."""
