@@ -21,7 +21,7 @@ the module count, the skew scheme and the device keys, flat::
 :data:`_RANGES`), :func:`parse_memory` validates it; every bad value raises
 :class:`hwsim.core.errors.InputError` naming the file, the key (``memory.t_rcd``) and the
 allowed range.  The model reads only (volume rendering never writes the volume during a
-frame), so write timings (tWR, tWTR) are not parameters.
+frame), so the write recovery ``t_wr`` is there for the SDRAM checker (rtl/sdram) only.
 """
 
 from __future__ import annotations
@@ -93,6 +93,9 @@ class SdramConfig:
         (0 disables refresh).
     t_rfc : int
         REFRESH to the next command (all banks idle meanwhile).
+    t_wr : int
+        Last write beat to PRECHARGE of the same bank (write recovery).  The model only
+        reads; the SDRAM checker (rtl/sdram) holds writes to it.
     page_policy : str
         One of :data:`PAGE_POLICIES`.
     queue_depth : int
@@ -117,6 +120,7 @@ class SdramConfig:
     t_rrd: int = 2
     t_refi: int = 976
     t_rfc: int = 9
+    t_wr: int = 2
     page_policy: str = "open"
     queue_depth: int = 2
     clock_ratio: float = 1.0
@@ -184,6 +188,7 @@ _RANGES: dict[str, tuple[float, float]] = {
     "t_rrd": (0, 64),
     "t_refi": (0, 1 << 20),
     "t_rfc": (0, 4096),
+    "t_wr": (0, 64),
     "queue_depth": (1, 64),
     "clock_ratio": (1 / 64, 64),
 }
