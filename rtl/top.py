@@ -147,6 +147,10 @@ class Cube4Top(wiring.Component):
     frame_clock : Out(32); frozen, period_start : Out(1)
         Status for traces and ``hwsim rtl diff``: the clock of the frame (0 = the prime
         period's first), the core frozen in this clock, a period's first slot issued.
+    read_slice, read_row : Out; read_valid, read_last : Out(1)
+        The slot the memory read serves this clock: slice ``q``, row ``a``, a read this
+        clock, the row's last slot (the vg500 top holds the core until its SDRAM front
+        end has delivered the voxels: ``rtl/vg500/top.py``).
     """
 
     def __init__(self, dp: Datapath, geo: TopGeometry):
@@ -193,6 +197,10 @@ class Cube4Top(wiring.Component):
                 "frame_clock": Out(32),
                 "frozen": Out(1),
                 "period_start": Out(1),
+                "read_slice": Out(ab),
+                "read_row": Out(ab),
+                "read_valid": Out(1),
+                "read_last": Out(1),
             }
         )
 
@@ -315,6 +323,13 @@ class Cube4Top(wiring.Component):
         mem_c = seq["mem_c"]
         aw = geo.module_addr_bits
         m.d.comb += self.vmem_en.eq(~stall)
+        # The slot read this clock, for a memory that may not have the voxel yet (vg500).
+        m.d.comb += [
+            self.read_slice.eq(mem_c.q),
+            self.read_row.eq(seq["a"]),
+            self.read_valid.eq(seq["mem_valid"]),
+            self.read_last.eq(seq["g"] == self.c - 1),
+        ]
         for k in range(P):
             # Slot voxel of this pipeline: b = P g + ((k - q - a) mod P).
             r = Signal(bit_length(P), name=f"read_r{k}")
