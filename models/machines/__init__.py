@@ -45,6 +45,7 @@ FAMILIES = (
     "models.machines.cube4.machine",
     "models.machines.volumepro.machine",
     "models.machines.vizard2.machine",
+    "models.machines.cube1.machine",
 )
 
 
