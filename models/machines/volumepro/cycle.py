@@ -416,6 +416,7 @@ class SlabMachine(SliceOrderMachine):
             pixel_fifo=pixel_fifo,
             counters=c,
             keep_schedules=self.trace is not None,
+            compiled=be.compiled,
         )
         stages = {
             u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
@@ -427,7 +428,7 @@ class SlabMachine(SliceOrderMachine):
             for stage in stages.values():
                 stage.account(busy_k, cycles_k, stall_k)
         if self.trace is not None:
-            record_trace(self, timing)
+            record_trace(self, timing, deliveries)
         latency = pipeline_latency(self.C)
         drain = pixel_fifo.flush()
         cycles = timing.end + latency + drain

@@ -37,6 +37,7 @@ __all__ = [
     "SlabBuffers",
     "SliceWork",
     "Delivery",
+    "DeliveryTable",
     "FrameTiming",
     "pipeline_latency",
     "run_timing",
@@ -57,6 +58,54 @@ class Delivery:
 
     bursts: list[tuple[np.ndarray, np.ndarray]]
     free_after: int = -1  # global beam index whose end frees it (set by the caller)
+
+
+@dataclass
+class DeliveryTable:
+    """Every delivery of a frame in read order, compactly: module ``k``'s bursts of
+    delivery ``g`` are ``banks[starts[k, g]:starts[k, g + 1]]`` (and ``rows``), each
+    module's bursts contiguous (int32: 8 bytes a burst over a 512^3 frame's ~17 M);
+    ``free_after[g]``: the global beam index whose end frees delivery ``g``."""
+
+    banks: np.ndarray
+    rows: np.ndarray
+    starts: np.ndarray  # (M, G + 1) int64
+    free_after: np.ndarray  # (G,) int64
+
+    def __len__(self) -> int:
+        return int(self.free_after.size)
+
+    def bursts(self, k: int) -> int:
+        """Bursts module ``k`` issues in the frame."""
+        return int(self.starts[k, -1] - self.starts[k, 0])
+
+    def as_list(self) -> list[Delivery]:
+        """The deliveries one object each (the reference loop's form)."""
+        s, M = self.starts, self.starts.shape[0]
+        return [
+            Delivery(
+                [
+                    (self.banks[s[k, g] : s[k, g + 1]], self.rows[s[k, g] : s[k, g + 1]])
+                    for k in range(M)
+                ],
+                int(f),
+            )
+            for g, f in enumerate(self.free_after.tolist())
+        ]
+
+    def twice(self, beam_shift: int) -> DeliveryTable:
+        """The same deliveries read again after this frame's (rule 9): a second frame
+        whose beams come ``beam_shift`` later."""
+        s, M = self.starts, self.starts.shape[0]
+        parts = [slice(int(s[k, 0]), int(s[k, -1])) for k in range(M)]
+        banks = np.concatenate([self.banks[p] for p in parts for _ in range(2)])
+        rows = np.concatenate([self.rows[p] for p in parts for _ in range(2)])
+        local = s - s[:, :1]  # each module's offsets from its first burst
+        size = local[:, -1:]
+        base = np.concatenate([[0], np.cumsum(2 * size[:, 0])[:-1]])[:, None]
+        starts = np.concatenate([local, local[:, 1:] + size], axis=1) + base
+        free = np.concatenate([self.free_after, self.free_after + beam_shift])
+        return DeliveryTable(banks, rows, starts, free)
 
 
 @dataclass
@@ -94,13 +143,14 @@ class FrameTiming:
 
 def run_timing(
     memory: MemoryConfig,
-    deliveries: list[Delivery],
+    table: DeliveryTable,
     slices: list[SliceWork],
     *,
     capacity: int,
     pixel_fifo: DrainFifo,
     counters: Counters,
     keep_schedules: bool = False,
+    compiled: bool = True,
 ) -> FrameTiming:
     """Run the pipelines and the memory of one frame (rules of docs/cycle.md).
 
@@ -108,7 +158,7 @@ def run_timing(
     ----------
     memory : MemoryConfig
         Modules and device timing.
-    deliveries : list of Delivery
+    table : DeliveryTable
         Mini-block beams in read order, ``free_after`` set.
     slices : list of SliceWork
         Processing order.
@@ -119,16 +169,50 @@ def run_timing(
     keep_schedules : bool
         Keep every module's per-burst schedule in ``schedules`` (a waveform needs them);
         otherwise only their ``stats``.
+    compiled : bool
+        Run the loop compiled (:mod:`models.machines.volumepro.timing_kernel`); False
+        runs the reference loop below, one Python call per delivery and module.
     """
     dev = memory.sdram
     controllers = [SdramController(dev) for _ in range(memory.modules)]
     for k, ctl in enumerate(controllers):  # each module's requests, known up front
-        ctl.reserve(sum(d.bursts[k][0].size for d in deliveries))
+        ctl.reserve(table.bursts(k))
     tail = dev.cas_latency + dev.burst_cycles
     n_beams = sum(int(s.needs.size) for s in slices)
     ends = np.zeros(max(n_beams, 1), dtype=np.int64)
-    ready = np.zeros(max(len(deliveries), 1), dtype=np.int64)
+    ready = np.zeros(max(len(table), 1), dtype=np.int64)
     out = FrameTiming()
+    if compiled:
+        from models.machines.volumepro.timing_kernel import play  # imports numba
+
+        play(
+            table, slices, controllers, capacity=capacity, pixel_fifo=pixel_fifo, out=out,
+            ends=ends, ready=ready, tail=tail, ratio=dev.clock_ratio,
+        )  # fmt: skip
+    else:
+        _reference_loop(
+            table.as_list(), slices, controllers, capacity, pixel_fifo, out, ends, ready
+        )
+    # One module's schedule at a time, each controller dropped once read: at 512^3 a
+    # schedule holds ~40 bytes per burst and the frame ~17 M bursts.  The per-burst
+    # arrays are kept only for a waveform.
+    for k, ctl in enumerate(controllers):
+        sched = ctl.schedule()
+        controllers[k] = None
+        out.stats.append(sched.stats)
+        if keep_schedules:
+            out.schedules.append(sched)
+        del sched, ctl
+    out.beam_ends = ends[:n_beams]
+    out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else ends[:0]
+    return out
+
+
+def _reference_loop(deliveries, slices, controllers, capacity, pixel_fifo, out, ends, ready):
+    """The frame's beams and deliveries one Python step at a time (the compiled loop's
+    reference)."""
+    dev = controllers[0].cfg
+    tail = dev.cas_latency + dev.burst_cycles
     state = {"g": 0, "bi": 0}
 
     def deliver() -> None:
@@ -181,19 +265,6 @@ def run_timing(
     while state["g"] < len(deliveries):  # reads no beam waits for (none by construction)
         deliver()
     out.end = t
-    # One module's schedule at a time, each controller dropped once read: at 512^3 a
-    # schedule holds ~40 bytes per burst and the frame ~17 M bursts.  The per-burst
-    # arrays are kept only for a waveform.
-    for k, ctl in enumerate(controllers):
-        sched = ctl.schedule()
-        controllers[k] = None
-        out.stats.append(sched.stats)
-        if keep_schedules:
-            out.schedules.append(sched)
-        del sched, ctl
-    out.beam_ends = ends[:n_beams]
-    out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else ends[:0]
-    return out
 
 
 class SlabBuffers(Schema):

@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hwsim.engine import Counters, DrainFifo
-from models.machines.volumepro.slab_timing import Delivery, SliceWork, run_timing
+from hwsim.memory.sdram_trace import command_trace, record_commands
+from models.machines.volumepro.slab_timing import DeliveryTable, SliceWork, run_timing
 
 if TYPE_CHECKING:
     from models.machines.volumepro.cycle import SlabMachine
@@ -40,12 +41,15 @@ class SliceRecord:
 
 
 def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
-    """Deliveries (mini-block beams to read, in order) and the pipelines' slices."""
+    """Deliveries (mini-block beams to read, in order: a :class:`DeliveryTable`) and the
+    pipelines' slices."""
     n_slabs = needed.shape[1]
     slab_order = range(n_slabs) if m.forward else range(n_slabs - 1, -1, -1)
     index = np.full(needed.shape[:3], -1, dtype=np.int64)
-    deliveries: list[Delivery] = []
     M = m.memory_cfg.modules
+    chunks: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in range(M)]
+    counts: list[np.ndarray] = []  # per slab: (M, beams) bursts of each beam per module
+    n_deliveries = 0
     for si in range(len(sections)):
         for slab in slab_order:
             us = np.flatnonzero(needed[si, slab].any(axis=1))
@@ -55,24 +59,24 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
             per_block = m.memory.words_per_voxel  # bursts per mini-block
             keep = np.repeat(needed[si, slab, us], per_block, axis=1)
             module, bank, row = module[us], bank[us], row[us]
-            # Each module's kept bursts of every beam u at once, split back by beam (in
-            # the beam's order); int32: 8 bytes a burst less over a 512^3 frame's ~17 M.
-            per_module = []
+            # Each module's kept bursts of every beam u at once, in the beams' order.
+            count = np.empty((M, us.size), dtype=np.int64)
             for k in range(M):
                 sel = (module == k) & keep
-                ends = np.cumsum(sel.sum(axis=1)).tolist()
-                starts = [0, *ends[:-1]]
-                banks, rows = bank[sel].astype(np.int32), row[sel].astype(np.int32)
-                per_module.append(
-                    (
-                        [banks[a:b] for a, b in zip(starts, ends, strict=True)],
-                        [rows[a:b] for a, b in zip(starts, ends, strict=True)],
-                    )
-                )
-            for i, u in enumerate(us.tolist()):
-                index[si, slab, u] = len(deliveries)
-                deliveries.append(Delivery([(b[i], r[i]) for b, r in per_module]))
-    free_after = np.full(len(deliveries), -1, dtype=np.int64)
+                count[k] = sel.sum(axis=1)
+                chunks[k].append((bank[sel].astype(np.int32), row[sel].astype(np.int32)))
+            counts.append(count)
+            index[si, slab, us] = n_deliveries + np.arange(us.size)
+            n_deliveries += us.size
+    per = np.concatenate(counts, axis=1) if counts else np.zeros((M, 0), dtype=np.int64)
+    sizes = per.sum(axis=1)
+    starts = np.zeros((M, n_deliveries + 1), dtype=np.int64)
+    np.cumsum(per, axis=1, out=starts[:, 1:])
+    starts += np.concatenate([[0], np.cumsum(sizes)[:-1]])[:, None]
+    empty = np.zeros(0, dtype=np.int32)
+    burst_banks = np.concatenate([b for k in range(M) for b, _ in chunks[k]] or [empty])
+    burst_rows = np.concatenate([r for k in range(M) for _, r in chunks[k]] or [empty])
+    free_after = np.full(n_deliveries, -1, dtype=np.int64)
     slices: list[SliceWork] = []
     beam = 0
     prev_section = 0
@@ -112,15 +116,17 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
                 busy=rec.busy,
             )
         )
-    for g, f in enumerate(free_after.tolist()):
-        deliveries[g].free_after = f
-    return deliveries, slices
+    return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices
 
 
-def record_trace(m: SlabMachine, timing) -> None:
-    """VCD: each SDRAM module's data bus (``memory[m]/o__valid``, pipeline clocks) and
-    the pipelines' beams (``pipelines/i__valid``: a beam is being processed)."""
-    ratio = m.memory_cfg.sdram.clock_ratio
+def record_trace(m: SlabMachine, timing, deliveries: DeliveryTable) -> None:
+    """VCD: each SDRAM module's data bus (``memory[m]/o__valid``, pipeline clocks), its
+    command bus (``memory[m].sdram``: ``cmd``, ``ba``, ``a`` as the device's pins, and a
+    count of commands; :func:`hwsim.memory.sdram_trace.record_commands`, when the memory
+    runs at the pipeline clock) and the pipelines' beams (``pipelines/i__valid``: a beam
+    is being processed)."""
+    sdram = m.memory_cfg.sdram
+    ratio = sdram.clock_ratio
 
     def ranges(first: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         edges = np.concatenate([first, end])
@@ -135,6 +141,11 @@ def record_trace(m: SlabMachine, timing) -> None:
         first = np.floor(sched.data_first / ratio).astype(np.int64)
         end = np.ceil(sched.data_end / ratio).astype(np.int64)
         m.trace.record(f"memory[{k}]", "o__valid", 1, *ranges(first, end))
+        if ratio == 1.0:  # one VCD time unit a memory clock
+            lo, hi = int(deliveries.starts[k, 0]), int(deliveries.starts[k, -1])
+            banks, rows = deliveries.banks[lo:hi], deliveries.rows[lo:hi]
+            commands = command_trace(sdram, sched, banks, rows)
+            record_commands(m.trace, f"memory[{k}].sdram", commands)
     ends = timing.beam_ends
     starts = ends - timing.beam_cycles
     m.trace.record("pipelines", "i__valid", 1, *ranges(starts, ends))
@@ -147,18 +158,18 @@ def frame_period(m: SlabMachine, deliveries, slices, capacity: int) -> int:
     while the second is processed."""
     n_beams = sum(s.needs.size for s in slices)
     n_del = len(deliveries)
-    again = [Delivery(d.bursts, d.free_after + n_beams) for d in deliveries]
     shifted = [
         dataclasses.replace(s, needs=np.where(s.needs >= 0, s.needs + n_del, -1)) for s in slices
     ]
     fifo = DrainFifo("pixel_bus.fifo", m.capacity["pixel_fifo_entries"])
     timing = run_timing(
         m.memory_cfg,
-        deliveries + again,
+        deliveries.twice(n_beams),
         slices + shifted,
         capacity=capacity,
         pixel_fifo=fifo,
         counters=Counters(),
+        compiled=m.be.compiled,
     )
     first = sum(b[0] for b in timing.blocks[: len(slices)])
     return int(timing.end - first)

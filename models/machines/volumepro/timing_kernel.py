@@ -1,0 +1,168 @@
+"""The VolumePro-family frame timing's beam and delivery loop, compiled (numba).
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-9 (the rules
+#      :func:`models.machines.volumepro.slab_timing.run_timing` states and plays in Python).
+
+:func:`play` runs the same loop as the reference path of
+:func:`~models.machines.volumepro.slab_timing.run_timing` -- beams in processing order,
+each waiting for its last needed delivery, deliveries issued in read order to every
+module's SDRAM controller once the input buffer has room -- with the controllers' state
+stacked in arrays and each burst batch scheduled by the same compiled request loop
+(:func:`hwsim.memory.sdram_kernel.schedule_requests`), so a delivery costs no Python call.
+One call per sample slice; the pixel-bus FIFO between slices stays the engine's
+:class:`~hwsim.engine.DrainFifo`.  The controllers get their state back at the end, so their
+schedules (counters, waveform) are the reference path's, bit for bit (tests/models/
+test_cycle_fused.py compares whole frames both ways).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba.typed import List
+
+from hwsim.engine import DeadlockError
+from hwsim.memory.sdram_kernel import schedule_requests
+
+__all__ = ["play"]
+
+# Registers of the loop state ``st``.
+T, G, BI, STALL, STATUS, INFO = range(6)
+NEVER_READ, BUFFER_FULL = 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
+    """Issue delivery ``st[G]`` on every module (``deliver`` of the reference loop);
+    False with ``st[STATUS]`` set when it cannot."""
+    params, regs, bank_state, out, arrivals, n_req, booked, logs, scratch = ctl
+    banks, rows, starts, free_after = table
+    g = st[G]
+    if g >= free_after.shape[0]:
+        st[STATUS] = NEVER_READ
+        return False
+    earliest = 0
+    if g >= capacity:
+        f = free_after[g - capacity]
+        if f >= st[BI]:
+            st[STATUS], st[INFO] = BUFFER_FULL, f
+            return False
+        earliest = ends[f]
+    e_mem = np.int64(np.ceil(earliest * ratio))
+    last = 0
+    for k in range(regs.shape[0]):
+        a, b = starts[k, g], starts[k, g + 1]
+        if a == b:
+            continue
+        i0 = n_req[k]
+        scratch[0] = e_mem  # the batch's first burst waits for the buffer, the rest follow
+        arrivals[k, i0] = e_mem
+        booked[k], logs[k] = schedule_requests(
+            params, regs[k], bank_state[k], banks[a:b], rows[a:b], scratch[: b - a],
+            out[k], i0, booked[k], logs[k],
+        )  # fmt: skip
+        scratch[0] = 0
+        n_req[k] = i0 + (b - a)
+        last = max(last, out[k, 0, i0 + (b - a) - 1] + tail)
+    ready[g] = np.int64(np.ceil(last / ratio))
+    st[G] = g + 1
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _beams(
+    st, needs, cycles, flush, params, regs, bank_state, out, arrivals, n_req, booked, logs,
+    scratch, banks, rows, starts, free_after, ends, ready, capacity, ratio, tail,
+):  # fmt: skip
+    """One slice's beams (or, ``flush``, the reads no beam waits for)."""
+    ctl = (params, regs, bank_state, out, arrivals, n_req, booked, logs, scratch)
+    table = (banks, rows, starts, free_after)
+    t = st[T]
+    for i in range(needs.shape[0]):
+        need = needs[i]
+        while need >= st[G]:
+            if not _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
+                return
+        begin = t if need < 0 or ready[need] <= t else ready[need]
+        st[STALL] += begin - t
+        t = begin + cycles[i]
+        ends[st[BI]] = t
+        st[BI] += 1
+    st[T] = t
+    if flush:
+        while st[G] < table[3].shape[0]:
+            if not _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
+                return
+
+
+def _stacked(controllers):
+    """The controllers' state as arrays the loop indexes by module."""
+    n_max = max(c._out.shape[1] for c in controllers)
+    out = np.zeros((len(controllers), 4, n_max), dtype=np.int64)
+    arrivals = np.zeros((len(controllers), n_max), dtype=np.int64)
+    booked, logs = List(), List()
+    for k, c in enumerate(controllers):
+        out[k, :, : c._n] = c._out[:, : c._n]
+        arrivals[k, : c._n] = c._arrivals[: c._n]
+        booked.append(c._booked)
+        logs.append(c._log)
+    return (
+        controllers[0]._params,
+        np.stack([c._regs for c in controllers]),
+        np.stack([c._banks for c in controllers]),
+        out,
+        arrivals,
+        np.array([c._n for c in controllers], dtype=np.int64),
+        booked,
+        logs,
+    )
+
+
+def _unstack(controllers, ctl) -> None:
+    _, regs, bank_state, out, arrivals, n_req, booked, logs, _ = ctl
+    for k, c in enumerate(controllers):
+        c._regs[:] = regs[k]
+        c._banks[:] = bank_state[k]
+        c._out, c._arrivals = out[k], arrivals[k]
+        c._booked, c._log, c._n = booked[k], logs[k], int(n_req[k])
+
+
+def play(table, slices, controllers, *, capacity, pixel_fifo, out, ends, ready, tail, ratio):
+    """Run the frame's slices and deliveries (``run_timing``'s loop) on ``controllers``
+    (each reserved for its requests); fills ``out`` (a ``FrameTiming``), ``ends`` and
+    ``ready`` as the reference loop does."""
+    scratch = np.zeros(max(int(np.diff(table.starts, axis=1).max(initial=0)), 1), np.int64)
+    ctl = (*_stacked(controllers), scratch)
+    tab = (table.banks, table.rows, table.starts, table.free_after)
+    st = np.zeros(6, dtype=np.int64)
+    for work in [*slices, None]:
+        flush = work is None
+        start_block = int(st[T])
+        st[T] += 0 if flush else work.pre
+        st[STALL] = 0
+        needs = np.zeros(0, np.int64) if flush else work.needs
+        cycles = needs if flush else work.cycles
+        _beams(st, needs, cycles, flush, *ctl, *tab, ends, ready, capacity, ratio, tail)
+        if st[STATUS]:
+            _raise(st, capacity)
+        if flush:
+            break
+        t = int(st[T]) + work.extra
+        pix = pixel_fifo.advance(t - start_block, work.arrivals, start_block)
+        st[T] = t + pix
+        out.memory_stall += int(st[STALL])
+        out.pixel_stall += pix
+        out.blocks.append((int(st[T]) - start_block, int(st[STALL]) + pix + work.pre))
+    out.end = int(st[T])
+    _unstack(controllers, ctl)
+
+
+def _raise(st, capacity: int) -> None:
+    g, bi, f = int(st[G]), int(st[BI]), int(st[INFO])
+    if st[STATUS] == NEVER_READ:
+        raise DeadlockError(f"a beam needs delivery {g}, which the memory never reads")
+    raise DeadlockError(
+        f"input buffer: {capacity} mini-block beams cannot hold the sample "
+        f"window; delivery {g} waits for beam {f} to free a slot while the "
+        f"pipelines wait for it at beam {bi}"
+    )
