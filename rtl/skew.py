@@ -4,9 +4,13 @@ mini-block module/bank/address of a voxel, bit-exact with ``models.units.skew``.
 # Ref: architectures.md sections 1.2 (Cube-4 skew) and 3 (VolumePro 500 two-level
 #      mini-blocks, [I] formulas); models/units/skew.py.
 
-One register stage (``LATENCY = 1``, ``II = 1``).  The volume size ``n`` is a static
-configuration input (a register the host writes before a pass); the module and bank
-counts are elaboration constants, so every ``div`` / ``mod`` by them is a shift or a
+Three register stages (``STAGES``; ``LATENCY = 3``, ``II = 1``), so every stage meets a
+125 MHz clock at 0.35 um by the project's depth estimate (issue 34: one stage was 52
+generic gates deep, ~102 MHz): ``row`` (the row pitches, ``z n + y`` and the coordinate
+sums), ``linear`` (the second product, the linear word index; the modules) and
+``address`` (the divisions by the module and bank counts).  The volume size ``n`` is a
+static configuration input (a register the host writes before a pass); the module and
+bank counts are elaboration constants, so every ``div`` / ``mod`` by them is a shift or a
 reciprocal multiply, and the row pitches are computed from ``n`` the same way.
 """
 
@@ -23,7 +27,7 @@ __all__ = ["Skew", "LATENCY", "II", "input_layout", "output_layout", "address_bi
 
 #: The stage plan: one name per register stage (``LATENCY`` is its length, the RTL's own;
 #: ``models.units.skew.LATENCY`` must equal it, as the unit tests check).
-STAGES = ("address",)
+STAGES = ("row", "linear", "address")
 LATENCY = len(STAGES)
 II = 1
 
@@ -100,37 +104,41 @@ class Skew(wiring.Component):
         def mod(value, d):
             return value - div(value, d) * d
 
+        reg = pipe.register
+        # Stage "row": the pitches, the first product of each layout, the coordinate sums.
         # Cube-4: module (x + y + z) mod P, address ((z n + y) nx + x) div P.
-        nx = Signal(nbits + bit_length(p), name="nx")
-        m.d.comb += nx.eq(div(self.n + (p - 1), p) * p)
-        total = Signal(bit_length(3 * (cfg.max_size - 1)), name="xyz")
-        m.d.comb += total.eq(x + y + z)
         a4_bits, a5_bits = address_bits(cfg)
-        linear = Signal(a4_bits + bit_length(p), name="linear")
-        m.d.comb += linear.eq((z * self.n + y) * nx + x)
-
+        xyz_bits = bit_length(3 * (cfg.max_size - 1))
+        nx = reg(div(self.n + (p - 1), p) * p, name="nx", shape=nbits + bit_length(p))
+        row = reg(z * self.n + y, name="row", shape=2 * nbits)
+        total = reg(x + y + z, name="xyz", shape=xyz_bits)
+        x1 = reg(x, name="x1")
         # VolumePro 500: mini-block b = (x, y, z) >> 1, s = bx + by + bz.
         bx, by, bz = x >> 1, y >> 1, z >> 1
-        s = Signal(total.shape().width, name="s")
-        m.d.comb += s.eq(bx + by + bz)
         nb = Signal(nbits, name="nb")
         m.d.comb += nb.eq((self.n + 1) >> 1)
-        nbx = Signal(nbits + bit_length(mk), name="nbx")
-        m.d.comb += nbx.eq(div(nb + (mk - 1), mk) * mk)
-        lb = Signal(a5_bits + bit_length(mk), name="lb")
-        m.d.comb += lb.eq((bz * nb + by) * nbx + bx)
-        s_div_m = Signal(s.shape().width, name="s_div_m")
-        m.d.comb += s_div_m.eq(div(s, p))
-        offset = Signal(3, name="offset")
-        m.d.comb += offset.eq((z[0] << 2) | (y[0] << 1) | x[0])
+        nbx = reg(div(nb + (mk - 1), mk) * mk, name="nbx", shape=nbits + bit_length(mk))
+        brow = reg(bz * nb + by, name="brow", shape=2 * nbits)
+        s = reg(bx + by + bz, name="s", shape=xyz_bits)
+        bx1 = reg(bx, name="bx1")
+        offset = reg((z[0] << 2) | (y[0] << 1) | x[0], name="offset", shape=3)
 
+        # Stage "linear": the word index of each layout; the modules; s div M.
+        linear = reg(row * nx + x1, name="linear", shape=a4_bits + bit_length(p))
+        lb = reg(brow * nbx + bx1, name="lb", shape=a5_bits + bit_length(mk))
+        module = reg(mod(total, p), name="module2")
+        vp_module = reg(mod(s, p), name="vp_module2")
+        s_div_m = reg(div(s, p), name="s_div_m", shape=xyz_bits)
+        offset2 = reg(offset, name="offset2")
+
+        # Stage "address": the divisions by the module and bank counts.
         out = self.o.payload
         fields = {
-            "module": mod(total, p),
+            "module": module,
             "address": div(linear, p),
-            "vp_module": mod(s, p),
+            "vp_module": vp_module,
             "vp_bank": mod(s_div_m, k),
-            "vp_address": (div(lb, mk) << 3) | offset,
+            "vp_address": (div(lb, mk) << 3) | offset2,
         }
         for name, value in fields.items():
             m.d.comb += getattr(out, name).eq(

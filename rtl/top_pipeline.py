@@ -11,9 +11,13 @@ A pipeline evaluates one cell per slot.  Slot ``t`` of the step's period is eval
 + 1`` clocks after the sequencer issued it (so the next slice's voxels of the cell's far
 corner, read from memory at ``t + C + 1`` at the latest, are in the slice buffer):
 
-* **address stage** (E0 -> E1): cell ``(a - da, b - db)``, corners clamped to the
-  volume, the in-bank address of each corner and which neighbouring pipeline's buffer
-  (offset ``-2 .. 2``) holds it;
+* **address stage** (E0 -> E1, ``ADDRESS_LATENCY`` clocks): cell ``(a - da, b - db)``,
+  corners clamped to the volume, the in-bank address of each corner and which
+  neighbouring pipeline's buffer (offset ``-2 .. 2``) holds it: the skewed memory's
+  address and de-skew, computed here for the slice buffers rather than by
+  :class:`~rtl.skew.Skew` (docs/rtl.md), and given the skew unit's stage plan
+  (``rtl.skew.LATENCY``: the cycle rung's ``skew.LATENCY`` of timing rule 5; its first
+  clock the registers below, the others plain delay registers);
 * **buffer stage** (E1 -> E2): the four corners on the slices ``q - 1``, ``q``, ``q + 1``
   (each buffer keeps four slices in four banks; the period picks which bank is which
   slice; the slice being filled is read through a transparent port) and the ray table;
@@ -46,6 +50,7 @@ from rtl.gradient import LATENCY as GRADIENT_LATENCY
 from rtl.gradient import RATIO_BITS, Gradient
 from rtl.shade import COEF_BITS, Shade
 from rtl.shade import LATENCY as SHADE_LATENCY
+from rtl.skew import LATENCY as ADDRESS_LATENCY
 from rtl.slice_interp import LATENCY as SLICE_LATENCY
 from rtl.slice_interp import SliceInterp
 from rtl.top_layouts import LOAD_CORRECTION, LOAD_GM, LOAD_LUT, LOAD_SPEC, ray_layout
@@ -55,6 +60,7 @@ __all__ = [
     "front_end",
     "back_end",
     "modulo",
+    "ADDRESS_LATENCY",
     "EVAL_BASE",
     "STAGE_BASE",
     "MAX_LIGHTS",
@@ -62,10 +68,18 @@ __all__ = [
 
 #: Slot issue -> address stage is ``C + EVAL_BASE`` clocks (the next slice's far corner).
 EVAL_BASE = 1
-#: Slot issue -> the sample enters the compositor: ``2 C + STAGE_BASE`` (address 1, buffer
-#: 1, the slice interpolator, look-ahead C, gradient, classify, shade: each unit's own
-#: ``LATENCY``, its RTL stage plan).
-STAGE_BASE = EVAL_BASE + 2 + SLICE_LATENCY + GRADIENT_LATENCY + CLASSIFY_LATENCY + SHADE_LATENCY
+#: Slot issue -> the sample enters the compositor: ``2 C + STAGE_BASE`` (address
+#: ``ADDRESS_LATENCY``, buffer 1, the slice interpolator, look-ahead C, gradient, classify,
+#: shade: each unit's own ``LATENCY``, its RTL stage plan).
+STAGE_BASE = (
+    EVAL_BASE
+    + ADDRESS_LATENCY
+    + 1
+    + SLICE_LATENCY
+    + GRADIENT_LATENCY
+    + CLASSIFY_LATENCY
+    + SHADE_LATENCY
+)
 #: Directional lights the shader sums (unused ones have intensity 0: exactly no light).
 MAX_LIGHTS = 2
 
@@ -170,6 +184,16 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
     m.d.sync += side1.eq(Cat(ray[: geo.ray_bits], inside, slot_valid, j[: ab + 1], flags))
     wts = Signal(2 * dp.interp.weight.width, name=f"weights1_{k}")
     m.d.sync += wts.eq(Cat(consts.wa, consts.wb))
+
+    # The address stage's remaining clocks (ADDRESS_LATENCY - 1 of them).
+    extra = ADDRESS_LATENCY - 1
+    corners = [
+        (idx, delayed(m, addr, extra, f"{addr.name}_a"), delayed(m, off, extra, f"{off.name}_a"))
+        for idx, addr, off in corners
+    ]
+    banks, shifts, side1, wts = (
+        delayed(m, v, extra, f"{v.name}_a") for v in (banks, shifts, side1, wts)
+    )
 
     # ---------------------------------------------------------- E1 -> E2: buffer stage
     banks2 = Signal(6, name=f"banks2_{k}")

@@ -42,15 +42,20 @@ def arch_technology(arch, technology: str | None = None) -> Technology:
 def units_below_clock(arch, technology: str | None = None) -> list[tuple[str, float]]:
     """``(unit, fmax_hz)`` of each datapath unit of ``arch`` whose synthesised RTL cannot
     run at the machine's clock in ``technology`` (default: the machine's own node); only
-    units the machine has, of the RTL's kind (:func:`~hwsim.energy.model.rtl_kind_differs`)."""
+    units the machine has, of the RTL's kind (:func:`~hwsim.energy.model.rtl_kind_differs`),
+    and the skewed memory's address unit where the family has one (``skew_memory``)."""
     from hwsim.energy.model import machine_units, rtl_kind_differs
     from hwsim.energy.synth import unit_silicon
     from models.datapath import Datapath
+    from models.machines import machine_for
 
     tech = arch_technology(arch, technology)
     dp = Datapath.from_arch(arch, max(arch.value_bits))
+    units = [u for u in machine_units(arch) if not rtl_kind_differs(u, dp)]
+    if machine_for(arch).skew_memory:
+        units.append("skew")
     out = []
-    for unit in (u for u in machine_units(arch) if not rtl_kind_differs(u, dp)):
+    for unit in units:
         syn = unit_silicon(unit, tech, arch.clock_hz)
         if syn is not None and syn["meets_clock"] is False:
             out.append((unit, syn["fmax_hz"]))

@@ -111,6 +111,10 @@ class Machine:
         (``verdict``: shared, partly shared or independent; ``shared``: dotted names;
         ``txn`` and ``cycle``: what each side computes on its own), for a family outside
         :data:`hwsim.studies.trade.independence.TRANSACTION_VS_CYCLE`.
+    skew_memory : bool
+        The family's cycle rung reads voxels through the skewed-memory address unit
+        (:mod:`models.units.skew`, its ``LATENCY`` in the timing rules), so ``hwsim
+        archs`` checks that unit's clock beside the datapath's.
 
     :func:`check_tables` asks ``buffers`` and ``check_arch`` when a file is loaded.
     """
@@ -130,6 +134,7 @@ class Machine:
     buffers: type | None = None
     check_arch: Callable[..., None] | None = None
     independence: dict[str, Any] | None = None
+    skew_memory: bool = False
 
     def arch_files(self) -> list[Path]:
         """The family's built-in architecture files."""

@@ -45,9 +45,11 @@ __all__ = [
     "vp500_voxel",
 ]
 
-#: Cycles, [I] from architectures.md 9.1 / 9.3 (address generation registered, de-skew
-#: crossbar 1 cycle, "de-skew 1"); SDRAM CAS latency belongs to the memory model.
-LATENCY = 1
+#: Cycles: the RTL's stage plan (rtl/skew.py STAGES: row, linear, address), pipelined so
+#: every stage meets a 125 MHz clock at 0.35 um by the project's depth estimate (issue 34;
+#: architectures.md 9.1 / 9.3's "de-skew 1" [I] held only as a 52-gate-deep stage, ~102
+#: MHz); SDRAM CAS latency belongs to the memory model.
+LATENCY = 3
 #: One access per module per clock.
 II = 1
 

@@ -19,6 +19,7 @@ from hwsim.spec.scene import TransferSpec
 from hwsim.volumes import make_phantom, read_volume
 from hwsim.volumes.volume import Volume
 from models.machines.cube4.cycle import UNITS
+from models.units import skew
 
 pytestmark = pytest.mark.model
 
@@ -107,15 +108,17 @@ def test_counters_add_up_and_throughput_never_exceeds_P(head):
 
 def test_axis_aligned_cycle_count_has_its_closed_form():
     """Timing rules of docs/cycle.md: the prime slice and n - 1 slices of n ceil(n / P)
-    clocks; the last slice's first pixels leave the pipeline latency later (address 1,
-    slice-buffer read 1, beam alignment C + 1, gradient look-ahead C, Cube-4's units, the
-    pixel FIFO's write 1) and the bus drains every ray one per clock (P arrive per clock)."""
+    clocks; the last slice's first pixels leave the pipeline latency later (address
+    skew.LATENCY, slice-buffer read 1, beam alignment C + 1, gradient look-ahead C,
+    Cube-4's units, the pixel FIFO's write 1) and the bus drains every ray one per clock
+    (P arrive per clock)."""
     n, P = 16, 4
     vol = make_phantom("head", size=n)
     fixed, cycle, plan = functional_and_cycle(scene_of(0, 0, size=n), vol, "cube4")
     C = -(-n // P)
     units = ("interp", "gradient", "classify", "shade", "composite")  # no crop on Cube-4
-    latency = 1 + 1 + (C + 1) + C + sum(UNITS[u].LATENCY for u in units) + 1
+    assert skew.LATENCY == 3  # the skew unit's three stages (issue 34)
+    latency = skew.LATENCY + 1 + (C + 1) + C + sum(UNITS[u].LATENCY for u in units) + 1
     rays = plan.ray_ids.size  # all finish on the last slice; the bus drains one per clock
     assert cycle.cycles == n * n * C + latency + rays
     assert cycle.counters["pipeline.latency_cycles"] == latency

@@ -38,6 +38,7 @@ from models.machines.common.transaction import slice_loads
 from models.machines.cube4.cycle import UNITS
 from models.machines.cube4.transaction import busiest_lanes
 from models.transaction import render_transaction, transaction_timing
+from models.units import skew
 
 pytestmark = pytest.mark.model
 
@@ -192,7 +193,7 @@ def test_axis_aligned_frame_has_the_cycle_rules_closed_form():
     timing = transaction_timing(frame_of(scene, volume, tf, cube4(P), plan))
     C = -(-n // P)
     units = ("interp", "gradient", "classify", "shade", "composite")  # no crop on Cube-4
-    latency = 1 + 1 + (C + 1) + C + sum(UNITS[u].LATENCY for u in units) + 1
+    latency = skew.LATENCY + 1 + (C + 1) + C + sum(UNITS[u].LATENCY for u in units) + 1
     assert timing.cycles == n * n * C + latency + plan.ray_ids.size
     # The drain: the clocks after the sequencer's last period ((n + 1) of n C clocks).
     assert timing.counters["pixel_bus.drain_cycles"] == timing.cycles - (n + 1) * n * C

@@ -44,6 +44,7 @@ from hwsim.volumes import make_phantom, read_volume
 from models.frame import frame_of
 from models.machines.cube4.cycle import UNITS
 from models.transaction import transaction_timing
+from models.units import skew
 
 pytestmark = pytest.mark.model
 
@@ -127,7 +128,7 @@ def test_cycles_never_beat_the_pipelines_and_a_narrow_memory_is_the_bottleneck(h
     t, plan = timing(scene, head, machine)
     n, P = head.shape[0], machine.pipelines
     C = -(-n // P)
-    latency = 1 + C + 1 + sum(u.LATENCY for u in UNITS.values())
+    latency = skew.LATENCY + C + 1 + sum(u.LATENCY for u in UNITS.values())
     assert t.cycles >= plan.n_steps * n * C + latency
     narrow = dataclasses.replace(machine, memory={**machine.memory, "modules": 2})
     slow, _ = timing(scene, head, narrow)

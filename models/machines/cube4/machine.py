@@ -25,4 +25,5 @@ MACHINE = Machine(
     accesses=silicon.accesses,
     split=BandSplit,
     buffers=Cube4Buffers,
+    skew_memory=True,
 )

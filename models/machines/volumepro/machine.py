@@ -42,4 +42,5 @@ MACHINE = Machine(
     silicon=silicon.silicon,
     accesses=silicon.accesses,
     buffers=SlabBuffers,
+    skew_memory=True,
 )
