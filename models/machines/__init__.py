@@ -46,6 +46,7 @@ FAMILIES = (
     "models.machines.volumepro.machine",
     "models.machines.vizard2.machine",
     "models.machines.cube1.machine",
+    "models.machines.vogue.machine",
     "models.machines.texslicer.machine",
 )
 

@@ -1,0 +1,1 @@
+"""VOGUE: modules casting whole host-defined rays, joined by a ring network."""
