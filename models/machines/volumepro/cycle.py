@@ -108,6 +108,7 @@ class SlabMachine(SliceOrderMachine):
             stuck_bank=self.faults.stuck_bank,
             source=arch.source,
             words_per_voxel=words_per_voxel(backend.volume, self.memory_cfg),
+            kept_for=(backend.volume, self.dp.voxel_bits),
         )
         self.datapath = self._slice_datapath()
         self.weight_one = 1 << self.dp.interp.weight_bits
@@ -122,6 +123,7 @@ class SlabMachine(SliceOrderMachine):
         self._planes: dict[int, dict[str, np.ndarray]] = {}
         self._voxels: dict[int, np.ndarray] = {}
         self._diffed: set[int] = set()  # slices whose gradient planes are in _planes
+        self._taps: dict[float, tuple[int, int, int]] = {}  # k_taps by slice position
         # Rule 6: the sequencer reads a slab up to two slabs (four voxel slices) before
         # the slice that consumes it, so it knows the termination mask of that many sample
         # slices earlier.
@@ -145,11 +147,14 @@ class SlabMachine(SliceOrderMachine):
         p = float(pk[0]) if np.ndim(pk) else float(pk)
         if np.ndim(pk) and pk.size and not (pk == p).all():
             raise AssertionError("samples of one step lie on one slice")
-        n = self.n_kp
-        p = min(max(p, 0.0), n - 1.0)
-        i0 = int(min(np.floor(p), max(n - 2, 0)))
-        w = int(self.dp.interp.weight.quantize(np.array([p - i0]))[0])
-        return i0, min(i0 + 1, n - 1), w
+        taps = self._taps.get(p)
+        if taps is None:  # once per slice position (the windows and every source ask)
+            n = self.n_kp
+            c = min(max(p, 0.0), n - 1.0)
+            i0 = int(min(np.floor(c), max(n - 2, 0)))
+            w = int(self.dp.interp.weight.quantize(np.array([c - i0]))[0])
+            taps = self._taps[p] = (i0, min(i0 + 1, n - 1), w)
+        return taps
 
     def nearest_slice(self, pk: np.ndarray) -> int:
         p = float(pk[0]) if pk.size else 0.0

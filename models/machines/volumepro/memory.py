@@ -28,6 +28,9 @@ checks the skew: each run of ``M`` consecutive mini-blocks along a beam must com
 
 from __future__ import annotations
 
+import functools
+import weakref
+
 import numpy as np
 
 from hwsim.core.errors import InputError
@@ -37,6 +40,11 @@ from models.machines.common.slices import SliceSchedule, slice_schedule
 from models.units import skew as sk
 
 __all__ = ["SdramVolume", "layout", "mini_block_bursts", "words_per_voxel"]
+
+
+#: The SDRAM words of a volume (:meth:`SdramVolume._load`), by memory layout; dropped
+#: with the volume.
+_WORDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def words_per_voxel(volume, memory: MemoryConfig) -> int:
@@ -97,6 +105,9 @@ class SdramVolume:
         Fault: bank ``b`` of module ``k`` returns ``value`` for every word.
     source : str, optional
         The arch file, named when the volume does not fit the devices.
+    kept_for : (Volume, int), optional
+        The volume ``raw`` was converted from and the voxel width it was converted to:
+        the written words are then kept with the volume for its later frames.
     """
 
     def __init__(
@@ -110,6 +121,7 @@ class SdramVolume:
         stuck_bank: tuple[int, int, int] | None = None,
         source: str | None = None,
         words_per_voxel: int = 1,
+        kept_for: tuple[object, int] | None = None,
     ) -> None:
         self.shape = tuple(int(v) for v in raw.shape)
         self.words_per_voxel = int(words_per_voxel)
@@ -117,7 +129,14 @@ class SdramVolume:
         self.M, self.K = memory.modules, memory.sdram.banks
         self.n = max(2, max(self.shape) + max(self.shape) % 2)
         self.stuck_module, self.stuck_bank = stuck_module, stuck_bank
-        self.words = self._load(raw)
+        # The host's write depends on the voxels and the layout alone: kept per volume
+        # (dropped with it), so a turntable's later frames do not write it again.
+        kept = _WORDS.setdefault(kept_for[0], {}) if kept_for is not None else {}
+        key = (memory, self.n, raw.dtype.str, raw.shape, kept_for and kept_for[1])
+        if key not in kept:
+            kept.clear()  # one layout per volume: a 512^3 one is 0.27 GB
+            kept[key] = self._load(raw)
+        self.words = kept[key]
         # The value words held here; the device holds every word of every voxel.
         stored = self.words.shape[2] * self.words_per_voxel
         rows = -(-stored // memory.sdram.columns)
@@ -181,15 +200,7 @@ class SdramVolume:
     def _conflicts(self, kp: int, q: int) -> int:
         """Runs of M consecutive mini-blocks along a beam of slice ``q`` that hit a module
         twice (0 for the mini-block and block layouts: ``s`` grows by one per mini-block)."""
-        axes = [ax for ax in range(3) if ax != kp]
-        n_a, n_b = self.shape[axes[0]], self.shape[axes[1]]
-        coords = [None, None, None]
-        coords[kp] = np.full((n_a, -(-n_b // 2)), q)
-        coords[axes[0]] = np.arange(n_a)[:, None] + 0 * coords[kp]
-        coords[axes[1]] = 2 * np.arange(-(-n_b // 2))[None, :] + 0 * coords[kp]
-        module = layout(self.memory, self.n, coords[2], coords[1], coords[0])[0]
-        window = min(self.M, module.shape[1])
-        return int(sum(np.count_nonzero(module[:, :-k] == module[:, k:]) for k in range(1, window)))
+        return _slice_conflicts(self.memory, self.n, self.shape, kp, q)
 
     def slab_bursts(self, kp: int, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bursts of slab ``slab`` (voxel slices ``2 slab``, ``2 slab + 1`` along ``kp``):
@@ -212,3 +223,18 @@ class SdramVolume:
         self.counters.add_lanes("memory.module[{}].words_read", words)
         self.counters.add_lanes("memory.module[{}].read_bytes", 2 * words)
         self.reads[:] = 0
+
+
+@functools.lru_cache(maxsize=4096)
+def _slice_conflicts(memory: MemoryConfig, n: int, shape: tuple, kp: int, q: int) -> int:
+    """:meth:`SdramVolume._conflicts`: a property of the layout alone, so counted once per
+    slice of a volume shape and memory (a turntable's frames read the same slices)."""
+    axes = [ax for ax in range(3) if ax != kp]
+    n_a, n_b = shape[axes[0]], shape[axes[1]]
+    coords = [None, None, None]
+    coords[kp] = np.full((n_a, -(-n_b // 2)), q)
+    coords[axes[0]] = np.arange(n_a)[:, None] + 0 * coords[kp]
+    coords[axes[1]] = 2 * np.arange(-(-n_b // 2))[None, :] + 0 * coords[kp]
+    module = layout(memory, n, coords[2], coords[1], coords[0])[0]
+    window = min(memory.modules, module.shape[1])
+    return int(sum(np.count_nonzero(module[:, :-k] == module[:, k:]) for k in range(1, window)))
