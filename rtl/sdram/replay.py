@@ -41,8 +41,15 @@ def check_vcd(path, cfg: SdramConfig, simulator: str = "verilator", **override) 
     Raises
     ------
     hwsim.core.errors.InputError
-        When the VCD holds no SDRAM command bus (not a VolumePro-family cycle-rung trace).
+        When the VCD holds no SDRAM command bus (not a VolumePro-family cycle-rung trace),
+        or the device is DDR (``data_rate = 2``, VolumePro 1000: the checker is SDR's).
     """
+    if cfg.data_rate != 1:
+        raise InputError(
+            f"the SDRAM checker models SDR devices; this one is data_rate {cfg.data_rate}",
+            key="memory.data_rate",
+            allowed="1 (SDR: VolumePro 500, EM-Cube)",
+        )
     traces = read_vcd_commands(path)
     if not traces:
         raise InputError(

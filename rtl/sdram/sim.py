@@ -60,6 +60,8 @@ def simulators() -> list[str]:
 def params_of(cfg: SdramConfig, **override: int) -> dict[str, int]:
     """The Verilog parameters of ``sdram_tb`` for device ``cfg`` (clocks), ``override``
     replacing any (e.g. ``T_RP=3`` for a mutated checker)."""
+    if cfg.data_rate != 1:
+        raise ValueError(f"data_rate {cfg.data_rate}: the device and checker are SDR (1)")
     params = {
         "CL": cfg.cas_latency,
         "BL": cfg.burst_length,
