@@ -106,13 +106,16 @@ def prepare_vg500(frame: Frame) -> Vg500Program:
     return Vg500Program(program, timing, int(entries), rows, words)
 
 
-def device_image(raw: np.ndarray, memory, timing: SdramTiming) -> tuple[int, list[list[int]]]:
-    """The host's write of ``raw`` into the modules: rows per bank used, and per module
-    the words in ``(bank rows + row) columns + column`` order."""
+def device_image(
+    raw: np.ndarray, memory, timing: SdramTiming, *, rows: int | None = None
+) -> tuple[int, list[list[int]]]:
+    """The host's write of ``raw`` into the modules: rows per bank (``rows``, default
+    those the volume uses), and per module the words in ``(bank rows + row) columns +
+    column`` order."""
     n = max(2, max(raw.shape) + max(raw.shape) % 2)
     z, y, x = np.meshgrid(*(np.arange(s) for s in raw.shape), indexing="ij")
     module, bank, address = layout(memory, n, x, y, z)
-    rows = int(address.max()) // timing.columns + 1
+    rows = rows or int(address.max()) // timing.columns + 1
     out = np.zeros((MODULES, timing.banks * rows * timing.columns), dtype=np.int64)
     index = (bank * rows + address // timing.columns) * timing.columns + address % timing.columns
     out[module.ravel(), index.ravel()] = raw.ravel()

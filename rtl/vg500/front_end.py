@@ -10,7 +10,7 @@ processing order (``forward``: increasing slab index), mini-block beam (mbb: two
 ``2u, 2u + 1`` of axis ``a``) after mbb, mini-block after mini-block along axis ``b``;
 module ``m`` takes the mini-blocks with ``s mod 4 = m``, i.e. every fourth along the beam
 from ``(m - slab - u) mod 4``.  Its word address is the two-level skew's:
-``lb = (bz nb + by) pitch + bx`` with ``pitch = ceil(nb / 16) 16``, word ``(lb div 16) 8``,
+``lb = (bz nb + by) pitch + bx`` with ``pitch = ceil(nb / 4K) 4K``, word ``(lb div 4K) 8``,
 row and column of the device page.  A second copy of the same counters walks the bursts
 as their data return (the words come back in request order), so each word's voxel is
 known without a tag queue: word ``j`` of a burst is voxel ``(2 bx + j[0], 2 by + j[1],
@@ -154,8 +154,9 @@ class SdramFrontEnd(wiring.Component):
             "n_u": self.n_u,
             "n_mb": self.n_mb,
         }
+        mk = MODULES * t.banks  # mini-blocks per skew period (modules x banks)
         pitch = Signal(AXIS_BITS + 4)
-        m.d.comb += pitch.eq(((self.nb + 15) >> 4) << 4)
+        m.d.comb += pitch.eq(((self.nb + mk - 1) // mk) * mk)
         mbb_words = Signal(32)
         m.d.comb += mbb_words.eq(4 * self.c)
         done_g = []
@@ -168,13 +169,13 @@ class SdramFrontEnd(wiring.Component):
             lb = Signal(32, name=f"lb{k}")
             m.d.comb += lb.eq((bz * self.nb + by) * pitch + bx)
             word = Signal(32, name=f"word{k}")
-            m.d.comb += word.eq((lb >> 4) << 3)
+            m.d.comb += word.eq((lb // mk) << 3)
             # The credit: first burst of mbb g only while the buffer has room for it.
             room = Signal(name=f"room{k}")
             m.d.comb += room.eq((issue.g - self.freed + 1) * mbb_words <= self.slab_entries)
             m.d.comb += [
                 ctl.req.valid.eq(issue.valid & room & ~self.start),
-                ctl.req.payload.bank.eq(((bx + by + bz) >> 2)[:2]),
+                ctl.req.payload.bank.eq(((bx + by + bz) >> 2) % t.banks),
                 ctl.req.payload.row.eq(word // t.columns),
                 ctl.req.payload.col.eq(word % t.columns),
                 issue.advance.eq(ctl.req.valid & ctl.req.ready),

@@ -39,7 +39,7 @@ class _Board(Elaboratable):
             m.submodules[f"sdram{k}"] = SdramDevice(
                 pins,
                 words,
-                banks=t.banks,
+                banks=len(words) // (self.program.rows * t.columns),  # as the host wrote
                 rows=self.program.rows,
                 columns=t.columns,
                 cl=t.cas_latency,

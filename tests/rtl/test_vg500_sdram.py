@@ -45,12 +45,13 @@ def device_words(n: int, module: int, t: SdramTiming, raw: np.ndarray, M: int = 
     }
 
 
-def run(t: SdramTiming, requests, words, *, gaps=(), max_clocks=200_000):
+def run(t: SdramTiming, requests, words, *, gaps=(), max_clocks=200_000, device=None):
     """Run the controller on ``requests`` (offered back to back, except a request whose
     index is in ``gaps`` is held back 40 clocks); returns the device, the RTL's command
-    log by ``now``, the admission clocks and the words read."""
+    log by ``now``, the admission clocks and the words read.  ``device``: the device's
+    timing when the controller is given another (a mutation)."""
     dut = SdramController(t, init_wait=4)
-    dev = StandInSdram(t, words)
+    dev = StandInSdram(device or t, words)  # device: the datasheet's, when the RTL's differs
     result = {"admit": [], "read": [], "activate": [], "precharge": [], "refresh": [], "words": []}
 
     async def bench(ctx):
