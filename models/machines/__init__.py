@@ -47,6 +47,7 @@ FAMILIES = (
     "models.machines.vizard2.machine",
     "models.machines.cube1.machine",
     "models.machines.vogue.machine",
+    "models.machines.cube3.machine",
     "models.machines.texslicer.machine",
 )
 

@@ -35,6 +35,7 @@ __all__ = [
     "buffer_table",
     "publish_pixel_bus",
     "frame_result",
+    "counted_result",
     "elaborate_units",
 ]
 
@@ -125,6 +126,29 @@ def frame_result(
         image=image,
         samples=state.samples,
         rays=int(state.touched.sum()),
+        cycles=int(cycles),
+        counters=raw,
+        elaborated_units=list(machine.elaborated),
+        elided_units=list(machine.elided),
+        derived=derived,
+    )
+
+
+def counted_result(machine, image: np.ndarray, samples: int, rays: int, cycles: int) -> CycleResult:
+    """A frame's :class:`CycleResult` from a machine (``counters``, ``P``, ``arch``,
+    ``elaborated``, ``elided``) whose pixels came from elsewhere than a back end's state
+    (Cube-1, Cube-3, VOGUE: the shared back end on what their memory delivered), with
+    ``frame.cycles`` and ``frame.samples`` set and the derived metrics."""
+    machine.counters.set("frame.cycles", cycles)
+    machine.counters.set("frame.samples", samples)
+    raw = machine.counters.as_dict()
+    derived = derive(
+        raw, cycles=cycles, samples=samples, pipelines=machine.P, clock_hz=machine.arch.clock_hz
+    )
+    return CycleResult(
+        image=image,
+        samples=samples,
+        rays=rays,
         cycles=int(cycles),
         counters=raw,
         elaborated_units=list(machine.elaborated),

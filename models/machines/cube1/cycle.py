@@ -31,12 +31,11 @@ from collections.abc import Callable
 import numpy as np
 
 from hwsim.engine import Counters
-from hwsim.engine.metrics import derive
 from models.backend import Backend
 from models.functional import pipeline_latency, render_functional
-from models.machines.common.results import CycleResult, elaborate_units
+from models.machines.common.results import CycleResult, counted_result, elaborate_units
+from models.machines.common.skewed import CubicFrameBuffer, beam_cycles
 from models.machines.cube1.frame import Cube1Faults, beam_voxels, bus_levels, check_frame
-from models.machines.cube1.memory import CubicFrameBuffer, beam_cycles
 
 __all__ = ["Cube1Machine"]
 
@@ -74,20 +73,4 @@ class Cube1Machine:
         c.set("bus.beams", beams)
         c.set("bus.select_cycles", levels * beams)
         c.set("pipeline.latency_cycles", latency)
-        c.set("frame.cycles", cycles)
-        c.set("frame.samples", result.samples)
-        raw = c.as_dict()
-        derived = derive(
-            raw, cycles=cycles, samples=result.samples, pipelines=self.P,
-            clock_hz=self.arch.clock_hz,
-        )  # fmt: skip
-        return CycleResult(
-            image=result.image,
-            samples=result.samples,
-            rays=result.rays,
-            cycles=cycles,
-            counters=raw,
-            elaborated_units=list(self.elaborated),
-            elided_units=list(self.elided),
-            derived=derived,
-        )
+        return counted_result(self, result.image, result.samples, result.rays, cycles)

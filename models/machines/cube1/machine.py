@@ -27,6 +27,6 @@ MACHINE = Machine(
         "txn": "ceil(L / n) accesses for every column of the buffer along the view axis, "
         "from the skewing's theorem (Cube1Transaction.run)",
         "cycle": "each beam's busiest module, counted from the modules of its voxels "
-        "(CubicFrameBuffer.module_of, memory.beam_cycles)",
+        "(CubicFrameBuffer.module_of, common.skewed.beam_cycles)",
     },
 )

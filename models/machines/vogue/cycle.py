@@ -29,10 +29,9 @@ from collections.abc import Callable
 import numpy as np
 
 from hwsim.engine import Counters
-from hwsim.engine.metrics import derive
 from models.backend import Backend
 from models.functional import pipeline_latency, render_functional
-from models.machines.common.results import CycleResult, elaborate_units
+from models.machines.common.results import CycleResult, counted_result, elaborate_units
 from models.machines.vogue.config import check_frame, parse_buffers, ring_link_bytes
 
 __all__ = ["VogueMachine", "module_loads"]
@@ -83,19 +82,4 @@ class VogueMachine:
         c.set("ring.cycles", ring)
         c.set("ring.bottleneck", int(ring > busiest))
         c.set("pipeline.latency_cycles", latency)
-        c.set("frame.cycles", cycles)
-        c.set("frame.samples", result.samples)
-        raw = c.as_dict()
-        derived = derive(
-            raw, cycles=cycles, samples=result.samples, pipelines=self.P, clock_hz=arch.clock_hz
-        )
-        return CycleResult(
-            image=result.image,
-            samples=result.samples,
-            rays=result.rays,
-            cycles=cycles,
-            counters=raw,
-            elaborated_units=list(self.elaborated),
-            elided_units=list(self.elided),
-            derived=derived,
-        )
+        return counted_result(self, result.image, result.samples, result.rays, cycles)

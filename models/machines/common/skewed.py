@@ -1,5 +1,6 @@
-"""Cube-1's cubic frame buffer: n memory modules, voxel ``(x, y, z)`` in module
-``(x + y + z) mod n`` at address ``(z div n, y, x)``.
+"""The Cube skewed volume memory (Cube-1's cubic frame buffer, Cube-3's volume memory):
+n memory modules, voxel ``(x, y, z)`` in module ``(x + y + z) mod n`` at address
+``(z div n, y, x)``.
 
 # Ref: Kaufman, "Memory Organization for a Cubic Frame Buffer", Eurographics 1986
 #      (abstract) [V]: n modules, module k holds the diagonal planes whose index is k mod n,
