@@ -49,6 +49,7 @@ FAMILIES = (
     "models.machines.vogue.machine",
     "models.machines.cube3.machine",
     "models.machines.texslicer.machine",
+    "models.machines.virim.machine",
 )
 
 

@@ -38,14 +38,16 @@ def head():
 
 @pytest.mark.parametrize("arch", ARCHS)
 @pytest.mark.parametrize(
-    ("mode", "projection", "view"),
-    [("composite", "parallel", (30, 20)), ("composite", "perspective", (200, -35)),
-     ("mip", "parallel", (95, 10)), ("iso", "perspective", (30, 60))],
+    ("mode", "projection", "view", "size"),
+    [("composite", "parallel", (30, 20), 24), ("composite", "perspective", (200, -35), 48),
+     ("mip", "parallel", (95, 10), 40), ("iso", "perspective", (30, 60), 24)],
 )  # fmt: skip
 def test_cycle_is_the_functional_image_and_transaction_within_contract(
-    head, arch, mode, projection, view
+    head, arch, mode, projection, view, size
 ):
-    scene = scene_of(*view, mode=mode, projection=projection, size=24)
+    """Magnified views (48 and 40 pixels on 24^3) included: their first tiles fetch,
+    their last ones only raster."""
+    scene = scene_of(*view, mode=mode, projection=projection, size=size)
     fixed, cycle, _ = functional_and_cycle(scene, head, arch)
     assert_identical(fixed, cycle)
     exact, approx = within_contract(scene, head, arch)

@@ -31,11 +31,26 @@ import numpy as np
 from hwsim.engine import Counters, VcdTrace
 from models.backend import Backend
 from models.machines.common.results import CycleResult, elaborate_units, frame_result
+from models.machines.common.taps import TapSamples, VoxelArrays
 from models.machines.texslicer.config import BLEND_BYTES, LATENCY, params_of
-from models.machines.texslicer.texture import TexelLines, TextureMemory, TextureSource
+from models.machines.texslicer.texture import TexelLines
 from models.units import interp as interp_unit
 
-__all__ = ["TexSlicer", "frame_params", "stack_axis"]
+__all__ = ["TexSlicer", "frame_params", "stack_axis", "tile_loads"]
+
+
+def tile_loads(n: int, first: np.ndarray, p, P: int) -> tuple[np.ndarray, np.ndarray]:
+    """Raster and memory clocks of each tile of a slice of ``n`` fragments whose texel
+    lines are first read by fragments ``first`` (rules 2 and 3), on ``P`` pipelines."""
+    b = p.buffers
+    size = b.raster_tile
+    k = -(-n // size)
+    frags = np.full(k, size, dtype=np.int64)
+    frags[-1] = n - size * (k - 1)
+    lines = np.bincount(first // size, minlength=k)
+    raster = -(-frags // P) * p.fragment_clocks
+    memory = -(-(lines * p.line_bytes + frags * BLEND_BYTES) // b.memory_bytes_per_clock)
+    return raster, memory
 
 
 def frame_params(frame):
@@ -61,23 +76,10 @@ class TexSlicer:
         self.counters = Counters()
         self.elaborated, self.elided = elaborate_units(backend, ("rasterizer", "texture"))
 
-    def _tiles(self, n: int, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Raster and memory clocks of each tile of a slice of ``n`` fragments whose texel
-        lines are first read by fragments ``first`` (rules 2 and 3)."""
-        p, b = self.params, self.params.buffers
-        size = b.raster_tile
-        k = -(-n // size)
-        frags = np.full(k, size, dtype=np.int64)
-        frags[-1] = n - size * (k - 1)
-        lines = np.bincount(first // size, minlength=k)
-        raster = -(-frags // self.P) * p.fragment_clocks
-        memory = -(-(lines * p.line_bytes + frags * BLEND_BYTES) // b.memory_bytes_per_clock)
-        return raster, memory
-
     def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
         be, plan, c = self.be, self.plan, self.counters
         state = be.new_state(plan.n_rays)
-        memory = TextureMemory(be)
+        memory = VoxelArrays(be)
         texels = TexelLines(be.volume.shape, self.params.buffers.texture_line, self.axis)
         where = np.zeros(plan.n_rays, dtype=np.int64)
         setup = self.arch.slice_overhead_cycles
@@ -88,11 +90,11 @@ class TexSlicer:
             if n:
                 taps = interp_unit.interp_taps(step.zyx, be.volume.shape, self.dp.interp)
                 first = texels(taps)
-                raster, mem = self._tiles(n, first)
+                raster, mem = tile_loads(n, first, self.params, self.P)
                 where[step.rays] = np.arange(n)
 
                 def source(s, taps=taps):
-                    return TextureSource(memory, taps, where[s.rays])
+                    return TapSamples(memory, taps, where[s.rays])
 
                 be.process(step, source, state)
                 cycles += setup + int(np.maximum(raster, mem).sum())

@@ -20,13 +20,14 @@ MACHINE = Machine(
     buffers=TexBuffers,
     check_arch=check_arch,
     independence={
-        "verdict": "partly shared",
+        "verdict": "shared",
         "shared": (
             "models.machines.texslicer.texture.TexelLines",
             "models.machines.texslicer.cycle.frame_params",
+            "models.machines.texslicer.cycle.tile_loads",
         ),
-        "txn": "one SimPy activity per slice: set-up, then raster and memory concurrently "
-        "over the slice's totals (TexSlicerTransaction.run)",
-        "cycle": "raster tiles, each the larger of its fill and memory clocks (TexSlicer._tiles)",
+        "txn": "a SimPy process per slice playing its tiles' raster and memory activities "
+        "(TexSlicerTransaction.run)",
+        "cycle": "the larger of each tile's raster and memory clocks, summed (TexSlicer.run)",
     },
 )

@@ -1,13 +1,13 @@
-"""The texture units: samples of one slice fetched from texture memory, and the texel
-lines that slice reads.
+"""The texture units' memory side: the texel lines each slice reads.
 
 # Ref: docs/architectures.md ("texture-slicer"); models/units/interp.py (the weights).
 
 A 2-D stack's slice is one texture: the bilinear unit reads the four texels of the
 sample's cell in that slice (the sample lies on it: its weight along the stack's axis is
 zero).  A 3-D texture's trilinear unit reads all eight.  The units interpolate with the
-datapath's interpolator formats (``[formats] interp``), so the image is the functional
-rung's bit for bit; what is the machine's own is which texels are read from memory.
+datapath's interpolator formats (``[formats] interp``;
+:class:`models.machines.common.taps.TapSamples`), so the image is the functional rung's
+bit for bit; what is the machine's own is which texels are read from memory.
 Texture memory is tiled in lines of ``[buffers] texture_line`` texels (z, y, x); the
 texture cache keeps the lines one slice reads, so each line is fetched once per slice
 (the cache is flushed between slices [I]).
@@ -21,53 +21,9 @@ import numpy as np
 
 from models.units import interp as interp_unit
 
-__all__ = ["TexelLines", "TextureMemory", "TextureSource"]
+__all__ = ["TexelLines"]
 
 NONE = np.iinfo(np.int64).max  # no fragment has read the line yet
-
-
-class TextureMemory:
-    """The textures of one frame: the volume's values (or pre-classified RGBA), and the
-    voxel-gradient texture when the scene is lit, promoted for the interpolator."""
-
-    def __init__(self, backend) -> None:
-        be = self.be = backend
-        cfg = be.dp.interp
-        self.shape = be.volume.shape
-        self.value = interp_unit.promote(be.raw.ravel(), cfg)
-        self.rgba = None
-        if be.pre_classified:
-            self.rgba = [interp_unit.promote(c.ravel(), cfg) for c in be.classified_voxels(be.raw)]
-        self.gradients = None
-        if be.need_grad:
-            from models.units import gradient as gradient_unit
-
-            self.gradients = [
-                interp_unit.promote(d, cfg) for d in gradient_unit.voxel_differences(be.raw)
-            ]
-
-
-class TextureSource:
-    """One slice's samples as the texture units deliver them (a back-end sample source)."""
-
-    def __init__(self, memory: TextureMemory, taps: interp_unit.InterpTaps, pick: np.ndarray):
-        self.mem, self.taps, self.pick = memory, taps, pick
-        self._cfg = memory.be.dp.interp
-
-    def _fetch(self, texture: np.ndarray, sel: np.ndarray | None = None) -> np.ndarray:
-        rows = self.pick if sel is None else self.pick[sel]
-        t = self.taps
-        sub = interp_unit.InterpTaps(t.idx[:, rows], t.frac[:, rows])
-        return interp_unit.interpolate(texture, sub, self._cfg, promoted=True)
-
-    def value(self) -> np.ndarray:
-        return self._fetch(self.mem.value)
-
-    def channels(self) -> list[np.ndarray]:
-        return [self._fetch(c) for c in self.mem.rgba]
-
-    def gradient(self, sel: np.ndarray) -> np.ndarray:
-        return np.stack([self._fetch(d, sel) for d in self.mem.gradients], axis=1)
 
 
 class TexelLines:
