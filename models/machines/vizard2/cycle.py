@@ -63,6 +63,7 @@ from models.machines.vizard2.config import (
     parse_buffers,
 )
 from models.machines.vizard2.memory import BlockCache, CacheFetch, VolumeImage
+from models.machines.vizard2.ray_kernel import RayKernel
 from models.units import interp as interp_unit
 
 __all__ = ["VizardMachine", "VizardFaults", "UNITS"]
@@ -120,6 +121,7 @@ class VizardMachine:
             stuck_word=self.faults.stuck_word,
             stuck_bank=self.faults.stuck_bank,
             source=arch.source,
+            volume=backend.volume,
         )
         self.cache = BlockCache(
             self.buffers.cache_sets,
@@ -166,7 +168,7 @@ class VizardMachine:
     # ------------------------------------------------------------------ frame
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
-        be, plan, P = self.be, self.plan, self.P
+        be, plan = self.be, self.plan
         state = be.new_state(plan.n_rays)
         bus = be.new_state(plan.n_rays)
         depth = self.faults.pixel_fifo_depth
@@ -186,12 +188,23 @@ class VizardMachine:
         self._where = np.zeros(plan.ray_ids.size, dtype=np.int64)
         self.terminated_at = np.full(plan.ray_ids.size, np.iinfo(np.int64).max // 2)
         self.speculative = 0
-        blocks: list[tuple[np.ndarray, int, int]] = []
         packets = [
             tile[i : i + queue_depth]
             for tile in self._tiles(generator)
             for i in range(0, tile.size, queue_depth)
         ]
+        kernel = RayKernel.for_machine(self)
+        if kernel is not None:  # the compiled ray loop: the same bits, cycles and counters
+            totals = kernel.run_frame(packets, state, bus, pixel_fifo, progress)
+        else:
+            totals = self._run_rounds(packets, state, bus, pixel_fifo, progress)
+        return self._finish(state, bus, totals, pixel_fifo)
+
+    def _run_rounds(self, packets, state, bus, pixel_fifo, progress) -> tuple:
+        """The reference ray loop: each round a chain of unit calls (:meth:`_round`).
+        Returns the stage totals (busy per lane, cycles, stalled cycles)."""
+        plan, P = self.plan, self.P
+        blocks: list[tuple[np.ndarray, int, int]] = [(np.zeros(P, np.int64), 0, 0)]
         retired = 0  # cycle of the last retirement
         for k, packet in enumerate(packets):
             j_lo, j_hi = plan.j_lo[packet], plan.j_hi[packet]
@@ -215,7 +228,8 @@ class VizardMachine:
             retired = self.clock.cycle
             if progress is not None:
                 progress(k + 1, len(packets))
-        return self._finish(state, bus, blocks, pixel_fifo)
+        busy, cycles, stalls = zip(*blocks, strict=True)
+        return np.sum(busy, axis=0), int(sum(cycles)), int(sum(stalls))
 
     def _round(self, live: np.ndarray, j: int, state):
         """Issue packet step ``j`` (plan rays ``live``): cache lookups, fills, timing and
@@ -308,15 +322,15 @@ class VizardMachine:
                 stall[int(g[0])] += ready - arrive
                 waited += ready - arrive
 
-    def _finish(self, state, bus, blocks, pixel_fifo) -> CycleResult:
+    def _finish(self, state, bus, totals, pixel_fifo) -> CycleResult:
+        """Counters and image; ``totals``: the rounds' stage totals (busy per lane,
+        cycles, stalled cycles: a stage's accounting is a sum over its blocks)."""
         c, P = self.counters, self.P
         stages = [Stage("cache", LOOKUP_LATENCY, 1, P, c)] + [
             Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
         ]
-        if blocks:
-            busy_k, cycles_k, stall_k = (np.array(x) for x in zip(*blocks, strict=True))
-            for stage in stages:
-                stage.account(busy_k, cycles_k, stall_k)
+        for stage in stages:
+            stage.account(*totals)
         drain = pixel_fifo.flush()
         tail = FEEDBACK + drain
         cycles = self.clock.advance(tail)

@@ -24,6 +24,7 @@ by line); the cycles they cost come from the SDRAM model in :mod:`models.machine
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -162,6 +163,9 @@ class VolumeImage:
         every gradient-table word in it reads 0.
     source : str
         The architecture file (error messages).
+    volume : object, optional
+        The volume ``raw`` was converted from: its fault-free image is kept with it
+        (:func:`_blocks_of`) for the next frame.
     """
 
     def __init__(
@@ -174,17 +178,18 @@ class VolumeImage:
         stuck_word: tuple[int, int] | None = None,
         stuck_bank: tuple[int, int] | None = None,
         source: str = "<built-in>",
+        volume: object | None = None,
     ) -> None:
         self.sd = sd = memory.sdram
         self.layout = lay = BlockLayout.of(raw.shape, sd, voxel_bits, gradients, source)
         self.shape, self.nb, self.blocks = raw.shape, lay.nb, lay.blocks
         self.value_words, self.gradient_words = lay.value_words, lay.gradient_words
         self.gradient_base = lay.gradient_base
-        self.values = _to_blocks(raw, self.nb)
-        self.gradients = None
-        if gradients:
-            diffs = gradient_unit.voxel_differences(raw)
-            self.gradients = [_to_blocks(d.reshape(raw.shape), self.nb) for d in diffs]
+        self.values, self.gradients = _blocks_of(raw, self.nb, voxel_bits, gradients, volume)
+        if stuck_word is not None or stuck_bank is not None:  # written over: a copy
+            self.values = self.values.copy()
+            if self.gradients is not None:
+                self.gradients = [g.copy() for g in self.gradients]
         per_word = sd.word_bits // VALUE_BITS
         if stuck_word is not None:
             address, value = stuck_word
@@ -346,6 +351,27 @@ class BlockCache:
 
     def _store_row(self, lines: np.ndarray, new: np.ndarray, row: int) -> np.ndarray:
         return (lines[row] if row < self.lines else new[row - self.lines]).copy()
+
+
+#: Fault-free memory images (voxel and gradient blocks) by volume, then by the voxel
+#: width and whether the gradient table is read: successive frames of one volume
+#: build them once (as the functional kernel keeps its laid-out voxels); dropped with the
+#: volume.
+_IMAGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _blocks_of(raw: np.ndarray, nb, voxel_bits: int, gradients: bool, volume: object | None):
+    """``(values, gradient blocks or None)`` of ``raw`` (:func:`_to_blocks`), kept with
+    ``volume`` when given; callers that write into them copy first."""
+    kept = _IMAGES.setdefault(volume, {}) if volume is not None else {}
+    key = (raw.shape, voxel_bits, gradients)
+    if key not in kept:
+        grads = None
+        if gradients:
+            diffs = gradient_unit.voxel_differences(raw)
+            grads = [_to_blocks(d.reshape(raw.shape), nb) for d in diffs]
+        kept[key] = (_to_blocks(raw, nb), grads)
+    return kept[key]
 
 
 def _to_blocks(data: np.ndarray, nb: tuple[int, int, int]) -> np.ndarray:

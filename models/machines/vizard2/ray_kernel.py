@@ -1,0 +1,372 @@
+"""VIZARD II's ray loop compiled: a packet's rounds through cache, SDRAM and datapath.
+
+# Ref: architectures.md section 5 (VIZARD II); models/machines/vizard2/cycle.py (the unit
+#      chain this loop is checked against, and its timing rules 1-6); models/fused_stage.py
+#      (the shading and blending shared with every compiled kernel).
+
+:class:`~models.machines.vizard2.cycle.VizardMachine` marches a packet of rays in lock
+step, one round (one step of each live ray) at a time.  Its reference form runs each
+round as a chain of NumPy calls on arrays of a few dozen samples: positions, the block
+cache's lookups (resolved at once, sorted by line), the fills' SDRAM bursts, the issue
+timing and the back end's units; at 64^3 that is 1569 rounds and some hundred calls each.
+Here one compiled call runs a whole packet, sample by sample in issue order:
+
+- the position (the plan's own float expression, ``SamplePlan.position``), the cell and
+  weights (:func:`~models.units.interp.cell_weight`);
+- the cache lookups (:mod:`models.machines.vizard2.ray_memory`) of the distinct blocks
+  of the cell's 8 voxels, corner order (the reference's ``BlockCache.fetch`` order),
+  each a hit or a fill of its direct-mapped line from the memory image (the faults
+  ``corrupt_line`` and ``dropped_fill`` applied as the fill writes); the sample's corners
+  are read from the lines at once (its up to 8 blocks sit in different lines): what the
+  reference's line-store rows hold for it;
+- for a live ray, the datapath: trilinear value, LUT, interpolated gradient-table entries,
+  modulation, then per round :func:`~models.fused_stage.shade_and_blend` (composite) or
+  the maximum (MIP);
+- per round, the fills' bursts per lookup group sorted page by page and scheduled by the
+  SDRAM controller's own compiled loop (:func:`hwsim.memory.sdram_kernel.schedule_requests`,
+  on the controller's state), the stalls, issue cycles, early-termination feedback and the
+  stage counters (summed: the stages' accounting is linear in its blocks).
+
+**Scope** (:meth:`RayKernel.for_machine`): composite within
+:func:`models.fused_stage.eligible` (so a lit perspective frame, a shader per ray, is out),
+no crop or cut planes, and MIP; no VCD trace.  Anything else, and ``compiled=False``,
+takes the unit chain.  ``tests/models/test_cycle_vizard2_kernel.py`` checks both give the
+same image, cycles and counters on every fault and feature.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from hwsim.numerics import ROUNDING_CODES
+from models.datapath import Datapath
+from models.fused_stage import (
+    GRAD_FLAGS,
+    STAGE_HASH,
+    StageConstants,
+    eligible,
+    shade_and_blend,
+    world_and_modulate,
+)
+from models.machines.vizard2 import ray_memory
+from models.machines.vizard2.config import FEEDBACK, FILL_WRITE
+from models.machines.vizard2.ray_memory import (
+    _CLOCK,
+    _CYCLES,
+    _FILLS,
+    _HITS,
+    _ISSUED,
+    _LOOKUPS,
+    _SAMPLES,
+    _SD_N,
+    _SPEC,
+    _STALLS,
+    REGS,
+    fills_timed,
+    lookups,
+)
+from models.units import classify as classify_unit
+from models.units import interp as interp_unit
+
+__all__ = ["LOOP_HASH", "RayKernel"]
+
+#: Part of the kernel's cache key: numba keys a cached kernel by its own file, not by the
+#: functions it inlines or calls (the shared stage, the memory side).
+LOOP_HASH = hashlib.sha256(
+    (STAGE_HASH + Path(ray_memory.__file__).read_text(encoding="utf-8")).encode()
+).hexdigest()
+
+
+@numba.njit(inline="always")
+def _trilinear(v, wz, wy, wx, s_bits, w_bits, w_code):
+    """``interp.interpolate`` of one sample's 8 raw corners ``v`` (``c = 4 dz + 2 dy +
+    dx``): promoted, then lerps along x (four), y (two), z (``interp.lerp_corners``)."""
+    lerp = interp_unit.lerp_raw
+    a0 = lerp(np.int64(v[0]) << s_bits, np.int64(v[1]) << s_bits, wx, w_bits, w_code)
+    a1 = lerp(np.int64(v[2]) << s_bits, np.int64(v[3]) << s_bits, wx, w_bits, w_code)
+    a2 = lerp(np.int64(v[4]) << s_bits, np.int64(v[5]) << s_bits, wx, w_bits, w_code)
+    a3 = lerp(np.int64(v[6]) << s_bits, np.int64(v[7]) << s_bits, wx, w_bits, w_code)
+    b0 = lerp(a0, a1, wy, w_bits, w_code)
+    b1 = lerp(a2, a3, wy, w_bits, w_code)
+    return np.int64(lerp(b0, b1, wz, w_bits, w_code))
+
+
+@numba.njit(inline="always")
+def _corners(store, line, offset, out):
+    for c in range(8):
+        out[c] = store[line[c], offset[c]]
+    return out
+
+
+def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
+    """The packet kernel, compiled for one configuration of formats (``constants``: the
+    ``config`` tuple, taken from the closure as compile-time constants, as
+    :func:`models.fused._make_kernel` does for a machine's own formats) or for any
+    (None: read from the ``config`` argument)."""
+    specialised = constants is not None
+    fixed = constants if constants is not None else (0,) * 9
+
+    def kernel(
+        packet, ray_ids, j_lo, j_hi, orig, dirs, k_first, k_dir, dt, shape, nb, sets, tag,
+        cvals, cgx, cgy, cgz, ivals, igx, igy, igz, faults, lay, ratio, sd_out, sd_arr,
+        sd_params, sd_regs, sd_banks, sd_booked, sd_log, terminated_at, alive, touched, acc,
+        flags, busy, regs, rgb12, alpha12, grad_p, w_ratio, gm_table, light, half, intensity,
+        spec, maps, table, ert_thr, sat, config,
+    ):  # fmt: skip
+        if len(stage_hash) == 0:  # never: keeps the hash in the cache key
+            return sd_out, sd_arr, sd_booked, sd_log
+        s_bits, w_bits, w_code, lut_shift, entries, f_bits, spec_entries, one, acc_code = (
+            fixed if specialised else config
+        )
+        mip, ert_on, feedback, P, grads = (
+            flags[0] != 0,
+            flags[1] != 0,
+            flags[2],
+            flags[3],
+            flags[4] != 0,
+        )
+        world, modulates = grad_p[GRAD_FLAGS[0]] != 0, grad_p[GRAD_FLAGS[1]] != 0
+        gm_scale, gm_entries = grad_p[GRAD_FLAGS[2]], grad_p[GRAD_FLAGS[3]]
+        per_ray_dir = dirs.shape[0] > 1
+        hi = (shape[0] - 1.0, shape[1] - 1.0, shape[2] - 1.0)
+        n_pk = packet.shape[0]
+        live = np.empty(n_pk, np.int64)
+        before = np.empty(n_pk, np.bool_)
+        issue = np.empty(n_pk, np.int64)
+        stall = np.zeros(n_pk // P + 1, np.int64)
+        miss_s = np.empty(8 * n_pk, np.int64)
+        miss_b = np.empty(8 * n_pk, np.int64)
+        rgba = np.empty((4, n_pk), np.int64)
+        vis_rays = np.empty(n_pk, np.int64)
+        g = np.empty((3, n_pk), np.int64)
+        cell, c1 = np.empty(3, np.int64), np.empty(3, np.int64)
+        w = np.empty(3, np.int64)
+        line, offset, v = np.empty(8, np.int64), np.empty(8, np.int64), np.empty(8, np.int64)
+        j0, j1 = j_lo[packet].min(), j_hi[packet].max()
+        for j in range(j0, j1 + 1):
+            clock = regs[_CLOCK]
+            n = 0
+            for q in range(n_pk):
+                r = packet[q]
+                if j_lo[r] <= j <= j_hi[r]:
+                    # rule 3: a known termination stops the issue
+                    if ert_on and not alive[ray_ids[r]] and clock >= terminated_at[r] + feedback:
+                        continue
+                    live[n] = r
+                    n += 1
+            if n == 0:
+                continue
+            t = (k_first + k_dir * j) * dt
+            n_miss = 0
+            m = 0
+            for i in range(n):
+                r = live[i]
+                ray = ray_ids[r]
+                dr = r if per_ray_dir else 0
+                for a in range(3):
+                    c, q = interp_unit.cell_weight(
+                        orig[r, a] + t * dirs[dr, a], hi[a], w_bits, w_code
+                    )
+                    cell[a], w[a] = np.int64(c), np.int64(q)
+                    c1[a] = cell[a] + (1 if shape[a] > 1 else 0)
+                n_miss = lookups(
+                    cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
+                    faults, line, offset, i, miss_s, miss_b, n_miss, regs,
+                )  # fmt: skip
+                before[i] = alive[ray]
+                if not (mip or before[i]):
+                    continue  # a dead ray's sample: fetched, not processed
+                regs[_SAMPLES] += 1
+                touched[ray] = True
+                value = _trilinear(
+                    _corners(cvals, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
+                )
+                if mip:
+                    acc[ray, 0] = max(acc[ray, 0], value)
+                    continue
+                idx = classify_unit.lut_index_raw(value, lut_shift, entries)
+                alpha = alpha12[idx]
+                if alpha <= 0:
+                    continue  # transparent: changes nothing (Backend._composite's `vis`)
+                gx = gy = gz = np.int64(0)
+                if grads:
+                    gx = _trilinear(
+                        _corners(cgx, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
+                    )
+                    gy = _trilinear(
+                        _corners(cgy, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
+                    )
+                    gz = _trilinear(
+                        _corners(cgz, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
+                    )
+                    gx, gy, gz, alpha = world_and_modulate(
+                        gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale, gm_entries, gm_table
+                    )
+                g[0, m], g[1, m], g[2, m] = gx, gy, gz
+                rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+                rgba[3, m] = alpha
+                vis_rays[m] = ray
+                m += 1
+            if not mip:
+                shade_and_blend(
+                    rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table, acc,
+                    ert_thr, alive, sat, f_bits, spec_entries, one, acc_code,
+                )  # fmt: skip
+            groups = (n + P - 1) // P
+            stall[:groups] = 0
+            if n_miss:
+                sd_out, sd_arr, sd_booked, sd_log = fills_timed(
+                    miss_s, miss_b, n_miss, clock, stall, P, lay, ratio, sd_out, sd_arr,
+                    sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs,
+                )  # fmt: skip
+            waited = 0
+            for i in range(n):
+                if i % P == 0:
+                    waited += stall[i // P]
+                issue[i] = clock + i // P + waited  # rule 1, with the stalls
+                busy[i % P] += 1
+                if ert_on:
+                    if not before[i]:
+                        regs[_SPEC] += 1
+                    elif not alive[ray_ids[live[i]]]:
+                        terminated_at[live[i]] = issue[i]  # its terminating sample
+            end = clock + groups + waited
+            regs[_CLOCK] = end
+            regs[_CYCLES] += end - clock
+            regs[_STALLS] += waited
+            regs[_ISSUED] += n
+        return sd_out, sd_arr, sd_booked, sd_log
+
+    return numba.njit(cache=True, nogil=True)(kernel)
+
+
+@functools.cache
+def _kernel(config: tuple[int, ...] | None):
+    """The kernel specialised for ``config`` (None: the generic one), made once per
+    process on first use."""
+    return _make_kernel(LOOP_HASH, config)
+
+
+class RayKernel(StageConstants):
+    """The compiled ray loop of one VIZARD II frame (None from :meth:`for_machine` when
+    the frame is out of its scope, see Scope)."""
+
+    @classmethod
+    def for_machine(cls, machine) -> RayKernel | None:
+        be = machine.be
+        if not be.compiled or machine.trace is not None or be.exercise_unused:
+            return None
+        if be.scene.crop is not None or be.scene.cut_planes or be.depth is not None:
+            return None
+        if be.mode == "mip":
+            return cls(machine, np.zeros(1, dtype=np.int64))
+        if not eligible(be):
+            return None
+        table = StageConstants(be).table(machine.plan._dt)
+        return None if table is None else cls(machine, table)
+
+    def __init__(self, machine, table: np.ndarray) -> None:
+        be = machine.be
+        if be.mode == "mip":
+            self._mip_constants(be)
+        else:
+            super().__init__(be)
+        self.m, self.dt_table = machine, table
+        mip_own = be.mode == "mip" and be.dp == Datapath.for_volume(be.arch, be.volume)
+        own = mip_own or (be.mode != "mip" and self.own_formats)
+        self.kernel = _kernel(self.config if own else None)
+
+    def _mip_constants(self, be) -> None:
+        """MIP reads only the interpolator's formats: the composite stage's constants
+        (which need a LUT) as empty arrays of their types."""
+        dp = be.dp
+        self.backend = be
+        self.config = (
+            be.S,
+            dp.interp.weight_bits,
+            ROUNDING_CODES[dp.interp.rounding],
+            0,
+            1,
+            0,
+            0,
+            1,
+            0,
+        )
+        self.rgb12 = np.zeros((1, 3), np.int64)
+        self.alpha12 = self.ratio = self.gm_table = self.intensity = np.zeros(1, np.int64)
+        self.spec = np.zeros(2, np.int64)
+        self.grad_p = np.zeros(12, np.int64)
+        self.light = self.half = np.zeros((0, 3), np.int64)
+        self.maps = np.zeros((2, 1), np.int64)
+        self.ert_thr = -1
+
+    def _cache_arrays(self) -> tuple:
+        """The line store and the memory image (gradients: dummies when not read)."""
+        cache, image = self.m.cache, self.m.image
+        if cache.gradients is None:
+            none = np.zeros((1, 64), dtype=np.int32)
+            return cache.values, none, none, none, image.values, none, none, none
+        return cache.values, *cache.gradients, image.values, *image.gradients
+
+    def run_frame(self, packets, state, bus, pixel_fifo, progress) -> tuple[np.ndarray, int, int]:
+        """Every packet through the kernel, its pixels then through the pixel FIFO (rule
+        5); returns the stage totals (busy per lane, cycles, stalled cycles)."""
+        m, be, plan = self.m, self.backend, self.m.plan
+        sd, sdc = m.sdram, m.memory_cfg.sdram
+        lay = m.image.layout
+        layout = np.array(
+            [lay.value_words, lay.gradient_words, lay.gradient_base, lay.value_bursts,
+             lay.gradient_bursts, lay.burst_length, lay.columns, lay.banks, sdc.rows,
+             sdc.cas_latency + sdc.burst_cycles, FILL_WRITE],
+            dtype=np.int64,
+        )  # fmt: skip
+        faults = np.array([-1, 0, -1], dtype=np.int64)
+        if m.faults.corrupt_line is not None:
+            faults[:2] = m.faults.corrupt_line
+        if m.faults.dropped_fill is not None:
+            faults[2] = m.faults.dropped_fill
+        mip = be.mode == "mip"
+        flags = np.array([mip, m.ert, FEEDBACK, m.P, m.cache.gradients is not None], dtype=np.int64)
+        acc = state.acc.reshape(-1, 1) if mip else state.acc
+        dirs = np.ascontiguousarray(plan._d, dtype=np.float64).reshape(-1, 3)
+        busy = np.zeros(m.P, dtype=np.int64)
+        regs = np.zeros(len(REGS), dtype=np.int64)
+        sat = np.zeros(2, dtype=np.int64)
+        arrays = (sd._out, sd._arrivals, sd._booked, sd._log)  # the controller's state
+        store = self._cache_arrays()
+        shape = np.asarray(m.image.shape, dtype=np.int64)
+        nb, sets = np.asarray(m.image.nb, np.int64), np.asarray(m.cache.sets, np.int64)
+        fifo_stall, retired = 0, 0
+        for k, packet in enumerate(packets):
+            arrays = self.kernel(
+                packet, plan.ray_ids, plan.j_lo, plan.j_hi, plan._o, dirs, plan.k_first,
+                plan.k_dir, float(plan._dt), shape, nb, sets, m.cache.tag, *store, faults,
+                layout, float(sdc.clock_ratio), *arrays[:2], sd._params, sd._regs, sd._banks,
+                *arrays[2:], m.terminated_at, state.alive, state.touched, acc, flags, busy, regs,
+                self.rgb12, self.alpha12, self.grad_p, self.ratio, self.gm_table, self.light,
+                self.half, self.intensity, self.spec, self.maps, self.dt_table, self.ert_thr,
+                sat, self.config,
+            )  # fmt: skip
+            rays = plan.ray_ids[packet]
+            bus.acc[rays] = state.acc[rays]
+            bus.touched[rays] = state.touched[rays]
+            stall = pixel_fifo.advance(int(regs[_CLOCK]) - retired, int(rays.size), retired)
+            regs[_CLOCK] += stall
+            fifo_stall += stall
+            retired = int(regs[_CLOCK])
+            if progress is not None:
+                progress(k + 1, len(packets))
+        sd._out, sd._arrivals, sd._booked, sd._log = arrays
+        sd._n = int(regs[_SD_N])
+        self.count_saturations(sat)
+        m.clock.advance(int(regs[_CLOCK]))
+        cache = m.cache
+        cache.fills, cache.lookups, cache.hits = (int(regs[i]) for i in (_FILLS, _LOOKUPS, _HITS))
+        m.issued, m.speculative = int(regs[_ISSUED]), int(regs[_SPEC])
+        state.samples += int(regs[_SAMPLES])
+        return busy, int(regs[_CYCLES]) + fifo_stall, int(regs[_STALLS]) + fifo_stall

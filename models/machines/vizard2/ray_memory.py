@@ -1,0 +1,153 @@
+"""VIZARD II's memory side of the compiled ray loop: block-cache lookups and fills, and
+the fills' SDRAM timing (:mod:`models.machines.vizard2.ray_kernel` inlines and calls them).
+
+# Ref: architectures.md section 5 (VoxelCache's 4^3 blocks; SDRAM DIMMs); the rules are the
+#      reference's: models/machines/vizard2/memory.py (``BlockCache.fetch``, the memory
+#      image) and cycle.py (``VizardMachine._fill``, rule 2).
+
+Lookups run sample by sample in issue order, each sample's distinct blocks in corner order:
+what ``BlockCache.fetch`` resolves for a whole step at once (sorted by line, a lookup
+missing when its line's previous tag differs).  A sample's up to 8 blocks sit in different
+lines (every ``cache_sets`` axis >= 2), so its corners can be read right after its
+lookups: the line contents the reference's line-store rows hold for it.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from hwsim.memory.sdram_kernel import schedule_requests
+
+__all__ = ["REGS", "fills_timed", "lookups"]
+
+#: ``regs`` of the packet kernel, by position.
+REGS = (
+    "clock",
+    "fills",
+    "lookups",
+    "hits",
+    "issued",
+    "speculative",
+    "samples",
+    "cycles",
+    "stalls",
+    "sdram_requests",
+)
+_CLOCK, _FILLS, _LOOKUPS, _HITS, _ISSUED, _SPEC, _SAMPLES, _CYCLES, _STALLS, _SD_N = range(10)
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_line(line, block, k, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, faults):
+    """Fill number ``k``: ``line`` gets ``block`` from the memory image, the value XORed
+    with the mask if it is the corrupted line; the dropped fill writes nothing."""
+    if k == faults[2]:
+        return
+    xor = faults[1] if line == faults[0] else 0
+    for o in range(64):
+        cvals[line, o] = ivals[block, o] ^ xor
+    if grads:
+        for o in range(64):
+            cgx[line, o] = igx[block, o]
+            cgy[line, o] = igy[block, o]
+            cgz[line, o] = igz[block, o]
+
+
+@numba.njit(cache=True, nogil=True)
+def _grown(a, need):
+    """``a`` (2-D) with at least ``need`` columns (doubling), its columns kept."""
+    if need <= a.shape[1]:
+        return a
+    b = np.zeros((a.shape[0], max(2 * a.shape[1], need)), a.dtype)
+    b[:, : a.shape[1]] = a
+    return b
+
+
+@numba.njit(cache=True, nogil=True)
+def _grown1(a, need):
+    """``a`` (1-D) with at least ``need`` entries (doubling), its entries kept."""
+    if need <= a.shape[0]:
+        return a
+    b = np.zeros(max(2 * a.shape[0], need), a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True, nogil=True)
+def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_arr,
+                 sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs):  # fmt: skip
+    """Rule 2: each lookup group with misses sends its fills' bursts (page by page) to the
+    SDRAM when it reaches the cache, and waits for the last beat (``stall[g]``), on the
+    controller's state (``sd_*``); returns its four arrays that may grow."""
+    vw, gw, gbase, vb, gb, bl, cols, banks, nrows, data_lat, fill_write = lay
+    waited = 0
+    s = 0
+    keys = np.empty(n_miss * (vb + gb), np.int64)
+    while s < n_miss:
+        g = miss_s[s] // P
+        e = s
+        nk = 0
+        while e < n_miss and miss_s[e] // P == g:
+            for k in range(vb + gb):
+                if k < vb:
+                    addr = miss_b[e] * vw + k * bl
+                else:
+                    addr = gbase + miss_b[e] * gw + (k - vb) * bl
+                page = addr // cols
+                keys[nk] = (page % banks) * nrows + page // banks
+                nk += 1
+            e += 1
+        arrive = start + g + waited
+        order = np.sort(keys[:nk])  # lexsort((rows, banks)): bank, then row
+        earliest = np.int64(np.ceil(arrive * ratio))
+        first = regs[_SD_N]
+        need = first + nk
+        sd_out, sd_arr = _grown(sd_out, need), _grown1(sd_arr, need)
+        sd_arr[first:need] = earliest
+        sd_booked, sd_log = schedule_requests(
+            sd_params, sd_regs, sd_banks, order // nrows, order % nrows, sd_arr[first:need],
+            sd_out, first, sd_booked, sd_log,
+        )  # fmt: skip
+        regs[_SD_N] = need
+        last = sd_out[0, first:need].max() + data_lat
+        ready = np.int64(np.ceil(last / ratio)) + fill_write
+        if ready > arrive:
+            stall[g] += ready - arrive
+            waited += ready - arrive
+        s = e
+    return sd_out, sd_arr, sd_booked, sd_log
+
+
+@numba.njit(inline="always")
+def lookups(cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
+             faults, line, offset, i, miss_s, miss_b, n_miss, regs):  # fmt: skip
+    """The cache lookups of one sample whose cell's low corner is ``cell`` (``c1``: its
+    far corner per axis): per corner its ``line`` and ``offset``; the distinct blocks
+    looked up in corner order, a miss filling its line.  Returns the new miss count."""
+    cross_z, cross_y, cross_x = (
+        c1[0] >> 2 != cell[0] >> 2,
+        c1[1] >> 2 != cell[1] >> 2,
+        c1[2] >> 2 != cell[2] >> 2,
+    )
+    for c in range(8):
+        z = c1[0] if c & 4 else cell[0]
+        y = c1[1] if c & 2 else cell[1]
+        x = c1[2] if c & 1 else cell[2]
+        bz, by, bx = z >> 2, y >> 2, x >> 2
+        offset[c] = (((z & 3) << 2) | (y & 3)) << 2 | (x & 3)
+        line[c] = ((bz % sets[0]) * sets[1] + by % sets[1]) * sets[2] + bx % sets[2]
+        if (c & 4 and not cross_z) or (c & 2 and not cross_y) or (c & 1 and not cross_x):
+            continue  # this corner's block is a lower corner's: looked up there
+        block = (bz * nb[1] + by) * nb[2] + bx
+        regs[_LOOKUPS] += 1
+        if tag[line[c]] == block:
+            regs[_HITS] += 1
+            continue
+        tag[line[c]] = block
+        _fill_line(
+            line[c], block, regs[_FILLS], cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, faults
+        )
+        regs[_FILLS] += 1
+        miss_s[n_miss], miss_b[n_miss] = i, block
+        n_miss += 1
+    return n_miss
