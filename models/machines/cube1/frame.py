@@ -25,13 +25,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.core.errors import InputError
+from hwsim.core.models import Schema
 from models.frame import Frame
 from models.machines.common.sections import refuse_sections
 
-__all__ = ["Cube1Faults", "beam_voxels", "check_frame", "bus_levels"]
+__all__ = ["Cube1Buffers", "Cube1Faults", "beam_voxels", "check_frame", "bus_levels"]
 
 #: Largest off-axis component of a view direction still taken as axis-parallel.
 AXIS_TOLERANCE = 1e-9
+
+
+class Cube1Buffers(Schema):
+    """``[buffers]``: none: a beam goes from the modules straight onto the bus."""
 
 
 @dataclass(frozen=True)

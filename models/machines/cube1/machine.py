@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from models.machines import Machine, single_frames
 from models.machines.cube1.cycle import Cube1Machine
-from models.machines.cube1.frame import Cube1Faults, check_frame
+from models.machines.cube1.frame import Cube1Buffers, Cube1Faults, check_frame
 from models.machines.cube1.transaction import Cube1Transaction
 
 MACHINE = Machine(
@@ -18,6 +18,7 @@ MACHINE = Machine(
     faults_type=Cube1Faults,
     check_frame=check_frame,
     package="models.machines.cube1",
+    buffers=Cube1Buffers,
     independence={
         "verdict": "partly shared",
         "shared": (
