@@ -223,7 +223,7 @@ class SlabMachine(SliceOrderMachine):
                     classify_unit.lut_index(x.ravel(), self.dp.voxel_bits, S, self.dp.classify)
                     for x in (value.min(axis=0), value.max(axis=0))
                 )
-        planes.update((k, (v << S).reshape(4, -1).T.copy()) for k, v in corners.items())
+        planes.update((k, _cell_rows(v, S)) for k, v in corners.items())
         return planes
 
     @property
@@ -264,11 +264,12 @@ class SlabMachine(SliceOrderMachine):
             diffs[ax] = d
         sched = self.memory.schedule(self.kp, q)
         b = np.where(sched.valid, sched.b, 0)
+        idle = ~sched.valid
         out = {}
         for name, axis in (("dx", 2), ("dy", 1), ("dz", 0)):
-            stream = np.where(sched.valid, diffs[axis][sched.a, b], 0)
-            corners = self.datapath.corners(stream, q) << S
-            out[name] = corners.reshape(4, -1).T.copy()
+            stream = diffs[axis][sched.a, b]
+            stream[idle] = 0
+            out[name] = _cell_rows(self.datapath.corners(stream, q), S)
         return out
 
     def _evict(self, lo: int) -> None:
@@ -473,3 +474,12 @@ class SlabMachine(SliceOrderMachine):
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
         return frame_result(self, image, state, cycles, latency=latency)
+
+
+def _cell_rows(corners: np.ndarray, shift: int) -> np.ndarray:
+    """Corner planes ``(4, ...)`` as one row of four corners per cell, shifted left by
+    ``shift`` (the samples' fraction bits): ``(corners << shift).reshape(4, -1).T``, made
+    C-contiguous in one pass."""
+    rows = np.empty((corners[0].size, 4), dtype=corners.dtype)
+    np.left_shift(corners.reshape(4, -1).T, shift, out=rows)
+    return rows
