@@ -145,39 +145,49 @@ def record_commands(vcd, scope: str, trace: np.ndarray) -> None:
 
 def read_vcd_commands(path) -> dict[int, np.ndarray]:
     """The command traces :func:`record_commands` wrote into the VCD at ``path``, by
-    module (scopes ``memory_K.sdram``): :data:`TRACE_DTYPE` records."""
+    module (scopes ``memory_K.sdram``): :data:`TRACE_DTYPE` records.  A command is a
+    change of ``commands``; ``cmd``, ``ba`` and ``a`` are their values at that time."""
+    with open(path) as handle:
+        text = handle.read()
+    head, _, body = text.partition("$enddefinitions")
     ids: dict[str, tuple[int, str]] = {}
     scopes: list[str] = []
-    values: dict[tuple[int, str], int] = {}
-    out: dict[int, list[tuple[int, int, int, int]]] = {}
-    now, fired = 0, set()
-
-    def flush() -> None:
-        for k in sorted(fired):
-            out.setdefault(k, []).append(
-                (now, values.get((k, "cmd"), 7), values.get((k, "ba"), 0), values.get((k, "a"), 0))
+    for line in head.splitlines():
+        word = line.split()
+        if word[:1] == ["$scope"]:
+            scopes.append(word[2])
+        elif word[:1] == ["$upscope"]:
+            scopes.pop()
+        elif word[:1] == ["$var"] and len(scopes) >= 2 and scopes[-1] == "sdram":
+            if scopes[-2].startswith("memory_"):
+                ids[word[3]] = (int(scopes[-2].split("_")[1]), word[4])
+    changes: dict[tuple[int, str], tuple[list[int], list[int]]] = {
+        key: ([], []) for key in ids.values()
+    }
+    now = 0
+    for line in body.splitlines()[1:]:
+        if line.startswith("#"):
+            now = int(line[1:])
+        elif line.startswith("b"):
+            value, _, ident = line.partition(" ")
+            key = ids.get(ident)
+            if key is not None:
+                changes[key][0].append(now)
+                changes[key][1].append(int(value[1:], 2))
+    out = {}
+    for k in sorted({k for k, _ in ids.values()}):
+        times = np.asarray(changes.get((k, "commands"), ([], []))[0], dtype=np.int64)
+        trace = np.zeros(times.size, dtype=TRACE_DTYPE)
+        trace["cycle"] = times
+        for field, name, idle in (
+            ("cmd", "cmd", COMMANDS["NOP"]),
+            ("bank", "ba", 0),
+            ("a", "a", 0),
+        ):
+            at, values = (np.asarray(v, dtype=np.int64) for v in changes.get((k, name), ([], [])))
+            last = np.searchsorted(at, times, side="right") - 1  # the value at each command
+            trace[field] = np.where(
+                last >= 0, values[np.maximum(last, 0)] if at.size else idle, idle
             )
-        fired.clear()
-
-    with open(path) as handle:
-        for line in handle:
-            word = line.split()
-            if not word:
-                continue
-            if word[0] == "$scope":
-                scopes.append(word[2])
-            elif word[0] == "$upscope":
-                scopes.pop()
-            elif word[0] == "$var" and scopes[-1:] == ["sdram"] and len(scopes) >= 2:
-                if scopes[-2].startswith("memory_"):
-                    ids[word[3]] = (int(scopes[-2].split("_")[1]), word[4])
-            elif word[0].startswith("#"):
-                flush()
-                now = int(word[0][1:])
-            elif word[0].startswith("b") and len(word) == 2 and word[1] in ids:
-                k, name = ids[word[1]]
-                values[(k, name)] = int(word[0][1:], 2)
-                if name == "commands":
-                    fired.add(k)
-    flush()
-    return {k: np.array(rows, dtype=TRACE_DTYPE) for k, rows in out.items()}
+        out[k] = trace
+    return out
