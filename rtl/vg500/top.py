@@ -99,7 +99,7 @@ class Vg500Top(wiring.Component):
         hold = Signal(name="memory_hold")
         m.submodules.pipelines = EnableInserter(~hold)(core)
         m.submodules.front_end = fe
-        self._pass_through(m)
+        self._pass_through(m, hold)
         for k, ctl in enumerate(fe.ctrls):
             for pin in PINS_OUT:
                 m.d.comb += getattr(self, f"sdram{k}_{pin}").eq(getattr(ctl, pin))
@@ -153,7 +153,7 @@ class Vg500Top(wiring.Component):
         self._slab_buffer(m, hold, nz)
         return m
 
-    def _pass_through(self, m):
+    def _pass_through(self, m, hold):
         for name in self.signature.members:
             if name.startswith("sdram") or name in ("cycles", "hold_cycles", "bursts"):
                 continue
@@ -163,8 +163,9 @@ class Vg500Top(wiring.Component):
             if name == "load":
                 m.d.comb += [theirs.valid.eq(ours.valid), theirs.payload.eq(ours.payload)]
             elif name == "pixel":
+                # A held top pops nothing: its pixel is offered again when it runs.
                 m.d.comb += [
-                    ours.valid.eq(theirs.valid),
+                    ours.valid.eq(theirs.valid & ~hold),
                     ours.payload.eq(theirs.payload),
                     theirs.ready.eq(ours.ready),
                 ]
