@@ -18,21 +18,33 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from hwsim.core.errors import InputError
 from hwsim.memory import SdramConfig, parse_memory
 from hwsim.memory.sdram_trace import read_vcd_commands, with_powerup
-from rtl.sdram.sim import Replay, replay
+from hwsim.spec.arch import load_arch_file
+from rtl.sdram.sim import HERE, Replay, replay
 
 __all__ = ["check_vcd", "device_of", "main"]
 
 
-def device_of(arch_name: str) -> SdramConfig:
-    """The SDRAM device of a built-in or file architecture ``arch_name``."""
-    from hwsim.run.fidelity import resolve_arch
-
-    arch = resolve_arch(arch_name)
-    return parse_memory(arch.memory, source=arch.source).sdram
+def device_of(arch: str) -> SdramConfig:
+    """The SDRAM device of the architecture ``arch``: a built-in name (its file
+    ``models/machines/<family>/<arch>.toml``) or a TOML file's path.  Only the ``[memory]``
+    table is read (no machine model is imported: the RTL's layer)."""
+    path = Path(arch)
+    if not (arch.endswith(".toml") or "/" in arch):
+        found = sorted((HERE.parents[1] / "models" / "machines").glob(f"*/{arch}.toml"))
+        if not found:
+            raise InputError(
+                f"unknown architecture {arch!r}",
+                key="--arch",
+                allowed="a built-in name or FILE.toml",
+            )
+        path = found[0]
+    config = load_arch_file(path)
+    return parse_memory(config.memory, source=config.source).sdram
 
 
 def check_vcd(path, cfg: SdramConfig, simulator: str = "verilator", **override) -> list[Replay]:

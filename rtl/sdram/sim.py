@@ -1,7 +1,7 @@
 """Build and run the SDRAM device model and its timing checker (rtl/sdram/*.v).
 
-# Ref: /work/briefs/sdram_pins.md (the pin contract); Micron MT48LC16M16A2 datasheet
-#      (timings of :func:`params_of`'s arch values).
+# Ref: docs/memory.md "The SDRAM checker and the command trace" (the pins); the Micron
+#      MT48LC16M16A2 datasheet (timings of :func:`params_of`'s arch values).
 
 :func:`replay` drives ``sdram_checker`` (and the ``sdr_sdram`` device beside it) from a
 command trace (:data:`hwsim.memory.sdram_trace.TRACE_DTYPE` records) on Icarus or
