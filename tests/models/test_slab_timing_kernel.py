@@ -20,7 +20,7 @@ import rungs
 from hwsim.engine import Counters, DeadlockError, DrainFifo
 from hwsim.volumes import make_phantom
 from models.machines.volumepro import cycle as slab_cycle
-from models.machines.volumepro import slab_timing
+from models.machines.volumepro import slab_timing, timing_kernel
 
 pytestmark = pytest.mark.model
 
@@ -106,6 +106,26 @@ def test_compiled_timing_is_the_reference_loop(monkeypatch, head, case):
             _play(seen, True, capacity=tight, depth=3)
     else:
         _assert_same(_play(seen, True, capacity=tight, depth=3), expected)
+
+
+def test_a_frame_whose_logs_outgrow_their_room_starts_again_alike(monkeypatch, head):
+    """The compiled loop never grows its command-bus and refresh logs: a frame needing
+    more room than sized starts again with twice as much, from fresh controllers and the
+    pixel FIFO's first state; here from room for 2 commands and 1 refresh."""
+    seen = _inputs(monkeypatch, head, rungs.machine("volumepro500"), rungs.scene_of(size=26))
+    reference = _play(seen, False)
+    assert reference[0].stats[0].refreshes > 1
+    attempts = []
+    one_attempt = timing_kernel._play
+
+    def counted(*args):
+        attempts.append(one_attempt(*args))
+        return attempts[-1]
+
+    monkeypatch.setattr(timing_kernel, "first_room", lambda *args: (2, 1))
+    monkeypatch.setattr(timing_kernel, "_play", counted)
+    _assert_same(_play(seen, True), reference)
+    assert attempts[0] is False and attempts[-1] is True and len(attempts) >= 3
 
 
 def test_a_starved_buffer_deadlocks_both_ways_alike(monkeypatch, head):

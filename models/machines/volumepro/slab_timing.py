@@ -174,9 +174,13 @@ def run_timing(
         runs the reference loop below, one Python call per delivery and module.
     """
     dev = memory.sdram
-    controllers = [SdramController(dev) for _ in range(memory.modules)]
-    for k, ctl in enumerate(controllers):  # each module's requests, known up front
-        ctl.reserve(table.bursts(k))
+
+    def make_controllers() -> list[SdramController]:
+        made = [SdramController(dev) for _ in range(memory.modules)]
+        for k, ctl in enumerate(made):  # each module's requests, known up front
+            ctl.reserve(table.bursts(k))
+        return made
+
     tail = dev.cas_latency + dev.burst_cycles
     n_beams = sum(int(s.needs.size) for s in slices)
     ends = np.zeros(max(n_beams, 1), dtype=np.int64)
@@ -185,11 +189,12 @@ def run_timing(
     if compiled:
         from models.machines.volumepro.timing_kernel import play  # imports numba
 
-        play(
-            table, slices, controllers, capacity=capacity, pixel_fifo=pixel_fifo, out=out,
-            ends=ends, ready=ready, tail=tail, ratio=dev.clock_ratio,
+        controllers = play(
+            table, slices, make_controllers, capacity=capacity, pixel_fifo=pixel_fifo,
+            out=out, ends=ends, ready=ready, tail=tail, ratio=dev.clock_ratio,
         )  # fmt: skip
     else:
+        controllers = make_controllers()
         _reference_loop(
             table.as_list(), slices, controllers, capacity, pixel_fifo, out, ends, ready
         )

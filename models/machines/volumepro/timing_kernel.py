@@ -19,16 +19,16 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from numba.typed import List
 
 from hwsim.engine import DeadlockError
-from hwsim.memory.sdram_kernel import schedule_requests
+from hwsim.memory.sdram_kernel import REGS, schedule_requests
 
 __all__ = ["play"]
 
 # Registers of the loop state ``st``.
 T, G, BI, STALL, STATUS, INFO = range(6)
-NEVER_READ, BUFFER_FULL = 1, 2
+NEVER_READ, BUFFER_FULL, LOGS_FULL = 1, 2, 3
+BOOKED, REFRESHES = REGS.index("booked"), REGS.index("refreshes")
 
 
 @numba.njit(cache=True, nogil=True)
@@ -57,11 +57,14 @@ def _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
         i0 = n_req[k]
         scratch[0] = e_mem  # the batch's first burst waits for the buffer, the rest follow
         arrivals[k, i0] = e_mem
-        booked[k], logs[k] = schedule_requests(
+        grown_booked, grown_log = schedule_requests(
             params, regs[k], bank_state[k], banks[a:b], rows[a:b], scratch[: b - a],
             out[k], i0, booked[k], logs[k],
         )  # fmt: skip
         scratch[0] = 0
+        if grown_booked.shape[0] != booked.shape[1] or grown_log.shape[0] != logs.shape[1]:
+            st[STATUS] = LOGS_FULL  # the caller starts again with room to spare
+            return False
         n_req[k] = i0 + (b - a)
         last = max(last, out[k, 0, i0 + (b - a) - 1] + tail)
     ready[g] = np.int64(np.ceil(last / ratio))
@@ -95,17 +98,22 @@ def _beams(
                 return
 
 
-def _stacked(controllers):
-    """The controllers' state as arrays the loop indexes by module."""
+def _stacked(controllers, room: tuple[int, int]):
+    """The controllers' state as arrays the loop indexes by module, with room for
+    ``room`` booked commands and refreshes per module (plain arrays: a numba typed list
+    costs seconds to compile in every process)."""
+    M = len(controllers)
     n_max = max(c._out.shape[1] for c in controllers)
-    out = np.zeros((len(controllers), 4, n_max), dtype=np.int64)
-    arrivals = np.zeros((len(controllers), n_max), dtype=np.int64)
-    booked, logs = List(), List()
-    for k, c in enumerate(controllers):
+    out = np.zeros((M, 4, n_max), dtype=np.int64)
+    arrivals = np.zeros((M, n_max), dtype=np.int64)
+    fill = [(int(c._regs[BOOKED]), int(c._regs[REFRESHES])) for c in controllers]
+    booked = np.zeros((M, max(room[0], *(b for b, _ in fill), 1)), np.int64)
+    logs = np.zeros((M, max(room[1], *(r for _, r in fill), 1), 2), np.int64)
+    for k, (c, (b, r)) in enumerate(zip(controllers, fill, strict=True)):
         out[k, :, : c._n] = c._out[:, : c._n]
         arrivals[k, : c._n] = c._arrivals[: c._n]
-        booked.append(c._booked)
-        logs.append(c._log)
+        booked[k, :b] = c._booked[:b]
+        logs[k, :r] = c._log[:r]
     return (
         controllers[0]._params,
         np.stack([c._regs for c in controllers]),
@@ -127,12 +135,41 @@ def _unstack(controllers, ctl) -> None:
         c._booked, c._log, c._n = booked[k], logs[k], int(n_req[k])
 
 
-def play(table, slices, controllers, *, capacity, pixel_fifo, out, ends, ready, tail, ratio):
-    """Run the frame's slices and deliveries (``run_timing``'s loop) on ``controllers``
-    (each reserved for its requests); fills ``out`` (a ``FrameTiming``), ``ends`` and
-    ``ready`` as the reference loop does."""
+def play(table, slices, make_controllers, *, capacity, pixel_fifo, out, ends, ready, tail, ratio):
+    """Run the frame's slices and deliveries (``run_timing``'s loop) on the controllers
+    ``make_controllers()`` returns (each reserved for its requests); fills ``out`` (a
+    ``FrameTiming``), ``ends`` and ``ready`` as the reference loop does and returns the
+    controllers.
+
+    The command-bus and refresh logs are sized up front (a refresh per ``t_refi`` of the
+    beams' or the bursts' time, whichever is longer, twice over); a frame that needs more
+    starts again from fresh controllers with twice the room, so the logs never grow inside
+    the loop."""
+    controllers = make_controllers()
+    room = first_room(table, slices, controllers[0].cfg, ratio)
+    fifo = dict(vars(pixel_fifo))  # its state at the frame's start, for a new attempt
+    while not _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready,
+                    tail, ratio):  # fmt: skip
+        controllers = make_controllers()
+        room = (2 * room[0], 2 * room[1])
+        out.blocks.clear()
+        out.memory_stall = out.pixel_stall = 0
+        vars(pixel_fifo).update(fifo)
+    return controllers
+
+
+def first_room(table, slices, cfg, ratio: float) -> tuple[int, int]:
+    """Booked commands and refreshes per module to make room for before the loop runs."""
+    beam_clocks = sum(int(s.cycles.sum()) + s.extra + s.pre for s in slices)
+    bursts = max((table.bursts(k) for k in range(table.starts.shape[0])), default=0)
+    span = max(beam_clocks * ratio, bursts * cfg.burst_cycles)
+    return 64 + 4 * cfg.queue_depth, 64 + 2 * int(span // max(cfg.t_refi, 1))
+
+
+def _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready, tail, ratio):
+    """One attempt of :func:`play`: False when the logs ran out of room."""
     scratch = np.zeros(max(int(np.diff(table.starts, axis=1).max(initial=0)), 1), np.int64)
-    ctl = (*_stacked(controllers), scratch)
+    ctl = (*_stacked(controllers, room), scratch)
     tab = (table.banks, table.rows, table.starts, table.free_after)
     st = np.zeros(6, dtype=np.int64)
     for work in [*slices, None]:
@@ -143,6 +180,8 @@ def play(table, slices, controllers, *, capacity, pixel_fifo, out, ends, ready, 
         needs = np.zeros(0, np.int64) if flush else work.needs
         cycles = needs if flush else work.cycles
         _beams(st, needs, cycles, flush, *ctl, *tab, ends, ready, capacity, ratio, tail)
+        if st[STATUS] == LOGS_FULL:
+            return False
         if st[STATUS]:
             _raise(st, capacity)
         if flush:
@@ -155,6 +194,7 @@ def play(table, slices, controllers, *, capacity, pixel_fifo, out, ends, ready, 
         out.blocks.append((int(st[T]) - start_block, int(st[STALL]) + pix + work.pre))
     out.end = int(st[T])
     _unstack(controllers, ctl)
+    return True
 
 
 def _raise(st, capacity: int) -> None:
