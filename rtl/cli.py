@@ -57,7 +57,7 @@ def _add_fpga_parser(actions) -> None:
         "target",
         metavar="UNIT|top|cube4",
         help=f"one of {', '.join(UNITS)}; top (--set top.pipelines=N ...); cube4 (the "
-        f"largest top routed on an LFE5U-85F: {CUBE4_PIPELINES} pipeline, max_axis "
+        f"top that fits an LFE5U-85F: {CUBE4_PIPELINES} pipeline, max_axis "
         f"{CUBE4_MAX_AXIS}, 12-bit voxels; --set top.KEY=VALUE changes them)",
     )
     f.add_argument(

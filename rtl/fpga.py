@@ -45,11 +45,12 @@ __all__ = [
 ]
 
 DEFAULT_DEVICE = "LFE5U-85F-6BG381C"
-#: The ``cube4`` target: the largest Cube-4 pipeline top routed on an LFE5U-85F (docs/rtl.md):
-#: one pipeline (two map to 150 of its 156 18x18 multipliers, their place and route not
-#: yet run to the end; three need ~220) for volumes up to 8^3 (at 16^3 the compositing
-#: buffer, built from flip-flops since it has more ports than a block RAM, needs 87 k of
-#: its 83.6 k).
+#: The ``cube4`` target: a Cube-4 pipeline top that fits an LFE5U-85F (docs/rtl.md): one
+#: pipeline (two map to 150 of its 156 18x18 multipliers; three need ~220) for volumes up
+#: to 8^3 (at 16^3 the compositing buffer, built from flip-flops since it has more ports
+#: than a block RAM, needs 87 k of its 83.6 k).  Neither top's place and route has run to
+#: the end yet: nextpnr's placer on its ~71 k cells takes longer than a shared two-core
+#: machine gave it.
 CUBE4_PIPELINES = 1
 CUBE4_MAX_AXIS = 8
 EXTRA = "pip install 'hwsim[fpga]'"
