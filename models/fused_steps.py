@@ -273,7 +273,7 @@ def run_steps_compiled(
 
     def walk_share(mine, report) -> tuple[int, np.ndarray]:
         walk = _Walker(plan, blocks.distance, blocks.block, mine)
-        simulated, sat = 0, np.zeros(2, dtype=np.int64)
+        simulated, sat = 0, np.zeros(3, dtype=np.int64)  # run_part: + settled
         for j in range(plan.n_steps):
             interrupt.check()  # Ctrl-C: the threads without progress stop here too
             m = walk.step(j, state.alive)

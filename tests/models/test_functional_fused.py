@@ -330,9 +330,13 @@ def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
     runs = []
     original = fused.CompositeKernel.run_part
 
+    settled = []
+
     def counted(self, zyx, rays, factor, state, table):
         runs.append(rays.size)
-        return original(self, zyx, rays, factor, state, table)
+        sat = original(self, zyx, rays, factor, state, table)
+        settled.append(int(sat[2]))
+        return sat
 
     walked = []
     original_walk = fused_steps.run_steps_compiled
@@ -359,6 +363,30 @@ def test_compiled_frames_equal_the_unit_chain(case, volumes, monkeypatch):
     else:
         assert fast.simulated == ref.simulated
     assert ref.image[..., 3].max() > 0.05  # something was composited
+    if case in SETTLING:  # the kernel skipped samples of settled rays, and got the same bits
+        assert sum(settled) > 0
+
+
+#: Cases whose opaque rays settle (their blend weight rounds to 0) inside the volume.
+SETTLING = ("vp500", "vp500-axis", "cube4")
+
+
+def test_settled_rays_are_skipped_only_where_the_weight_is_known_early(volumes, monkeypatch):
+    """Back to front or with gradient-modulated opacity a sample's blend weight is not
+    known before its gradient: nothing is skipped there (and the frames still equal the
+    chain's, test_compiled_frames_equal_the_unit_chain)."""
+    settled = []
+    original = fused.CompositeKernel.run_part
+
+    def counted(self, zyx, rays, factor, state, table):
+        sat = original(self, zyx, rays, factor, state, table)
+        settled.append(int(sat[2]))
+        return sat
+
+    monkeypatch.setattr(fused.CompositeKernel, "run_part", counted)
+    arch, volume, scene, overrides = CASES["vp500-modulated-ert"]
+    _render(arch, volumes[volume], scene, overrides)
+    assert settled and sum(settled) == 0
 
 
 @pytest.mark.parametrize(
