@@ -68,6 +68,7 @@ from models.machines.vizard2.ray_memory import (
     _STALLS,
     REGS,
     fills_timed,
+    issue_round,
     lookups,
 )
 from models.units import classify as classify_unit
@@ -103,6 +104,54 @@ def _corners(store, line, offset, out):
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_at, feedback,
+               live):  # fmt: skip
+    """The packet's rays that issue step ``j`` into ``live`` (their count): those whose
+    range holds it, less (rule 3) those whose termination is known at ``clock``."""
+    n = 0
+    for q in range(packet.shape[0]):
+        r = packet[q]
+        if j_lo[r] <= j <= j_hi[r]:
+            if ert_on and not alive[ray_ids[r]] and clock >= terminated_at[r] + feedback:
+                continue
+            live[n] = r
+            n += 1
+    return n
+
+
+@numba.njit(inline="always")
+def _cell(orig, dirs, r, dr, t, hi, shape, cell, c1, w, w_bits, w_code):
+    """Plan ray ``r``'s position at ``t`` (``SamplePlan.position``'s expression): its
+    cell's low corner ``cell``, far corner ``c1`` (the low one along an axis of one voxel)
+    and quantised weights ``w`` (``interp.interp_taps``)."""
+    for a in range(3):
+        c, q = interp_unit.cell_weight(orig[r, a] + t * dirs[dr, a], hi[a], w_bits, w_code)
+        cell[a], w[a] = np.int64(c), np.int64(q)
+        c1[a] = cell[a] + (1 if shape[a] > 1 else 0)
+
+
+@numba.njit(inline="always")
+def _keep(rgba, g, vis_rays, m, rgb12, idx, alpha, gx, gy, gz, ray):
+    """Visible sample number ``m`` (colour from LUT entry ``idx``) kept for shading and
+    blending; returns the new count."""
+    g[0, m], g[1, m], g[2, m] = gx, gy, gz
+    rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+    rgba[3, m] = alpha
+    vis_rays[m] = ray
+    return m + 1
+
+
+@numba.njit(inline="always")
+def _gradient(cgx, cgy, cgz, line, offset, v, w, s_bits, w_bits, w_code):
+    """The sample's interpolated gradient-table entries ``(dx, dy, dz)``."""
+    return (
+        _trilinear(_corners(cgx, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code),
+        _trilinear(_corners(cgy, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code),
+        _trilinear(_corners(cgz, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code),
+    )
+
+
 def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
     """The packet kernel, compiled for one configuration of formats (``constants``: the
     ``config`` tuple, taken from the closure as compile-time constants, as
@@ -123,42 +172,27 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         s_bits, w_bits, w_code, lut_shift, entries, f_bits, spec_entries, one, acc_code = (
             fixed if specialised else config
         )
-        mip, ert_on, feedback, P, grads = (
-            flags[0] != 0,
-            flags[1] != 0,
-            flags[2],
-            flags[3],
-            flags[4] != 0,
-        )
+        mip, ert_on, grads = flags[0] != 0, flags[1] != 0, flags[4] != 0
+        feedback, P = flags[2], flags[3]
         world, modulates = grad_p[GRAD_FLAGS[0]] != 0, grad_p[GRAD_FLAGS[1]] != 0
         gm_scale, gm_entries = grad_p[GRAD_FLAGS[2]], grad_p[GRAD_FLAGS[3]]
         per_ray_dir = dirs.shape[0] > 1
         hi = (shape[0] - 1.0, shape[1] - 1.0, shape[2] - 1.0)
         n_pk = packet.shape[0]
-        live = np.empty(n_pk, np.int64)
-        before = np.empty(n_pk, np.bool_)
-        issue = np.empty(n_pk, np.int64)
-        stall = np.zeros(n_pk // P + 1, np.int64)
-        miss_s = np.empty(8 * n_pk, np.int64)
-        miss_b = np.empty(8 * n_pk, np.int64)
-        rgba = np.empty((4, n_pk), np.int64)
-        vis_rays = np.empty(n_pk, np.int64)
-        g = np.empty((3, n_pk), np.int64)
-        cell, c1 = np.empty(3, np.int64), np.empty(3, np.int64)
-        w = np.empty(3, np.int64)
+        # Per round: its live rays, their state before it, issue cycles, the groups'
+        # stalls, the misses (sample, block) and the visible samples' colours and gradients.
+        rows = np.empty((3, n_pk), np.int64)
+        live, vis_rays, issue = rows[0], rows[1], rows[2]
+        before, stall = np.empty(n_pk, np.bool_), np.zeros(n_pk // P + 1, np.int64)
+        miss_s, miss_b = np.empty(8 * n_pk, np.int64), np.empty(8 * n_pk, np.int64)
+        rgba, g = np.empty((4, n_pk), np.int64), np.empty((3, n_pk), np.int64)
+        cell, c1, w = np.empty(3, np.int64), np.empty(3, np.int64), np.empty(3, np.int64)
         line, offset, v = np.empty(8, np.int64), np.empty(8, np.int64), np.empty(8, np.int64)
         j0, j1 = j_lo[packet].min(), j_hi[packet].max()
         for j in range(j0, j1 + 1):
             clock = regs[_CLOCK]
-            n = 0
-            for q in range(n_pk):
-                r = packet[q]
-                if j_lo[r] <= j <= j_hi[r]:
-                    # rule 3: a known termination stops the issue
-                    if ert_on and not alive[ray_ids[r]] and clock >= terminated_at[r] + feedback:
-                        continue
-                    live[n] = r
-                    n += 1
+            n = _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_at,
+                           feedback, live)  # fmt: skip
             if n == 0:
                 continue
             t = (k_first + k_dir * j) * dt
@@ -168,12 +202,7 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                 r = live[i]
                 ray = ray_ids[r]
                 dr = r if per_ray_dir else 0
-                for a in range(3):
-                    c, q = interp_unit.cell_weight(
-                        orig[r, a] + t * dirs[dr, a], hi[a], w_bits, w_code
-                    )
-                    cell[a], w[a] = np.int64(c), np.int64(q)
-                    c1[a] = cell[a] + (1 if shape[a] > 1 else 0)
+                _cell(orig, dirs, r, dr, t, hi, shape, cell, c1, w, w_bits, w_code)
                 n_miss = lookups(
                     cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
                     faults, line, offset, i, miss_s, miss_b, n_miss, regs,
@@ -195,51 +224,26 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                     continue  # transparent: changes nothing (Backend._composite's `vis`)
                 gx = gy = gz = np.int64(0)
                 if grads:
-                    gx = _trilinear(
-                        _corners(cgx, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
-                    )
-                    gy = _trilinear(
-                        _corners(cgy, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
-                    )
-                    gz = _trilinear(
-                        _corners(cgz, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
+                    gx, gy, gz = _gradient(
+                        cgx, cgy, cgz, line, offset, v, w, s_bits, w_bits, w_code
                     )
                     gx, gy, gz, alpha = world_and_modulate(
                         gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale, gm_entries, gm_table
                     )
-                g[0, m], g[1, m], g[2, m] = gx, gy, gz
-                rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
-                rgba[3, m] = alpha
-                vis_rays[m] = ray
-                m += 1
+                m = _keep(rgba, g, vis_rays, m, rgb12, idx, alpha, gx, gy, gz, ray)
             if not mip:
                 shade_and_blend(
                     rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table, acc,
                     ert_thr, alive, sat, f_bits, spec_entries, one, acc_code,
                 )  # fmt: skip
-            groups = (n + P - 1) // P
-            stall[:groups] = 0
+            stall[: (n + P - 1) // P] = 0
             if n_miss:
                 sd_out, sd_arr, sd_booked, sd_log = fills_timed(
                     miss_s, miss_b, n_miss, clock, stall, P, lay, ratio, sd_out, sd_arr,
                     sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs,
                 )  # fmt: skip
-            waited = 0
-            for i in range(n):
-                if i % P == 0:
-                    waited += stall[i // P]
-                issue[i] = clock + i // P + waited  # rule 1, with the stalls
-                busy[i % P] += 1
-                if ert_on:
-                    if not before[i]:
-                        regs[_SPEC] += 1
-                    elif not alive[ray_ids[live[i]]]:
-                        terminated_at[live[i]] = issue[i]  # its terminating sample
-            end = clock + groups + waited
-            regs[_CLOCK] = end
-            regs[_CYCLES] += end - clock
-            regs[_STALLS] += waited
-            regs[_ISSUED] += n
+            issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live,
+                        terminated_at, issue, regs)  # fmt: skip
         return sd_out, sd_arr, sd_booked, sd_log
 
     return numba.njit(cache=True, nogil=True)(kernel)

@@ -19,7 +19,7 @@ import numpy as np
 
 from hwsim.memory.sdram_kernel import schedule_requests
 
-__all__ = ["REGS", "fills_timed", "lookups"]
+__all__ = ["REGS", "fills_timed", "issue_round", "lookups"]
 
 #: ``regs`` of the packet kernel, by position.
 REGS = (
@@ -151,3 +151,27 @@ def lookups(cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz,
         miss_s[n_miss], miss_b[n_miss] = i, block
         n_miss += 1
     return n_miss
+
+
+@numba.njit(cache=True, nogil=True)
+def issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live, terminated_at,
+                issue, regs):  # fmt: skip
+    """Rules 1 and 3 for a round of ``n`` samples from ``clock``: each sample's issue cycle
+    (its group's, after the stalls so far), the lanes' busy counts, speculative samples
+    and the issue cycle of each ray's terminating sample; the clock moves to the end."""
+    waited = 0
+    for i in range(n):
+        if i % P == 0:
+            waited += stall[i // P]
+        issue[i] = clock + i // P + waited
+        busy[i % P] += 1
+        if ert_on:
+            if not before[i]:
+                regs[_SPEC] += 1
+            elif not alive[ray_ids[live[i]]]:
+                terminated_at[live[i]] = issue[i]
+    end = clock + (n + P - 1) // P + waited
+    regs[_CLOCK] = end
+    regs[_CYCLES] += end - clock
+    regs[_STALLS] += waited
+    regs[_ISSUED] += n
