@@ -515,6 +515,8 @@ def format_bench(report: dict[str, Any]) -> str:
     table = _harness("speed_table")
     if report.get("table") and table is not None:
         lines.append(table.format_rows(report["table"]))
+    if m.get("load_average_after") is not None:
+        lines.append(f"load at the end {m['load_average_after']}")
     lines.append(f"{'ratio':<22}{'value':>8}{'goal':>7}  met")
     for name, r in report.get("ratios", {}).items():
         value = "-" if r["value"] is None else f"{r['value']:.3g}"
