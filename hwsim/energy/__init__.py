@@ -43,16 +43,20 @@ def units_below_clock(arch, technology: str | None = None) -> list[tuple[str, fl
     """``(unit, fmax_hz)`` of each datapath unit of ``arch`` whose synthesised RTL cannot
     run at the machine's clock in ``technology`` (default: the machine's own node); only
     units the machine has, of the RTL's kind (:func:`~hwsim.energy.model.rtl_kind_differs`),
-    and the skewed memory's address unit where the family has one (``skew_memory``)."""
+    and the skewed memory's address unit where the family has one (``skew_memory``); none
+    for a family without a silicon model (its units are not this project's RTL)."""
     from hwsim.energy.model import machine_units, rtl_kind_differs
     from hwsim.energy.synth import unit_silicon
     from models.datapath import Datapath
     from models.machines import machine_for
 
+    family = machine_for(arch)
+    if family.silicon is None:
+        return []  # no silicon model: the project's RTL units are not this machine's
     tech = arch_technology(arch, technology)
     dp = Datapath.from_arch(arch, max(arch.value_bits))
     units = [u for u in machine_units(arch) if not rtl_kind_differs(u, dp)]
-    if machine_for(arch).skew_memory:
+    if family.skew_memory:
         units.append("skew")
     out = []
     for unit in units:

@@ -344,6 +344,8 @@ def _shapes() -> list[tuple[int, int]]:
     shapes = set()
     for arch in _builtin_archs():
         family = machine_for(arch)
+        if family.silicon is None:
+            continue  # not priced: hwsim energy refuses a machine without silicon
         for bits in arch.value_bits:
             dp = Datapath.from_arch(arch, bits)
             silicon = family.silicon(arch, dp)

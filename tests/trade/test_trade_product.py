@@ -94,9 +94,7 @@ def table_line(lines: list[str], row: dict) -> str:
     (line,) = [
         x
         for x in lines
-        if x.startswith(f"{row['scene'][:14]} ")
-        and f" {row['arch'][:14]} " in x
-        and f" {row['rung']} " in x
+        if x.startswith(f"{row['scene']} ") and f" {row['arch']} " in x and f" {row['rung']} " in x
     ]
     return line
 

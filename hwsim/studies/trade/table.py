@@ -61,8 +61,8 @@ def marked_statuses(rows: Sequence[dict[str, Any]]) -> tuple[list[str], list[str
 def _cells(row: dict[str, Any], status: str) -> list[str]:
     sps = row["wall_samples_per_second"]
     return [
-        row["scene"][:14],
-        row["arch"][:14],
+        row["scene"],
+        row["arch"],
         row["rung"],
         fmt_cell(row["wall_seconds"], ".3f"),
         fmt_cell(sps / 1e6 if sps else None, ".2f"),
@@ -85,9 +85,19 @@ def _cycle_error_cell(row: dict[str, Any]) -> str:
     return fmt_cell(row.get("cycle_error"), ".1%")
 
 
-def _fixed(cells: Sequence[str]) -> str:
+def _widths(rows: Sequence[dict[str, Any]]) -> list[int]:
+    """The columns' widths: the header's, the scene and arch columns widened to their
+    longest name (never cut: two machines' names may share their first 14 letters)."""
+    widths = [w for _, w in _HEADER]
+    for column, key in ((0, "scene"), (1, "arch")):
+        longest = max((len(r[key]) for r in rows), default=0)
+        widths[column] = -max(-widths[column], longest + 1)
+    return widths
+
+
+def _fixed(cells: Sequence[str], widths: Sequence[int]) -> str:
     out = ""
-    for text, (_, width) in zip(cells, _HEADER, strict=True):
+    for text, width in zip(cells, widths, strict=True):
         if width == 0:
             out += f"  {text}"
         else:
@@ -106,8 +116,9 @@ def format_ladder(rows: Sequence[dict[str, Any]], not_run: Sequence[dict[str, An
     """The trade table as fixed-width text (one line per scene, machine and rung), the
     reasons of its marked cells, the cells not run and the legend."""
     statuses, footnotes = marked_statuses(rows)
-    lines = [_fixed([h for h, _ in _HEADER])]
-    lines += [_fixed(_cells(r, s)) for r, s in zip(rows, statuses, strict=True)]
+    widths = _widths(rows)
+    lines = [_fixed([h for h, _ in _HEADER], widths)]
+    lines += [_fixed(_cells(r, s), widths) for r, s in zip(rows, statuses, strict=True)]
     lines += _notes(footnotes, not_run)
     lines += [COLUMN_LEGEND, EXACT_LEGEND]
     return "\n".join(lines)
