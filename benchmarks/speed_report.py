@@ -42,7 +42,7 @@ def _show(value: float | None, unit: str) -> str:
     if unit == "bytes":
         return f"{value / 1e9:.2f} GB"
     if unit == "samples/s":
-        return f"{value / 1e6:.2f} M/s"
+        return f"{value / 1e6:.3g} M/s"
     return f"{value:.3g}x"
 
 

@@ -497,12 +497,19 @@ def _split_frame_ratio(sweep: bool, split_size: int, step: Callable[[str], None]
     )
 
 
+def _load(load: Sequence[float] | None) -> str:
+    """The 1, 5 and 15-minute load averages as ``uptime`` prints them."""
+    if load is None:
+        return "load average: unknown"
+    return "load average: " + ", ".join(f"{x:.2f}" for x in load)
+
+
 def format_bench(report: dict[str, Any]) -> str:
     """Rung speeds, the speed table and the ratios as text; what was skipped or failed
     says why."""
     m = report["machine"]
     lines = [
-        f"{m['cpu_model']}, {m['usable_cores']} usable cores, load {m['load_average']}",
+        f"{m['cpu_model']}, {m['usable_cores']} usable cores, {_load(m['load_average'])}",
         f"{'rung':<13}{'seconds':>9}{'Msamples/s':>12}  status",
     ]
     for rung, r in report["rungs"].items():
@@ -516,7 +523,7 @@ def format_bench(report: dict[str, Any]) -> str:
     if report.get("table") and table is not None:
         lines.append(table.format_rows(report["table"]))
     if m.get("load_average_after") is not None:
-        lines.append(f"load at the end {m['load_average_after']}")
+        lines.append(f"at the end: {_load(m['load_average_after'])}")
     lines.append(f"{'ratio':<22}{'value':>8}{'goal':>7}  met")
     for name, r in report.get("ratios", {}).items():
         value = "-" if r["value"] is None else f"{r['value']:.3g}"
