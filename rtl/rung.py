@@ -338,6 +338,16 @@ def render_rtl(
         ``progress(done, total)``: samples taken of the plan's (:func:`run_simulator`;
         Amaranth's simulator: at the end).
     """
+    from rtl.vg500.frame import is_vg500
+
+    if is_vg500(frame.arch):
+        from rtl.vg500.rung import render_vg500
+
+        if trace is not None:
+            raise NotAvailableError(
+                "the vg500 top writes no waveform yet", key="--trace", allowed="no --trace"
+            )
+        return render_vg500(frame, simulator=simulator, progress=progress)
     program = prepare(frame)
     if trace is not None:
         from rtl.amaranth_run import run_amaranth
