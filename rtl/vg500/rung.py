@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from hwsim.core import env
+from hwsim.core.errors import NotAvailableError
 from hwsim.core.notices import first_run
 from hwsim.memory import parse_memory
 from models.frame import Frame
@@ -121,6 +122,10 @@ def run_vg500(
     """Run one frame; returns the result and timings (``build_seconds``, ``run_seconds``,
     ``sim_seconds``: the clock loop alone, ``clocks``) and the memory's counters."""
     require_simulator(simulator)
+    if simulator != "verilator":
+        raise NotAvailableError(
+            "the vg500 bench runs on Verilator only", key="--simulator", allowed="verilator"
+        )
     t0 = time.perf_counter()
     inner = program.inner
     rows = rows_for(inner.geo.max_axis, program.timing.columns)
