@@ -2,7 +2,7 @@
 checkers on the top's pins, the host's writes, the frame; no Python per clock.
 
 # Ref: rtl/top_bench.py (the Cube-4 bench this follows); rtl/sdram/sdr_sdram.v and
-#      sdram_checker.v (the devices and checkers, /work/briefs/sdram_pins.md).
+#      sdram_checker.v (the devices and checkers, rtl/sdram/sdr_sdram.v (the sdram_pins contract)).
 
 ``vg500_bench`` (Verilog) holds what is outside the chip: ``sdr_sdram`` devices
 ``dev0..3`` (``ROWS`` rows per bank: those the size class needs), each loaded by its

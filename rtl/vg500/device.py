@@ -4,7 +4,7 @@ simulator (the Verilator and Icarus benches attach ``rtl/sdram/sdr_sdram.v`` and
 
 # Ref: any PC100/PC133 SDR SDRAM datasheet (ACTIVATE opens a row per bank; READ bursts
 #      ``burst_length`` sequential words; beat ``i`` sampled ``CL + i`` edges after the
-#      edge that sampled the READ); /work/briefs/sdram_pins.md.
+#      edge that sampled the READ); rtl/sdram/sdr_sdram.v (the sdram_pins contract).
 
 Storage ``words[(bank rows + row) columns + column]`` (``rows``: only those the volume
 uses).  No timing is checked here (the checker's job); a READ of a row never opened reads

@@ -3,7 +3,7 @@
 # Ref: architectures.md sections 3 (VolumePro 500: mini-blocks read as bursts from SDRAM
 #      modules) and 9.1 (voxel memory controller: bank state, bursts, refresh); the
 #      command encodings, power-up sequence and timing names of any PC100/PC133 SDR SDRAM
-#      datasheet (JEDEC 21-C); the pin contract of /work/briefs/sdram_pins.md.
+#      datasheet (JEDEC 21-C); the pin contract of rtl/sdram/sdr_sdram.v (the sdram_pins contract).
 
 Requests ``(bank, row, col)`` arrive on the ``req`` stream, one burst of ``burst_length``
 words each, and are read in order; the words leave on ``rdata_*`` in the same order (no

@@ -3,7 +3,8 @@ written from the datasheet rules (not from hwsim.memory), used until rtl/sdram's
 device and checker replace it in the Verilator testbench.
 
 # Ref: any PC100/PC133 SDR SDRAM datasheet: command truth table (cs_n, ras_n, cas_n, we_n),
-#      tRCD, tRP, tRAS, tRC, tRRD, tRFC, burst length, CAS latency; /work/briefs/sdram_pins.md.
+#      tRCD, tRP, tRAS, tRC, tRRD, tRFC, burst length, CAS latency; rtl/sdram/sdr_sdram.v
+#      (the sdram_pins contract).
 """
 
 from __future__ import annotations
