@@ -35,11 +35,15 @@ the returned request's ``done`` (or ``read_done``) event.
 
 Coarser and faster: :class:`SdramTransactionPort` takes a whole batch of bursts (a beam)
 per call and returns one event, timed by the cycle-exact controller, so a
-transaction-level model pays one SimPy event per batch, not about thirteen per burst.
+transaction-level model pays one SimPy event per batch, not about thirteen per burst;
+:meth:`SdramTransactionPort.read_runs` queues several batches (a run of chunks issued at
+one cycle) in one call and returns their end cycles, for a model that times its own
+events.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import simpy
 
 from hwsim.memory.sdram import SdramConfig
@@ -304,6 +308,37 @@ class SdramTransactionPort:
             return self.env.timeout(0, value=(first, first - 1))
         end = ctl.data_end(first + count - 1)
         return self.env.timeout(end - self.env.now, value=(first, first + count - 1))
+
+    def read_runs(self, bank, row, ends) -> list[int]:
+        """Queue now, in one call, consecutive batches the caller has already checked
+        against the device (banks ``0 .. banks-1``, rows ``0 .. rows-1``): the same
+        schedule as one :meth:`read` per batch at this ``env.now`` (any split of a stream
+        schedules alike), without a check or an event per batch.
+
+        Parameters
+        ----------
+        bank, row : numpy.ndarray
+            int64, every batch's bursts concatenated in read order.
+        ends : list of int
+            Ascending: batch ``i`` is bursts ``ends[i - 1] .. ends[i] - 1`` (from 0).
+
+        Returns
+        -------
+        list of int
+            Per batch, the cycle after its last data beat (``env.now`` for an empty
+            batch); the caller times its own events from these.
+        """
+        ctl = self.controller
+        first, count = len(ctl), len(bank)
+        now = int(-(-self.env.now // 1))
+        if count:
+            ctl._run(bank, row, np.full(count, now, dtype=np.int64))
+        reads, tail = ctl.reads, ctl.cfg.cas_latency + ctl.cfg.burst_cycles
+        out, start = [], 0
+        for end in ends:
+            out.append(int(reads[first + end - 1]) + tail if end > start else now)
+            start = end
+        return out
 
     def schedule(self) -> BurstSchedule:
         """Commands and counters of every burst read so far."""

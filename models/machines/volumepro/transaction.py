@@ -10,10 +10,13 @@ as cooperating SimPy processes at *beam-group* granularity:
 
 * **memory**: reads the volume slab by slab (two voxel slices, front to back), each slab
   in ``groups`` chunks of mini-block beams (mbbs: two beams of a slab, ``n_b / 2`` bursts);
-  a chunk's bursts go to each module's :class:`hwsim.memory.SdramTransactionPort` in one
-  call (row hits, misses, refresh and CAS timed by the shared SDRAM model) and the chunk
-  is *ready* when every module has delivered it.  A chunk may not issue before the input
-  buffer has room: the chunk ``capacity`` places earlier must have been freed;
+  a chunk's bursts go to each module's :class:`hwsim.memory.SdramTransactionPort` (row
+  hits, misses, refresh and CAS timed by the shared SDRAM model) and the chunk is *ready*
+  when every module has delivered it.  A chunk may not issue before the input buffer has
+  room: the chunk ``capacity`` places earlier must have been freed.  Every run of chunks
+  free to issue at one cycle goes to a module's port in one call (the controller
+  schedules any split of a stream alike), each module's bursts split out and checked once
+  per frame, and a chunk costs one SimPy event (its readiness);
 * **pipelines**: every sample slice (z-supersampling included) is ``groups`` groups of
   beams, ``C = ceil(n_b / P)`` clocks per beam; a group starts when the chunks its rows'
   trilinear windows need (voxel slices ``i0 - 1 .. i0 + 2``, rows ``a - 2 .. a + 2``)
@@ -40,6 +43,7 @@ class refuses a skipping machine.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -349,7 +353,7 @@ class SlabTransaction:
         (the same controllers, buffer and pixel FIFO carry on); returns the statistics
         (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
         SDRAM ports."""
-        sk, n_steps = self.skips, len(busiest)
+        n_steps = len(busiest)
         nc, ng = len(chunks), len(groups)
         # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
         free_after = np.concatenate(
@@ -368,29 +372,37 @@ class SlabTransaction:
         stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
         stats["section"] = 0
         stats["pipe_ends"] = []
-        M = self.memory.modules
+        streams = self._chunk_streams(chunks)
+        for port, (bank, _, _) in zip(ports, streams.modules, strict=True):
+            port.controller.reserve(frames * bank.size)
 
         def memory():
-            layout = (-1, -1, None)
-            for g, (bi, slab, u_lo, u_hi) in enumerate(chunks * frames):
-                if layout[:2] != (bi, slab):
-                    layout = (bi, slab, self._slab_layout(slab))
-                module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
-                if sk is not None:  # only the mini-blocks a live cell needs
-                    needed = sk.needed[slab, u_lo : u_hi + 1]
-                    keep = np.repeat(needed, self.words_per_voxel, axis=-1).ravel()
-                    module, bank, row = module[keep], bank[keep], row[keep]
+            # Every run of chunks whose buffer slots are free now goes to each module's
+            # port in one call (the same schedule as one call per chunk at this cycle).
+            g, total = 0, nc * frames
+            while g < total:
                 if g >= cap and not freed[g - cap].triggered:
                     waited = env.now
                     yield freed[g - cap]
                     stats["buffer_full"] += int(env.now - waited)
-                done = []
-                for k in range(M):
-                    on = module == k
-                    if on.any():
-                        done.append(ports[k].read(bank[on], row[on]))
-                env.all_of(done).callbacks.append(lambda _e, g=g: ready[g].succeed())
-                stats["events"] += len(done) + 1
+                f = g // nc
+                h = g + 1
+                while h < (f + 1) * nc and (h < cap or freed[h - cap].triggered):
+                    h += 1
+                c0, c1 = g - f * nc, h - f * nc
+                now = int(env.now)
+                ready_at = [now] * (c1 - c0)
+                for port, (bank, row, bounds) in zip(ports, streams.modules, strict=True):
+                    lo, hi = bounds[c0], bounds[c1]
+                    if hi > lo:
+                        ends = [e - lo for e in bounds[c0 + 1 : c1 + 1]]
+                        done = port.read_runs(bank[lo:hi], row[lo:hi], ends)
+                        ready_at = [max(a, b) for a, b in zip(ready_at, done, strict=True)]
+                for c, t in zip(range(g, h), ready_at, strict=True):
+                    env.timeout(t - now).callbacks.append(lambda _e, c=c: ready[c].succeed())
+                # Counted as one event per module batch and one per chunk's readiness.
+                stats["events"] += sum(streams.batches[c0:c1]) + (h - g)
+                g = h
 
         def pipelines():
             single = len(self.bands) == 1
@@ -442,6 +454,41 @@ class SlabTransaction:
             raise DeadlockError("the pipelines never finished: the input buffer is too small")
         return stats, bus, ports
 
+    def _chunk_streams(self, chunks) -> _ChunkStreams:
+        """Every chunk's bursts (mini-blocks read: all, or with skipping those a live cell
+        needs), split by module into one stream each in read order, checked against the
+        device once."""
+        parts: list[tuple[np.ndarray, ...]] = []
+        layout: tuple[Any, ...] = (-1, -1, None)
+        sk = self.skips
+        for bi, slab, u_lo, u_hi in chunks:
+            if layout[:2] != (bi, slab):
+                layout = (bi, slab, self._slab_layout(slab))
+            module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
+            if sk is not None:
+                needed = sk.needed[slab, u_lo : u_hi + 1]
+                keep = np.repeat(needed, self.words_per_voxel, axis=-1).ravel()
+                module, bank, row = module[keep], bank[keep], row[keep]
+            parts.append((module, bank, row))
+        M, nc, cfg = self.memory.modules, len(chunks), self.memory.sdram
+        if not parts:
+            return _ChunkStreams([(np.zeros(0, np.int64),) * 2 + ([0],)] * M, [])
+        module, bank, row = (np.concatenate([p[i] for p in parts]) for i in range(3))
+        chunk = np.repeat(np.arange(nc), [p[0].size for p in parts])
+        if bank.size and (bank.min() < 0 or bank.max() >= cfg.banks):
+            raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
+        if row.size and (row.min() < 0 or row.max() >= cfg.rows):
+            raise ValueError(f"row out of range 0 .. {cfg.rows - 1}")
+        per = np.bincount(module * nc + chunk, minlength=M * nc).reshape(M, nc)
+        bounds = np.zeros((M, nc + 1), dtype=np.int64)
+        np.cumsum(per, axis=1, out=bounds[:, 1:])
+        modules = []
+        for k in range(M):
+            on = module == k
+            banks, rows = bank[on].astype(np.int64), row[on].astype(np.int64)
+            modules.append((banks, rows, bounds[k].tolist()))
+        return _ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
+
     def _mbb_reads(self, chunks) -> int:
         """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
         mini-block that is read."""
@@ -464,6 +511,16 @@ class SlabTransaction:
             "ert.stopped_rays": sk.stopped_rays,
             "space_leaping.samples_leaped": sk.leaped,
         }
+
+
+@dataclass
+class _ChunkStreams:
+    """Per module ``(bank, row, bounds)``: its bursts of every chunk in read order and
+    chunk ``c``'s bursts at ``bounds[c] .. bounds[c + 1] - 1``; ``batches[c]``: modules
+    chunk ``c`` reads from."""
+
+    modules: list[tuple[np.ndarray, np.ndarray, list[int]]]
+    batches: list[int]
 
 
 def _other_axes(plan: SamplePlan) -> tuple[int, int]:
