@@ -153,10 +153,7 @@ def run_fpga(args: argparse.Namespace, arch, progress=None, what_if=None) -> int
     versions = tool_versions()  # a missing tool: one line before any work
     clock_mhz = arch.clock_hz / 1e6
     record = place_and_route(args.target, own, device, clock_mhz, out, progress)
-    record.update(
-        machine=arch.name, machine_clock_mhz=clock_mhz, tools=versions, logs=list(LOGS),
-        flow="yosys synth_ecp5; nextpnr-ecp5 --out-of-context --timing-allow-fail --seed 1",
-    )  # fmt: skip
+    record.update(machine=arch.name, machine_clock_mhz=clock_mhz, tools=versions, logs=list(LOGS))
     if what_if is not None:
         record.update(what_if(record, arch))
     write_text_atomic(out / "fpga.json", json.dumps(record, indent=1, sort_keys=True) + "\n")

@@ -7,7 +7,8 @@ and placed and routed by nextpnr-ecp5 (the YoWASP builds from PyPI: the ``fpga``
 
 The flow: the design's Verilog (:func:`rtl.build.build_unit` and :func:`rtl.export.to_verilog`,
 the memories' power-up contents dropped as in ``rtl build``), ``synth_ecp5 -json``, then
-``nextpnr-ecp5 --out-of-context --timing-allow-fail --freq <machine clock> --seed 1``.
+``nextpnr-ecp5 --out-of-context --timing-allow-fail --freq <machine clock> --seed 1``
+(and ``--router router2`` for a top: :func:`nextpnr_options`).
 Out of context: the ports are not pinned and get no IO buffers (the top has some 2 600
 port bits, more than any ECP5 package has pins), and the clock runs on local routing
 rather than a global buffer; ``fmax_mhz`` is nextpnr's post-route register-to-register
@@ -41,16 +42,16 @@ __all__ = [
     "parse_device",
     "tool_versions",
     "design_verilog",
+    "nextpnr_options",
     "place_and_route",
 ]
 
 DEFAULT_DEVICE = "LFE5U-85F-6BG381C"
 #: The ``cube4`` target: a Cube-4 pipeline top that fits an LFE5U-85F (docs/rtl.md): one
 #: pipeline (two map to 150 of its 156 18x18 multipliers; three need ~220) for volumes up
-#: to 8^3 (at 16^3 the compositing buffer, built from flip-flops since it has more ports
-#: than a block RAM, needs 87 k of its 83.6 k).  Neither top's place and route has run to
-#: the end yet: nextpnr's placer on its ~71 k cells takes longer than a shared two-core
-#: machine gave it.
+#: to 8^3, placed and routed (its compositing buffer in block RAM since the host's clear
+#: shares the compositor's write port).  At P = 2 the buffer has two write ports and is
+#: flip-flops again (its place and route has not been run to the end).
 CUBE4_PIPELINES = 1
 CUBE4_MAX_AXIS = 8
 EXTRA = "pip install 'hwsim[fpga]'"
@@ -211,9 +212,17 @@ def _synthesize(target: str, tmp: Path) -> None:
         raise HwsimError(f"yosys synth_ecp5 failed on {target}: {tail} (see yosys.log)")
 
 
-def _place_route(device: Device, clock_mhz: float, tmp: Path, step) -> list[str]:
-    """nextpnr on ``tmp/netlist.json``; its output lines.  A design larger than the
-    device is an :class:`InputError` naming what it uses of what."""
+def nextpnr_options(target: str) -> list[str]:
+    """The options beyond the device, clock and files: a top (~50 k cells) is routed by
+    ``router2`` (nextpnr's faster router for large designs; the placer is the default
+    ``heap`` either way), a unit by the default ``router1``."""
+    router = ["--router", "router2"] if target in ("top", "cube4") else []
+    return ["--out-of-context", "--timing-allow-fail", "--seed", "1", *router]
+
+
+def _place_route(device: Device, clock_mhz: float, tmp: Path, step, options) -> list[str]:
+    """nextpnr on ``tmp/netlist.json`` with ``options``; its output lines.  A design larger
+    than the device is an :class:`InputError` naming what it uses of what."""
     cmd = [
         _tool("nextpnr"),
         *device.args(),
@@ -221,10 +230,7 @@ def _place_route(device: Device, clock_mhz: float, tmp: Path, step) -> list[str]
         "netlist.json",
         "--freq",
         f"{clock_mhz:g}",
-        "--out-of-context",
-        "--timing-allow-fail",
-        "--seed",
-        "1",
+        *options,
         "--report",
         "nextpnr-report.json",
     ]
@@ -297,7 +303,7 @@ def place_and_route(
         try:
             _synthesize(target, tmp)
             step(2)
-            _place_route(device, clock_mhz, tmp, step)
+            _place_route(device, clock_mhz, tmp, step, nextpnr_options(target))
             step(5)
             report = json.loads((tmp / "nextpnr-report.json").read_text())
         finally:
@@ -306,6 +312,7 @@ def place_and_route(
                     write_text_atomic(out / log, (tmp / log).read_text())
     step(STEPS, "done")
     record = {"device": device.part, "target": target, "params": params, **summarise(report)}
+    record["flow"] = "yosys synth_ecp5; nextpnr-ecp5 " + " ".join(nextpnr_options(target))
     # The unit's own flip-flops: the wrapper's port registers apart.
     record.update(ffs_routed=record["ffs"], port_register_bits=port_bits)
     record["ffs"] = max(record["ffs"] - port_bits, 0)

@@ -396,17 +396,12 @@ class Cube4Top(wiring.Component):
         # core is frozen.
         buffer_lay = buffer_layout(dp)
         m.submodules.ray_buffer = ray_buffer = Memory(shape=buffer_lay, depth=geo.max_rays, init=[])
-        clear = ray_buffer.write_port()
-        m.d.comb += [
-            clear.addr.eq(load.addr),
-            clear.data.eq(Cat(Const(0, buffer_lay.size - 1), Const(1, 1))),
-            clear.en.eq(loading(LOAD_RAYS)),
-        ]
         fronts = [front_end(core, self, k, fields, bufs, rays) for k in range(P)]
         backs = [
             back_end(core, self, k, fronts, ray_buffer, buffer_lay, loading, ~stall)
             for k in range(P)
         ]
+        self._buffer_writes(m, ray_buffer, buffer_lay, backs, loading(LOAD_RAYS))
         samples = Signal(32, name="sample_count")
         with core.If(self.start):
             core.d.sync += samples.eq(0)
@@ -423,6 +418,26 @@ class Cube4Top(wiring.Component):
         m.submodules.core = EnableInserter(~stall)(core)
         self._pixel_bus(m, seq, ray_buffer, buffer_lay, backs, stall, core_busy)
         return m
+
+    def _buffer_writes(self, m, ray_buffer, buffer_lay, backs, clearing):
+        """One write port per compositor; the host's clear (a ray's entry zeroed and
+        alive, while loading the rays, never during a frame) shares pipeline 0's, the
+        compositor first.  One write port is what lets a block RAM hold the buffer: with
+        the clear on a port of its own, Yosys built the 8^3 top's from 21 760 flip-flops
+        (docs/rtl.md, "On a real FPGA"); its two read ports then cost one copy each."""
+        load = self.load.payload
+        cleared = Cat(Const(0, buffer_lay.size - 1), Const(1, 1))
+        for k, back in enumerate(backs):
+            addr, wdata, en = back["write"]
+            port = ray_buffer.write_port()
+            m.d.comb += [port.addr.eq(addr), port.data.eq(wdata), port.en.eq(en)]
+            if k == 0:
+                with m.If(~en & clearing):
+                    m.d.comb += [
+                        port.addr.eq(load.addr),
+                        port.data.eq(cleared),
+                        port.en.eq(1),
+                    ]
 
     # ------------------------------------------------------------------ pixel bus
 

@@ -270,8 +270,9 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
 
 def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loading, enable) -> dict:
     """Gradient, classification, shading and compositing of pipeline ``k``; returns its
-    pixel-FIFO push (``push``: a ray's last sample has just been written back; ``ray``)
-    and whether a sample was composited (``counted``).
+    pixel-FIFO push (``push``: a ray's last sample has just been written back; ``ray``),
+    whether a sample was composited (``counted``) and its write-back (``write``: address,
+    data, enable), for the top to put on a write port of ``ray_buffer``.
 
     ``ray_buffer`` lives outside the frozen core (the pixel bus reads it while the core
     is frozen), so the read port here is gated by ``enable`` explicitly; the write-back
@@ -426,18 +427,15 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     ray_w = after[: geo.ray_bits]
     last_w = after[geo.ray_bits]
     alive_w = after[len(side)]
-    wb = ray_buffer.write_port()
     out = composite.o.payload
     counted = composite.o.valid & (alive_w | top.mip)
-    m.d.comb += [
-        wb.addr.eq(ray_w),
-        wb.data.eq(Cat(out.acc, out.mip, ~out.terminated)),
-        # Not gated: a frozen compositor repeats the same write, and the pixel bus may
-        # read the ray as soon as the FIFO took it, in the clock of its write.
-        wb.en.eq(counted),
-    ]
+    wb_data = Signal(buffer_lay.size, name=f"writeback_data{k}")
+    m.d.comb += wb_data.eq(Cat(out.acc, out.mip, ~out.terminated))
     return {
         "push": composite.o.valid & last_w,
         "ray": ray_w,
         "counted": counted,
+        # Not gated: a frozen compositor repeats the same write, and the pixel bus may
+        # read the ray as soon as the FIFO took it, in the clock of its write.
+        "write": (ray_w, wb_data, counted),
     }
