@@ -178,7 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rtl-commit", help="record this commit (a tree without .git)")
     parser.add_argument("--data", type=Path, help="the data file (hwsim/energy/data/...)")
     args = parser.parse_args(argv)
-    units = {"all": list(UNITS), "none": []}.get(args.units) or args.units.split(",")
+    named = {"all": list(UNITS), "none": []}
+    units = named[args.units] if args.units in named else args.units.split(",")
     pipelines = [int(p) for p in args.pipelines.split(",") if p]
     target = args.data or Path(str(resources.files("hwsim.energy") / "data" / _DATA))
     refresh(target, args.device, args.jobs, units, pipelines, args.rtl_commit)
