@@ -51,6 +51,7 @@ from models.machines.volumepro.timing import (
 )
 from models.machines.volumepro.trilinear import TrilinearSource
 from models.units import classify as classify_unit
+from models.units.voxel import converted_planes
 
 __all__ = ["SlabFaults", "SlabMachine", "TrilinearSource"]
 
@@ -99,8 +100,11 @@ class SlabMachine(SliceOrderMachine):
         self.need_value = (
             not backend.pre_classified or backend.need_grad or "gradient" in self.elaborated
         )
+        # The voxels a plane at a time unless already converted: the SDRAM image is the
+        # frame's copy of them (kept per volume, as the conversion would be).
+        raw = backend.__dict__.get("raw")
         self.memory = SdramVolume(
-            backend.raw,
+            converted_planes(backend.volume, self.dp.voxel_bits) if raw is None else raw,
             self.memory_cfg,
             P,
             self.counters,
@@ -383,6 +387,13 @@ class SlabMachine(SliceOrderMachine):
                     state.dt_sum[parked] = 0
                 if records:
                     records[-1].arrivals += int(parked.size)
+        # The last slices' corner planes and the SDRAM words are not read again: dropped
+        # before the timing pass (at 512^3 a slice's planes are ~8 MB a channel, value and
+        # three differences over a window of four or five slices; the words 0.27 GB).
+        self._planes.clear()
+        self._voxels.clear()
+        self._diffed.clear()
+        self.memory.release()
         return self._finish(state, bus, records, sections, parked_counts, needed)
 
     def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:

@@ -46,6 +46,11 @@ __all__ = ["SdramVolume", "layout", "mini_block_bursts", "words_per_voxel"]
 #: with the volume.
 _WORDS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
+#: Words kept with their volume for its later frames, at most (128 MiB: a 256^3 volume
+#: of 32-bit voxels).  A 512^3 volume's 134 M words (0.27 GB) are written again for each
+#: frame: kept, they sat beside the timing pass's arrays at the frame's memory peak.
+KEEP_WORDS = 1 << 26
+
 
 def words_per_voxel(volume, memory: MemoryConfig) -> int:
     """SDRAM words one voxel of ``volume`` occupies: two 16-bit words for a 32-bit voxel
@@ -93,7 +98,9 @@ class SdramVolume:
     Parameters
     ----------
     raw : numpy.ndarray
-        ``(z, y, x)`` raw voxels (at most 16 bits).
+        ``(z, y, x)`` raw voxels (at most 16 bits): an array, or anything with its
+        ``shape``, ``dtype`` and z-planes ``raw[z]`` (read once each, in order:
+        :func:`models.units.voxel.converted_planes`).
     memory : MemoryConfig
         Modules, skew and device (the arch's ``[memory]`` table).
     pipelines : int
@@ -107,7 +114,8 @@ class SdramVolume:
         The arch file, named when the volume does not fit the devices.
     kept_for : (Volume, int), optional
         The volume ``raw`` was converted from and the voxel width it was converted to:
-        the written words are then kept with the volume for its later frames.
+        the written words are then kept with the volume for its later frames (up to
+        :data:`KEEP_WORDS`).
     """
 
     def __init__(
@@ -130,13 +138,17 @@ class SdramVolume:
         self.n = max(2, max(self.shape) + max(self.shape) % 2)
         self.stuck_module, self.stuck_bank = stuck_module, stuck_bank
         # The host's write depends on the voxels and the layout alone: kept per volume
-        # (dropped with it), so a turntable's later frames do not write it again.
+        # (dropped with it, up to KEEP_WORDS), so a turntable's later frames do not write
+        # it again.
         kept = _WORDS.setdefault(kept_for[0], {}) if kept_for is not None else {}
         key = (memory, self.n, raw.dtype.str, raw.shape, kept_for and kept_for[1])
-        if key not in kept:
-            kept.clear()  # one layout per volume: a 512^3 one is 0.27 GB
-            kept[key] = self._load(raw)
-        self.words = kept[key]
+        words = kept.get(key)
+        if words is None:
+            kept.clear()  # one layout per volume
+            words = self._load(raw)
+            if words.size <= KEEP_WORDS:
+                kept[key] = words
+        self.words: np.ndarray | None = words
         # The value words held here; the device holds every word of every voxel.
         stored = self.words.shape[2] * self.words_per_voxel
         rows = -(-stored // memory.sdram.columns)
@@ -155,14 +167,22 @@ class SdramVolume:
         """The host's write: ``words[module, bank, address]``, one z-plane at a time.
 
         Each plane's addresses are computed, written and dropped (keeping them all was
-        24 bytes a voxel); the word array grows by doubling as the addresses climb and
-        is cut to the highest address written."""
+        24 bytes a voxel).  The word array is sized up front from the last two planes'
+        highest address (the top of the mini-block layout, whose addresses climb with
+        ``z``): growing it by doubling held up to three times its 0.27 GB at 512^3 for a
+        moment.  A layout whose top lies lower down (the block layout's banks wrap) grows
+        it by doubling, then cuts it to the highest address written."""
         nz, ny, nx = self.shape
         y, x = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
-        words = np.zeros((self.M, self.K, 1 << 12), dtype=np.uint16)
+
+        def plane(z: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            return layout(self.memory, self.n, x, y, np.full_like(x, z))
+
+        first = max(int(plane(z)[2].max()) + 1 for z in {max(nz - 2, 0), nz - 1})
+        words = np.zeros((self.M, self.K, first), dtype=np.uint16)
         size = 0
         for z in range(nz):
-            m, b, a = layout(self.memory, self.n, x, y, np.full_like(x, z))
+            m, b, a = plane(z)
             top = int(a.max()) + 1
             if top > words.shape[2]:
                 grown = np.zeros((self.M, self.K, max(top, 2 * words.shape[2])), np.uint16)
@@ -170,7 +190,12 @@ class SdramVolume:
                 words = grown
             words[m.ravel(), b.ravel(), a.ravel()] = raw[z].ravel()
             size = max(size, top)
-        return np.ascontiguousarray(words[:, :, :size])
+        return words if size == words.shape[2] else np.ascontiguousarray(words[:, :, :size])
+
+    def release(self) -> None:
+        """The frame reads no more voxels: its words are dropped (kept with the volume
+        when small, :data:`KEEP_WORDS`)."""
+        self.words = None
 
     def schedule(self, kp: int, q: int) -> SliceSchedule:
         """Where each pipeline's voxel of slice ``q`` comes from, clock by clock."""

@@ -177,8 +177,9 @@ def run_timing(
 
     def make_controllers() -> list[SdramController]:
         made = [SdramController(dev) for _ in range(memory.modules)]
-        for k, ctl in enumerate(made):  # each module's requests, known up front
-            ctl.reserve(table.bursts(k))
+        if not compiled:  # the compiled loop sizes one stacked copy itself (no second)
+            for k, ctl in enumerate(made):  # each module's requests, known up front
+                ctl.reserve(table.bursts(k))
         return made
 
     tail = dev.cas_latency + dev.burst_cycles
@@ -202,7 +203,7 @@ def run_timing(
     # schedule holds ~40 bytes per burst and the frame ~17 M bursts.  The per-burst
     # arrays are kept only for a waveform.
     for k, ctl in enumerate(controllers):
-        sched = ctl.schedule()
+        sched = ctl.schedule(copy=keep_schedules)
         controllers[k] = None
         out.stats.append(sched.stats)
         if keep_schedules:
