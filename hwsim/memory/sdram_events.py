@@ -36,14 +36,14 @@ the returned request's ``done`` (or ``read_done``) event.
 Coarser and faster: :class:`SdramTransactionPort` takes a whole batch of bursts (a beam)
 per call and returns one event, timed by the cycle-exact controller, so a
 transaction-level model pays one SimPy event per batch, not about thirteen per burst;
-:meth:`SdramTransactionPort.read_runs` queues several batches (a run of chunks issued at
-one cycle) in one call and returns their end cycles, for a model that times its own
-events.
+:meth:`SdramTransactionPort.read_runs` queues several batches, each burst from its own
+arrival cycle, in one call and returns their end cycles, for a model that times its own
+events (and may hand the controller its bursts later than they arrived: the controller is
+causal).
 """
 
 from __future__ import annotations
 
-import numpy as np
 import simpy
 
 from hwsim.memory.sdram import SdramConfig
@@ -309,34 +309,34 @@ class SdramTransactionPort:
         end = ctl.data_end(first + count - 1)
         return self.env.timeout(end - self.env.now, value=(first, first + count - 1))
 
-    def read_runs(self, bank, row, ends) -> list[int]:
-        """Queue now, in one call, consecutive batches the caller has already checked
-        against the device (banks ``0 .. banks-1``, rows ``0 .. rows-1``): the same
-        schedule as one :meth:`read` per batch at this ``env.now`` (any split of a stream
-        schedules alike), without a check or an event per batch.
+    def read_runs(self, bank, row, arrive, ends) -> list[int]:
+        """Queue, in one call, consecutive batches the caller has already checked against
+        the device (banks ``0 .. banks-1``, rows ``0 .. rows-1``), each burst from its own
+        arrival cycle: the same schedule as one :meth:`read` per batch at that cycle (the
+        controller schedules any split of a stream alike, and a burst's cycles depend only
+        on the bursts before it), without a check or an event per batch.
 
         Parameters
         ----------
-        bank, row : numpy.ndarray
-            int64, every batch's bursts concatenated in read order.
+        bank, row, arrive : numpy.ndarray
+            int64, every batch's bursts concatenated in read order; ``arrive`` ascending.
         ends : list of int
             Ascending: batch ``i`` is bursts ``ends[i - 1] .. ends[i] - 1`` (from 0).
 
         Returns
         -------
         list of int
-            Per batch, the cycle after its last data beat (``env.now`` for an empty
-            batch); the caller times its own events from these.
+            Per batch, the cycle after its last data beat (0 for an empty batch); the
+            caller times its own events from these.
         """
         ctl = self.controller
-        first, count = len(ctl), len(bank)
-        now = int(-(-self.env.now // 1))
-        if count:
-            ctl._run(bank, row, np.full(count, now, dtype=np.int64))
+        first = len(ctl)
+        if len(bank):
+            ctl._run(bank, row, arrive)
         reads, tail = ctl.reads, ctl.cfg.cas_latency + ctl.cfg.burst_cycles
         out, start = [], 0
         for end in ends:
-            out.append(int(reads[first + end - 1]) + tail if end > start else now)
+            out.append(int(reads[first + end - 1]) + tail if end > start else 0)
             start = end
         return out
 

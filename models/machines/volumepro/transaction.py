@@ -243,18 +243,19 @@ class SlabTransaction:
         for bi, (a0, a1) in enumerate(self.bands):
             u0 = max(a0 - 1, 0) // 2
             spans = [(r0, min(r0 + 2 * U, a1)) for r0 in range(a0, a1, 2 * U)]
+            if sk is not None:  # per slice and span: clocks, first and last live row
+                span_clocks, live_lo, live_hi = _live_spans(sk.cost, spans)
             for j in range(n_steps):
                 s_lo, s_hi = self._window_slabs(j)
-                cost = None if sk is None else sk.cost[j]
                 first = len(groups)
-                for r0, r1 in spans:
-                    if cost is None:
+                for si, (r0, r1) in enumerate(spans):
+                    if sk is None:
                         clocks, lo, hi = (r1 - r0) * self.C, r0, r1 - 1
                     else:
-                        live = np.flatnonzero(cost[r0:r1])
-                        if not live.size:
+                        clocks = span_clocks[j][si]
+                        if not clocks:
                             continue
-                        clocks, lo, hi = int(cost[r0:r1].sum()), r0 + live[0], r0 + live[-1]
+                        lo, hi = live_lo[j][si], live_hi[j][si]
                     k_lo = (max(lo - 1, 0) // 2 - u0) // U
                     k_hi = (min(hi + 2, n_a - 1) // 2 - u0) // U
                     ids = [
@@ -361,7 +362,7 @@ class SlabTransaction:
         )
         env = simpy.Environment()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        ready = [env.event() for _ in range(nc * frames)]
+        reads = _DeferredReads(ports, self._chunk_streams(chunks), nc, frames)
         freed = [env.event() for _ in range(nc * frames)]
         frees_at: dict[int, list[int]] = {}
         for c, g in enumerate(free_after.tolist()):
@@ -372,37 +373,25 @@ class SlabTransaction:
         stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
         stats["section"] = 0
         stats["pipe_ends"] = []
-        streams = self._chunk_streams(chunks)
-        for port, (bank, _, _) in zip(ports, streams.modules, strict=True):
-            port.controller.reserve(frames * bank.size)
+        waiting: list[Any] = [None, None]  # the chunk the pipelines wait to see issued
 
         def memory():
-            # Every run of chunks whose buffer slots are free now goes to each module's
-            # port in one call (the same schedule as one call per chunk at this cycle).
+            # Chunk g issues once the slot of chunk g - cap is free; a run of chunks free
+            # to issue at one cycle issues together.
             g, total = 0, nc * frames
             while g < total:
                 if g >= cap and not freed[g - cap].triggered:
                     waited = env.now
                     yield freed[g - cap]
                     stats["buffer_full"] += int(env.now - waited)
-                f = g // nc
                 h = g + 1
-                while h < (f + 1) * nc and (h < cap or freed[h - cap].triggered):
+                while h < total and (h < cap or freed[h - cap].triggered):
                     h += 1
-                c0, c1 = g - f * nc, h - f * nc
-                now = int(env.now)
-                ready_at = [now] * (c1 - c0)
-                for port, (bank, row, bounds) in zip(ports, streams.modules, strict=True):
-                    lo, hi = bounds[c0], bounds[c1]
-                    if hi > lo:
-                        ends = [e - lo for e in bounds[c0 + 1 : c1 + 1]]
-                        done = port.read_runs(bank[lo:hi], row[lo:hi], ends)
-                        ready_at = [max(a, b) for a, b in zip(ready_at, done, strict=True)]
-                for c, t in zip(range(g, h), ready_at, strict=True):
-                    env.timeout(t - now).callbacks.append(lambda _e, c=c: ready[c].succeed())
-                # Counted as one event per module batch and one per chunk's readiness.
-                stats["events"] += sum(streams.batches[c0:c1]) + (h - g)
+                stats["events"] += reads.issue(int(env.now), g, h)
                 g = h
+                if waiting[0] is not None and waiting[0] < h:
+                    waiting[1].succeed()
+                    waiting[0] = None
 
         def pipelines():
             single = len(self.bands) == 1
@@ -415,14 +404,17 @@ class SlabTransaction:
                     pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
                     stats["section"] += pre
                     yield env.timeout(pre)
-                if need >= 0 and not ready[need].triggered:
+                if need >= 0 and not reads.ready_by(need, env.now):
                     if need - cap >= 0 and free_after[need - cap] >= k:
                         raise DeadlockError(
                             f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
                             f"hold the sample window of slice {j}"
                         )
                     waited = env.now
-                    yield ready[need]
+                    if not reads.issued(need):
+                        waiting[:] = [need, env.event()]
+                        yield waiting[1]
+                    yield env.timeout(reads.ready_at(need) - env.now)
                     stats["stall"] += int(env.now - waited)
                 if clocks:
                     yield env.timeout(clocks)
@@ -450,6 +442,7 @@ class SlabTransaction:
         env.process(memory())
         env.process(pipelines())
         env.run()
+        reads.flush(reads.issued_count)  # bursts of chunks no group waited on
         if stats["pipe_end"] == 0 and groups:
             raise DeadlockError("the pipelines never finished: the input buffer is too small")
         return stats, bus, ports
@@ -459,34 +452,43 @@ class SlabTransaction:
         needs), split by module into one stream each in read order, checked against the
         device once."""
         parts: list[tuple[np.ndarray, ...]] = []
-        layout: tuple[Any, ...] = (-1, -1, None)
-        sk = self.skips
-        for bi, slab, u_lo, u_hi in chunks:
-            if layout[:2] != (bi, slab):
-                layout = (bi, slab, self._slab_layout(slab))
-            module, bank, row = (x[u_lo : u_hi + 1].ravel() for x in layout[2])
-            if sk is not None:
-                needed = sk.needed[slab, u_lo : u_hi + 1]
-                keep = np.repeat(needed, self.words_per_voxel, axis=-1).ravel()
+        sk, wpv, nc = self.skips, self.words_per_voxel, len(chunks)
+        c = 0
+        while c < nc:  # the chunks of one band's read of one slab together
+            bi, slab = chunks[c][:2]
+            e = c
+            while e < nc and chunks[e][:2] == (bi, slab):
+                e += 1
+            spans = [(u_lo, u_hi + 1) for _, _, u_lo, u_hi in chunks[c:e]]
+            rows = np.concatenate([np.arange(lo, hi) for lo, hi in spans])
+            owner = np.repeat(np.arange(c, e), [hi - lo for lo, hi in spans])
+            module, bank, row = (x[rows] for x in self._slab_layout(slab))
+            if sk is None:
+                counts = np.full(rows.size, module.shape[1])
+                module, bank, row = module.ravel(), bank.ravel(), row.ravel()
+            else:  # only the mini-blocks a live cell needs
+                keep = np.repeat(sk.needed[slab][rows], wpv, axis=-1)
+                counts = keep.sum(axis=1)
                 module, bank, row = module[keep], bank[keep], row[keep]
-            parts.append((module, bank, row))
-        M, nc, cfg = self.memory.modules, len(chunks), self.memory.sdram
+            parts.append((module, bank, row, np.repeat(owner, counts)))
+            c = e
+        M, cfg = self.memory.modules, self.memory.sdram
         if not parts:
-            return _ChunkStreams([(np.zeros(0, np.int64),) * 2 + ([0],)] * M, [])
-        module, bank, row = (np.concatenate([p[i] for p in parts]) for i in range(3))
-        chunk = np.repeat(np.arange(nc), [p[0].size for p in parts])
+            empty = np.zeros(0, np.int64)
+            return _ChunkStreams([(empty, empty, [0], empty)] * M, [])
+        module, bank, row, chunk = (np.concatenate([p[i] for p in parts]) for i in range(4))
         if bank.size and (bank.min() < 0 or bank.max() >= cfg.banks):
             raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
         if row.size and (row.min() < 0 or row.max() >= cfg.rows):
             raise ValueError(f"row out of range 0 .. {cfg.rows - 1}")
-        per = np.bincount(module * nc + chunk, minlength=M * nc).reshape(M, nc)
+        per = np.bincount(module.astype(np.int64) * nc + chunk, minlength=M * nc).reshape(M, nc)
         bounds = np.zeros((M, nc + 1), dtype=np.int64)
         np.cumsum(per, axis=1, out=bounds[:, 1:])
         modules = []
         for k in range(M):
             on = module == k
             banks, rows = bank[on].astype(np.int64), row[on].astype(np.int64)
-            modules.append((banks, rows, bounds[k].tolist()))
+            modules.append((banks, rows, bounds[k].tolist(), per[k]))
         return _ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
 
     def _mbb_reads(self, chunks) -> int:
@@ -513,13 +515,90 @@ class SlabTransaction:
         }
 
 
+def _live_spans(cost: np.ndarray, spans: list[tuple[int, int]]):
+    """Per sample slice and span ``(r0, r1)`` of rows: the span's clocks (``cost`` summed)
+    and its first and last row of nonzero cost (meaningful where the clocks are not 0),
+    as nested lists."""
+    starts = [r0 for r0, _ in spans]
+    part = cost[:, starts[0] : spans[-1][1]]
+    rows = np.arange(starts[0], spans[-1][1])
+    local = [r0 - starts[0] for r0 in starts]
+    live = part > 0
+    clocks = np.add.reduceat(part, local, axis=1)
+    lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
+    hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
+    return clocks.tolist(), lo.tolist(), hi.tolist()
+
+
+class _DeferredReads:
+    """The chunks' SDRAM reads, handed to the modules' ports only when the pipelines ask
+    when a chunk is ready: the controller is causal (a burst's cycles depend on the
+    bursts before it and their arrival cycles only), so every chunk issued so far goes in
+    one call per module with its own arrival cycle, the same schedule as a call per chunk
+    when it issued.  The memory runs about a buffer ahead of the pipelines, so a frame
+    makes a few calls per buffer's worth of chunks, not one per chunk and module."""
+
+    def __init__(self, ports, streams: _ChunkStreams, nc: int, frames: int) -> None:
+        self.ports, self.streams, self.nc = ports, streams, nc
+        self.issue_at: list[int] = []  # cycle each chunk issued, in read order
+        self.ready: list[int] = []  # cycle each flushed chunk is ready
+        for port, (bank, _, _, _) in zip(ports, streams.modules, strict=True):
+            port.controller.reserve(frames * bank.size)
+
+    @property
+    def issued_count(self) -> int:
+        return len(self.issue_at)
+
+    def issued(self, c: int) -> bool:
+        return c < len(self.issue_at)
+
+    def issue(self, now: int, g: int, h: int) -> int:
+        """Chunks ``g .. h - 1`` issue at cycle ``now``; returns the events the model
+        counts for them (one per module batch and one per chunk's readiness)."""
+        self.issue_at.extend([now] * (h - g))
+        nc = self.nc
+        return sum(self.streams.batches[c % nc] for c in range(g, h)) + (h - g)
+
+    def ready_by(self, c: int, now: float) -> bool:
+        """Whether chunk ``c`` has issued and its bursts have all arrived by ``now``."""
+        return c < len(self.issue_at) and self.ready_at(c) <= now
+
+    def ready_at(self, c: int) -> int:
+        """Cycle chunk ``c`` (issued) is ready: its last burst on every module delivered."""
+        if c >= len(self.ready):
+            self.flush(len(self.issue_at))
+        return self.ready[c]
+
+    def flush(self, upto: int) -> None:
+        """Hand chunks ``len(self.ready) .. upto - 1`` to the ports (frame by frame)."""
+        nc = self.nc
+        a = len(self.ready)
+        while a < upto:
+            f = a // nc
+            b = min(upto, (f + 1) * nc)
+            c0, c1 = a - f * nc, b - f * nc
+            at = self.issue_at[a:b]
+            ready = list(at)
+            for port, (bank, row, bounds, per) in zip(
+                self.ports, self.streams.modules, strict=True
+            ):
+                lo, hi = bounds[c0], bounds[c1]
+                if hi > lo:
+                    arrive = np.repeat(np.asarray(at, dtype=np.int64), per[c0:c1])
+                    ends = [e - lo for e in bounds[c0 + 1 : c1 + 1]]
+                    done = port.read_runs(bank[lo:hi], row[lo:hi], arrive, ends)
+                    ready = [max(x, y) for x, y in zip(ready, done, strict=True)]
+            self.ready.extend(ready)
+            a = b
+
+
 @dataclass
 class _ChunkStreams:
-    """Per module ``(bank, row, bounds)``: its bursts of every chunk in read order and
-    chunk ``c``'s bursts at ``bounds[c] .. bounds[c + 1] - 1``; ``batches[c]``: modules
-    chunk ``c`` reads from."""
+    """Per module ``(bank, row, bounds, per)``: its bursts of every chunk in read order,
+    chunk ``c``'s bursts at ``bounds[c] .. bounds[c + 1] - 1``, ``per[c]`` of them;
+    ``batches[c]``: modules chunk ``c`` reads from."""
 
-    modules: list[tuple[np.ndarray, np.ndarray, list[int]]]
+    modules: list[tuple[np.ndarray, np.ndarray, list[int], np.ndarray]]
     batches: list[int]
 
 
