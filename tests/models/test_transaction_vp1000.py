@@ -35,6 +35,7 @@ from models import cycle as cycle_module
 from models.frame import frame_of
 from models.functional import NEVER, render_functional
 from models.machines.volumepro import cycle as volumepro_module
+from models.machines.volumepro import vp1000_transaction
 from models.machines.volumepro.vp1000_transaction import Vp1000Transaction
 from models.transaction import render_transaction, timing_only, transaction_timing
 
@@ -244,6 +245,39 @@ def test_brute_force_skips_only_beams_no_ray_reaches(phantoms):
     s = transaction_timing(frame_of(small, volume, tf, machine(False)))
     assert s.counters["pipeline.beams_skipped"] > t.counters["pipeline.beams_skipped"]
     assert s.counters["memory.bursts_skipped"] > t.counters["memory.bursts_skipped"] == 0
+
+
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+def test_compiled_skips_equal_the_numpy_reference(phantoms, projection):
+    """Rule 6 per slice by the compiled loop (``skips_kernel.step_cells``) and by the NumPy
+    form it replaced: the same clocks, mini-blocks, live samples and busiest lanes, with
+    no ray stopping, with the functional rung's ends and with random ends; a mutated end
+    changes them (the comparison can fail)."""
+    volume = phantoms["head"]
+    scene = scene_of(az=35, el=25, image=48, ert=0.9, projection=projection)
+    tf = resolve_transfer(scene.transfer, volume)
+    model = Vp1000Transaction(frame_of(scene, volume, tf, machine(True)))
+    plan = model.plan
+    ends = render_functional(frame_of(scene, volume, tf, machine(True))).stopped
+    rng = np.random.default_rng(3)
+    fields = ("cost", "needed", "live", "busiest")
+    for stopped in (None, ends, rng.integers(-1, plan.n_steps, ends.shape)):
+        for lag in (4, 8):
+            runs = [
+                vp1000_transaction.beam_skips(
+                    plan, model.P, stopped, lag, model._window_slabs, compiled=compiled
+                )
+                for compiled in (True, False)
+            ]
+            for name in fields:
+                np.testing.assert_array_equal(getattr(runs[0], name), getattr(runs[1], name))
+    alive = np.full(ends.shape, plan.n_steps)
+    early = np.full(ends.shape, 2)
+    a, b = (
+        vp1000_transaction.beam_skips(plan, model.P, s, 4, model._window_slabs)
+        for s in (alive, early)
+    )
+    assert a.live.sum() > b.live.sum() and a.cost.sum() > b.cost.sum()
 
 
 def test_termination_steps_come_from_the_functional_rung(phantoms):

@@ -180,15 +180,16 @@ def mini_blocks_read(cells: np.ndarray) -> np.ndarray:
     plane holding a voxel that some marked cell reads; cell ``(a, b)`` reads voxel rows
     ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` (corners and gradient neighbours).
     Shared by the cycle machine and the VolumePro 1000 transaction model."""
-    voxels = cells
-    for axis in (0, 1):
-        v = np.moveaxis(voxels, axis, 0)
-        out = v.copy()
-        out[:-1] |= v[1:]
-        out[1:] |= v[:-1]
-        out[2:] |= v[:-2]
-        voxels = np.moveaxis(out, 0, axis)
-    n_a, n_b = voxels.shape
+    n_a, n_b = cells.shape
+    rows = cells.copy()  # voxel rows a - 1 .. a + 2 of each marked cell
+    rows[:-1] |= cells[1:]
+    rows[1:] |= cells[:-1]
+    rows[2:] |= cells[:-2]
     pad = np.zeros((-(-n_a // 2) * 2, -(-n_b // 2) * 2), dtype=bool)
-    pad[:n_a, :n_b] = voxels
-    return pad.reshape(pad.shape[0] // 2, 2, pad.shape[1] // 2, 2).any(axis=(1, 3))
+    voxels = pad[:n_a, :n_b]  # then columns b - 1 .. b + 2, into the even-sized plane
+    voxels[:] = rows
+    voxels[:, :-1] |= rows[:, 1:]
+    voxels[:, 1:] |= rows[:, :-1]
+    voxels[:, 2:] |= rows[:, :-2]
+    pairs = pad[0::2] | pad[1::2]  # the two voxel rows of a mini-block, then its columns
+    return pairs[:, 0::2] | pairs[:, 1::2]

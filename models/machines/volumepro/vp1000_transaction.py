@@ -100,6 +100,8 @@ def beam_skips(
     stopped: np.ndarray | None,
     lag: int,
     window,
+    *,
+    compiled: bool = True,
 ) -> BeamSkips:
     """Per-beam clocks and mini-blocks read at every sample slice of ``plan``.
 
@@ -117,6 +119,10 @@ def beam_skips(
         and the slice being processed (``ceil(4 x supersampling)``).
     window : callable
         ``window(j) -> (lo, hi)``: the slabs holding sample slice ``j``'s voxel window.
+    compiled : bool
+        Each slice's cells, clocks and lanes by the compiled loop
+        (:func:`models.machines.volumepro.skips_kernel.step_cells`); False: the NumPy
+        form, its reference (the same results).
     """
     kp = plan.principal_axis
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
@@ -130,9 +136,18 @@ def beam_skips(
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
     cells = np.zeros((n_a, C * P), dtype=bool)
     from models import fused_steps  # imports numba: only for the frames that need it
+    from models.machines.volumepro.skips_kernel import step_cells
 
+    axes, dims = np.array([kp, a_ax, b_ax]), np.array(shape, dtype=np.int64)
+    never = np.zeros(0, dtype=np.int64)
     # Every planned sample's position, step by step (compiled; the plan's own floats).
     for j, zyx, rays in fused_steps.plan_positions(plan):
+        if compiled:
+            last = never if stopped is None else stopped[rays].astype(np.int64)
+            live_count[j], busiest[j] = step_cells(zyx, axes, dims, P, last, j, lag, cells, cost[j])
+            lo, hi = window(j)
+            needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
+            continue
         ra = np.clip(np.floor(zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
         rb = np.clip(np.floor(zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
         known = live = None
@@ -148,7 +163,11 @@ def beam_skips(
         else:
             cells[ra[live], rb[live]] = True
             live_count[j] = int(live.sum())
-        cost[j] = cells.reshape(n_a, C, P).any(axis=2).sum(axis=1)
+        groups = cells.reshape(n_a, C, P)
+        held = groups[:, :, 0].copy()  # clock groups holding a live sample (any of P)
+        for p in range(1, P):
+            held |= groups[:, :, p]
+        cost[j] = held.sum(axis=1)
         lanes = sample_lanes(zyx if live is None else zyx[live], (kp, a_ax, b_ax), shape, P)
         busiest[j] = np.bincount(lanes, minlength=P).max()
         if live is not None:

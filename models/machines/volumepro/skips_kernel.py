@@ -1,0 +1,95 @@
+"""VolumePro 1000's per-slice beam skipping (rule 6) at one sample slice, compiled (numba).
+
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rule 6 (clock groups of live rays,
+#      mini-blocks of live cells); docs/transaction.md (the VolumePro 1000 event model).
+
+:func:`step_cells` is the loop body of
+:func:`models.machines.volumepro.vp1000_transaction.beam_skips` for one sample slice: which
+cells hold a live sample, each beam's clock groups, the live samples and the busiest
+pipeline (each sample's lane is the module ``(q + a + b) mod P`` of its nearest voxel,
+:func:`~models.machines.volumepro.transaction.sample_lanes`' rule), then the cells the
+memory sequencer reads for (alive ``lag`` slices earlier).  The same floating-point
+operations as the NumPy form (``floor``, a subtraction, a comparison with 1/2), so the same
+integers; the NumPy form stays as the reference
+(``beam_skips(..., compiled=False)``, compared by ``tests/models/test_transaction_vp1000.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["step_cells"]
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell(p: float, n: int) -> int:
+    """The voxel cell ``floor(p)`` clamped to ``0 .. n - 1``."""
+    return int(min(max(math.floor(p), 0.0), n - 1.0))
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest(p: float, n: int) -> int:
+    """The nearest voxel ``floor(p) + (p - floor(p) >= 1/2)`` clamped to ``0 .. n - 1``."""
+    c = math.floor(p)
+    v = int(c) + (1 if p - c >= 0.5 else 0)
+    return min(max(v, 0), n - 1)
+
+
+@numba.njit(cache=True, nogil=True)
+def step_cells(zyx, axes, shape, P, last, j, lag, cells, cost_row):
+    """One sample slice ``j`` of rule 6.
+
+    Parameters
+    ----------
+    zyx : ndarray
+        float64 ``(n, 3)``: the slice's sample positions.
+    axes, shape : ndarray
+        int64 ``(k, a, b)`` axes and the volume's shape ``(z, y, x)``.
+    P : int
+        Pipelines (cells per clock group).
+    last : ndarray
+        int64 per sample, its ray's last live step; empty: no ray stops.
+    j, lag : int
+        The slice, and the sequencer's lag in slices.
+    cells : ndarray
+        bool ``(n_a, C P)``: overwritten with the cells the memory reads for.
+    cost_row : ndarray
+        int64 ``(n_a,)``: overwritten with each beam's clock groups holding a live sample.
+
+    Returns
+    -------
+    (int, int)
+        Live samples, and the busiest pipeline's.
+    """
+    kp, a_ax, b_ax = axes[0], axes[1], axes[2]
+    n_k, n_a, n_b = shape[kp], shape[a_ax], shape[b_ax]
+    stops = last.shape[0] > 0
+    cells[:] = False
+    lanes = np.zeros(P, dtype=np.int64)
+    live, q = 0, -1
+    for i in range(zyx.shape[0]):
+        if stops and last[i] < j:
+            continue
+        if q < 0:  # every sample of a slice lies on its sample slice
+            q = _cell(zyx[i, kp] + 0.5, n_k)
+        cells[_cell(zyx[i, a_ax], n_a), _cell(zyx[i, b_ax], n_b)] = True
+        live += 1
+        lane = (q + _nearest(zyx[i, a_ax], n_a) + _nearest(zyx[i, b_ax], n_b)) % P
+        lanes[lane] += 1
+    C = cells.shape[1] // P
+    for a in range(n_a):
+        groups = 0
+        for c in range(C):
+            for p in range(P):
+                if cells[a, c * P + p]:
+                    groups += 1
+                    break
+        cost_row[a] = groups
+    if stops:  # the sequencer read for rays alive ``lag`` slices earlier (a superset)
+        for i in range(zyx.shape[0]):
+            if j < lag or last[i] > j - lag:
+                cells[_cell(zyx[i, a_ax], n_a), _cell(zyx[i, b_ax], n_b)] = True
+    return live, lanes.max()
