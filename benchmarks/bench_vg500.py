@@ -8,9 +8,11 @@ For each size the head phantom is rendered in MIP (view 30,15, image N x N: the 
 top's pipelines carry no reflectance-map shader yet, docs/rtl.md) on ``volumepro500`` by
 the cycle rung and by the rtl rung (Verilator; the first run builds, its time reported
 apart).  Reported per size: both rungs' cycles (they differ: docs/rtl.md says why), the
-RTL's held clocks and bursts, the image equality, the SDRAM checkers' counts, and the
-simulated clocks per second of the Verilator clock loop (goal: 100 k over a 64^3 frame,
-build excluded) and of the whole simulator process.  One thread (``HWSIM_THREADS=1``).
+cycles of the slice-FIFO rules (models/machines/volumepro/fifo_timing.py, the RTL's
+structure on the cycle rung's SDRAM scheduler), the RTL's held clocks and bursts, the
+image equality, the SDRAM checkers' counts, and the simulated clocks per second of the
+Verilator clock loop (goal: 100 k over a 64^3 frame, build excluded) and of the whole
+simulator process.  One thread (``HWSIM_THREADS=1``).
 Nothing is asserted: benchmarks are not tests.
 """
 
@@ -46,7 +48,10 @@ def _frame(n: int):
 
 def run(n: int) -> dict:
     """One size: the cycle rung, then the rtl rung (built on first use)."""
+    from models.backend import Backend
     from models.cycle import render_cycle
+    from models.machines.volumepro.cycle import SlabMachine
+    from models.machines.volumepro.fifo_timing import slice_fifo_timing
     from rtl.vg500.frame import prepare_vg500
     from rtl.vg500.rung import run_vg500
 
@@ -54,6 +59,7 @@ def run(n: int) -> dict:
     t0 = time.perf_counter()
     cycle = render_cycle(frame)
     t1 = time.perf_counter()
+    fifo = slice_fifo_timing(SlabMachine(Backend(frame)))
     program = prepare_vg500(frame)
     rtl, timing = run_vg500(program)
     c = rtl.counters
@@ -67,6 +73,7 @@ def run(n: int) -> dict:
             "refreshes": cycle.counters.get("memory.sdram.refreshes"),
             "seconds": t1 - t0,
         },
+        "slice_fifo_rules": {"cycles": fifo.cycles, "stall_cycles": fifo.stall_cycles},
         "rtl": {
             "cycles": rtl.cycles,
             "hold_cycles": c["memory.hold_cycles"],
@@ -92,7 +99,8 @@ def main(argv=None) -> int:
         rows = [run(n) for n in args.sizes]
     for r in rows:
         print(
-            f"{r['size']:>4}^3  cycle {r['cycle_rung']['cycles']:>9}  rtl {r['rtl']['cycles']:>9}"
+            f"{r['size']:>4}^3  cycle {r['cycle_rung']['cycles']:>9}"
+            f"  slice-FIFO rules {r['slice_fifo_rules']['cycles']:>9}  rtl {r['rtl']['cycles']:>9}"
             f"  held {r['rtl']['hold_cycles']:>7}  image {'=' if r['image_equal'] else '!='}"
             f"  violations {r['rtl'].get('violations')}"
             f"  {r['rtl']['clocks_per_second_loop'] / 1e3:.0f} k clocks/s (loop)"
