@@ -481,13 +481,15 @@ class SlabTransaction:
             raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
         if row.size and (row.min() < 0 or row.max() >= cfg.rows):
             raise ValueError(f"row out of range 0 .. {cfg.rows - 1}")
-        per = np.bincount(module.astype(np.int64) * nc + chunk, minlength=M * nc).reshape(M, nc)
+        key = np.asarray(module, dtype=np.int64) * nc + chunk
+        per = np.bincount(key, minlength=M * nc).reshape(M, nc)
         bounds = np.zeros((M, nc + 1), dtype=np.int64)
         np.cumsum(per, axis=1, out=bounds[:, 1:])
         modules = []
         for k in range(M):
             on = module == k
-            banks, rows = bank[on].astype(np.int64), row[on].astype(np.int64)
+            banks = np.asarray(bank[on], dtype=np.int64)  # no copy: the layout's int64
+            rows = np.asarray(row[on], dtype=np.int64)
             modules.append((banks, rows, bounds[k].tolist(), per[k]))
         return _ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
 
