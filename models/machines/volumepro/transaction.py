@@ -13,10 +13,12 @@ as cooperating SimPy processes at *beam-group* granularity:
   a chunk's bursts go to each module's :class:`hwsim.memory.SdramTransactionPort` (row
   hits, misses, refresh and CAS timed by the shared SDRAM model) and the chunk is *ready*
   when every module has delivered it.  A chunk may not issue before the input buffer has
-  room: the chunk ``capacity`` places earlier must have been freed.  Every run of chunks
-  free to issue at one cycle goes to a module's port in one call (the controller
-  schedules any split of a stream alike), each module's bursts split out and checked once
-  per frame, and a chunk costs one SimPy event (its readiness);
+  room: the chunk ``capacity`` places earlier must have been freed.  The memory process
+  only records the cycle each chunk issues; the ports get the bursts when the pipelines
+  ask when a chunk is ready, every chunk issued so far in one call per module, each burst
+  with its chunk's arrival cycle (:class:`_DeferredReads`: the controller is causal, so
+  the schedule is the per-chunk one), each module's bursts split out and checked once per
+  frame;
 * **pipelines**: every sample slice (z-supersampling included) is ``groups`` groups of
   beams, ``C = ceil(n_b / P)`` clocks per beam; a group starts when the chunks its rows'
   trilinear windows need (voxel slices ``i0 - 1 .. i0 + 2``, rows ``a - 2 .. a + 2``)
