@@ -276,12 +276,13 @@ class SdramController:
         self._run(banks, rows, arrive)
 
     def schedule(self, *, copy: bool = True) -> BurstSchedule:
-        """Commands and counters of every request issued so far.  ``copy=False`` hands
-        out views of the controller's arrays, for a caller that issues nothing more (a
-        512^3 frame's copies were 32 bytes a burst at the frame's memory peak)."""
+        """Commands and counters of every request issued so far (int64 copies).
+        ``copy=False`` hands out views of the controller's arrays (int32 when a frame's
+        compiled loop held them narrow), for a caller that issues nothing more (a 512^3
+        frame's copies were 32 bytes a burst at the frame's memory peak)."""
         n = self._n
         read, act_arr, pre_arr = (
-            self._out[k, :n].copy() if copy else self._out[k, :n] for k in range(3)
+            self._out[k, :n].astype(np.int64) if copy else self._out[k, :n] for k in range(3)
         )
         outcome = np.full(n, MISS, dtype=np.int8)
         outcome[act_arr < 0] = HIT
@@ -292,7 +293,7 @@ class SdramController:
             activate=act_arr,
             precharge=pre_arr,
             outcome=outcome,
-            earliest=self._arrivals[:n].copy() if copy else self._arrivals[:n],
+            earliest=self._arrivals[:n].astype(np.int64) if copy else self._arrivals[:n],
             refreshed_before=self._out[3, :n] != 0,
             refresh_log=self._log[: self._regs[REFRESHES]].copy(),
         )
@@ -398,11 +399,20 @@ def summarize(
     )
     return BurstSchedule(
         read=read,
-        activate=np.asarray(activate, dtype=np.int64).reshape(-1),
-        precharge=np.asarray(precharge, dtype=np.int64).reshape(-1),
+        # As given when already integer arrays: a frame's narrow (int32) controller
+        # arrays summarised in place are not widened into copies.
+        activate=_integers(activate),
+        precharge=_integers(precharge),
         data_first=data_first,
         data_end=data_end,
         outcome=outcome,
         refresh=refresh,
         stats=stats,
     )
+
+
+def _integers(values) -> np.ndarray:
+    """``values`` as a flat integer array: int32 and int64 arrays as they are, else int64."""
+    if isinstance(values, np.ndarray) and values.dtype in (np.int32, np.int64):
+        return values.reshape(-1)
+    return np.asarray(values, dtype=np.int64).reshape(-1)

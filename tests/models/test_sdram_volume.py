@@ -61,3 +61,42 @@ def test_a_frame_whose_words_are_not_kept_renders_as_one_whose_are(monkeypatch) 
     volume = make_phantom("head", size=13)
     assert frames(volume) == kept
     assert not vp_memory._WORDS.get(volume)
+
+
+def _frame(arch: str, size: int = 13):
+    from hwsim.spec.scene import Scene, TransferSpec, ViewSpec
+    from hwsim.volumes import make_phantom
+
+    view = ViewSpec(azimuth=30, width=12, height=12)
+    scene = Scene(transfer=TransferSpec(preset="ct"), view=view)
+    run = render(scene, fidelity="cycle", arch=arch, volume=make_phantom("head", size=size))
+    return run.image.tobytes(), run.cycles, sorted(run.counters.items())
+
+
+@pytest.mark.parametrize("arch", ["volumepro500", "volumepro1000"])
+def test_a_frame_timed_with_narrow_cycles_is_timed_as_with_wide(arch, monkeypatch) -> None:
+    """The compiled timing loop holds a large frame's per-request cycles as int32: forced
+    on a small frame, the same image, cycles and counters as int64."""
+    from models.machines.volumepro import timing_kernel
+
+    wide = _frame(arch)
+    monkeypatch.setattr(timing_kernel, "NARROW_FROM", -1)
+    assert _frame(arch) == wide
+
+
+def test_cycles_that_left_int32_are_told() -> None:
+    """A wrapped READ cycle (negative, or not increasing) sends the frame round again wide."""
+    from types import SimpleNamespace
+
+    from models.machines.volumepro.timing_kernel import _wrapped
+
+    def ctl(reads):
+        out = np.zeros((4, len(reads)), np.int32)
+        out[0] = reads
+        return SimpleNamespace(_out=out, _n=len(reads))
+
+    assert not _wrapped([ctl([3, 7, 11]), ctl([])])
+    assert _wrapped([ctl([3, 7, 11]), ctl([5, -2147483000])])
+    assert _wrapped([ctl([-5, 4])])
+    assert _wrapped([ctl([9, 9])])
+    assert _wrapped([ctl([2147483640, -2147483646])])  # int32 steps would read +10

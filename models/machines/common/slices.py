@@ -81,6 +81,12 @@ class SliceDatapath:
         self._route_cache: dict = {}
         counters.set("ring.beam_fifo_depth", self.beam_depth)
 
+    def clear_caches(self) -> None:
+        """Drop the precomputed reads and routes (up to 16 of each, a slice's cells
+        several times over: ~0.15 GB at 512^2) once the frame moves no more slices."""
+        self._read_cache.clear()
+        self._route_cache.clear()
+
     def _reads(self, residue: int, L: int) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """Per delay depth: where each cell reads the ``(P, L)`` stream, and which cells
         read before anything left the line (reset zeros).  Depends on ``s mod P`` only;

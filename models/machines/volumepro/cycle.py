@@ -387,13 +387,15 @@ class SlabMachine(SliceOrderMachine):
                     state.dt_sum[parked] = 0
                 if records:
                     records[-1].arrivals += int(parked.size)
-        # The last slices' corner planes and the SDRAM words are not read again: dropped
-        # before the timing pass (at 512^3 a slice's planes are ~8 MB a channel, value and
-        # three differences over a window of four or five slices; the words 0.27 GB).
+        # The last slices' corner planes, the SDRAM words and the ring's routes are not
+        # read again: dropped before the timing pass (at 512^3 a slice's planes are ~8 MB
+        # a channel over a window of four or five slices, the words 0.27 GB, the routes
+        # 0.15 GB).
         self._planes.clear()
         self._voxels.clear()
         self._diffed.clear()
         self.memory.release()
+        self.datapath.clear_caches()
         return self._finish(state, bus, records, sections, parked_counts, needed)
 
     def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:
@@ -425,6 +427,8 @@ class SlabMachine(SliceOrderMachine):
         capacity = max(entries, 0) // (4 * self.C)
         c.set("memory.slab_buffer_entries", max(entries, 0))
         c.set("memory.slab_buffer_mbbs", capacity)
+        # The two-frame replay first: the frame's own timing then drops the bursts.
+        period = frame_period(self, deliveries, slices, capacity) if self.steady_state else 0
         timing = run_timing(
             self.memory_cfg,
             deliveries,
@@ -434,6 +438,7 @@ class SlabMachine(SliceOrderMachine):
             counters=c,
             keep_schedules=self.trace is not None,
             compiled=be.compiled,
+            keep_bursts=self.trace is not None,
         )
         stages = {
             u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
@@ -450,7 +455,7 @@ class SlabMachine(SliceOrderMachine):
         drain = pixel_fifo.flush()
         cycles = timing.end + latency + drain
         if self.steady_state:
-            c.set("frame.period_cycles", frame_period(self, deliveries, slices, capacity))
+            c.set("frame.period_cycles", period)
         idle = np.zeros(P, dtype=np.int64)
         for stage in stages.values():
             stage.account(idle, latency + drain)

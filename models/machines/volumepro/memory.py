@@ -194,8 +194,9 @@ class SdramVolume:
 
     def release(self) -> None:
         """The frame reads no more voxels: its words are dropped (kept with the volume
-        when small, :data:`KEEP_WORDS`)."""
+        when small, :data:`KEEP_WORDS`), and the slices' read orders."""
         self.words = None
+        self._schedules.clear()
 
     def schedule(self, kp: int, q: int) -> SliceSchedule:
         """Where each pipeline's voxel of slice ``q`` comes from, clock by clock."""

@@ -151,6 +151,7 @@ def run_timing(
     counters: Counters,
     keep_schedules: bool = False,
     compiled: bool = True,
+    keep_bursts: bool = True,
 ) -> FrameTiming:
     """Run the pipelines and the memory of one frame (rules of docs/cycle.md).
 
@@ -172,6 +173,10 @@ def run_timing(
     compiled : bool
         Run the loop compiled (:mod:`models.machines.volumepro.timing_kernel`); False
         runs the reference loop below, one Python call per delivery and module.
+    keep_bursts : bool
+        False: ``table``'s per-burst banks and rows are dropped once the loop has played
+        them (8 bytes a burst, before the schedules are summarised), for a caller that
+        reads them no more.
     """
     dev = memory.sdram
 
@@ -199,6 +204,8 @@ def run_timing(
         _reference_loop(
             table.as_list(), slices, controllers, capacity, pixel_fifo, out, ends, ready
         )
+    if not keep_bursts:
+        table.banks = table.rows = None
     # One module's schedule at a time, each controller dropped once read: at 512^3 a
     # schedule holds ~40 bytes per burst and the frame ~17 M bursts.  The per-burst
     # arrays are kept only for a waveform.

@@ -98,16 +98,19 @@ def _beams(
                 return
 
 
-def _stacked(controllers, room: tuple[int, int], requests: list[int]):
+def _stacked(controllers, room: tuple[int, int], requests: list[int], narrow: bool = False):
     """The controllers' state as arrays the loop indexes by module, with room for
     ``requests[k]`` more requests of module ``k`` and ``room`` booked commands and
     refreshes per module (plain arrays: a numba typed list costs seconds to compile in
     every process).  The controllers are not reserved first: their arrays and these
-    would be two copies of 40 bytes a burst (1.4 GB over a 512^3 frame's ~17 M)."""
+    would be two copies of 40 bytes a burst (1.4 GB over a 512^3 frame's ~17 M).
+    ``narrow``: the per-request cycles held as int32 (20 bytes a burst; :func:`_wrapped`
+    tells whether a frame outgrew them)."""
     M = len(controllers)
     n_max = max(max(c._n + r, c._n, 1) for c, r in zip(controllers, requests, strict=True))
-    out = np.zeros((M, 4, n_max), dtype=np.int64)
-    arrivals = np.zeros((M, n_max), dtype=np.int64)
+    dtype = np.int32 if narrow else np.int64
+    out = np.zeros((M, 4, n_max), dtype=dtype)
+    arrivals = np.zeros((M, n_max), dtype=dtype)
     fill = [(int(c._regs[BOOKED]), int(c._regs[REFRESHES])) for c in controllers]
     booked = np.zeros((M, max(room[0], *(b for b, _ in fill), 1)), np.int64)
     logs = np.zeros((M, max(room[1], *(r for _, r in fill), 1), 2), np.int64)
@@ -150,14 +153,36 @@ def play(table, slices, make_controllers, *, capacity, pixel_fifo, out, ends, re
     controllers = make_controllers()
     room = first_room(table, slices, controllers[0].cfg, ratio)
     fifo = dict(vars(pixel_fifo))  # its state at the frame's start, for a new attempt
-    while not _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready,
-                    tail, ratio):  # fmt: skip
+    narrow = table.bursts(0) > NARROW_FROM  # a large frame's cycles fit in int32 (checked)
+    while True:
+        done = _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready,
+                     tail, ratio, narrow)  # fmt: skip
+        if done and not (narrow and _wrapped(controllers)):
+            return controllers
+        if done:
+            narrow = False  # a cycle outgrew int32: the frame again, wide
+        else:
+            room = (2 * room[0], 2 * room[1])
         controllers = make_controllers()
-        room = (2 * room[0], 2 * room[1])
         out.blocks.clear()
         out.memory_stall = out.pixel_stall = 0
         vars(pixel_fifo).update(fifo)
-    return controllers
+
+
+#: Bursts on module 0 from which a frame's per-request cycles are held as int32 (a
+#: 512^3 frame's ~4 M per module: 0.34 GB less at its memory peak); below, int64.
+NARROW_FROM = 1 << 20
+
+
+def _wrapped(controllers) -> bool:
+    """Whether a module's READ cycles left int32 (they start at 0 or later and grow by
+    at least a burst per request, so a wrap shows as a negative cycle or a step that
+    does not grow; the steps taken in int64)."""
+    for c in controllers:
+        reads = c._out[0, : c._n].astype(np.int64)
+        if (reads < 0).any() or (np.diff(reads) <= 0).any():
+            return True
+    return False
 
 
 def first_room(table, slices, cfg, ratio: float) -> tuple[int, int]:
@@ -168,11 +193,12 @@ def first_room(table, slices, cfg, ratio: float) -> tuple[int, int]:
     return 64 + 4 * cfg.queue_depth, 64 + 2 * int(span // max(cfg.t_refi, 1))
 
 
-def _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready, tail, ratio):
+def _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready, tail, ratio,
+          narrow):  # fmt: skip
     """One attempt of :func:`play`: False when the logs ran out of room."""
     scratch = np.zeros(max(int(np.diff(table.starts, axis=1).max(initial=0)), 1), np.int64)
     requests = [table.bursts(k) for k in range(len(controllers))]
-    ctl = (*_stacked(controllers, room, requests), scratch)
+    ctl = (*_stacked(controllers, room, requests, narrow), scratch)
     tab = (table.banks, table.rows, table.starts, table.free_after)
     st = np.zeros(6, dtype=np.int64)
     for work in [*slices, None]:
