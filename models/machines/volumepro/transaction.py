@@ -16,9 +16,10 @@ as cooperating SimPy processes at *beam-group* granularity:
   room: the chunk ``capacity`` places earlier must have been freed.  The memory process
   only records the cycle each chunk issues; the ports get the bursts when the pipelines
   ask when a chunk is ready, every chunk issued so far in one call per module, each burst
-  with its chunk's arrival cycle (:class:`_DeferredReads`: the controller is causal, so
-  the schedule is the per-chunk one), each module's bursts split out and checked once per
-  frame;
+  with its chunk's arrival cycle
+  (:class:`~models.machines.volumepro.chunk_reads.DeferredReads`: the controller is
+  causal, so the schedule is the per-chunk one), each module's bursts split out and
+  checked once per frame;
 * **pipelines**: every sample slice (z-supersampling included) is ``groups`` groups of
   beams, ``C = ceil(n_b / P)`` clocks per beam; a group starts when the chunks its rows'
   trilinear windows need (voxel slices ``i0 - 1 .. i0 + 2``, rows ``a - 2 .. a + 2``)
@@ -45,7 +46,6 @@ class refuses a skipping machine.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -65,6 +65,7 @@ from models.machines.common.transaction import (
     require_pipeline_clock,
     slice_loads,
 )
+from models.machines.volumepro.chunk_reads import ChunkStreams, DeferredReads
 from models.machines.volumepro.memory import layout, mini_block_bursts, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade
@@ -364,7 +365,7 @@ class SlabTransaction:
         )
         env = simpy.Environment()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        reads = _DeferredReads(ports, self._chunk_streams(chunks), nc, frames)
+        reads = DeferredReads(ports, self._chunk_streams(chunks), nc, frames)
         freed = [env.event() for _ in range(nc * frames)]
         frees_at: dict[int, list[int]] = {}
         for c, g in enumerate(free_after.tolist()):
@@ -449,7 +450,7 @@ class SlabTransaction:
             raise DeadlockError("the pipelines never finished: the input buffer is too small")
         return stats, bus, ports
 
-    def _chunk_streams(self, chunks) -> _ChunkStreams:
+    def _chunk_streams(self, chunks) -> ChunkStreams:
         """Every chunk's bursts (mini-blocks read: all, or with skipping those a live cell
         needs), split by module into one stream each in read order, checked against the
         device once."""
@@ -477,7 +478,7 @@ class SlabTransaction:
         M, cfg = self.memory.modules, self.memory.sdram
         if not parts:
             empty = np.zeros(0, np.int64)
-            return _ChunkStreams([(empty, empty, [0], empty)] * M, [])
+            return ChunkStreams([(empty, empty, [0], empty)] * M, [])
         module, bank, row, chunk = (np.concatenate([p[i] for p in parts]) for i in range(4))
         if bank.size and (bank.min() < 0 or bank.max() >= cfg.banks):
             raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
@@ -493,7 +494,7 @@ class SlabTransaction:
             banks = np.asarray(bank[on], dtype=np.int64)  # no copy: the layout's int64
             rows = np.asarray(row[on], dtype=np.int64)
             modules.append((banks, rows, bounds[k].tolist(), per[k]))
-        return _ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
+        return ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
 
     def _mbb_reads(self, chunks) -> int:
         """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
@@ -532,78 +533,6 @@ def _live_spans(cost: np.ndarray, spans: list[tuple[int, int]]):
     lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
     hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
     return clocks.tolist(), lo.tolist(), hi.tolist()
-
-
-class _DeferredReads:
-    """The chunks' SDRAM reads, handed to the modules' ports only when the pipelines ask
-    when a chunk is ready: the controller is causal (a burst's cycles depend on the
-    bursts before it and their arrival cycles only), so every chunk issued so far goes in
-    one call per module with its own arrival cycle, the same schedule as a call per chunk
-    when it issued.  The memory runs about a buffer ahead of the pipelines, so a frame
-    makes a few calls per buffer's worth of chunks, not one per chunk and module."""
-
-    def __init__(self, ports, streams: _ChunkStreams, nc: int, frames: int) -> None:
-        self.ports, self.streams, self.nc = ports, streams, nc
-        self.issue_at: list[int] = []  # cycle each chunk issued, in read order
-        self.ready: list[int] = []  # cycle each flushed chunk is ready
-        for port, (bank, _, _, _) in zip(ports, streams.modules, strict=True):
-            port.controller.reserve(frames * bank.size)
-
-    @property
-    def issued_count(self) -> int:
-        return len(self.issue_at)
-
-    def issued(self, c: int) -> bool:
-        return c < len(self.issue_at)
-
-    def issue(self, now: int, g: int, h: int) -> int:
-        """Chunks ``g .. h - 1`` issue at cycle ``now``; returns the events the model
-        counts for them (one per module batch and one per chunk's readiness)."""
-        self.issue_at.extend([now] * (h - g))
-        nc = self.nc
-        return sum(self.streams.batches[c % nc] for c in range(g, h)) + (h - g)
-
-    def ready_by(self, c: int, now: float) -> bool:
-        """Whether chunk ``c`` has issued and its bursts have all arrived by ``now``."""
-        return c < len(self.issue_at) and self.ready_at(c) <= now
-
-    def ready_at(self, c: int) -> int:
-        """Cycle chunk ``c`` (issued) is ready: its last burst on every module delivered."""
-        if c >= len(self.ready):
-            self.flush(len(self.issue_at))
-        return self.ready[c]
-
-    def flush(self, upto: int) -> None:
-        """Hand chunks ``len(self.ready) .. upto - 1`` to the ports (frame by frame)."""
-        nc = self.nc
-        a = len(self.ready)
-        while a < upto:
-            f = a // nc
-            b = min(upto, (f + 1) * nc)
-            c0, c1 = a - f * nc, b - f * nc
-            at = self.issue_at[a:b]
-            ready = list(at)
-            for port, (bank, row, bounds, per) in zip(
-                self.ports, self.streams.modules, strict=True
-            ):
-                lo, hi = bounds[c0], bounds[c1]
-                if hi > lo:
-                    arrive = np.repeat(np.asarray(at, dtype=np.int64), per[c0:c1])
-                    ends = [e - lo for e in bounds[c0 + 1 : c1 + 1]]
-                    done = port.read_runs(bank[lo:hi], row[lo:hi], arrive, ends)
-                    ready = [max(x, y) for x, y in zip(ready, done, strict=True)]
-            self.ready.extend(ready)
-            a = b
-
-
-@dataclass
-class _ChunkStreams:
-    """Per module ``(bank, row, bounds, per)``: its bursts of every chunk in read order,
-    chunk ``c``'s bursts at ``bounds[c] .. bounds[c + 1] - 1``, ``per[c]`` of them;
-    ``batches[c]``: modules chunk ``c`` reads from."""
-
-    modules: list[tuple[np.ndarray, np.ndarray, list[int], np.ndarray]]
-    batches: list[int]
 
 
 def _other_axes(plan: SamplePlan) -> tuple[int, int]:
