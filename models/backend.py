@@ -19,6 +19,7 @@ warp of a base-plane image) live here too.
 from __future__ import annotations
 
 import functools
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -94,6 +95,11 @@ def subset_step(step: Step, keep: np.ndarray) -> Step:
     dt = step.dt if np.isscalar(step.dt) else step.dt[keep]
     # np.compress: the same rows as boolean indexing, several times faster for (n, 3).
     return Step(step.rays[keep], np.compress(keep, step.zyx, axis=0), dt)
+
+
+#: Per volume, voxel width and block size: the blocks' raw value ranges (of the voxels
+#: ``converted_volume`` keeps per volume), so later frames do not rescan it for leaping.
+_RANGES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class Backend:
@@ -332,7 +338,11 @@ class Backend:
         One rule for the cycle and transaction models of every machine that leaps."""
         if self.mode not in ("composite", "iso"):
             return None
-        lo, hi = (x.astype(np.int64) for x in occupancy.block_ranges(self.raw, block))
+        kept = _RANGES.setdefault(self.volume, {})
+        key = (self.dp.voxel_bits, block)
+        if key not in kept:
+            kept[key] = tuple(x.astype(np.int64) for x in occupancy.block_ranges(self.raw, block))
+        lo, hi = kept[key]
         if self.mode == "iso":
             return (hi << self.S) >= self.iso_raw
         dp = self.dp

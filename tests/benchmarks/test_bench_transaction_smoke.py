@@ -67,9 +67,10 @@ def test_the_error_table_gains_its_independence_columns_without_re_measuring():
     ]
     report = annotate({"schema": 1, "cases": rows}, {n: quick[n]["arch"] for n in names})
     shown = [r["independence"] for r in report["cases"]]
-    assert shown == ["shared", "partly shared", "partly shared"]
+    # VIZARD II's rung times on the cycle rung's ray loop (issue 36): shared as well.
+    assert shown == ["shared", "partly shared", "shared"]
     # A shared row's number is no measurement: the largest measured error leaves it out.
-    assert report["max_abs_error"] == 0.05 and report["max_abs_error_not_shared"] == 0.01
+    assert report["max_abs_error"] == 0.05 and report["max_abs_error_not_shared"] == 0.003
     assert set(report["independence"]) == {"cube4", "volumepro", "vizard2"}
     assert report["independence"]["cube4"]["shared"][0].endswith("cube4_latency")
     assert report["worst"]["cube4-P4 parallel"]["error_shown"].startswith("consistency check")

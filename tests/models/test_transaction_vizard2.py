@@ -7,6 +7,11 @@ termination steps, its speculative rounds estimated with stall-free rounds.  Wit
 termination threshold it follows the machine's rules exactly (the same lookups, fills,
 bursts and cycles as the cycle rung); with one, it stays within the 2 % contract.
 
+These tests are the SimPy packet model's (``VizardTransaction.play``; the fixture below
+keeps the rung from timing on the cycle rung's compiled ray loop, which it does for
+every frame that loop holds: :func:`test_the_loop_times_what_the_cycle_rung_times`,
+shared code, a consistency check).
+
 Partly shared (``hwsim.studies.trade.independence``): both rungs call the cycle-exact
 ``SdramController``, ``BlockLayout.bursts``, ``FEEDBACK``/``FILL_WRITE``, the cache
 geometry (``parse_buffers``), ``interp_taps`` and the leaping helpers; the packet
@@ -34,7 +39,8 @@ from models.cycle import render_cycle
 from models.frame import frame_of
 from models.functional import render_functional
 from models.machines.vizard2 import cycle as vizard2_module
-from models.transaction import transaction_timing
+from models.machines.vizard2.transaction import VizardTransaction
+from models.transaction import timing_only, transaction_timing
 
 pytestmark = pytest.mark.model
 
@@ -64,6 +70,12 @@ def machine(leaping=True, **buffers):
 def timing(scene, volume, arch, **options):
     tf = resolve_transfer(scene.transfer, volume)
     return transaction_timing(frame_of(scene, volume, tf, arch), **options)
+
+
+@pytest.fixture(autouse=True)
+def event_model(monkeypatch):
+    """The transaction rung on its SimPy packet model, never on the cycle rung's loop."""
+    monkeypatch.setattr(VizardTransaction, "_on_the_ray_loop", lambda self: None)
 
 
 @pytest.fixture(scope="module")
@@ -197,3 +209,38 @@ def test_hwsim_render_at_the_transaction_rung(tmp_path, arch):
     rungs.assert_within_contract(cyc["cycles"], txn["cycles"])
     images = [np.load(tmp_path / d / "image.npy") for d in ("t", "c")]
     assert np.array_equal(*images)
+
+
+@pytest.mark.parametrize("phantom", ["head", "ball"])
+@pytest.mark.parametrize("ert", [1.0, 0.9])
+@pytest.mark.parametrize("leaping", [True, False])
+@pytest.mark.parametrize("kind", [{}, {"mode": "mip", "projection": "perspective"}])
+def test_the_loop_times_what_the_cycle_rung_times(
+    phantoms, monkeypatch, phantom, ert, leaping, kind
+):
+    """Timing only on the cycle rung's compiled loop, datapath cut to the opacity that
+    ends a ray (``RayKernel.timing``): the cycle rung's cycles and counters (shared
+    code: this checks the cut, not the timing rules; the SimPy model above does)."""
+    monkeypatch.undo()  # the rung's own choice: the loop
+    volume, arch = phantoms[phantom], machine(leaping)
+    scene = scene_of(phantom, ert=ert, **kind)
+    tf = resolve_transfer(scene.transfer, volume)
+    exact = render_cycle(frame_of(scene, volume, tf, arch))
+    alone = timing_only(frame_of(scene, volume, tf, arch))
+    assert alone.counters["transaction.granularity"] == "the cycle rung's ray loop, timing only"
+    assert alone.cycles == exact.cycles
+    keys = (*EXACT, "ert.speculative_samples", "memory.row_hits", "pixel_bus.max_occupancy")
+    rungs.assert_counters_equal(exact, alone, keys)
+    if ert < 1.0 and not kind:  # rays do end early, so the kept opacity decided clocks
+        assert alone.counters["ert.speculative_samples"] > 0
+
+
+def test_frames_out_of_the_loops_scope_take_the_event_model(phantoms, monkeypatch):
+    monkeypatch.undo()
+    volume = phantoms["head"]
+    scene = scene_of(projection="perspective")  # lit: a shader per ray, not the loop's
+    tf = resolve_transfer(scene.transfer, volume)
+    alone = timing_only(frame_of(scene, volume, tf, machine()))
+    assert alone.counters["transaction.events"] > 0  # the SimPy model played it
+    forced = transaction_timing(frame_of(scene_of(), volume, tf, machine()), event_model=True)
+    assert forced.counters["transaction.events"] > 0

@@ -130,7 +130,8 @@ _VOLUMEPRO_SHARED = (
 )
 
 #: The transaction rung's event model against the cycle rung, on frame cycles, per family
-#: (``volumepro-skipping``: VolumePro 1000's :class:`Vp1000Transaction`).
+#: (``volumepro-skipping``: VolumePro 1000's :class:`Vp1000Transaction`; ``vizard2-event-model``:
+#: VIZARD II's SimPy packet model, for the frames its ray loop does not hold).
 TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
     "cube4": _transaction(
         SHARED,
@@ -176,7 +177,26 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         cycle="live cells from its data pass (SlabMachine._live_cells), then the "
         "beam-by-beam recurrence as VolumePro 500",
     ),
+    # VIZARD II's transaction rung times a frame the compiled ray loop holds
+    # (RayKernel.for_machine: composite within the fused stage's scope, MIP; no crop or
+    # cut planes) on that loop with the datapath cut to what decides a clock: the same
+    # code as the cycle rung, so equal cycles are a consistency check.
     "vizard2": _transaction(
+        SHARED,
+        (
+            "models.machines.vizard2.cycle.VizardMachine.timing",
+            "models.machines.vizard2.ray_kernel.RayKernel",
+            "models.machines.vizard2.ray_memory.lookups",
+            "models.machines.vizard2.ray_memory.fills_timed",
+            "hwsim.memory.SdramController",
+        ),
+        txn="nothing of its own on the loop's frames: the image, colours and shading "
+        "skipped; the opacity that ends a ray kept (RayKernel.timing)",
+        cycle="the datapath's colours, shading and saturation counts, the image",
+    ),
+    # The SimPy packet model: frames outside the loop's scope (lit perspective, crop,
+    # cut planes) and VizardTransaction(event_model=True), the rules written again.
+    "vizard2-event-model": _transaction(
         PARTLY_SHARED,
         (
             "hwsim.memory.SdramController",

@@ -168,6 +168,37 @@ class VizardMachine:
     # ------------------------------------------------------------------ frame
 
     def run(self, progress: Callable[[int, int], None] | None = None) -> CycleResult:
+        state, bus, pixel_fifo, packets = self._start()
+        kernel = RayKernel.for_machine(self)
+        if kernel is not None:  # the compiled ray loop: the same bits, cycles and counters
+            totals = kernel.run_frame(packets, state, bus, pixel_fifo, progress)
+        else:
+            totals = self._run_rounds(packets, state, bus, pixel_fifo, progress)
+        return self._finish(state, bus, totals, pixel_fifo)
+
+    def timing(self, progress: Callable[[int, int], None] | None = None) -> dict | None:
+        """The frame's cycles and counters without its image: the compiled ray loop with
+        the datapath cut to what decides a clock (``RayKernel.timing``: cache, SDRAM,
+        issue, and the opacity that ends a ray); None when the frame is out of the
+        loop's scope.  The counters are :meth:`run`'s less the pipeline stages' and the
+        saturations (the transaction rung's timing-only path)."""
+        kernel = RayKernel.for_machine(self)
+        if kernel is None:
+            return None
+        kernel.timing = True
+        state, bus, pixel_fifo, packets = self._start()
+        kernel.run_frame(packets, state, bus, pixel_fifo, progress)
+        drain = pixel_fifo.flush()
+        cycles = self.clock.advance(FEEDBACK + drain)
+        self._set_counters(pixel_fifo, drain)
+        counters = dict(self.counters.items())
+        counters["frame.cycles"] = cycles
+        return counters
+
+    def _start(self) -> tuple:
+        """A frame's ray states (the pipelines' and the pixel bus's), pixel FIFO, clock,
+        SDRAM controller and packets (the ray generator's order, ``ray_queue_entries`` at
+        a time)."""
         be, plan = self.be, self.plan
         state = be.new_state(plan.n_rays)
         bus = be.new_state(plan.n_rays)
@@ -193,12 +224,7 @@ class VizardMachine:
             for tile in self._tiles(generator)
             for i in range(0, tile.size, queue_depth)
         ]
-        kernel = RayKernel.for_machine(self)
-        if kernel is not None:  # the compiled ray loop: the same bits, cycles and counters
-            totals = kernel.run_frame(packets, state, bus, pixel_fifo, progress)
-        else:
-            totals = self._run_rounds(packets, state, bus, pixel_fifo, progress)
-        return self._finish(state, bus, totals, pixel_fifo)
+        return state, bus, pixel_fifo, packets
 
     def _run_rounds(self, packets, state, bus, pixel_fifo, progress) -> tuple:
         """The reference ray loop: each round a chain of unit calls (:meth:`_round`).
@@ -338,9 +364,19 @@ class VizardMachine:
         for stage in stages:
             stage.account(idle, tail)
             stage.publish()
-        schedule = self.sdram.schedule()
+        schedule = self._set_counters(pixel_fifo, drain)
         if self.trace is not None:
             self._trace_memory(schedule, cycles)
+        image = self.be.finish(bus.acc, bus.touched, bus.dt_sum)
+        return frame_result(
+            self, image, state, cycles, latency=FEEDBACK, derive_samples=self.issued
+        )
+
+    def _set_counters(self, pixel_fifo: DrainFifo, drain: int):
+        """The memory's, cache's, pixel bus's and frame's counters; returns the SDRAM
+        schedule."""
+        c = self.counters
+        schedule = self.sdram.schedule()
         for key, value in schedule.stats.to_counters("memory").items():
             c.set(key, value)
         c.set("cache.lines", self.cache.lines)
@@ -357,7 +393,4 @@ class VizardMachine:
         c.set("ert.speculative_samples", self.speculative)
         c.set("frame.planned_samples", self.full_plan.samples)
         c.set("frame.leaped_samples", self.full_plan.samples - self.plan.samples)
-        image = self.be.finish(bus.acc, bus.touched, bus.dt_sum)
-        return frame_result(
-            self, image, state, cycles, latency=FEEDBACK, derive_samples=self.issued
-        )
+        return schedule

@@ -46,6 +46,7 @@ import numpy as np
 from hwsim.numerics import ROUNDING_CODES
 from models.datapath import Datapath
 from models.fused_stage import (
+    _BTF_UP,
     GRAD_FLAGS,
     STAGE_HASH,
     StageConstants,
@@ -72,6 +73,7 @@ from models.machines.vizard2.ray_memory import (
     lookups,
 )
 from models.units import classify as classify_unit
+from models.units import composite as composite_unit
 from models.units import interp as interp_unit
 
 __all__ = ["LOOP_HASH", "RayKernel"]
@@ -152,6 +154,25 @@ def _gradient(cgx, cgy, cgz, line, offset, v, w, s_bits, w_bits, w_code):
     )
 
 
+@numba.njit(inline="always")
+def _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one, acc_code):
+    """The opacity channel of :func:`~models.fused_stage.shade_and_blend`'s blend and its
+    termination (timing only): a ray's accumulated opacity reads only its own samples'
+    opacities, never their colours or shading, so it ends the ray where the full blend
+    does.  Saturations are not counted."""
+    btf_up = grad_p[_BTF_UP]
+    for j in range(m):
+        alpha = table[min(max(rgba[3, j], 0), 4096)]
+        ray = vis_rays[j]
+        if btf_up >= 0:
+            a_new = composite_unit.btf_raw(acc[ray, 3], 4096, alpha, btf_up, acc_code)
+        else:
+            a_new = acc[ray, 3] + composite_unit.ftb_weight_raw(acc[ray, 3], alpha, one, acc_code)
+        acc[ray, 3] = min(max(a_new, 0), one)
+        if ert_thr >= 0:
+            alive[ray] = acc[ray, 3] < ert_thr
+
+
 def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
     """The packet kernel, compiled for one configuration of formats (``constants``: the
     ``config`` tuple, taken from the closure as compile-time constants, as
@@ -175,6 +196,11 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         mip, ert_on, grads = flags[0] != 0, flags[1] != 0, flags[4] != 0
         feedback, P = flags[2], flags[3]
         world, modulates = grad_p[GRAD_FLAGS[0]] != 0, grad_p[GRAD_FLAGS[1]] != 0
+        # Timing only (flags[5]): the datapath runs only as far as it decides a clock:
+        # the opacity that ends a ray (rule 3), its gradient only where it modulates it.
+        timing = flags[5] != 0
+        values = not timing or ert_on
+        grads = grads and (not timing or (ert_on and modulates))
         gm_scale, gm_entries = grad_p[GRAD_FLAGS[2]], grad_p[GRAD_FLAGS[3]]
         per_ray_dir = dirs.shape[0] > 1
         hi = (shape[0] - 1.0, shape[1] - 1.0, shape[2] - 1.0)
@@ -205,12 +231,14 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                 _cell(orig, dirs, r, dr, t, hi, shape, cell, c1, w, w_bits, w_code)
                 n_miss = lookups(
                     cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
-                    faults, line, offset, i, miss_s, miss_b, n_miss, regs,
+                    values, faults, line, offset, i, miss_s, miss_b, n_miss, regs,
                 )  # fmt: skip
                 before[i] = alive[ray]
                 if not (mip or before[i]):
                     continue  # a dead ray's sample: fetched, not processed
                 regs[_SAMPLES] += 1
+                if not values:
+                    continue  # timing only, no ray ends early: no clock waits on a value
                 touched[ray] = True
                 value = _trilinear(
                     _corners(cvals, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
@@ -231,7 +259,10 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                         gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale, gm_entries, gm_table
                     )
                 m = _keep(rgba, g, vis_rays, m, rgb12, idx, alpha, gx, gy, gz, ray)
-            if not mip:
+            if timing and values:
+                _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one,
+                               acc_code)  # fmt: skip
+            elif not mip:
                 shade_and_blend(
                     rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table, acc,
                     ert_thr, alive, sat, f_bits, spec_entries, one, acc_code,
@@ -259,6 +290,10 @@ def _kernel(config: tuple[int, ...] | None):
 class RayKernel(StageConstants):
     """The compiled ray loop of one VIZARD II frame (None from :meth:`for_machine` when
     the frame is out of its scope, see Scope)."""
+
+    #: Timing only (:meth:`VizardMachine.timing`): the loop skips the datapath where it
+    #: decides no clock (flags[5]); the image and the saturation counts are then void.
+    timing = False
 
     @classmethod
     def for_machine(cls, machine) -> RayKernel | None:
@@ -335,7 +370,9 @@ class RayKernel(StageConstants):
         if m.faults.dropped_fill is not None:
             faults[2] = m.faults.dropped_fill
         mip = be.mode == "mip"
-        flags = np.array([mip, m.ert, FEEDBACK, m.P, m.cache.gradients is not None], dtype=np.int64)
+        flags = np.array(
+            [mip, m.ert, FEEDBACK, m.P, m.cache.gradients is not None, self.timing], dtype=np.int64
+        )
         acc = state.acc.reshape(-1, 1) if mip else state.acc
         dirs = np.ascontiguousarray(plan._d, dtype=np.float64).reshape(-1, 3)
         busy = np.zeros(m.P, dtype=np.int64)

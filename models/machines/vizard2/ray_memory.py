@@ -120,36 +120,46 @@ def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_
 
 @numba.njit(inline="always")
 def lookups(cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
-             faults, line, offset, i, miss_s, miss_b, n_miss, regs):  # fmt: skip
+             values, faults, line, offset, i, miss_s, miss_b, n_miss, regs):  # fmt: skip
     """The cache lookups of one sample whose cell's low corner is ``cell`` (``c1``: its
     far corner per axis): per corner its ``line`` and ``offset``; the distinct blocks
-    looked up in corner order, a miss filling its line.  Returns the new miss count."""
-    cross_z, cross_y, cross_x = (
-        c1[0] >> 2 != cell[0] >> 2,
-        c1[1] >> 2 != cell[1] >> 2,
-        c1[2] >> 2 != cell[2] >> 2,
-    )
-    for c in range(8):
-        z = c1[0] if c & 4 else cell[0]
-        y = c1[1] if c & 2 else cell[1]
-        x = c1[2] if c & 1 else cell[2]
-        bz, by, bx = z >> 2, y >> 2, x >> 2
+    looked up in corner order, a miss filling its line (its words copied only when
+    ``values``: timing only copies none unless a ray may end early).  Returns the new
+    miss count."""
+    # Each axis's two block coordinates and their sets, once; the distinct blocks in
+    # corner order (a corner's block is a lower corner's unless all its set axes cross).
+    bz0, by0, bx0 = cell[0] >> 2, cell[1] >> 2, cell[2] >> 2
+    bz1, by1, bx1 = c1[0] >> 2, c1[1] >> 2, c1[2] >> 2
+    sz0, sy0, sx0 = bz0 % sets[0], by0 % sets[1], bx0 % sets[2]
+    sz1, sy1, sx1 = bz1 % sets[0], by1 % sets[1], bx1 % sets[2]
+    for dz in range(2 if bz1 != bz0 else 1):
+        bz, sz = (bz1, sz1) if dz else (bz0, sz0)
+        for dy in range(2 if by1 != by0 else 1):
+            by, sy = (by1, sy1) if dy else (by0, sy0)
+            for dx in range(2 if bx1 != bx0 else 1):
+                bx, sx = (bx1, sx1) if dx else (bx0, sx0)
+                at = (sz * sets[1] + sy) * sets[2] + sx
+                block = (bz * nb[1] + by) * nb[2] + bx
+                regs[_LOOKUPS] += 1
+                if tag[at] == block:
+                    regs[_HITS] += 1
+                    continue
+                tag[at] = block
+                if values:
+                    _fill_line(
+                        at, block, regs[_FILLS], cvals, cgx, cgy, cgz, ivals, igx, igy, igz,
+                        grads, faults,
+                    )  # fmt: skip
+                regs[_FILLS] += 1
+                miss_s[n_miss], miss_b[n_miss] = i, block
+                n_miss += 1
+    for c in range(8 if values else 0):  # where the datapath reads each corner
+        hz, hy, hx = c & 4 != 0, c & 2 != 0, c & 1 != 0
+        z, sz = (c1[0], sz1) if hz else (cell[0], sz0)
+        y, sy = (c1[1], sy1) if hy else (cell[1], sy0)
+        x, sx = (c1[2], sx1) if hx else (cell[2], sx0)
         offset[c] = (((z & 3) << 2) | (y & 3)) << 2 | (x & 3)
-        line[c] = ((bz % sets[0]) * sets[1] + by % sets[1]) * sets[2] + bx % sets[2]
-        if (c & 4 and not cross_z) or (c & 2 and not cross_y) or (c & 1 and not cross_x):
-            continue  # this corner's block is a lower corner's: looked up there
-        block = (bz * nb[1] + by) * nb[2] + bx
-        regs[_LOOKUPS] += 1
-        if tag[line[c]] == block:
-            regs[_HITS] += 1
-            continue
-        tag[line[c]] = block
-        _fill_line(
-            line[c], block, regs[_FILLS], cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, faults
-        )
-        regs[_FILLS] += 1
-        miss_s[n_miss], miss_b[n_miss] = i, block
-        n_miss += 1
+        line[c] = (sz * sets[1] + sy) * sets[2] + sx
     return n_miss
 
 

@@ -35,6 +35,7 @@ threshold the cache, bursts and clocks are resolved exactly as the machine's rul
 from __future__ import annotations
 
 import copy
+import functools
 import time
 from typing import Any
 
@@ -57,6 +58,7 @@ from models.machines.vizard2.config import (
     BLOCK,
     FEEDBACK,
     FILL_WRITE,
+    VizardFaults,
     check_frame,
     memory_of,
     parse_buffers,
@@ -78,9 +80,15 @@ class VizardTransaction(ReadsTheFrame):
         ``stopped`` is not set and rays may stop, the functional rung's termination steps.
     pixel_fifo_depth : int, optional
         Override of ``[buffers] pixel_fifo_entries``.
+    event_model : bool, optional
+        Play the packets in this SimPy model even where the cycle rung's compiled ray
+        loop could time the frame (:meth:`run`): the model's own rules, the reference
+        the shared loop is checked against.
     """
 
-    def __init__(self, frame: Frame, *, pixel_fifo_depth: int | None = None) -> None:
+    def __init__(
+        self, frame: Frame, *, pixel_fifo_depth: int | None = None, event_model: bool = False
+    ) -> None:
         scene, arch, plan, volume = frame.scene, frame.arch, frame.plan, frame.volume
         self.frame, self.volume, self.datapath = frame, volume, frame.datapath
         self.scene, self.arch, self.planned = scene, arch, plan
@@ -91,7 +99,7 @@ class VizardTransaction(ReadsTheFrame):
         self.backend = be = Backend(frame)
         stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"
         self.ert = arch.early_termination and stops
-        self.plan = self._leaped(plan) if arch.space_leaping else plan
+        self.event_model = event_model
         self.layout = BlockLayout.of(  # the cycle rung's memory image and capacity check
             volume.shape, self.memory.sdram, self.datapath.voxel_bits, be.need_grad, arch.source
         )
@@ -99,6 +107,12 @@ class VizardTransaction(ReadsTheFrame):
         self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
 
     # ------------------------------------------------------------------ set-up
+
+    @functools.cached_property
+    def plan(self) -> SamplePlan:
+        """The plan the rays issue (leaped when the machine leaps)."""
+        plan = self.planned
+        return self._leaped(plan) if self.arch.space_leaping else plan
 
     def _leaped(self, plan: SamplePlan) -> SamplePlan:
         """Rule 4: rays' first and last samples moved past blocks that cannot give a
@@ -269,7 +283,35 @@ class VizardTransaction(ReadsTheFrame):
     # ------------------------------------------------------------------ frame
 
     def run(self) -> TxnTiming:
-        """Simulate the frame; return its cycles and the event model's counters."""
+        """Time the frame: on the cycle rung's compiled ray loop without its datapath
+        where the loop's scope holds the frame and ``event_model`` is off (shared code:
+        a consistency check with the cycle rung, not independent evidence), else in this
+        SimPy model (:meth:`play`)."""
+        if not self.event_model:
+            timed = self._on_the_ray_loop()
+            if timed is not None:
+                return timed
+        return self.play()
+
+    def _on_the_ray_loop(self) -> TxnTiming | None:
+        """``VizardMachine.timing`` on this frame; None out of the loop's scope."""
+        from models.machines.vizard2.cycle import VizardMachine  # the cycle rung's loop
+
+        start = time.perf_counter()
+        faults = VizardFaults(pixel_fifo_depth=self.pixel_fifo_depth)
+        counters = VizardMachine(self.backend, faults=faults).timing(
+            lambda done, total: report_progress(self, done, total)
+        )
+        if counters is None:
+            return None
+        counters["pipeline.latency_cycles"] = FEEDBACK
+        counters["transaction.granularity"] = "the cycle rung's ray loop, timing only"
+        counters["transaction.timing_seconds"] = time.perf_counter() - start
+        return TxnTiming(int(counters["frame.cycles"]), counters)
+
+    def play(self) -> TxnTiming:
+        """Simulate the frame in the SimPy event model; return its cycles and the
+        model's counters."""
         start = time.perf_counter()
         stopped = self.termination_steps(self.frame) if self.ert else None
         P = self.P
