@@ -359,19 +359,24 @@ def summarize(
     read = np.asarray(read, dtype=np.int64).reshape(-1)
     n = read.size
     outcome = np.asarray(outcome, dtype=np.int8).reshape(-1)
-    earliest = np.asarray(earliest, dtype=np.int64).reshape(-1)
+    earliest = _integers(earliest)
     refreshed = np.asarray(refreshed_before, dtype=bool).reshape(-1)
     refresh = np.asarray(refresh_log, dtype=np.int64).reshape(-1, 2)
     bc = cfg.burst_cycles
     data_first = read + cfg.cas_latency
     data_end = data_first + bc
+    # In place where a frame's millions of requests would make temporaries.
     gap = np.zeros(n, dtype=np.int64)
     if n > 1:
-        gap[1:] = read[1:] - read[:-1] - bc
-    latency = np.choose(outcome, [0, cfg.t_rcd, cfg.t_rp + cfg.t_rcd]) if n else gap
+        np.subtract(read[1:], read[:-1], out=gap[1:])
+        gap[1:] -= bc
+    # The first cycle each READ could issue: its arrival plus its row latency.
+    could = np.choose(outcome, [0, cfg.t_rcd, cfg.t_rp + cfg.t_rcd]) if n else gap.copy()
+    could += earliest
     late = gap > 0
     late[:1] = False
-    by_arrival = late & (earliest + latency >= read)
+    by_arrival = late & (could >= read)
+    del could
     by_refresh = late & ~by_arrival & refreshed
     by_bank = late & ~by_refresh & ~by_arrival
     elapsed = int(data_end[-1]) if n else 0
