@@ -26,6 +26,7 @@ Timing never changes data, so the order of the passes changes nothing.
 
 from __future__ import annotations
 
+import ctypes
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -396,6 +397,7 @@ class SlabMachine(SliceOrderMachine):
         self._diffed.clear()
         self.memory.release()
         self.datapath.clear_caches()
+        _return_freed_memory()
         return self._finish(state, bus, records, sections, parked_counts, needed)
 
     def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:
@@ -499,3 +501,14 @@ def _cell_rows(corners: np.ndarray, shift: int) -> np.ndarray:
     rows = np.empty((corners[0].size, 4), dtype=corners.dtype)
     np.left_shift(corners.reshape(4, -1).T, shift, out=rows)
     return rows
+
+
+def _return_freed_memory() -> None:
+    """Hand the C heap's free pages back to the system (glibc's ``malloc_trim``): the data
+    pass's slice-sized arrays (a few MB each at 512^2) come from the heap, whose freed
+    pages otherwise stay resident through the timing pass (0.17 GB of a 512^3 VolumePro
+    1000 frame's peak).  Elsewhere nothing."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
