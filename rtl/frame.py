@@ -127,9 +127,11 @@ def _pack(layout, fields: dict[str, int]) -> int:
 def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch: ArchConfig):
     if arch.order not in RTL_ORDERS:
         raise NotAvailableError(
-            f"the rtl rung builds the Cube-4 top; {arch.name} ({arch.order} order) has no RTL top",
+            f"the rtl rung builds the Cube-4 and vg500 tops; {arch.name} ({arch.order} order) "
+            "has no RTL top",
             key="--arch",
-            allowed="cube4, cube4-teramac or a slice-parallel FILE.toml",
+            allowed="cube4, cube4-teramac, volumepro500 (unlit composite or mip) or a "
+            "slice-parallel FILE.toml",
         )
     if scene.view.projection != "parallel":
         raise _refuse(

@@ -64,7 +64,7 @@ def test_a_missing_simulator_is_one_line_and_exit_2(tmp_path, monkeypatch, capsy
     ("extra", "message"),
     [
         (["--phantom", "head:size=130"], "at most 128 voxels per axis"),
-        (["--arch", "volumepro500"], "has no RTL top"),
+        (["--arch", "volumepro1000"], "has no RTL top"),
         (["--projection", "perspective"], "view.projection"),
         (["--fidelity", "cycle", "--simulator", "icarus"], "--simulator: an HDL simulator"),
     ],

@@ -123,7 +123,10 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--image", "axb"], "not an integer"),
         (["render", "--phantom", "teapot"], "teapot"),
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
-        (["render", "--fidelity", "rtl"], "volumepro500 (shear-warp order) has no RTL top"),
+        (
+            ["render", "--fidelity", "rtl", "--arch", "volumepro1000"],
+            "volumepro1000 (shear-image order) has no RTL top",
+        ),
         (
             # Every machine has a transaction model now; it refuses what the machine did.
             [
