@@ -7,7 +7,8 @@ import argparse
 
 import pytest
 
-from hwsim.cli.commands import DESCRIPTION, build_parser, main
+from hwsim.cli.commands import build_parser, main
+from hwsim.cli.parser import DESCRIPTION
 
 pytestmark = pytest.mark.system
 
