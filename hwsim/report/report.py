@@ -25,24 +25,19 @@ from typing import Any
 import numpy as np
 
 from hwsim.core.errors import HwsimError, InputError
-from hwsim.core.paths import atomic_write, write_text_atomic
+from hwsim.core.paths import write_text_atomic
 from hwsim.report import plots
 from hwsim.report.document import Block, html_page, markdown
 from hwsim.report.energy import energy_blocks
 from hwsim.report.inputs import (
-    read_figures,
     read_image,
     read_stats,
     read_sweep_facts,
-    read_sweep_rows,
-    read_trade,
 )
-from hwsim.report.tables import METRIC_UNITS, figure_units, footnoted, loo_units, merged_diffs
-from hwsim.studies.trade.files import EXACT_LEGEND, psnr_cell
+from hwsim.report.studies import SHIPPED_FIGURES, figures_blocks, sweep_blocks, trade_blocks
+from hwsim.report.tables import METRIC_UNITS, NOT_RECORDED, fmt_value
 
 __all__ = ["RunRecord", "load_run", "build_report", "write_report"]
-
-NOT_RECORDED = "not recorded"
 
 
 @dataclass
@@ -147,16 +142,6 @@ def _golden_for(run: RunRecord, runs: list[RunRecord]) -> tuple[np.ndarray | Non
         return None, f"golden reference unavailable: {exc}"
 
 
-def _fmt(v: Any, spec: str = ".4g") -> str:
-    if v is None:
-        return NOT_RECORDED
-    if isinstance(v, float):
-        return "exact" if v == float("inf") else format(v, spec)
-    if isinstance(v, int):
-        return f"{v:,}"
-    return str(v)
-
-
 def _published(run: RunRecord) -> list[list[str]]:
     from hwsim.run.fidelity import builtin_archs
     from hwsim.studies.figures import published_figures
@@ -177,14 +162,22 @@ def _published(run: RunRecord) -> list[list[str]]:
             sim = sps / n**3 if sps else None
             how = (
                 f"this run's simulated samples/s over {n}^3 (one sample per voxel); "
-                f"this volume itself: {_fmt(fps)} fps"
+                f"this volume itself: {fmt_value(fps)} fps"
             )
         else:
             sim, how = None, f"on its own scenario ({fig.scenario.text()}): hwsim figures"
-        ratio = _fmt(sim / fig.value if sim else None, ".3f")
+        ratio = fmt_value(sim / fig.value if sim else None, ".3f")
         unit = METRIC_UNITS[fig.metric]
         rows.append(
-            [fig.key, unit, evidence, _fmt(fig.value), _fmt(sim) if sim else "-", ratio, how]
+            [
+                fig.key,
+                unit,
+                evidence,
+                fmt_value(fig.value),
+                fmt_value(sim) if sim else "-",
+                ratio,
+                how,
+            ]
         )
     return rows
 
@@ -217,8 +210,8 @@ def _summary_table(run: RunRecord) -> Block:
     host = []
     if s.get("host_seconds"):  # a supervolume: the machine's part and the host's
         host = [
-            ["machine frame time, bricks' cycles (s)", _fmt(s.get("machine_frame_seconds"))],
-            ["host read back of the bricks (s)", _fmt(s["host_seconds"])],
+            ["machine frame time, bricks' cycles (s)", fmt_value(s.get("machine_frame_seconds"))],
+            ["host read back of the bricks (s)", fmt_value(s["host_seconds"])],
         ]
     return (
         "table",
@@ -233,19 +226,19 @@ def _summary_table(run: RunRecord) -> Block:
             ["mode", s["scene"]["render"]["mode"]],
             ["fidelity / sampling", f"{s['fidelity']} / {s['sampling']}"],
             ["architecture", s["arch"] or "none (ideal ray caster)"],
-            ["samples (count)", _fmt(s["samples"])],
+            ["samples (count)", fmt_value(s["samples"])],
             [
                 "cycles (count)",
-                _fmt(s.get("cycles"))
+                fmt_value(s.get("cycles"))
                 if s["fidelity"] != "golden"
                 else "none: golden has no timing",
             ],
-            ["clock (MHz)", _fmt(clock / 1e6 if clock else None)],
-            ["simulated frame time (s)", _fmt(s.get("frame_seconds"))],
+            ["clock (MHz)", fmt_value(clock / 1e6 if clock else None)],
+            ["simulated frame time (s)", fmt_value(s.get("frame_seconds"))],
             *host,
-            ["simulated frame rate (fps)", _fmt(_fps(s))],
-            ["simulated sample rate (samples/s)", _fmt(s.get("samples_per_second"))],
-            ["wall time (s)", _fmt(s.get("wall_seconds"))],
+            ["simulated frame rate (fps)", fmt_value(_fps(s))],
+            ["simulated sample rate (samples/s)", fmt_value(s.get("samples_per_second"))],
+            ["wall time (s)", fmt_value(s.get("wall_seconds"))],
             ["elaborated units", ", ".join(s.get("elaborated_units", [])) or "-"],
             ["elided units", ", ".join(s.get("elided_units", [])) or "none"],
             [
@@ -281,9 +274,9 @@ def _image_blocks(run: RunRecord, runs: list[RunRecord], out: Path, index: int) 
         blocks.append(
             (
                 "p",
-                f"Against the reference: RMSE {_fmt(err['rmse'])}, "
-                f"PSNR {_fmt(err['psnr_db'], '.2f')} dB, "
-                f"max abs error {_fmt(err['max_abs'])} (peak {err['peak']:g}).",
+                f"Against the reference: RMSE {fmt_value(err['rmse'])}, "
+                f"PSNR {fmt_value(err['psnr_db'], '.2f')} dB, "
+                f"max abs error {fmt_value(err['max_abs'])} (peak {err['peak']:g}).",
             )
         )
     return blocks
@@ -364,10 +357,10 @@ def _split_blocks(s: dict[str, Any]) -> list[Block]:
     rows = [
         [
             str(b["band"]),
-            _fmt(b["rays"]),
-            _fmt(b["samples"]),
-            _fmt(b["rows"]),
-            _fmt(b["seconds"], ".3g"),
+            fmt_value(b["rays"]),
+            fmt_value(b["samples"]),
+            fmt_value(b["rows"]),
+            fmt_value(b["seconds"], ".3g"),
             f"{b['peak_rss_bytes'] / gib:.2f}",
             b["host"],
         ]
@@ -381,92 +374,6 @@ def _split_blocks(s: dict[str, Any]) -> list[Block]:
     )
     head = ["band", "rays", "samples", "beams read (all slices)", "seconds", "peak GiB", "host:pid"]
     return [("h3", "Split across workers"), ("p", text), ("table", head, rows)]
-
-
-def _trade_blocks(folder: Path, out: Path, index: int) -> list[Block]:
-    rows = read_trade(folder / "trade.json")["rows"]
-    blocks: list[Block] = [("h2", f"Fidelity-ladder trade ({folder})")]
-    header = [
-        "scene",
-        "arch",
-        "rung",
-        "status",
-        "wall s",
-        "Msamples/s wall",
-        "cycles",
-        "numerical PSNR dB",
-        "algorithmic PSNR dB",
-        "cycle error",
-    ]
-    table = []
-    for r in rows:
-        sps = r["wall_samples_per_second"]
-        table.append(
-            [
-                r["scene"],
-                r["arch"],
-                r["rung"],
-                r["status"],
-                _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
-                f"{sps / 1e6:.2f}" if sps else "-",
-                _fmt(r["cycles"]) if r["cycles"] is not None else "-",
-                psnr_cell(r, "numerical"),
-                psnr_cell(r, "algorithmic"),
-                f"{r['cycle_error']:.2%}"
-                if r.get("cycle_error") is not None
-                else (r.get("cycle_reference") or "-"),
-            ]
-        )
-    blocks.append(
-        (
-            "p",
-            "Numerical: the rung against golden at the same sample positions. "
-            "Algorithmic: golden at the machine's positions against the ideal ray caster. "
-            "Cycle error: against the cycle rung of the same case. " + EXACT_LEGEND + ".",
-        )
-    )
-    blocks.append(("table", header, table))
-    png = folder / "trade.png"
-    if png.is_file():
-        copy = plots.plot_path(out, "trade", index)
-        with atomic_write(copy) as tmp:
-            tmp.write_bytes(png.read_bytes())
-        blocks.append(("img", copy, "speed against error, Pareto front dashed"))
-    return blocks
-
-
-def _sweep_blocks(path: Path) -> list[Block]:
-    """One row per run of a sweep database (``hwsim sweep --db``), sorted by the runs'
-    parameters (:func:`hwsim.studies.sweep.db.by_parameters`); a run whose wall time
-    includes its worker's JIT compile is marked."""
-    rows = read_sweep_rows(path)
-    failed = sum(r["status"] != "ok" for r in rows)
-    table = [
-        [
-            r["label"] or "",
-            r["status"],
-            _fmt(r["cycles"]) if r["cycles"] is not None else "-",
-            _fmt(1.0 / r["frame_seconds"]) if r["frame_seconds"] else "-",
-            _fmt(r["samples_per_second"]) if r["samples_per_second"] else "-",
-            _fmt(r["wall_seconds"], ".3f") if r["wall_seconds"] is not None else "-",
-            {1: "yes [1]", 0: "no"}.get(r.get("includes_compile"), NOT_RECORDED),
-            r["error"] or "",
-        ]
-        for r in rows
-    ]
-    header = ["run", "status", "cycles", "simulated fps", "simulated samples/s", "wall s"]
-    header += ["includes compile", "error"]
-    note = (
-        "Rows sorted by their parameters (names alphabetically, values ascending). [1] The "
-        "first run of its worker process: its wall time includes the imports and numba's "
-        "JIT compile (or cache load), so it is not comparable with the warm runs' wall times."
-    )
-    return [
-        ("h2", f"Sweep ({path})"),
-        ("p", f"{len(rows)} run(s), {failed} failed."),
-        ("table", header, table),
-        ("p", note),
-    ]
 
 
 def build_report(folders: list[str | Path], out: Path) -> list[Block]:
@@ -495,9 +402,9 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
                         r.stats["volume"]["name"],
                         r.stats["arch"] or "ideal",
                         r.stats["fidelity"],
-                        _fmt(r.stats.get("cycles")),
-                        _fmt(_fps(r.stats)),
-                        _fmt(r.stats["wall_seconds"], ".3f"),
+                        fmt_value(r.stats.get("cycles")),
+                        fmt_value(_fps(r.stats)),
+                        fmt_value(r.stats["wall_seconds"], ".3f"),
                     ]
                     for i, r in enumerate(runs, start=1)
                 ],
@@ -506,57 +413,17 @@ def build_report(folders: list[str | Path], out: Path) -> list[Block]:
     for i, run in enumerate(runs, start=1):
         blocks += _run_blocks(run, runs, out, i)
     for index, folder in enumerate(trades):
-        blocks += _trade_blocks(folder, out, index)
+        blocks += trade_blocks(folder, out, index)
     for db in sweeps:
-        blocks += _sweep_blocks(db)
+        blocks += sweep_blocks(db)
     if not figures and SHIPPED_FIGURES.is_file():
         figures.append(SHIPPED_FIGURES)
     for path in figures:
-        blocks += _figures_blocks(path, out)
+        blocks += figures_blocks(path, out)
     if not figures:
         blocks += [
             ("h2", "Published figures of every machine"),
             ("p", "No figures table: run `hwsim figures --out DIR` and give DIR here."),
-        ]
-    return blocks
-
-
-#: The table measured for the repository (benchmarks/results), shown when no
-#: ``hwsim figures`` folder is among the inputs.
-SHIPPED_FIGURES = (
-    Path(__file__).resolve().parents[2] / "benchmarks/results/published-figures/figures.json"
-)
-
-
-def _figures_blocks(path: Path, out: Path) -> list[Block]:
-    from hwsim.core.paths import display_path
-    from hwsim.studies.figures_tables import EVIDENCE_LEGEND, loo_table, table
-
-    data = read_figures(path)
-    m = data.get("machine") or {}
-    shown = display_path(path, out)  # never this machine's absolute path
-    header, body = merged_diffs(*figure_units(*table(data["rows"]), data["rows"]))
-    header, body, notes = footnoted(header, body, "note")
-    blocks: list[Block] = [
-        ("h2", "Published figures of every machine"),
-        (
-            "p",
-            f"Each machine's published figure against hwsim's at every timing rung, on its "
-            f"scenario (docs/figures.md); from {shown}, measured {m.get('measured', '?')} "
-            f"with hwsim {m.get('hwsim', '?')}. Each rung's value is followed by its diff, "
-            "simulated / published - 1; "
-            "'OUT' marks a row beyond its acceptance band; notes [n] are listed under the "
-            "table.",
-        ),
-        ("table", header, body),
-        ("notes", notes),
-        ("p", data.get("evidence") or EVIDENCE_LEGEND),
-    ]
-    if data.get("leave_one_out"):
-        lh, lb = loo_units(*loo_table(data["leave_one_out"]), data["leave_one_out"])
-        blocks += [
-            ("h3", "Leave one out: the clock fitted on one figure, the others predicted"),
-            ("table", lh, lb),
         ]
     return blocks
 

@@ -9,7 +9,9 @@ from typing import Any
 
 __all__ = [
     "METRIC_UNITS",
+    "NOT_RECORDED",
     "figure_units",
+    "fmt_value",
     "footnoted",
     "loo_units",
     "merged_diffs",
@@ -94,3 +96,18 @@ def merged_diffs(header: list[str], body: list[list[str]]) -> tuple[list[str], l
     names = [f"{name} (diff)" if header[i + 1 : i + 2] == ["diff"] else name
              for i, name in enumerate(header)]  # fmt: skip
     return [names[i] for i in keep], out
+
+
+#: A cell whose value the run did not record.
+NOT_RECORDED = "not recorded"
+
+
+def fmt_value(v: Any, spec: str = ".4g") -> str:
+    """A table cell: ``None`` as not recorded, inf as exact, ints with separators."""
+    if v is None:
+        return NOT_RECORDED
+    if isinstance(v, float):
+        return "exact" if v == float("inf") else format(v, spec)
+    if isinstance(v, int):
+        return f"{v:,}"
+    return str(v)

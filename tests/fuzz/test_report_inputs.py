@@ -24,11 +24,12 @@ from hwsim.cli.commands import main
 from hwsim.core.errors import InputError
 from hwsim.core.json_input import MAX_DEPTH
 from hwsim.report import plots, report
+from hwsim.report import studies as report_studies
 from hwsim.report.energy import energy_blocks
 
 pytestmark = pytest.mark.fuzz
 
-FIGURES = report.SHIPPED_FIGURES
+FIGURES = report_studies.SHIPPED_FIGURES
 _NAMES = itertools.count()
 
 
@@ -131,7 +132,7 @@ def test_issue_image_examples(runs, tmp_path, image):
 
 
 def _trade(path: Path):
-    return report._trade_blocks(path.parent, path.parent, 1)
+    return report_studies.trade_blocks(path.parent, path.parent, 1)
 
 
 @FUZZ
@@ -145,7 +146,7 @@ def test_trade_json(runs, tmp_path, data):
 
 
 def _figures(path: Path):
-    return report._figures_blocks(path, path.parent)
+    return report_studies.figures_blocks(path, path.parent)
 
 
 @FUZZ
@@ -194,7 +195,7 @@ def _sweep_db(folder: Path, row: dict) -> Path:
 
 
 def _sweep(path: Path):
-    return report._sweep_blocks(path)
+    return report_studies.sweep_blocks(path)
 
 
 @FUZZ
@@ -228,4 +229,4 @@ def test_sweep_database_json_columns(tmp_path, column, text):
     with sqlite3.connect(path) as conn:
         conn.execute(f"UPDATE runs SET {column} = ?", (text,))
     with pytest.raises(InputError, match=r"runs-\d+\.db: runs"):
-        report._sweep_blocks(path)
+        report_studies.sweep_blocks(path)
