@@ -110,6 +110,27 @@ def scene_of(
     )
 
 
+def sized_phantom_scene(view=(30, 15), projection="parallel", mode="composite", size=32):
+    """A ``size``-square view of the head phantom built at ``size`` voxels, CT preset, no
+    zoom: the early machines' tests (Cube-3, VOGUE) render at the volume's own size."""
+    return Scene(
+        volume=VolumeSpec(phantom="head", params=(("size", size),)),
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(
+            azimuth=view[0], elevation=view[1], width=size, height=size, projection=projection
+        ),
+        render=RenderSpec(mode=mode),
+    )
+
+
+def real_32(volume, z0: int):
+    """A 32^3 cut of a real scan (``read_volume``'s result): every second slice from
+    ``z0`` and every ``n / 32``-th row and column."""
+    step = volume.data.shape[1] // 32
+    data = volume.data[z0 : z0 + 64 : 2, ::step, ::step]
+    return dataclasses.replace(volume, data=np.ascontiguousarray(data))
+
+
 def phantom_set(head: int, ball: int, lobb: int) -> dict:
     """The three phantoms the contract tests sweep, at the sizes a machine wants."""
     return {

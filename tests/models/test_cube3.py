@@ -16,7 +16,6 @@ import pytest
 from hwsim.core.errors import InputError
 from hwsim.golden import make_plan
 from hwsim.run.fidelity import render, resolve_arch
-from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.spec.transfer import resolve_transfer
 from hwsim.studies.figures import published_figures
 from hwsim.studies.trade.independence import transaction_vs_cycle
@@ -29,21 +28,14 @@ from models.machines.cube3.cycle import Cube3Machine
 from models.machines.cube3.frame import Cube3Faults, slab_schedule
 from models.machines.cube3.network import deliver_volume
 from models.machines.cube3.transaction import Cube3Transaction
+from tests.models.rungs import real_32, sized_phantom_scene
 
 pytestmark = pytest.mark.model
 
 RUNGS = ("functional", "transaction", "cycle")
 
 
-def scene_of(view=(30, 15), projection="parallel", mode="composite", size=32):
-    return Scene(
-        volume=VolumeSpec(phantom="head", params=(("size", size),)),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(
-            azimuth=view[0], elevation=view[1], width=size, height=size, projection=projection
-        ),
-        render=RenderSpec(mode=mode),
-    )
+scene_of = sized_phantom_scene
 
 
 def cube3(modules=512, units=512):
@@ -52,8 +44,7 @@ def cube3(modules=512, units=512):
 
 @pytest.fixture(scope="module")
 def mr32(shared_data):
-    mr = read_volume(shared_data / "mr_brainsmall.nrrd")  # 84 x 128 x 128
-    return dataclasses.replace(mr, data=np.ascontiguousarray(mr.data[10:74:2, ::4, ::4]))
+    return real_32(read_volume(shared_data / "mr_brainsmall.nrrd"), 10)
 
 
 @pytest.mark.parametrize(

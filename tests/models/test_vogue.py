@@ -16,7 +16,6 @@ import pytest
 from hwsim.core.errors import InputError
 from hwsim.golden import make_plan
 from hwsim.run.fidelity import render, resolve_arch
-from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
 from hwsim.spec.transfer import resolve_transfer
 from hwsim.studies.figures import published_figures
 from hwsim.studies.trade.independence import transaction_vs_cycle
@@ -25,27 +24,19 @@ from models.frame import frame_of
 from models.machines.vogue.config import ring_link_bytes
 from models.machines.vogue.cycle import module_loads
 from models.machines.vogue.transaction import VogueTransaction
+from tests.models.rungs import real_32, sized_phantom_scene
 
 pytestmark = pytest.mark.model
 
 RUNGS = ("functional", "transaction", "cycle")
 
 
-def scene_of(view=(30, 15), projection="parallel", mode="composite", size=32):
-    return Scene(
-        volume=VolumeSpec(phantom="head", params=(("size", size),)),
-        transfer=TransferSpec(preset="ct"),
-        view=ViewSpec(
-            azimuth=view[0], elevation=view[1], width=size, height=size, projection=projection
-        ),
-        render=RenderSpec(mode=mode),
-    )
+scene_of = sized_phantom_scene
 
 
 @pytest.fixture(scope="module")
 def ct32(shared_data):
-    ct = read_volume(shared_data / "ct_cranium.nrrd")  # 108 x 256 x 256
-    return dataclasses.replace(ct, data=np.ascontiguousarray(ct.data[22:86:2, ::8, ::8]))
+    return real_32(read_volume(shared_data / "ct_cranium.nrrd"), 22)
 
 
 def rungs(scene, arch, volume=None):
