@@ -169,6 +169,23 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                         g[c3, m] = _trilinear(
                             dxyz[c3], base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code
                         )
+                elif (
+                    _inner(zyx[i, 0], hi[0])
+                    and _inner(zyx[i, 1], hi[1])
+                    and _inner(zyx[i, 2], hi[2])
+                ):
+                    # Inside the volume, p +- 1 along every axis has the centre's weights
+                    # and the next cell (see _inner): the six samples without cell_weight.
+                    for a in range(3):
+                        ahead = _trilinear(
+                            vox, base + strides[a], o1, o2, o3, o4, w[0], w[1], w[2],
+                            s_bits, w_bits, w_code,
+                        )  # fmt: skip
+                        behind = _trilinear(
+                            vox, base - strides[a], o1, o2, o3, o4, w[0], w[1], w[2],
+                            s_bits, w_bits, w_code,
+                        )  # fmt: skip
+                        g[2 - a, m] = ahead - behind
                 else:
                     # s(p + e) - s(p - e) per axis: the centre's cell and weights except
                     # along the moved axis (gradient.sample_differences).
@@ -207,6 +224,21 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         )  # fmt: skip
 
     return numba.njit(cache=True, nogil=True)(kernel)
+
+
+@numba.njit(inline="always")
+def _inner(p, hi):
+    """Whether ``interp.cell_weight`` gives ``p + 1`` and ``p - 1`` the cells next to
+    ``p``'s and ``p``'s own weight, so that a gradient neighbour is the centre's sample
+    moved by one cell.
+
+    With ``1 <= p`` and ``p + 1 < hi`` no clamp applies to ``p`` or ``p +- 1``; ``p - 1``
+    is exact (a multiple of ``p``'s ulp below ``p``), and ``p + 1`` is exact when
+    ``(p + 1) - 1`` gives ``p`` back (rounded, it would be off by half an ulp of
+    ``p + 1``, which the subtraction keeps).  Then ``floor(p +- 1) = floor(p) +- 1`` and
+    the fractions ``(p +- 1) - (floor(p) +- 1)`` are the exact value ``p - floor(p)``
+    (representable, so the subtraction returns it), quantised alike."""
+    return p >= 1.0 and p + 1.0 < hi and (p + 1.0) - 1.0 == p
 
 
 @numba.njit(inline="always")

@@ -130,6 +130,32 @@ def test_cell_weight_and_lerps_compiled_equal_numpy(rounding):
     )
 
 
+@pytest.mark.parametrize("rounding", list(ROUNDING_CODES))
+def test_inner_positions_have_the_centres_weights_one_cell_over(rounding):
+    """The kernel's gradient fast path (fused._inner): where it holds, interp.cell_weight
+    of p + 1 and p - 1 gives the next cells and p's own weight, so the six neighbours are
+    the centre's sample moved by one cell; a p + 1 that rounds does not qualify."""
+    rng = np.random.default_rng(5)
+    code = ROUNDING_CODES[rounding]
+    hi = 63.0
+    p = rng.uniform(-2.0, 66.0, 20000)
+    p[:400] = np.round(p[:400])  # on voxel slices
+    binades = 2.0 ** np.arange(1, 7)
+    p[400:406] = np.nextafter(binades, 0.0)  # just below a power of two
+    p[406:412] = binades - 1.0 + 2.0**-40  # p + 1 lands just above one
+    p[412:418] = [1.0, 61.999999999999, 62.0, 0.999999999, 61.0, 2.0**-30]
+    crossing = np.array([31.0 + 2.0**-48, 15.0 + 2.0**-49, 7.0 + 2.0**-50])  # p + 1 rounds
+    p = np.concatenate([p, crossing])
+    inner = _scalar_map(lambda x, h: fused._inner(x, h), 2)(p, np.full_like(p, hi)) == 1
+    assert inner.mean() > 0.8 and not inner[-3:].any()
+    for w_bits in (1, 5, 8, 16):
+        c, w = interp_unit.cell_weight(p, hi, w_bits, code)
+        for step in (1.0, -1.0):
+            c2, w2 = interp_unit.cell_weight(p + step, hi, w_bits, code)
+            np.testing.assert_array_equal(c2[inner], c[inner] + step)
+            np.testing.assert_array_equal(w2[inner], w[inner])
+
+
 def test_gradient_arithmetic_compiled_equals_numpy():
     rng = np.random.default_rng(3)
     g = _ints(rng, 6000, -(2**24), 2**24, [0, 1, -1, 2**24 - 1])
