@@ -24,7 +24,12 @@ per step does it for a shear-warp, shear-image or ray plan:
   the volume) is not occupied in :func:`models.leap.invisible_blocks` is skipped: its
   trilinear value lies in that block's range, which classifies to opacity 0, so the
   composite stage would drop it unchanged.  This is the same exact argument as the
-  plan's leap, applied per sample, so it also skips empty runs inside a ray.
+  plan's leap, applied per sample, so it also skips empty runs inside a ray;
+* in an occupied block, a sample whose cell is *clear* (:func:`clear_cells`: the
+  2 x 2 x 2 voxels it interpolates classify to opacity 0 whatever their mix) is skipped
+  too: the same argument per cell.  On the VolPack benchmark's MR frames half the
+  samples in occupied blocks are transparent and half of those lie in clear cells: the
+  kernel gets 1.00 M samples a frame instead of 1.32 M.
 
 The samples kept in a step go to :class:`models.fused.CompositeKernel` as one part; each
 ray is at most once in a step, so the kernel's order-free blend holds.  What the machine
@@ -39,6 +44,8 @@ planes (their masks stay in :meth:`models.backend.Backend.masks`): :func:`applie
 
 from __future__ import annotations
 
+import hashlib
+import weakref
 from collections.abc import Callable, Iterator
 
 import numba
@@ -50,6 +57,7 @@ from hwsim.core.threads import pool as thread_pool
 from hwsim.golden.occupancy import Occupancy
 from hwsim.golden.positions import SamplePlan
 from models.backend import Backend, RayState
+from models.units import classify as classify_unit
 
 __all__ = ["applies", "busiest_lanes", "plan_positions", "run_steps_compiled"]
 
@@ -74,7 +82,7 @@ _SHEAR_WARP, _SHEAR_IMAGE, _RAY = 0, 1, 2
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def _step(
     j, kind, q_of_step, offsets, ss, k_first, k_dir, dt, axes, ray_ids, ray_cols, j_lo, j_hi, join,
-    cursor, slots, terms, alive, distance, block_shift, vol_hi, zyx, rays,
+    cursor, slots, terms, alive, distance, block_shift, vol_hi, cells, cell_strides, zyx, rays,
 ):  # fmt: skip
     """Step ``j``'s kept samples into ``zyx`` and ``rays``; returns how many.
 
@@ -127,15 +135,17 @@ def _step(
             p[kp] = q
             p[a_ax] = terms[4, k] + along * terms[5, k]
             p[b_ax] = terms[6, k] + along * terms[7, k]
-        bz = np.int64(min(max(p[0], 0.0), vol_hi[0])) >> block_shift
-        by = np.int64(min(max(p[1], 0.0), vol_hi[1])) >> block_shift
-        bx = np.int64(min(max(p[2], 0.0), vol_hi[2])) >> block_shift
-        c = distance[bz, by, bx]
+        iz = np.int64(min(max(p[0], 0.0), vol_hi[0]))
+        iy = np.int64(min(max(p[1], 0.0), vol_hi[1]))
+        ix = np.int64(min(max(p[2], 0.0), vol_hi[2]))
+        c = distance[iz >> block_shift, iy >> block_shift, ix >> block_shift]
         if c > 0:
             # Opacity 0 whatever the sample interpolates to, and so for the next
             # floor(((c - 1) block - 1e-6) / |delta|_inf) steps (SamplePlan.leap's bound).
             slots[2, k] = j + 1 + np.int64(np.floor((c - 1) * terms[terms.shape[0] - 1, k]))
             continue
+        if cells[iz * cell_strides[0] + iy * cell_strides[1] + ix * cell_strides[2]]:
+            continue  # a clear cell: opacity 0 whatever the sample interpolates to
         zyx[m, 0], zyx[m, 1], zyx[m, 2] = p[0], p[1], p[2]
         rays[m] = ray
         m += 1
@@ -184,14 +194,94 @@ def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
     return np.ascontiguousarray(np.stack([*cols, leap]), dtype=np.float64)
 
 
+#: No clear-cell map: every cell reads 0 (one entry, strides 0).
+_NO_CELLS = (np.zeros(1, dtype=np.uint8), np.zeros(3, dtype=np.int64))
+#: Cells of a volume up to which :func:`clear_cells` keeps a map (a byte per voxel).
+_CELL_MAP_VOXELS = 1 << 25
+#: Per volume: the clear-cell maps, by layout and classification.
+_CELLS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+@numba.njit(cache=True, nogil=True)
+def _clear_cell_map(vox, shape, strides, order, v_min, index, next_visible, out):
+    """``out[cell] = 1`` where no LUT entry between the indices of the cell's smallest and
+    largest voxel (``i`` and ``i + 1`` along each axis, clamped to the volume) has
+    non-zero opacity; ``index[v - v_min]`` is raw voxel ``v``'s LUT index, promoted
+    (see :func:`clear_cells`).  Cells are visited in memory order (``order``: the axes,
+    slowest first)."""
+    n0, n1, n2 = shape[order[0]], shape[order[1]], shape[order[2]]
+    s0, s1, s2 = strides[order[0]], strides[order[1]], strides[order[2]]
+    for a in range(n0):
+        a1 = (min(a + 1, n0 - 1) - a) * s0
+        for b in range(n1):
+            b1 = (min(b + 1, n1 - 1) - b) * s1
+            row = a * s0 + b * s1
+            for c in range(n2):
+                c1 = (min(c + 1, n2 - 1) - c) * s2
+                base = row + c * s2
+                lo = hi = np.int64(vox[base])
+                for da in (0, a1):
+                    for db in (0, b1):
+                        for dc in (0, c1):
+                            v = np.int64(vox[base + da + db + dc])
+                            lo, hi = min(lo, v), max(hi, v)
+                out[base] = next_visible[index[lo - v_min]] > index[hi - v_min]
+
+
+def clear_cells(kernel) -> tuple[np.ndarray, np.ndarray] | None:
+    """The cells of ``kernel``'s volume (:class:`models.fused.CompositeKernel`) whose every
+    sample classifies to opacity 0, as a byte per cell laid out as the kernel's voxels
+    (its strides returned with it); None above :data:`_CELL_MAP_VOXELS`.
+
+    The same exact argument as the block leap (:mod:`models.leap`) on the 2 x 2 x 2
+    voxels a sample interpolates: the trilinear sample lies in their promoted range and
+    the LUT index is non-decreasing in it, so no entry between the range's ends with
+    non-zero opacity means opacity 0 (gradient modulation only scales it).  A cell
+    ``i`` holds the samples with ``floor(p) = i`` (position clamped to the volume, as
+    the walker clamps it): ``interp.cell_weight`` reads voxels ``i`` and ``i + 1``, or at
+    the last voxel ``i - 1`` and ``i`` with weight 1.0, which gives voxel ``i`` exactly.
+    Kept per volume, layout and classification (successive frames of a turntable)."""
+    be, vox = kernel.backend, kernel.vox
+    if vox.size > _CELL_MAP_VOXELS or vox.size == 0:
+        return None
+    s_bits, _, _, lut_shift, entries = kernel.config[:5]
+    next_visible = np.ascontiguousarray(be.transparent_ranges(), dtype=np.int64)
+    key = (
+        vox.dtype.str,
+        tuple(kernel.strides),
+        s_bits,
+        lut_shift,
+        entries,
+        hashlib.sha256(next_visible.tobytes()).hexdigest(),
+    )
+    maps = _CELLS.setdefault(be.volume, {})
+    if key not in maps:
+        v_min, v_max = int(vox.min()), int(vox.max())
+        # Each raw value's LUT index, by the unit's own arithmetic (promoted as read).
+        values = np.arange(v_min, v_max + 1, dtype=np.int64)
+        index = classify_unit.lut_index_raw(values << s_bits, lut_shift, entries)
+        out = np.zeros(vox.size, dtype=np.uint8)
+        order = np.argsort(-kernel.strides, kind="stable")
+        _clear_cell_map(vox, kernel.shape, kernel.strides, order, v_min, index, next_visible, out)
+        maps.clear()  # one classification at a time per volume
+        maps[key] = (out, kernel.strides.copy())
+    return maps[key]
+
+
 class _Walker:
     """One plan's step walk: the static arguments of :func:`_step` and its buffers."""
 
     def __init__(
-        self, plan: SamplePlan, distance: np.ndarray, block: int, mine: np.ndarray | None = None
+        self,
+        plan: SamplePlan,
+        distance: np.ndarray,
+        block: int,
+        mine: np.ndarray | None = None,
+        cells: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """``mine``: which plan rays this walker walks (a boolean per plan ray; all when
-        None)."""
+        None); ``cells``: the clear-cell map and its strides (:func:`clear_cells`), or
+        None."""
         block_shift = int(block).bit_length() - 1
         if 1 << block_shift != block:
             raise ValueError(f"occupancy block {block} is not a power of two")
@@ -229,6 +319,7 @@ class _Walker:
             np.ascontiguousarray(distance, dtype=np.int64),
             block_shift,
             plan.n - 1.0,
+            *(_NO_CELLS if cells is None else cells),
             self.zyx,
             self.rays,
         )
@@ -270,9 +361,10 @@ def run_steps_compiled(
         share = [block == k for k in range(threads)]
     stops = kernel.ert_thr >= 0
     no_factor = np.zeros(0, dtype=np.int64)
+    cells = clear_cells(kernel)
 
     def walk_share(mine, report) -> tuple[int, np.ndarray]:
-        walk = _Walker(plan, blocks.distance, blocks.block, mine)
+        walk = _Walker(plan, blocks.distance, blocks.block, mine, cells)
         simulated, sat = 0, np.zeros(3, dtype=np.int64)  # run_part: + settled
         for j in range(plan.n_steps):
             interrupt.check()  # Ctrl-C: the threads without progress stop here too

@@ -25,7 +25,7 @@ from hwsim.spec.scene import CropSpec, CutPlane, RenderSpec, Scene, TransferSpec
 from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from hwsim.volumes.volume import Volume
-from models import leap
+from models import fused_steps, leap
 from models.frame import frame_of
 from models.functional import render_functional
 from models.units import classify as classify_unit
@@ -301,6 +301,61 @@ def test_one_opaque_entry_inside_a_transparent_range_is_never_skipped(order, mon
     monkeypatch.setattr(leap, "invisible_blocks", _endpoints_only)
     wrong = _render(scene, volume)
     assert not np.array_equal(wrong.image, ref.image)
+
+
+def _clear_cells_oracle(backend) -> np.ndarray:
+    """Clear cells ``(z, y, x)`` by NumPy: the smallest and largest voxel of each cell
+    (voxel ``i`` and ``i + 1`` along every axis, clamped), their LUT entries, and no entry
+    between them with non-zero opacity."""
+    lo = hi = np.asarray(backend.raw, dtype=np.int64)
+    for axis in range(3):
+        n = lo.shape[axis]
+        ahead = np.minimum(np.arange(n) + 1, n - 1)
+        lo = np.minimum(lo, np.take(lo, ahead, axis=axis))
+        hi = np.maximum(hi, np.take(hi, ahead, axis=axis))
+    dp = backend.dp
+    first, last = (
+        classify_unit.lut_index(v << backend.S, dp.voxel_bits, backend.S, dp.classify)
+        for v in (lo, hi)
+    )
+    alpha = backend.lut.alpha12
+    visible = np.concatenate([[0], np.cumsum(alpha > 0)])  # visible entries before i
+    return visible[last + 1] - visible[first] == 0
+
+
+@pytest.mark.parametrize(
+    "volume, transfer, az",
+    [("spike", SPIKE, 30), ("head", None, 30), ("head", None, 95)],
+    ids=["spike", "head-z-principal", "head-x-principal"],
+)
+def test_clear_cells_are_those_whose_samples_are_all_transparent(head21, volume, transfer, az):
+    """The compiled walker's clear-cell map (fused_steps.clear_cells), in the kernel's
+    voxel layout, equals a direct count (the spike's opaque entry lies strictly inside
+    many cells' ranges: a rule that looked only at the ends would clear them)."""
+    from models.backend import Backend
+    from models.functional import _Functional
+
+    vol = _spike_volume() if volume == "spike" else head21
+    scene = _scene(transfer=transfer, az=az, el=0)
+    machine = resolve_arch("volumepro500")
+    tf = resolve_transfer(scene.transfer, vol)
+    backend = Backend(frame_of(scene, vol, tf, machine, make_plan(scene, vol, machine.order)))
+    kernel = _Functional(backend).kernel
+    cells, strides = fused_steps.clear_cells(kernel)
+    z, y, x = np.indices(vol.shape)
+    got = cells[z * strides[0] + y * strides[1] + x * strides[2]] == 1
+    want = _clear_cells_oracle(backend)
+    np.testing.assert_array_equal(got, want)
+    assert want.any() and not want.all()
+
+
+def test_the_walker_skips_clear_cells_and_nothing_changes(head21, monkeypatch):
+    scene = CASES["post"][1]
+    fast = _render(scene, head21)
+    monkeypatch.setattr(fused_steps, "clear_cells", lambda kernel: None)
+    blocks_only = _render(scene, head21)
+    assert_same_run(fast, blocks_only)
+    assert fast.simulated < blocks_only.simulated < fast.samples
 
 
 def test_rays_that_meet_only_transparent_samples_are_still_touched():
