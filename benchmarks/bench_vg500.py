@@ -2,17 +2,20 @@
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_vg500.py [--sizes 16 64 128] [--out FILE.json]
+    .venv/bin/python benchmarks/bench_vg500.py [--sizes 16 64 128] [--volume head|ct]
+        [--out FILE.json]
 
-For each size the head phantom is rendered in MIP (view 30,15, image N x N: the vg500
-top's pipelines carry no reflectance-map shader yet, docs/rtl.md) on ``volumepro500`` by
+For each size the head phantom (``--volume ct``: the CT of ``../shared/data/
+ct_cranium.nrrd`` resampled to ``N^3``, a measured volume) is rendered in MIP (view 30,15,
+image N x N: unlit, docs/rtl.md) on ``volumepro500`` by
 the cycle rung and by the rtl rung (Verilator; the first run builds, its time reported
 apart).  Reported per size: both rungs' cycles (they differ: docs/rtl.md says why), the
 cycles of the slice-FIFO rules (models/machines/volumepro/fifo_timing.py, the RTL's
 structure on the cycle rung's SDRAM scheduler), the RTL's held clocks and bursts, the
 image equality, the SDRAM checkers' counts, and the simulated clocks per second of the
 Verilator clock loop (goal: 100 k over a 64^3 frame, build excluded) and of the whole
-simulator process.  One thread (``HWSIM_THREADS=1``).
+simulator process, and the rtl rung's wall time (build excluded) over the cycle rung's in
+the same run.  One thread (``HWSIM_THREADS=1``).
 Nothing is asserted: benchmarks are not tests.
 """
 
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -38,15 +42,20 @@ __all__ = ["run", "main", "GOAL_CLOCKS_PER_SECOND"]
 GOAL_CLOCKS_PER_SECOND = 100e3
 
 
-def _frame(n: int):
+def _frame(n: int, volume: str = "head", scratch: Path | None = None):
     import hwsim
     from hwsim.studies.rtl_diff import _frame as frame_of_scene
 
-    scene = hwsim.load_scene(None, volume=f"head:size={n}", view=(30, 15), image=n, mode="mip")
+    spec = f"head:size={n}"
+    if volume == "ct":
+        from benchmarks.split_frame import resample_ct
+
+        spec = str(resample_ct(n, scratch))
+    scene = hwsim.load_scene(None, volume=spec, view=(30, 15), image=n, mode="mip")
     return frame_of_scene(scene, "volumepro500", None)
 
 
-def run(n: int) -> dict:
+def run(n: int, volume: str = "head", scratch: Path | None = None) -> dict:
     """One size: the cycle rung, then the rtl rung (built on first use)."""
     from models.backend import Backend
     from models.cycle import render_cycle
@@ -55,7 +64,7 @@ def run(n: int) -> dict:
     from rtl.vg500.frame import prepare_vg500
     from rtl.vg500.rung import run_vg500
 
-    frame = _frame(n)
+    frame = _frame(n, volume, scratch)
     t0 = time.perf_counter()
     cycle = render_cycle(frame)
     t1 = time.perf_counter()
@@ -65,6 +74,7 @@ def run(n: int) -> dict:
     c = rtl.counters
     return {
         "size": n,
+        "volume": volume,
         "cycle_rung": {
             "cycles": cycle.cycles,
             "stall_cycles": cycle.counters.get("memory.stall_cycles"),
@@ -84,6 +94,7 @@ def run(n: int) -> dict:
             "clocks": timing["clocks"],
             "clocks_per_second_loop": timing["clocks"] / timing["sim_seconds"],
             "clocks_per_second_process": timing["clocks"] / timing["run_seconds"],
+            "wall_over_cycle_rung": timing["run_seconds"] / (t1 - t0),
         },
         "image_equal": bool(np.array_equal(np.asarray(rtl.image), np.asarray(cycle.image))),
         "samples_equal": rtl.samples == cycle.samples,
@@ -93,10 +104,11 @@ def run(n: int) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[16, 64])
+    parser.add_argument("--volume", choices=("head", "ct"), default="head")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
-    with using(1):
-        rows = [run(n) for n in args.sizes]
+    with using(1), tempfile.TemporaryDirectory() as scratch:
+        rows = [run(n, args.volume, Path(scratch)) for n in args.sizes]
     for r in rows:
         print(
             f"{r['size']:>4}^3  cycle {r['cycle_rung']['cycles']:>9}"
@@ -104,6 +116,7 @@ def main(argv=None) -> int:
             f"  held {r['rtl']['hold_cycles']:>7}  image {'=' if r['image_equal'] else '!='}"
             f"  violations {r['rtl'].get('violations')}"
             f"  {r['rtl']['clocks_per_second_loop'] / 1e3:.0f} k clocks/s (loop)"
+            f"  wall {r['rtl']['wall_over_cycle_rung']:.1f}x the cycle rung's"
         )
     report = {
         "machine": machine_info(),

@@ -10,9 +10,12 @@ checkers on the top's pins, the host's writes, the frame; no Python per clock.
 pins (violations, activates, reads, precharges, refreshes summed over the four); the
 host's writes (registers from ``+r_<name>=HEX``, the ``load`` ROM from ``+loads=FILE``);
 after the loads and the devices' power-up it pulses ``start``, takes every pixel into
-``+pixels=FILE`` and raises ``finished`` at ``done``.  The C++ main for Verilator
-prints the Cube-4 bench's ``HWSIM {...}`` line and a ``HWSIM_VG500 {...}`` line with the
-memory's counters.
+``+pixels=FILE`` and raises ``finished`` at ``done``.  Its only input is the clock: the
+reset (two clocks) and the ``go`` pulse come from a power-on counter inside it, so no
+logic depends on a port the C++ main writes (Verilator re-evaluates such logic on every
+``eval``: with ``rst`` and ``go`` as ports that was nearly half the simulation's time).
+The C++ main for Verilator (:func:`vg500_main`) prints the Cube-4 bench's ``HWSIM {...}``
+line and a ``HWSIM_VG500 {...}`` line with the memory's counters.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from __future__ import annotations
 from amaranth.hdl import Value
 
 from rtl.export import ports_of
-from rtl.top_bench import register_ports, verilator_main
+from rtl.top_bench import register_ports
 from rtl.top_layouts import load_words_bound
 from rtl.vg500.sdram_ctrl import T_MRD, SdramTiming
 from rtl.vg500.top import PINS_OUT
@@ -98,12 +101,10 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
         f'    if ($value$plusargs("sdram{k}=%s", path)) dev{k}.load_memh(path);' for k in range(4)
     )
     body = "\n".join(decl)
-    names = ["clk", "rst", "go", "finished", "clocks", "cycles", "samples", "stall_cycles"]
+    names = ["clk", "finished", "clocks", "cycles", "samples", "stall_cycles"]
     names += ["hold_cycles", "bursts", *COUNTERS]
     return f"""module vg500_bench({", ".join(names)});
   input clk;
-  input rst;
-  input go;
   output reg finished;
   output reg [31:0] clocks;
   output [31:0] cycles, samples, stall_cycles, hold_cycles, bursts;
@@ -114,6 +115,10 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
   reg [{load_bits - 1}:0] rom [0:{load_words_bound(geo, dp) - 1}];
   reg [8*512-1:0] path;
   integer nloads, fd;
+  reg [1:0] power_on;  // clocks 0, 1: reset; clock 2: go
+  wire rst = power_on < 2;
+  wire go = power_on == 2;
+  always @(posedge clk) if (power_on != 3) power_on <= power_on + 1;
   reg [2:0] state;  // 0 idle, 1 loading, 2 wait for the memory, 3 start, 4 frame, 5 done
   reg [31:0] index;
   wire load_valid = state == 1;
@@ -123,6 +128,7 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
   wire pixel_valid, busy, done, memory_ready;
   wire [{pixel_bits - 1}:0] pixel_payload;
   initial begin
+    power_on = 0;
     state = 0;
     finished = 0;
     clocks = 0;
@@ -170,9 +176,58 @@ endmodule
 
 
 def vg500_main() -> str:
-    """The Cube-4 bench's C++ main for ``vg500_bench``, printing also the memory's
-    counters as one ``HWSIM_VG500 {...}`` line."""
+    """The C++ main of ``vg500_bench``: the clock in C++, nothing else driven (the bench
+    resets and starts itself); the Cube-4 bench's ``HWSIM {...}`` line (``+limit=N``
+    clocks at most, ``seconds``: the clock loop after the power-on clocks), a
+    ``HWSIM_PROGRESS <samples>`` line every 16384 clocks and one ``HWSIM_VG500 {...}``
+    line with the memory's counters."""
     extra = ", ".join(f'\\"{c}\\": %u' for c in ("hold_cycles", "bursts", *COUNTERS))
     args = ", ".join(f"bench->{c}" for c in ("hold_cycles", "bursts", *COUNTERS))
-    line = f'  std::printf("HWSIM_VG500 {{{extra}}}\\n", {args});\n  bench->final();'
-    return verilator_main().replace("cube4_bench", "vg500_bench").replace("  bench->final();", line)
+    return (
+        r"""#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include "Vvg500_bench.h"
+#include "verilated.h"
+
+int main(int argc, char** argv) {
+  VerilatedContext* ctx = new VerilatedContext;
+  ctx->commandArgs(argc, argv);
+  Vvg500_bench* bench = new Vvg500_bench{ctx};
+  long long limit = 100000000LL;
+  const char* arg = ctx->commandArgsPlusMatch("limit=");
+  if (arg && std::strlen(arg) > 7) limit = std::atoll(arg + 7);
+  auto tick = [&]() {
+    bench->clk = 1;
+    bench->eval();
+    bench->clk = 0;
+    bench->eval();
+  };
+  bench->clk = 0;
+  bench->eval();
+  for (int k = 0; k < 3; ++k) tick();  // the bench's reset and go
+  auto start = std::chrono::steady_clock::now();
+  long long n = 0;
+  while (!bench->finished && n < limit) {
+    tick();
+    ++n;
+    if ((n & 0x3FFF) == 0) {
+      std::printf("HWSIM_PROGRESS %u\n", bench->samples);
+      std::fflush(stdout);
+    }
+  }
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("HWSIM {\"finished\": %d, \"cycles\": %u, \"samples\": %u, "
+              "\"stall_cycles\": %u, \"clocks\": %u, \"seconds\": %.6f}\n",
+              (int)bench->finished, bench->cycles, bench->samples, bench->stall_cycles,
+              bench->clocks, seconds);
+"""
+        + f'  std::printf("HWSIM_VG500 {{{extra}}}\\n", {args});\n'
+        + """  bench->final();
+  delete bench;
+  delete ctx;
+  return 0;
+}
+"""
+    )

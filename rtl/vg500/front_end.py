@@ -165,6 +165,7 @@ class SdramFrontEnd(wiring.Component):
             issue = MiniBlockOrder(m, k, regs, f"issue{k}")
             back = MiniBlockOrder(m, k, regs, f"back{k}")
             m.d.comb += [issue.restart.eq(self.start), back.restart.eq(self.start)]
+            m.d.comb += ctl.restart.eq(self.start)
             bx, by, bz = issue.blocks(regs)
             lb = Signal(32, name=f"lb{k}")
             m.d.comb += lb.eq((bz * self.nb + by) * pitch + bx)

@@ -19,10 +19,16 @@ are elaboration parameters taken from the arch file's ``[memory]`` table (the da
 nanoseconds in clocks): nothing else is timed.  One command per clock, in priority:
 a refresh's command, the head's, the second request's.
 
-Refresh: due every ``t_refi`` clocks from the end of the power-up sequence.  Once due,
-no request is admitted; when the queue is empty the controller precharges every open
-bank (PRECHARGE with ``a[10] = 1``, once ``t_ras`` and the bursts in flight allow), then
-issues AUTO REFRESH once ``t_rp`` has passed; no bank may activate for ``t_rfc``.
+Refresh: due every ``t_refi`` clocks, counted from the end of the power-up sequence and,
+once a frame starts (``restart``), from the clock its first request enters the queue:
+the frame's refreshes fall at the same clocks of the frame whatever the host did before
+it (its table loads; the refreshes of that idle time are issued as they fall due).  The
+refresh due between ``restart`` and that first request is postponed to the new phase, one
+postponed refresh per frame at most (JEDEC allows eight; the checker counts the debt from
+power-up).  Once due, no request is admitted; when the queue is empty the controller
+precharges every open bank (PRECHARGE with ``a[10] = 1``, once ``t_ras`` and the bursts
+in flight allow), then issues AUTO REFRESH once ``t_rp`` has passed; no bank may activate
+for ``t_rfc``.
 
 Power-up: PRECHARGE all, two AUTO REFRESH ``t_rfc`` apart, LOAD MODE (burst length 8,
 sequential, the CAS latency), ``T_MRD`` clocks; then ``ready`` rises and ``now`` counts
@@ -115,6 +121,7 @@ class SdramController(wiring.Component):
         super().__init__(
             {
                 "req": In(stream.Signature(lay)),
+                "restart": In(1),  # a frame starts: the refresh phase follows its first request
                 "rdata_valid": Out(1),
                 "rdata_word": Out(t.word_bits),
                 "rdata_last": Out(1),
@@ -241,7 +248,9 @@ class SdramController(wiring.Component):
             m.d.comb += [cmd.eq(PRECHARGE), ba.eq(bank), self.cmd_precharge.eq(1)]
             m.d.sync += [is_open[bank].eq(0), act_ready[bank].eq(now + t.t_rp)]
 
-        refresh_due = now >= due
+        # A frame's start re-phases the refresh: none until its first request is taken.
+        armed = Signal()
+        refresh_due = ~armed & (now >= due)
         any_open = Signal()
         all_closable = Signal()
         all_ready = Signal()
@@ -289,9 +298,15 @@ class SdramController(wiring.Component):
         # The queue: the head leaves on its READ; a request enters the free slot unless a
         # refresh is due by the clock it would enter.
         room = ~valid[1] | read_a
-        m.d.comb += self.req.ready.eq(self.ready & room & (now + 1 < due))
+        m.d.comb += self.req.ready.eq(self.ready & room & (armed | (now + 1 < due)))
         take = self.req.valid & self.req.ready
         m.d.comb += self.admit.eq(take)
+        with m.If(self.restart):
+            m.d.sync += armed.eq(1)
+        with m.Elif(armed & take):  # in the queue from now + 1: the frame's refresh clock 0
+            m.d.sync += armed.eq(0)
+            if t.t_refi > 0:
+                m.d.sync += due.eq(now + 1 + t.t_refi)
         with m.If(read_a):
             m.d.sync += [slot[0].eq(slot[1]), valid[0].eq(valid[1]), valid[1].eq(0)]
             with m.If(take):

@@ -14,12 +14,15 @@ Structure:
 * **SDRAM front end** (:class:`rtl.vg500.front_end.SdramFrontEnd`): the mini-block order
   of the slabs, one :class:`~rtl.vg500.sdram_ctrl.SdramController` per module driving
   that module's pins, the de-skew of the returned bursts.
-* **slab buffer**: on chip, four banks in the pipelines' read layout (bank ``(x + y + z)
-  mod 4``, word ``(z ny + y) cx + x div 4``), each written by any of the four modules'
-  de-skewed words and read by its pipeline.  Its capacity is ``slab_entries`` words per
-  pipeline: the front end reads ahead at most that many (``4 C`` per mini-block beam);
-  the storage is sized for the whole volume (a simulation convenience: only the credit
-  limits the read-ahead, as the real buffer's size would).
+* **slab buffer**: on chip, four banks (bank ``(x + y + z) mod 4``, the pipeline that
+  reads the voxel), each written by any of the four modules' de-skewed words and read by
+  its pipeline; ``slab_entries`` words each, a ring: mini-block beam ``g`` (processing
+  order) holds ``4 C`` words of a bank from ``4 C g`` on, word ``(s 2 + r) C + b div 4``
+  for its slice ``s`` and row ``r`` of the pair and beam position ``b``, all modulo
+  ``slab_entries``.  The front end's credit keeps at most ``slab_entries div 4 C`` beams
+  in it, so the live ones never share a word; the storage does not grow with the volume.
+  The read address follows the pipelines' slot (slice, row, slot ``g`` along the beam,
+  counted here as the pipelines step).
 * **hold**: the pipelines' slot reads voxel slice ``q``, row ``a``; when the mini-block
   beam holding it (slab ``q div 2``, rows ``a div 2``) has not fully arrived, the whole
   pipeline top is held for the clock (one clock enable): memory stalls emerge from the
@@ -39,7 +42,6 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from models.datapath import Datapath
-from rtl.common import divide_by_constant
 from rtl.top import Cube4Top
 from rtl.top_layouts import TopGeometry
 from rtl.vg500.front_end import MBB_BITS, MODULES, SdramFrontEnd
@@ -150,7 +152,7 @@ class Vg500Top(wiring.Component):
         with m.Elif(hold):
             m.d.sync += held.eq(held + 1)
         m.d.comb += [self.hold_cycles.eq(held), self.cycles.eq(core.cycles + held)]
-        self._slab_buffer(m, hold, nz)
+        self._slab_buffer(m, hold, nz, n_slabs, n_u, g_read)
         return m
 
     def _pass_through(self, m, hold):
@@ -174,35 +176,53 @@ class Vg500Top(wiring.Component):
             else:
                 m.d.comb += ours.eq(theirs)
 
-    def _slab_buffer(self, m, hold, nz):
-        """Four banks in the pipelines' layout; each module's de-skewed words go to the
-        bank of their voxel."""
-        core, fe, geo, dp = self.core, self.fe, self.geo, self.dp
-        B, aw, P = dp.voxel_bits, geo.module_addr_bits, geo.pipelines
+    def _ring_word(self, m, g, q, a, w, name):
+        """The slab buffer word of slot ``w`` of slice ``q``, row ``a`` of mini-block beam
+        ``g``: ``(4 g + 2 (q mod 2) + a mod 2) C + w`` modulo ``slab_entries``."""
+        word = Signal(range(self.slab_entries), name=name)
+        linear = ((g << 2) + (q[0] << 1) + a[0]) * self.c + w
+        m.d.comb += word.eq(linear % self.slab_entries)
+        return word
+
+    def _slab_buffer(self, m, hold, nz, n_slabs, n_u, g_read):
+        """Four ring banks (module docstring); each module's de-skewed word goes to the
+        bank of its voxel, at its mini-block beam's place in the ring."""
+        core, fe, dp = self.core, self.fe, self.dp
+        B, P, kp = dp.voxel_bits, self.geo.pipelines, self.kp
         writes = []
         for j in range(MODULES):
             x, y, z = (getattr(fe, f"wr_{c}{j}") for c in "xyz")
             inside = (x < self.nx) & (y < self.ny) & (z < nz)
+            # (slice, row, beam) of the voxel by the principal axis (the pipelines' read).
+            q = Mux(kp == 0, z, Mux(kp == 1, y, x))
+            a = Mux(kp == 0, y, z)
+            b = Mux(kp == 2, y, x)
+            proc = Mux(self.forward, q >> 1, n_slabs - 1 - (q >> 1))
+            g = Signal(MBB_BITS, name=f"deskew_mbb{j}")
+            m.d.comb += g.eq(proc * n_u + (a >> 1))
             bank = Signal(2, name=f"deskew_bank{j}")
-            addr = Signal(aw, name=f"deskew_addr{j}")
-            m.d.comb += [
-                bank.eq((x + y + z)[:2]),
-                addr.eq((z * self.ny + y) * self.cx + divide_by_constant(x, P, len(x))),
-            ]
+            m.d.comb += bank.eq((x + y + z)[:2])
+            addr = self._ring_word(m, g, q, a, b >> 2, f"deskew_addr{j}")
             writes.append(
                 (getattr(fe, f"wr_en{j}") & inside, bank, addr, getattr(fe, f"wr_data{j}"))
             )
+        # The pipelines' slot along the beam: one step per clock they read and run.
+        slot = Signal(self.geo.axis_bits, name="read_slot")
+        step = core.read_valid & ~hold & ~core.frozen
+        with m.If(self.start):
+            m.d.sync += slot.eq(0)
+        with m.Elif(step):
+            m.d.sync += slot.eq(Mux(core.read_last, 0, slot + 1))
+        q, a = core.read_slice, core.read_row
+        read_addr = self._ring_word(m, g_read, q, a, slot, "slab_read_addr")
         data_bits = []
         for k in range(P):
-            mem = Memory(shape=unsigned(B), depth=geo.module_words, init=[])
+            mem = Memory(shape=unsigned(B), depth=self.slab_entries, init=[])
             m.submodules[f"slab_buffer{k}"] = mem
             for en, bank, addr, word in writes:
                 wp = mem.write_port()
                 m.d.comb += [wp.addr.eq(addr), wp.data.eq(word[:B]), wp.en.eq(en & (bank == k))]
             rp = mem.read_port()
-            m.d.comb += [
-                rp.addr.eq(core.vmem_addr[k * aw : (k + 1) * aw]),
-                rp.en.eq(core.vmem_en & ~hold),
-            ]
+            m.d.comb += [rp.addr.eq(read_addr), rp.en.eq(core.vmem_en & ~hold)]
             data_bits.append(rp.data)
         m.d.comb += core.vmem_data.eq(Cat(*data_bits))

@@ -45,11 +45,14 @@ def device_words(n: int, module: int, t: SdramTiming, raw: np.ndarray, M: int = 
     }
 
 
-def run(t: SdramTiming, requests, words, *, gaps=(), max_clocks=200_000, device=None):
+def run(
+    t: SdramTiming, requests, words, *, gaps=(), max_clocks=200_000, device=None, restart_at=None
+):
     """Run the controller on ``requests`` (offered back to back, except a request whose
     index is in ``gaps`` is held back 40 clocks); returns the device, the RTL's command
     log by ``now``, the admission clocks and the words read.  ``device``: the device's
-    timing when the controller is given another (a mutation)."""
+    timing when the controller is given another (a mutation).  ``restart_at``: nothing is
+    offered until that clock, where ``restart`` (a frame's start) is pulsed."""
     dut = SdramController(t, init_wait=4)
     dev = StandInSdram(device or t, words)  # device: the datasheet's, when the RTL's differs
     result = {"admit": [], "read": [], "activate": [], "precharge": [], "refresh": [], "words": []}
@@ -62,6 +65,9 @@ def run(t: SdramTiming, requests, words, *, gaps=(), max_clocks=200_000, device=
                 hold = 40
                 pending.discard(k)
             valid = k < len(requests) and hold == 0
+            if restart_at is not None:
+                ctx.set(dut.restart, clock == restart_at)
+                valid = valid and clock > restart_at
             ctx.set(dut.req.valid, valid)
             if valid:
                 bank, row, col = requests[k]
@@ -132,3 +138,21 @@ def test_slab_order_reads_intact_legal_and_on_the_schedulers_clocks(n, t_refi, g
 def _burst(words, request, t):
     bank, row, col = request
     return [words.get((bank, row, col + j), 0) for j in range(t.burst_length)]
+
+
+def test_a_frames_refreshes_are_counted_from_its_first_request():
+    """Idle after power-up the controller refreshes as they fall due; a frame's start
+    (``restart``) re-phases them: from its first request on, its commands are those of
+    the scheduler whose clock 0 is that request's admission (the cycle rung's frame)."""
+    n, t = 12, SdramTiming(t_refi=100)
+    raw = np.random.default_rng(3).integers(0, 4096, size=(n, n, n))
+    requests = slab_order(n, 2, t)
+    dev, got = run(t, requests, device_words(n, 2, t, raw), restart_at=273)
+    assert dev.violations == []
+    first = got["admit"][0]
+    assert len([c for c in got["refresh"] if c < first]) >= 2  # the idle time's, on time
+    sched = schedule(t, requests, [c - first for c in got["admit"]])
+    assert [c - first for c in got["read"]] == sched.read.tolist()
+    assert [c - first for c in got["activate"]] == [int(c) for c in sched.activate if c >= 0]
+    framed = [c - first for c in got["refresh"] if first <= c < got["read"][-1]]
+    assert framed == sched.refresh[:, 1].tolist() and len(framed) >= 3
