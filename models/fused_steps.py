@@ -89,8 +89,10 @@ def _step(
     ``join`` lists plan rays by ascending ``j_lo`` (rays with samples only); ``cursor``
     holds the active count and the next ray to join.  The active rays are columns of
     ``slots`` (ray id, last step, first step not leapt) and ``terms`` (their position
-    terms, :func:`_ray_terms`, and the steps leapt per block of distance), read in order
-    and compacted in place; ``ray_cols`` holds the same per plan ray, ready to join.
+    terms, :func:`_ray_terms`, and the steps leapt per block of distance), read in order;
+    rays that left are compacted out in place once they are an eighth of the set (until
+    then the step skips them: the samples and their order are the same), and
+    ``ray_cols`` holds the same per plan ray, ready to join.
     """
     count, nxt = cursor[0], cursor[1]
     while nxt < join.shape[0] and j_lo[join[nxt]] <= j:
@@ -100,44 +102,44 @@ def _step(
             terms[c, count] = ray_cols[c, r]
         count += 1
         nxt += 1
-    kp, a_ax, b_ax = axes[0], axes[1], axes[2]
+    kp = axes[0]
     off_a, off_b = offsets[j, 0], offsets[j, 1]
     j_ss = np.float64(j) / ss
     t_ray = np.float64(k_first + k_dir * j) * dt
-    p = np.empty(3)  # one sample's z, y, x
-    kept = 0
     m = 0
-    for t in range(count):
-        ray = slots[0, t]
-        if slots[1, t] < j or not alive[ray]:
-            continue  # leaves the active set
-        if kept != t:
-            for c in range(3):
-                slots[c, kept] = slots[c, t]
-            for c in range(terms.shape[0]):
-                terms[c, kept] = terms[c, t]
-        k = kept
-        kept += 1
+    dead = 0
+    for k in range(count):
+        ray = slots[0, k]
+        if slots[1, k] < j or not alive[ray]:
+            dead += 1
+            continue  # left the active set
         if j < slots[2, k]:
             continue  # inside a leap: an unoccupied block's run
         # SamplePlan.position: the same terms in the same order.
-        if kind == _SHEAR_WARP:  # terms: row + base_origin[0], column + base_origin[1]
-            p[kp] = q_of_step[j]
-            p[a_ax] = terms[0, k] + off_a
-            p[b_ax] = terms[1, k] + off_b
-        elif kind == _RAY:  # terms: o, then d (z, y, x)
-            p[0] = terms[0, k] + t_ray * terms[3, k]
-            p[1] = terms[1, k] + t_ray * terms[4, k]
-            p[2] = terms[2, k] + t_ray * terms[5, k]
-        else:  # terms: q0, sign, o and d along kp, a, b
-            q = terms[0, k] + terms[1, k] * j_ss
-            along = (q - terms[2, k]) / terms[3, k]
-            p[kp] = q
-            p[a_ax] = terms[4, k] + along * terms[5, k]
-            p[b_ax] = terms[6, k] + along * terms[7, k]
-        iz = np.int64(min(max(p[0], 0.0), vol_hi[0]))
-        iy = np.int64(min(max(p[1], 0.0), vol_hi[1]))
-        ix = np.int64(min(max(p[2], 0.0), vol_hi[2]))
+        if kind == _RAY:  # terms: o, then d (z, y, x)
+            pz = terms[0, k] + t_ray * terms[3, k]
+            py = terms[1, k] + t_ray * terms[4, k]
+            px = terms[2, k] + t_ray * terms[5, k]
+        else:
+            if kind == _SHEAR_WARP:  # terms: row + base_origin[0], column + base_origin[1]
+                pk = q_of_step[j]
+                pa = terms[0, k] + off_a
+                pb = terms[1, k] + off_b
+            else:  # terms: q0, sign, o and d along kp, a, b
+                pk = terms[0, k] + terms[1, k] * j_ss
+                along = (pk - terms[2, k]) / terms[3, k]
+                pa = terms[4, k] + along * terms[5, k]
+                pb = terms[6, k] + along * terms[7, k]
+            # The axes: kp, then the other two ascending.
+            if kp == 0:
+                pz, py, px = pk, pa, pb
+            elif kp == 1:
+                pz, py, px = pa, pk, pb
+            else:
+                pz, py, px = pa, pb, pk
+        iz = np.int64(min(max(pz, 0.0), vol_hi[0]))
+        iy = np.int64(min(max(py, 0.0), vol_hi[1]))
+        ix = np.int64(min(max(px, 0.0), vol_hi[2]))
         c = distance[iz >> block_shift, iy >> block_shift, ix >> block_shift]
         if c > 0:
             # Opacity 0 whatever the sample interpolates to, and so for the next
@@ -146,10 +148,22 @@ def _step(
             continue
         if cells[iz * cell_strides[0] + iy * cell_strides[1] + ix * cell_strides[2]]:
             continue  # a clear cell: opacity 0 whatever the sample interpolates to
-        zyx[m, 0], zyx[m, 1], zyx[m, 2] = p[0], p[1], p[2]
+        zyx[m, 0], zyx[m, 1], zyx[m, 2] = pz, py, px
         rays[m] = ray
         m += 1
-    cursor[0], cursor[1] = kept, nxt
+    if 8 * dead > count:  # compact
+        kept = 0
+        for t in range(count):
+            if slots[1, t] < j or not alive[slots[0, t]]:
+                continue
+            if kept != t:
+                for c in range(3):
+                    slots[c, kept] = slots[c, t]
+                for c in range(terms.shape[0]):
+                    terms[c, kept] = terms[c, t]
+            kept += 1
+        count = kept
+    cursor[0], cursor[1] = count, nxt
     return m
 
 
