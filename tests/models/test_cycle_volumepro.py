@@ -93,8 +93,10 @@ def test_supersampling_costs_pipeline_time_in_proportion(head):
     four = functional_and_cycle(
         scene_of(0, 0, render={"supersampling": 4.0}), head, "volumepro500"
     )[1]
-    # 81 sample slices against 21, each of n_a C clocks; memory reads each voxel once.
-    assert four.counters["pipeline.beams_processed"] == 81 * 21
+    # 81 sample slices against 21, each of n_a C clocks, after the priming period that
+    # reads voxel slice 0 (rule 3'); memory reads each voxel once.
+    assert four.counters["pipeline.beams_processed"] == (81 + 1) * 21
+    assert one.counters["pipeline.beams_processed"] == (21 + 1) * 21
     assert one.counters["memory.bursts"] == four.counters["memory.bursts"]
     assert 3.0 < four.cycles / one.cycles < 4.0
 
@@ -213,9 +215,11 @@ def test_refresh_and_slower_memory_cost_cycles_by_mechanism(head):
 
 @pytest.mark.parametrize("factor", [1.0, 2.0])
 def test_with_memory_never_late_the_rules_have_their_closed_form(head, factor):
-    """Rules 3, 8, 9 with a memory 64x faster than the pipelines and no refresh: the
-    continuous period is exactly the beam clocks (sample slices x n_a x C); one frame
-    adds the first burst's arrival, the pipeline latency and the pixel-bus drain."""
+    """Rules 3', 8', 9 with a memory 64x faster than the pipelines and no refresh: the
+    continuous period is exactly the beam clocks (the priming period and the sample
+    slices, each n_a x C); one frame adds the first burst's arrival and, after the last
+    period's first slot, the stream latency and one clock per pixel (every ray finishes
+    on the last slice and they come faster than the bus pops them)."""
     memory = dict(resolve_arch("volumepro500").memory)
     fast = machine("volumepro500", memory={**memory, "t_refi": 0, "clock_ratio": 64.0})
     scene = scene_of(0, 0, mode="mip", render={"supersampling": factor})
@@ -223,12 +227,14 @@ def test_with_memory_never_late_the_rules_have_their_closed_form(head, factor):
     plan = make_plan(scene, head, fast.order)
     result = render_cycle(frame_of(scene, head, tf, fast, plan), steady_state=True)
     c, C = result.counters, -(-21 // 4)
-    beams = plan.n_steps * 21 * C
+    beams = (plan.n_steps + 1) * 21 * C
     assert c["frame.period_cycles"] == beams == c["pipeline.beam_cycles"]
     first = c["memory.stall_cycles"]
     assert 0 < first <= 16  # the first mini-block beam's bursts: ACT, CAS, 8 beats / 64
-    assert result.cycles == beams + first + c["pipeline.latency_cycles"] + plan.ray_ids.size
-    assert c["pixel_bus.drain_cycles"] == plan.ray_ids.size  # all finish on the last slice
+    last_period = beams - 21 * C
+    pixels = plan.ray_ids.size
+    assert result.cycles == last_period + c["pipeline.latency_cycles"] + pixels + first
+    assert c["pixel_bus.drain_cycles"] == c["pipeline.latency_cycles"] + pixels - 21 * C
 
 
 def test_a_pipeline_slice_overhead_adds_per_slice(head):

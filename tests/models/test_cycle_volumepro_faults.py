@@ -80,15 +80,16 @@ def test_a_short_input_buffer_costs_cycles_then_deadlocks(head):
     _, roomy = run(scene, head, arch)
     C = -(-24 // 4)
     mbb = 4 * C  # entries per pipeline of one mini-block beam; 12 of them per slab
-    # Two and a half slabs: the window (slices q - 1 .. q + 1, two slabs) fits, but the
-    # memory can no longer read a whole slab ahead: the pipelines wait for it.
-    small = dataclasses.replace(arch, buffers={"slab_buffer_entries": 30 * mbb})
+    # Rules 3', 5': the voxels stream through once, one slice ahead.  One slab: a mini-block
+    # beam of the next slab issues only once its twin of this slab is freed by the second
+    # slice's read of it, too late to hide the burst: the pipelines wait for it.
+    small = dataclasses.replace(arch, buffers={"slab_buffer_entries": 12 * mbb})
     _, tight = run(scene, head, small)
     assert np.array_equal(tight.image, roomy.image)
     assert tight.cycles > roomy.cycles
     assert tight.counters["memory.buffer_full_cycles"] > roomy.counters["memory.buffer_full_cycles"]
-    # Two slabs: the window plus the next mini-block beam never fits.
-    starved = dataclasses.replace(arch, buffers={"slab_buffer_entries": 24 * mbb})
+    # One mini-block beam less: the slab's first slice is never read through.
+    starved = dataclasses.replace(arch, buffers={"slab_buffer_entries": 11 * mbb})
     with pytest.raises(DeadlockError, match="input buffer"):
         run(scene, head, starved)
     with pytest.raises(DeadlockError, match="input buffer"):

@@ -152,14 +152,24 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
     ),
     "volumepro": _transaction(
         PARTLY_SHARED,
-        _VOLUMEPRO_SHARED,
+        _VOLUMEPRO_SHARED
+        + (
+            "models.machines.volumepro.fifo_timing.stream_latency",
+            "models.machines.volumepro.fifo_timing.uses_slice_fifos",
+            "models.machines.volumepro.fifo_timing.DESKEW_WRITE",
+        ),
         txn="chunk-granular readiness, freeing and buffer occupancy "
-        "(SlabTransaction._schedule, _simulate), sections (common.sections.bands_of, "
-        "band_loads), the pixel bus (common.pixel_bus.PixelBus)",
+        "(SlabTransaction._schedule, _simulate); on the slice-FIFO machines the periods "
+        "of rules 3', 5' restated per chunk from the sample slices' float positions "
+        "(fifo_transaction.fifo_schedule); sections (common.sections.bands_of, "
+        "band_loads), the pixel bus (common.pixel_bus.PixelBus: rule 8' as a period's "
+        "pixels pushed at its start, plus the shared stream latency)",
         cycle="per-mini-block-beam deliveries and the beam-by-beam recurrence "
         "(volumepro.timing.timing_inputs, slab_timing.run_timing) from the data pass's "
-        "records, sections (SlabMachine._sections), the pixel FIFO "
-        "(hwsim.engine.DrainFifo)",
+        "records: rules 3', 5' per beam from the quantised weights "
+        "(fifo_timing.fifo_work), rule 8' per ray (fifo_timing.fifo_end); else the "
+        "windows and the pixel FIFO (hwsim.engine.DrainFifo); sections "
+        "(SlabMachine._sections)",
     ),
     "volumepro-skipping": _transaction(
         PARTLY_SHARED,
@@ -173,7 +183,7 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         txn="per-beam clock groups and mini-blocks needed from the plan's positions "
         "(vp1000_transaction.beam_skips), each slice's busiest lane from them by the "
         "cycle rung's lane rule written again (transaction.sample_lanes, the same rule "
-        "as SlabMachine._lanes), then the chunk-granular event model as VolumePro 500",
+        "as SlabMachine._slots), then the chunk-granular event model as VolumePro 500",
         cycle="live cells from its data pass (SlabMachine._live_cells), then the "
         "beam-by-beam recurrence as VolumePro 500",
     ),

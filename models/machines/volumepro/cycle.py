@@ -41,6 +41,13 @@ from hwsim.memory import SdramStats, parse_memory
 from models.backend import Backend, subset_step
 from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
 from models.machines.common.slice_order import SliceFaults, SliceOrderMachine, slice_position
+from models.machines.volumepro.fifo_timing import (
+    DESKEW_WRITE,
+    fifo_end,
+    stream_latency,
+    uses_slice_fifos,
+)
+from models.machines.volumepro.fifo_timing import reach as fifo_reach
 from models.machines.volumepro.memory import SdramVolume, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.timing import (
@@ -284,11 +291,14 @@ class SlabMachine(SliceOrderMachine):
             self._voxels.pop(q, None)
             self._diffed.discard(q)
 
-    def _lanes(self, source) -> np.ndarray:
+    def _slots(self, source) -> tuple[np.ndarray, np.ndarray]:
+        """The voxel (row, column) each sample is evaluated at, the nearest to its
+        position: its slot, whose pipeline is its lane (rule 8': whose beam reads its
+        row)."""
         (ca, _, fa), (cb, _, fb) = source._cells
         a = np.clip(ca + (fa >= 0.5), 0, self.n_a - 1)
         b = np.clip(cb + (fb >= 0.5), 0, self.n_b - 1)
-        return (source.q + a + b) % self.P
+        return a, b
 
     # ------------------------------------------------------------------ frame
 
@@ -303,6 +313,10 @@ class SlabMachine(SliceOrderMachine):
         }
         last_j = np.full(plan.n_rays, -1, dtype=np.int64)
         last_j[plan.ray_ids] = plan.j_hi
+        # Rule 8': each ray's last sample in a section (record, row, column).
+        fifo = uses_slice_fifos(self.arch)
+        last_seen = np.zeros((3, plan.n_rays), dtype=np.int64)
+        pushes: list[np.ndarray] = []
         prev_lane = np.full(plan.n_rays, -1, dtype=np.int64)
         records: list[SliceRecord] = []
         parked_counts: list[int] = []
@@ -344,7 +358,11 @@ class SlabMachine(SliceOrderMachine):
                 if step.rays.size:
                     seen[step.rays] = True
                     source = TrilinearSource(self, step)
-                    lanes = self._lanes(source)
+                    a, b = self._slots(source)
+                    lanes = (source.q + a + b) % P
+                    if fifo:  # rule 8': the record and the slot of each ray's last sample
+                        last_seen[0, step.rays] = len(records)
+                        last_seen[1, step.rays], last_seen[2, step.rays] = a, b
                     live = np.ones(step.rays.size, dtype=bool)
                     if ert_hardware:
                         live = state.alive[step.rays]
@@ -371,13 +389,16 @@ class SlabMachine(SliceOrderMachine):
                             bus["dt_sum"][fin] = state.dt_sum[fin]
                 elif self.skipping:
                     cost = np.zeros(self.n_a, dtype=np.int64)
-                records.append(SliceRecord(si, (lo, hi), cost, busy, int(fin.size)))
+                reach = fifo_reach(self, j) if fifo else -1
+                records.append(SliceRecord(si, (lo, hi), cost, busy, int(fin.size), reach))
                 if ert_hardware:
                     history.append(state.alive.copy())
                 if progress is not None:
                     progress(si * plan.n_steps + j + 1, total)
             parked = np.flatnonzero(seen & ~done)
             parked_counts.append(int(parked.size))
+            if fifo:
+                pushes.append(last_seen[:, seen])
             if parked.size:  # park the partial rays in the section SRAM
                 lost = self.faults.lost_spill == si
                 fresh = be.new_state(1)
@@ -398,7 +419,8 @@ class SlabMachine(SliceOrderMachine):
         self.memory.release()
         self.datapath.clear_caches()
         _return_freed_memory()
-        return self._finish(state, bus, records, sections, parked_counts, needed)
+        pushed = np.concatenate(pushes, axis=1) if pushes else np.zeros((3, 0), np.int64)
+        return self._finish(state, bus, records, sections, parked_counts, needed, pushed)
 
     def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:
         """Rule 6 at one sample slice: the clocks each beam costs (clock groups of P cells
@@ -417,9 +439,9 @@ class SlabMachine(SliceOrderMachine):
         needed[si, window[0] // 2 : window[1] // 2 + 1] |= mini_blocks_read(cells[:, : self.n_b])
         return cost
 
-    def _finish(self, state, bus, records, sections, parked_counts, needed) -> CycleResult:
+    def _finish(self, state, bus, records, sections, parked_counts, needed, pushed):
         be, c, P = self.be, self.counters, self.P
-        deliveries, slices = timing_inputs(self, records, sections, parked_counts, needed)
+        deliveries, slices, plan = timing_inputs(self, records, sections, parked_counts, needed)
         depth = self.faults.pixel_fifo_depth
         pixel_fifo = DrainFifo(
             "pixel_bus.fifo", self.capacity["pixel_fifo_entries"] if depth is None else depth
@@ -430,8 +452,11 @@ class SlabMachine(SliceOrderMachine):
         c.set("memory.slab_buffer_entries", max(entries, 0))
         c.set("memory.slab_buffer_mbbs", capacity)
         # The two-frame replay first: the frame's own timing then drops the bursts.
-        period = frame_period(self, deliveries, slices, capacity) if self.steady_state else 0
-        timing = run_timing(
+        fifo = None if plan is None else (plan, tuple(pushed), pixel_fifo.depth)
+        period = 0
+        if self.steady_state:
+            period = frame_period(self, deliveries, slices, capacity, fifo)
+        timing = self.timing = run_timing(
             self.memory_cfg,
             deliveries,
             slices,
@@ -441,6 +466,7 @@ class SlabMachine(SliceOrderMachine):
             keep_schedules=self.trace is not None,
             compiled=be.compiled,
             keep_bursts=self.trace is not None,
+            deskew=0 if fifo is None else DESKEW_WRITE,
         )
         stages = {
             u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
@@ -453,14 +479,22 @@ class SlabMachine(SliceOrderMachine):
                 stage.account(busy_k, cycles_k, stall_k)
         if self.trace is not None:
             record_trace(self, timing, deliveries)
-        latency = pipeline_latency(self.C)
-        drain = pixel_fifo.flush()
-        cycles = timing.end + latency + drain
+        if fifo is None:  # rule 8
+            latency = pipeline_latency(self.C)
+            drain = pixel_fifo.flush()
+            cycles = timing.end + latency + drain
+        else:  # rule 8'
+            (pixels,) = fifo_end(self, plan, fifo[1], slices, timing, pixel_fifo.depth)
+            latency = stream_latency(self.C)
+            drain, cycles = pixels.drain, pixels.end
+            pixel_fifo.pushed = pixel_fifo.popped = pixel_fifo.busy_cycles = pixels.pushed
+            pixel_fifo.max_occupancy = pixels.max_occupancy
+            timing.pixel_stall += pixels.freeze
         if self.steady_state:
             c.set("frame.period_cycles", period)
         idle = np.zeros(P, dtype=np.int64)
         for stage in stages.values():
-            stage.account(idle, latency + drain)
+            stage.account(idle, cycles - timing.end)
             stage.publish()
         self.memory.publish()
         sdram = SdramStats.combine(timing.stats)
@@ -471,6 +505,8 @@ class SlabMachine(SliceOrderMachine):
             c.set(f"memory.module[{m}].busy_cycles", stats.data_busy_cycles)
         n_beams = sum(s.needs.size for s in slices)
         all_beams = sum(sections[r.section][1] - sections[r.section][0] for r in records)
+        if plan is not None:  # rule 3': every period's beams run (and the halo rows')
+            all_beams = n_beams
         c.set("memory.mbb_reads", len(deliveries))
         c.set("memory.bursts_skipped", int(needed.size - needed.sum()))
         c.set("memory.bursts", sdram.bursts)

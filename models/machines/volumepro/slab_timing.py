@@ -152,6 +152,7 @@ def run_timing(
     keep_schedules: bool = False,
     compiled: bool = True,
     keep_bursts: bool = True,
+    deskew: int = 0,
 ) -> FrameTiming:
     """Run the pipelines and the memory of one frame (rules of docs/cycle.md).
 
@@ -177,6 +178,9 @@ def run_timing(
         False: ``table``'s per-burst banks and rows are dropped once the loop has played
         them (8 bytes a burst, before the schedules are summarised), for a caller that
         reads them no more.
+    deskew : int
+        Clocks from a delivery's last data beat to its first use (rule 3': the de-skew
+        network's write into the slab buffer; 0 under rule 3).
     """
     dev = memory.sdram
 
@@ -197,12 +201,12 @@ def run_timing(
 
         controllers = play(
             table, slices, make_controllers, capacity=capacity, pixel_fifo=pixel_fifo,
-            out=out, ends=ends, ready=ready, tail=tail, ratio=dev.clock_ratio,
+            out=out, ends=ends, ready=ready, tail=tail, ratio=dev.clock_ratio, deskew=deskew,
         )  # fmt: skip
     else:
         controllers = make_controllers()
         _reference_loop(
-            table.as_list(), slices, controllers, capacity, pixel_fifo, out, ends, ready
+            table.as_list(), slices, controllers, capacity, pixel_fifo, out, ends, ready, deskew
         )
     if not keep_bursts:
         table.banks = table.rows = None
@@ -221,7 +225,9 @@ def run_timing(
     return out
 
 
-def _reference_loop(deliveries, slices, controllers, capacity, pixel_fifo, out, ends, ready):
+def _reference_loop(
+    deliveries, slices, controllers, capacity, pixel_fifo, out, ends, ready, deskew
+):
     """The frame's beams and deliveries one Python step at a time (the compiled loop's
     reference)."""
     dev = controllers[0].cfg
@@ -253,7 +259,7 @@ def _reference_loop(deliveries, slices, controllers, capacity, pixel_fifo, out, 
             arrive[0] = e_mem
             ctl._run(banks, rows, arrive)
             last = max(last, int(ctl.reads[-1]) + tail)
-        ready[g] = int(np.ceil(last / dev.clock_ratio))
+        ready[g] = int(np.ceil(last / dev.clock_ratio)) + deskew
         state["g"] = g + 1
 
     t = 0

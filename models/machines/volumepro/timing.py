@@ -21,6 +21,12 @@ import numpy as np
 
 from hwsim.engine import Counters, DrainFifo
 from hwsim.memory.sdram_trace import command_trace, record_commands
+from models.machines.volumepro.fifo_timing import (
+    DESKEW_WRITE,
+    fifo_end,
+    fifo_work,
+    uses_slice_fifos,
+)
 from models.machines.volumepro.slab_timing import DeliveryTable, SliceWork, run_timing
 
 if TYPE_CHECKING:
@@ -37,12 +43,14 @@ class SliceRecord:
     window: tuple[int, int]  # voxel slices [lo, hi] the slice's beams read
     cost: np.ndarray | None  # clocks of each row's beam (None: C for every row of the section)
     busy: np.ndarray  # samples per lane
-    arrivals: int  # accumulators pushed into the pixel FIFO at its end
+    arrivals: int  # accumulators pushed into the pixel FIFO at its end (rule 8)
+    reach: int = -1  # rule 3': the voxel slice its samples reach furthest (processing order)
 
 
 def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
     """Deliveries (mini-block beams to read, in order: a :class:`DeliveryTable`) and the
-    pipelines' slices."""
+    pipelines' slices (and, on a slice-FIFO machine, the :class:`FifoPlan` of its periods,
+    else None)."""
     n_slabs = needed.shape[1]
     slab_order = range(n_slabs) if m.forward else range(n_slabs - 1, -1, -1)
     index = np.full(needed.shape[:3], -1, dtype=np.int64)
@@ -76,6 +84,11 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
     empty = np.zeros(0, dtype=np.int32)
     burst_banks = np.concatenate([b for k in range(M) for b, _ in chunks[k]] or [empty])
     burst_rows = np.concatenate([r for k in range(M) for _, r in chunks[k]] or [empty])
+    if uses_slice_fifos(m.arch):  # rules 3', 5'
+        slices, free_after, plan = fifo_work(
+            m, records, sections, parked_counts, index, n_deliveries
+        )
+        return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices, plan
     free_after = np.full(n_deliveries, -1, dtype=np.int64)
     slices: list[SliceWork] = []
     beam = 0
@@ -116,7 +129,7 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
                 busy=rec.busy,
             )
         )
-    return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices
+    return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices, None
 
 
 def record_trace(m: SlabMachine, timing, deliveries: DeliveryTable) -> None:
@@ -151,26 +164,31 @@ def record_trace(m: SlabMachine, timing, deliveries: DeliveryTable) -> None:
     m.trace.record("pipelines", "i__valid", 1, *ranges(starts, ends))
 
 
-def frame_period(m: SlabMachine, deliveries, slices, capacity: int) -> int:
+def frame_period(m: SlabMachine, deliveries, slices, capacity: int, fifo=None) -> int:
     """Cycles between the ends of two frames rendered back to back (the continuous frame
     rate): the same memory controllers and pixel FIFO carry on into a second frame, so
     its fill overlaps the first frame's last slices and the first frame's pixels drain
-    while the second is processed."""
+    while the second is processed.  ``fifo``: ``(plan, pushes, depth)`` on a slice-FIFO
+    machine (rule 8' ends each frame), else None (rule 8)."""
     n_beams = sum(s.needs.size for s in slices)
     n_del = len(deliveries)
     shifted = [
         dataclasses.replace(s, needs=np.where(s.needs >= 0, s.needs + n_del, -1)) for s in slices
     ]
-    fifo = DrainFifo("pixel_bus.fifo", m.capacity["pixel_fifo_entries"])
+    fifo_depth = fifo[2] if fifo else m.capacity["pixel_fifo_entries"]
     timing = run_timing(
         m.memory_cfg,
         deliveries.twice(n_beams),
         slices + shifted,
         capacity=capacity,
-        pixel_fifo=fifo,
+        pixel_fifo=DrainFifo("pixel_bus.fifo", fifo_depth),
         counters=Counters(),
         compiled=m.be.compiled,
+        deskew=DESKEW_WRITE if fifo else 0,
     )
+    if fifo:
+        first, second = fifo_end(m, fifo[0], fifo[1], slices + shifted, timing, fifo[2], 2)
+        return second.end - first.end
     first = sum(b[0] for b in timing.blocks[: len(slices)])
     return int(timing.end - first)
 

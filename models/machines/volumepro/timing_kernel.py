@@ -32,7 +32,7 @@ BOOKED, REFRESHES = REGS.index("booked"), REGS.index("refreshes")
 
 
 @numba.njit(cache=True, nogil=True)
-def _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
+def _deliver(st, ctl, table, ends, ready, capacity, ratio, tail, deskew):
     """Issue delivery ``st[G]`` on every module (``deliver`` of the reference loop);
     False with ``st[STATUS]`` set when it cannot."""
     params, regs, bank_state, out, arrivals, n_req, booked, logs, scratch = ctl
@@ -67,7 +67,7 @@ def _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
             return False
         n_req[k] = i0 + (b - a)
         last = max(last, out[k, 0, i0 + (b - a) - 1] + tail)
-    ready[g] = np.int64(np.ceil(last / ratio))
+    ready[g] = np.int64(np.ceil(last / ratio)) + deskew
     st[G] = g + 1
     return True
 
@@ -75,7 +75,7 @@ def _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
 @numba.njit(cache=True, nogil=True)
 def _beams(
     st, needs, cycles, flush, params, regs, bank_state, out, arrivals, n_req, booked, logs,
-    scratch, banks, rows, starts, free_after, ends, ready, capacity, ratio, tail,
+    scratch, banks, rows, starts, free_after, ends, ready, capacity, ratio, tail, deskew,
 ):  # fmt: skip
     """One slice's beams (or, ``flush``, the reads no beam waits for)."""
     ctl = (params, regs, bank_state, out, arrivals, n_req, booked, logs, scratch)
@@ -84,7 +84,7 @@ def _beams(
     for i in range(needs.shape[0]):
         need = needs[i]
         while need >= st[G]:
-            if not _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
+            if not _deliver(st, ctl, table, ends, ready, capacity, ratio, tail, deskew):
                 return
         begin = t if need < 0 or ready[need] <= t else ready[need]
         st[STALL] += begin - t
@@ -94,7 +94,7 @@ def _beams(
     st[T] = t
     if flush:
         while st[G] < table[3].shape[0]:
-            if not _deliver(st, ctl, table, ends, ready, capacity, ratio, tail):
+            if not _deliver(st, ctl, table, ends, ready, capacity, ratio, tail, deskew):
                 return
 
 
@@ -140,7 +140,10 @@ def _unstack(controllers, ctl) -> None:
         c._booked, c._log, c._n = booked[k], logs[k], int(n_req[k])
 
 
-def play(table, slices, make_controllers, *, capacity, pixel_fifo, out, ends, ready, tail, ratio):
+def play(
+    table, slices, make_controllers, *, capacity, pixel_fifo, out, ends, ready, tail, ratio,
+    deskew=0,
+):  # fmt: skip
     """Run the frame's slices and deliveries (``run_timing``'s loop) on the controllers
     ``make_controllers()`` returns (sized here for their requests); fills ``out`` (a
     ``FrameTiming``), ``ends`` and ``ready`` as the reference loop does and returns the
@@ -156,7 +159,7 @@ def play(table, slices, make_controllers, *, capacity, pixel_fifo, out, ends, re
     narrow = table.bursts(0) > NARROW_FROM  # a large frame's cycles fit in int32 (checked)
     while True:
         done = _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready,
-                     tail, ratio, narrow)  # fmt: skip
+                     tail, ratio, narrow, deskew)  # fmt: skip
         if done and not (narrow and _wrapped(controllers)):
             return controllers
         if done:
@@ -194,7 +197,7 @@ def first_room(table, slices, cfg, ratio: float) -> tuple[int, int]:
 
 
 def _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready, tail, ratio,
-          narrow):  # fmt: skip
+          narrow, deskew):  # fmt: skip
     """One attempt of :func:`play`: False when the logs ran out of room."""
     scratch = np.zeros(max(int(np.diff(table.starts, axis=1).max(initial=0)), 1), np.int64)
     requests = [table.bursts(k) for k in range(len(controllers))]
@@ -208,7 +211,7 @@ def _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, rea
         st[STALL] = 0
         needs = np.zeros(0, np.int64) if flush else work.needs
         cycles = needs if flush else work.cycles
-        _beams(st, needs, cycles, flush, *ctl, *tab, ends, ready, capacity, ratio, tail)
+        _beams(st, needs, cycles, flush, *ctl, *tab, ends, ready, capacity, ratio, tail, deskew)
         if st[STATUS] == LOGS_FULL:
             return False
         if st[STATUS]:

@@ -1,7 +1,7 @@
 """The VolumePro-family machines as a SimPy event model (the ``transaction`` rung's timing).
 
-# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-5, 7 and 8 (the rules this
-#      model approximates); architectures.md section 3 (VolumePro 500: two-level
+# Ref: docs/cycle.md "Timing rules (VolumePro family)" rules 1-5, 7 and 8, and 3', 5', 8'
+#      (the rules this model approximates); architectures.md section 3 (VolumePro 500: two-level
 #      mini-block skew, US 6,266,733 [V abstract]), section 2 (EM-Cube) and 9.1 (voxel
 #      memory controller, burst scheduling, refresh).
 
@@ -28,6 +28,12 @@ as cooperating SimPy processes at *beam-group* granularity:
   than its beams have clocks (rays denser than voxels: a magnified shear-image view;
   each sample's pipeline is its nearest voxel's module, :func:`sample_lanes`) and the
   pixel FIFO (:class:`PixelBus`).
+
+On the slice-FIFO machines (VolumePro 500, EM-Cube: rules 3', 5', 8' of docs/cycle.md,
+:func:`~models.machines.volumepro.fifo_timing.uses_slice_fifos`) the groups are those of
+:mod:`models.machines.volumepro.fifo_transaction` instead: periods that read each voxel
+slice once, a group waiting for the chunks holding its rows of the slice it reads; a
+period's finished rays are pushed at its start and leave the stream latency later.
 
 With ``[overheads] section_width`` the slices' beams are processed band by band
 (:mod:`models.machines.common.sections`): each band re-reads the mbbs of its rows, pays the
@@ -66,6 +72,12 @@ from models.machines.common.transaction import (
     slice_loads,
 )
 from models.machines.volumepro.chunk_reads import ChunkStreams, DeferredReads
+from models.machines.volumepro.fifo_timing import (
+    DESKEW_WRITE,
+    stream_latency,
+    uses_slice_fifos,
+)
+from models.machines.volumepro.fifo_transaction import fifo_schedule
 from models.machines.volumepro.memory import layout, mini_block_bursts, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade
@@ -96,7 +108,7 @@ def sample_lanes(zyx: np.ndarray, axes: tuple[int, int, int], shape, pipelines: 
     ``(q + a + b) mod P`` of the skewed memory holding its nearest voxel, where ``q`` is
     the voxel slice nearest the step's sample slice and ``(a, b)`` the in-slice voxel
     nearest the sample (``cell + (fraction >= 1/2)``), each clamped to the volume;
-    ``axes``: ``(k, a, b)``.  The cycle rung's rule (``SlabMachine._lanes``) written
+    ``axes``: ``(k, a, b)``.  The cycle rung's rule (``SlabMachine._slots``) written
     again from the plan's positions; a slice lasts at least its busiest pipeline's
     sample count (docs/cycle.md, the VolumePro family, rule 4)."""
     kp, a_ax, b_ax = axes
@@ -195,6 +207,7 @@ class SlabTransaction:
         self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
         self.forward = slice_direction(plan)
         self.row_pixels = max(1, plan.shape[1])
+        self.slice_fifo = uses_slice_fifos(arch)
 
     # ------------------------------------------------------------------ geometry
 
@@ -242,6 +255,8 @@ class SlabTransaction:
                         continue  # no mini-block of these mbbs is read
                     index[bi, slab, k] = len(chunks)
                     chunks.append((bi, slab, u, hi))
+        if self.slice_fifo:  # rules 3', 5'
+            return (chunks, *fifo_schedule(self, n_steps, chunks, index))
         groups, needs = [], []
         for bi, (a0, a1) in enumerate(self.bands):
             u0 = max(a0 - 1, 0) // 2
@@ -311,9 +326,12 @@ class SlabTransaction:
             chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=1
         )
         M = self.memory.modules
-        end = max(stats["pipe_end"], bus.end)
-        latency = pipeline_latency(self.C)
-        cycles = end + latency
+        if self.slice_fifo:  # rule 8': a period's pixels leave from its start + latency
+            latency = stream_latency(self.C)
+            cycles = max(stats["pipe_end"], bus.end + latency)
+        else:
+            latency = pipeline_latency(self.C)
+            cycles = max(stats["pipe_end"], bus.end) + latency
         sdram = SdramStats.combine([p.schedule().stats for p in ports])
         counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
         counters.update(
@@ -398,16 +416,18 @@ class SlabTransaction:
 
         def pipelines():
             single = len(self.bands) == 1
+            deskew = DESKEW_WRITE if self.slice_fifo else 0  # rule 3': usable a clock later
             for k, (f, (bi, j, clocks, need)) in enumerate(
                 (f, group) for f in range(frames) for group in groups
             ):
                 need = need + f * nc if need >= 0 else need
-                if bi and j == 0 and (k % ng == 0 or groups[k % ng - 1][0] != bi):
+                first = k % ng == 0 or groups[k % ng - 1][:2] != (bi, j)
+                if bi and first and groups[k % ng - 1][0] != bi:
                     # Section change: overhead, then reload the rays parked by the last band.
                     pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
                     stats["section"] += pre
                     yield env.timeout(pre)
-                if need >= 0 and not reads.ready_by(need, env.now):
+                if need >= 0 and not reads.ready_by(need, env.now - deskew):
                     if need - cap >= 0 and free_after[need - cap] >= k:
                         raise DeadlockError(
                             f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
@@ -417,8 +437,10 @@ class SlabTransaction:
                     if not reads.issued(need):
                         waiting[:] = [need, env.event()]
                         yield waiting[1]
-                    yield env.timeout(reads.ready_at(need) - env.now)
+                    yield env.timeout(reads.ready_at(need) + deskew - env.now)
                     stats["stall"] += int(env.now - waited)
+                if self.slice_fifo and first and j >= 0:  # rule 8': from the period's start
+                    yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
                 if clocks:
                     yield env.timeout(clocks)
                 stats["events"] += 2
@@ -426,6 +448,8 @@ class SlabTransaction:
                     freed[c].succeed()
                 if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
                     continue  # more beam groups of this slice
+                if j < 0:  # a read-only period (rule 3'): no samples, no pixels
+                    continue
                 # Sections are parallel-only, where a slice never has more samples than
                 # voxels: the perspective stretch applies to the unsectioned frame.
                 stretch = max(0, int(busiest[j]) - int(beam_clocks[j]))
@@ -434,8 +458,8 @@ class SlabTransaction:
                 extra = self.arch.slice_overhead_cycles + stretch
                 if extra:
                     yield env.timeout(extra)
-                leaving = int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
-                yield from bus.push(leaving)
+                if not self.slice_fifo:  # rule 8: the slice's pixels at its end
+                    yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
                 self._slices_done[0] += 1
                 report_progress(self, *self._slices_done)
                 if k % ng == ng - 1:
@@ -449,6 +473,11 @@ class SlabTransaction:
         if stats["pipe_end"] == 0 and groups:
             raise DeadlockError("the pipelines never finished: the input buffer is too small")
         return stats, bus, ports
+
+    @staticmethod
+    def _leaving(by_band, parked, bi: int, j: int, n_steps: int) -> int:
+        """Rays leaving over the pixel bus after sample slice ``j`` of band ``bi``."""
+        return int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
 
     def _chunk_streams(self, chunks) -> ChunkStreams:
         """Every chunk's bursts (mini-blocks read: all, or with skipping those a live cell
