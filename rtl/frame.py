@@ -6,9 +6,11 @@ image back.
 
 The host writes what a driver would: the volume (into the voxel memory outside the chip,
 :attr:`FrameProgram.volume_words`), the tables (LUT, opacity correction,
-gradient-magnitude and specular tables, the geometry unit's per-slice constants and ray
-bounds) and the frame's geometry and shading registers.  No timing value of any model
-(latency, slice period, stall counts) is written: the top's cycles are its own.
+gradient-magnitude table, the shader's specular table or, for a reflectance-map shader
+(VolumePro 500), its diffuse and specular maps computed from the lights as the VLI driver
+does, the geometry unit's per-slice constants and ray bounds) and the frame's geometry
+and shading registers.  No timing value of any model (latency, slice period, stall
+counts) is written: the top's cycles are its own.
 
 :func:`prepare` turns a scene, its sample plan and an architecture into a
 :class:`FrameProgram`: load words (volume in the skewed layout, classification LUT,
@@ -45,6 +47,7 @@ from models.units import skew
 from rtl.top import RMW_WINDOW
 from rtl.top_layouts import (
     LOAD_CORRECTION,
+    LOAD_DIFFUSE_MAP,
     LOAD_GM,
     LOAD_LUT,
     LOAD_RAYS,
@@ -124,7 +127,9 @@ def _pack(layout, fields: dict[str, int]) -> int:
     return word
 
 
-def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch: ArchConfig):
+def _check_scene(
+    scene: Scene, volume: Volume, transfer: TransferFunction, arch: ArchConfig, dp: Datapath
+):
     if arch.order not in RTL_ORDERS:
         raise NotAvailableError(
             f"the rtl rung builds the Cube-4 and vg500 tops; {arch.name} ({arch.order} order) "
@@ -154,7 +159,7 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
     mode = scene.render.mode
     if mode not in ("composite", "mip"):
         raise _refuse(f"mode {mode!r} is not in the RTL top", "render.mode", "composite, mip")
-    if scene.lit and len(scene.lights) > MAX_LIGHTS:
+    if scene.lit and dp.shade.method == "phong" and len(scene.lights) > MAX_LIGHTS:
         raise _refuse(
             f"{len(scene.lights)} lights; the RTL top's shader sums {MAX_LIGHTS}",
             "lights",
@@ -170,6 +175,12 @@ def _check_scene(scene: Scene, volume: Volume, transfer: TransferFunction, arch:
         )
     if scene.crop is not None or scene.cut_planes:
         raise _refuse("the RTL top has no crop unit", "crop", "no crop box or cut planes")
+    if mode == "composite" and scene.lit and transfer.modulates_illumination:
+        raise _refuse(
+            "the RTL top's shader has no gradient-magnitude illumination modulation",
+            "transfer.gradient_illumination",
+            "none (gradient_opacity is modelled)",
+        )
 
 
 def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
@@ -180,22 +191,15 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
     InputError
         What the top does not model (key named): non-Cube-4 machines, perspective,
         volumes above ``max_axis`` voxels per axis, modes other than composite and MIP,
-        pre-classification, crop, more than ``MAX_LIGHTS`` lights, a shader other than
-        per-sample Phong, per-ray weights within a slice.
+        pre-classification, crop, more than ``MAX_LIGHTS`` lights on the Phong shader,
+        gradient-magnitude illumination modulation, per-ray weights within a slice.
 
     ``max_axis``: the top's size (default: the smallest of :data:`SIZE_CLASSES` that holds
     the volume).
     """
     scene, volume, transfer = frame.scene, frame.volume, frame.transfer
     arch, plan, dp = frame.arch, frame.plan, frame.datapath
-    _check_scene(scene, volume, transfer, arch)
-    if dp.shade.method != "phong":
-        raise _refuse(
-            f"the RTL top's shader is per-sample Phong, not {dp.shade.method!r}",
-            "formats.shade.method",
-            "phong",
-            arch.source,
-        )
+    _check_scene(scene, volume, transfer, arch, dp)
     backend = Backend(frame)
     machine = Cube4Frame(backend)  # the machine's refusals and frame geometry
     P = machine.P
@@ -238,7 +242,7 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         loads += [(LOAD_GM, i, int(e)) for i, e in enumerate(backend.gm_table)]
     lit = mode == "composite" and scene.lit
     if lit:
-        loads += [(LOAD_SPEC, i, int(e)) for i, e in enumerate(backend.shader.spec)]
+        loads += _shader_loads(backend.shader)
 
     # Ray table: first and last step of every base-plane ray (never for unused ones).
     rlay = ray_layout(geo)
@@ -301,9 +305,21 @@ def _volume_words(raw: np.ndarray, P: int, B: int) -> list[int]:
     return words
 
 
+def _shader_loads(shader) -> list[tuple[int, int, int]]:
+    """The shader's tables: the reflectance maps (diffuse, specular: one entry per cube
+    cell, the lights summed in, ``models.units.shade.setup``) or Phong's specular table."""
+    if shader.maps is not None:
+        diffuse, specular = shader.maps
+        return [(LOAD_DIFFUSE_MAP, i, int(e)) for i, e in enumerate(diffuse)] + [
+            (LOAD_SPEC, i, int(e)) for i, e in enumerate(specular)
+        ]
+    return [(LOAD_SPEC, i, int(e)) for i, e in enumerate(shader.spec)]
+
+
 def _shading_registers(backend: Backend, dp: Datapath, lit: bool, modulate: bool) -> dict:
-    """Gradient, modulation and Phong registers (zeros where the scene does not use them;
-    unused lights have intensity 0, which adds exactly nothing)."""
+    """Gradient, modulation and shading registers (zeros where the scene does not use
+    them; unused lights have intensity 0, which adds exactly nothing).  A reflectance-map
+    shader has only ``ka``: its lights are in the maps."""
     f = dp.shade.normal_frac_bits
     spacing_xyz = np.asarray(backend.volume.spacing, dtype=np.float64)[::-1]
     ratio = np.floor(spacing_xyz.min() / spacing_xyz * 4096 + 0.5).astype(np.int64)
@@ -312,19 +328,16 @@ def _shading_registers(backend: Backend, dp: Datapath, lit: bool, modulate: bool
         "modulate": int(modulate),
         "gm_scale": int(backend.gm_scale) if modulate else 0,
         "ratio": _fields([int(r) for r in ratio], 13),
-        "ka": 0,
-        "kd": 0,
-        "ks": 0,
-        "light": 0,
-        "half": 0,
-        "intensity": 0,
+        "ka": int(backend.shader.ka) if lit else 0,
     }
+    if dp.shade.method != "phong":
+        return regs
+    regs.update(kd=0, ks=0, light=0, half=0, intensity=0)
     if lit:
         sh = backend.shader
         k = sh.light.shape[0]
         pad = [[0, 0, 0]] * (MAX_LIGHTS - k)
         regs.update(
-            ka=sh.ka,
             kd=sh.kd,
             ks=sh.ks,
             light=_fields([c for v in [*sh.light.tolist(), *pad] for c in v], f + 2),

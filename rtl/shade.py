@@ -44,7 +44,16 @@ from rtl.common import (
     unit_ports,
 )
 
-__all__ = ["Shade", "LATENCY", "II", "input_layout", "output_layout", "load_layout", "MAP_BITS"]
+__all__ = [
+    "Shade",
+    "LATENCY",
+    "II",
+    "input_layout",
+    "output_layout",
+    "load_layout",
+    "map_entries",
+    "MAP_BITS",
+]
 
 #: The reflectance-map cell dividers' steps are spread over these many stages.
 DIVIDE_STAGES = 4

@@ -25,7 +25,8 @@ Structure (``P`` pipelines, volumes up to ``N`` voxels per axis):
   in the same slot order ``C + 1`` clocks later, the cell of slice ``p - 1`` whose
   nearest voxel is its slot's voxel (the cycle rung's lane rule) on that slice and its
   two neighbours, then the gradient from the neighbouring samples one beam later,
-  classification, Phong shading and compositing.
+  classification, shading (the datapath's method: per-sample Phong, or reflectance maps
+  looked up by the gradient's direction) and compositing.
 * **per-slice constants** (the host's geometry unit, parallel projection): slice index,
   cell shift ``(da, db)``, base-plane offset ``(ia, ib)`` and the quantised weights
   ``(wa, wb)`` of every step, in a table the host writes before the frame.  The ray table
@@ -84,6 +85,19 @@ RMW_WINDOW = COMPOSITE_LATENCY + 2
 DRAIN_BOUND = STAGE_BASE + COMPOSITE_LATENCY + 5
 
 
+def _phong_ports(dp: Datapath) -> dict:
+    """The per-sample Phong shader's registers (a reflectance-map shader has none: its
+    lights are in the maps the host loads)."""
+    vectors = MAX_LIGHTS * 3 * (dp.shade.normal_frac_bits + 2)
+    return {
+        "kd": In(COEF_BITS),
+        "ks": In(COEF_BITS),
+        "light": In(vectors),
+        "half": In(vectors),
+        "intensity": In(MAX_LIGHTS * COEF_BITS),
+    }
+
+
 @dataclass(frozen=True, kw_only=True)
 class TopConfig:
     """``hwsim rtl build top`` parameters: pipelines, largest volume, voxel width (the
@@ -132,11 +146,16 @@ class Cube4Top(wiring.Component):
         index), ``C``, the pixel FIFO's usable depth (rule 4), base-plane width and height,
         MIP mode, early termination.  No timing value: the period ``T = n_a C`` is computed
         here, latencies are the pipeline's own.
-    lit, modulate, gm_scale, ratio, ka, kd, ks, light, half, intensity : In
+    lit, modulate, gm_scale, ratio, ka : In
         Shading on, gradient-magnitude opacity modulation on and its UQ0.24 index scale,
-        the gradient's ``to_world`` ratios (3 x UQ1.12, x first), the Phong coefficients
-        (UQ4.8) and ``MAX_LIGHTS`` lights (``light``, ``half``: 3 SQ1.F components each,
-        light 0 and x first; ``intensity`` UQ4.8; an unused light has intensity 0).
+        the gradient's ``to_world`` ratios (3 x UQ1.12, x first), the ambient coefficient
+        (UQ4.8).
+    kd, ks, light, half, intensity : In, per-sample Phong only
+        The Phong coefficients (UQ4.8) and ``MAX_LIGHTS`` lights (``light``, ``half``: 3
+        SQ1.F components each, light 0 and x first; ``intensity`` UQ4.8; an unused light
+        has intensity 0).  With ``dp.shade.method = "reflectance-map"`` (VolumePro 500)
+        the shader reads the diffuse and specular maps the host loads instead, any number
+        of lights summed in them.
     pixel : Out stream
         :func:`pixel_layout` (back-pressure allowed).
     busy, done : Out(1)
@@ -183,11 +202,7 @@ class Cube4Top(wiring.Component):
                 "gm_scale": In(32),
                 "ratio": In(3 * (RATIO_BITS + 1)),
                 "ka": In(COEF_BITS),
-                "kd": In(COEF_BITS),
-                "ks": In(COEF_BITS),
-                "light": In(MAX_LIGHTS * 3 * (dp.shade.normal_frac_bits + 2)),
-                "half": In(MAX_LIGHTS * 3 * (dp.shade.normal_frac_bits + 2)),
-                "intensity": In(MAX_LIGHTS * COEF_BITS),
+                **(_phong_ports(dp) if dp.shade.method == "phong" else {}),
                 "pixel": Out(stream.Signature(pixel_layout(geo, dp))),
                 "busy": Out(1),
                 "done": Out(1),

@@ -18,6 +18,7 @@ from models.datapath import Datapath
 from rtl.classify import entry_bits as classify_entry_bits
 from rtl.common import bit_length
 from rtl.composite import TABLE_ENTRIES
+from rtl.shade import MAP_BITS, map_entries
 
 __all__ = [
     "TopGeometry",
@@ -27,6 +28,7 @@ __all__ = [
     "LOAD_SLICES",
     "LOAD_GM",
     "LOAD_SPEC",
+    "LOAD_DIFFUSE_MAP",
     "slice_layout",
     "ray_layout",
     "pixel_layout",
@@ -36,7 +38,10 @@ __all__ = [
 ]
 
 # Load targets (0 was the volume, which now lives outside the chip: ``vmem_*`` ports).
+# LOAD_SPEC is the Phong shader's specular table or the reflectance-map shader's specular
+# map; LOAD_DIFFUSE_MAP the latter's diffuse map (rtl/shade.py).
 LOAD_LUT, LOAD_CORRECTION, LOAD_RAYS, LOAD_SLICES, LOAD_GM, LOAD_SPEC = range(1, 7)
+LOAD_DIFFUSE_MAP = 7
 
 
 @dataclass(frozen=True)
@@ -136,14 +141,15 @@ def buffer_layout(dp: Datapath):
 def load_layout(geo: TopGeometry, dp: Datapath):
     """``target`` (LOAD_*), ``addr`` and ``data``: LUT entries, correction-table entries,
     ray and slice records as their layouts pack them; gradient-magnitude table entries and
-    the shader's specular table (UQ1.12)."""
+    the shader's tables: Phong's specular table (UQ1.12) or the two reflectance maps
+    (UQ8.12, ``6 R^2 + 1`` entries each)."""
     widths = [
         classify_entry_bits(dp.classify),
         13,
         ray_layout(geo).size,
         slice_layout(geo, dp).size,
         13,
-        13,
+        MAP_BITS if _maps(dp) else 13,
     ]
     depth = max(
         dp.classify.entries,
@@ -151,7 +157,7 @@ def load_layout(geo: TopGeometry, dp: Datapath):
         geo.max_rays,
         geo.max_axis,
         dp.classify.gm_entries,
-        dp.shade.spec_table_entries + 1,
+        map_entries(dp.shade) if _maps(dp) else dp.shade.spec_table_entries + 1,
     )
     return data.StructLayout(
         {
@@ -162,9 +168,15 @@ def load_layout(geo: TopGeometry, dp: Datapath):
     )
 
 
+def _maps(dp: Datapath) -> bool:
+    """Whether the shader looks its light up in reflectance maps (else per-sample Phong)."""
+    return dp.shade.method == "reflectance-map"
+
+
 def load_words_bound(geo: TopGeometry, dp: Datapath) -> int:
     """The most load words one frame writes: the ray table, the slice table and every
-    table once."""
+    table once (the shader's: Phong's specular table or both reflectance maps)."""
+    shader = 2 * map_entries(dp.shade) if _maps(dp) else dp.shade.spec_table_entries + 1
     return (
         geo.max_rays
         + geo.max_axis
@@ -172,6 +184,5 @@ def load_words_bound(geo: TopGeometry, dp: Datapath) -> int:
         + dp.classify.entries
         + TABLE_ENTRIES
         + dp.classify.gm_entries
-        + dp.shade.spec_table_entries
-        + 1
+        + shader
     )

@@ -5,7 +5,8 @@ shading and compositing.
 # Ref: architectures.md section 1.3 items 4-7 (interpolation between slices from delay
 #      buffers and the neighbouring pipelines; gradients by central differences of
 #      interpolated samples of beams j-1..j+1 and slices k-1..k+1; classification, Phong
-#      shading, compositing buffers); docs/cycle.md timing rule 5 (the look-ahead).
+#      shading, compositing buffers); section 3 (VolumePro 500's reflectance maps);
+#      docs/cycle.md timing rule 5 (the look-ahead).
 
 A pipeline evaluates one cell per slot.  Slot ``t`` of the step's period is evaluated ``C
 + 1`` clocks after the sequencer issued it (so the next slice's voxels of the cell's far
@@ -30,10 +31,11 @@ corner, read from memory at ``t + C + 1`` at the latest, are in the slice buffer
   ``C``, ``C -+ 1`` clocks ago; a neighbour beyond the volume's edge is the sample's own
   edge lerp;
 * :class:`~rtl.gradient.Gradient` -> :class:`~rtl.classify.Classify` with
-  gradient-magnitude modulation -> :class:`~rtl.shade.Shade`, per-sample Phong ->
-  :class:`~rtl.composite.Composite` (each its own ``LATENCY``, the length of its RTL
-  stage plan), the compositing buffer read one clock before the compositor and written
-  when it answers.
+  gradient-magnitude modulation -> :class:`~rtl.shade.Shade` (the datapath's method:
+  per-sample Phong, or the VolumePro 500's reflectance maps, loaded by the host; one
+  ``LATENCY`` for both) -> :class:`~rtl.composite.Composite` (each its own ``LATENCY``,
+  the length of its RTL stage plan), the compositing buffer read one clock before the
+  compositor and written when it answers.
 """
 
 from __future__ import annotations
@@ -53,7 +55,14 @@ from rtl.shade import LATENCY as SHADE_LATENCY
 from rtl.skew import LATENCY as ADDRESS_LATENCY
 from rtl.slice_interp import LATENCY as SLICE_LATENCY
 from rtl.slice_interp import SliceInterp
-from rtl.top_layouts import LOAD_CORRECTION, LOAD_GM, LOAD_LUT, LOAD_SPEC, ray_layout
+from rtl.top_layouts import (
+    LOAD_CORRECTION,
+    LOAD_DIFFUSE_MAP,
+    LOAD_GM,
+    LOAD_LUT,
+    LOAD_SPEC,
+    ray_layout,
+)
 
 __all__ = [
     "PipelineFrontEnd",
@@ -268,6 +277,38 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
     return PipelineFrontEnd(record, history)
 
 
+def _shader_inputs(m: Module, top, shade: Shade, loading) -> None:
+    """The shader's tables and registers: with reflectance maps (VolumePro 500) the two
+    maps the host computed (``LOAD_DIFFUSE_MAP`` table 0, ``LOAD_SPEC`` table 1); with
+    per-sample Phong its specular table (``LOAD_SPEC``), coefficients and ``MAX_LIGHTS``
+    lights."""
+    load = top.load.payload
+    if shade.cfg.method == "reflectance-map":
+        m.d.comb += [
+            shade.load.valid.eq(loading(LOAD_SPEC) | loading(LOAD_DIFFUSE_MAP)),
+            shade.load.payload.table.eq(load.target == LOAD_SPEC),
+        ]
+        return
+    m.d.comb += [
+        shade.load.valid.eq(loading(LOAD_SPEC)),
+        shade.load.payload.table.eq(0),
+        shade.kd.eq(top.kd),
+        shade.ks.eq(top.ks),
+    ]
+    f = top.dp.shade.normal_frac_bits
+    vec = 3 * (f + 2)
+    for light in range(MAX_LIGHTS):
+        m.d.comb += shade.intensity[light].eq(
+            top.intensity[light * COEF_BITS : (light + 1) * COEF_BITS]
+        )
+        for axis in range(3):
+            lo = light * vec + axis * (f + 2)
+            m.d.comb += [
+                shade.light[light][axis].eq(top.light[lo : lo + f + 2]),
+                shade.half[light][axis].eq(top.half[lo : lo + f + 2]),
+            ]
+
+
 def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loading, enable) -> dict:
     """Gradient, classification, shading and compositing of pipeline ``k``; returns its
     pixel-FIFO push (``push``: a ray's last sample has just been written back; ``ray``),
@@ -352,8 +393,6 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
                 top.ratio[axis * (RATIO_BITS + 1) : (axis + 1) * (RATIO_BITS + 1)]
             ),
         ]
-    f = dp.shade.normal_frac_bits
-    vec = 3 * (f + 2)
     m.d.comb += [
         classify.load.valid.eq(loading(LOAD_LUT) | loading(LOAD_GM)),
         classify.load.payload.table.eq(load.target == LOAD_GM),
@@ -361,13 +400,9 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
         classify.load.payload.data.eq(load.data),
         classify.gm_scale.eq(top.gm_scale),
         classify.modulate.eq(top.modulate),
-        shade.load.valid.eq(loading(LOAD_SPEC)),
-        shade.load.payload.table.eq(0),
         shade.load.payload.addr.eq(load.addr),
         shade.load.payload.data.eq(load.data),
         shade.ka.eq(top.ka),
-        shade.kd.eq(top.kd),
-        shade.ks.eq(top.ks),
         composite.load.valid.eq(loading(LOAD_CORRECTION)),
         composite.load.payload.addr.eq(load.addr),
         composite.load.payload.data.eq(load.data),
@@ -378,16 +413,7 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
         shade.o.ready.eq(1),
         composite.o.ready.eq(1),
     ]
-    for light in range(MAX_LIGHTS):
-        m.d.comb += shade.intensity[light].eq(
-            top.intensity[light * COEF_BITS : (light + 1) * COEF_BITS]
-        )
-        for axis in range(3):
-            lo = light * vec + axis * (f + 2)
-            m.d.comb += [
-                shade.light[light][axis].eq(top.light[lo : lo + f + 2]),
-                shade.half[light][axis].eq(top.half[lo : lo + f + 2]),
-            ]
+    _shader_inputs(m, top, shade, loading)
     # gradient -> classify: the sample beside the gradient unit.
     m.d.comb += [
         classify.i.valid.eq(gradient.o.valid),

@@ -223,7 +223,8 @@ def machine_rungs(arch: ArchConfig) -> list[str]:
         return ["golden", "functional"]
     modelled = {"transaction": machine.transaction, "cycle": machine.cycle}
     rungs = ["golden", "functional"] + [r for r, model in modelled.items() if model is not None]
-    return rungs + (["rtl"] if machine.rtl_top else [])
+    rtl = machine.rtl_top and (machine.rtl_archs is None or machine.rtl_archs(arch))
+    return rungs + (["rtl"] if rtl else [])
 
 
 def elaboration(scene: Scene, transfer: TransferFunction) -> tuple[list[str], list[str]]:

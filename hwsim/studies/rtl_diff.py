@@ -15,6 +15,12 @@ was popped at ``c - 2`` (the bus's FIFO read and compositing-buffer read stages,
 rtl/top.py).  The cycle rung's are its own timing (``Cube4Machine.bus_events``).  The
 report names, per stream, the first entry that differs, and the earliest clock of all:
 where to look in a ``--trace`` waveform.  Nothing is fed from one rung into the other.
+
+The vg500 top (VolumePro 500, EM-Cube: ``rtl.vg500``) is compared on what both rungs
+count: the image, samples, cycles, the clocks the pipelines waited for memory (the RTL's
+held clocks, the cycle rung's ``memory.stall_cycles``) and the SDRAM's bursts,
+activations and refreshes (the RTL's from the datasheet checkers on the devices' pins,
+the cycle rung's from its controller model).
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import load_volume
 from hwsim.volumes.volume import Volume
 
-__all__ = ["BUS_READ_CLOCKS", "StreamDiff", "RtlDiff", "rtl_diff", "diff_streams"]
+__all__ = ["BUS_READ_CLOCKS", "CounterDiff", "StreamDiff", "RtlDiff", "rtl_diff", "diff_streams"]
 
 #: A pixel popped from the FIFO leaves on the pixel stream this many clocks later.
 BUS_READ_CLOCKS = 2
@@ -77,17 +83,38 @@ class StreamDiff:
 
 
 @dataclass
+class CounterDiff:
+    """One count of both rungs (the vg500 top's comparison)."""
+
+    name: str
+    rtl: int
+    cycle: int
+
+    @property
+    def equal(self) -> bool:
+        return self.rtl == self.cycle
+
+    def line(self) -> str:
+        if self.equal:
+            return f"{self.name}: {self.rtl} in both"
+        return f"{self.name}: rtl {self.rtl}, cycle rung {self.cycle} ({self.rtl - self.cycle:+d})"
+
+
+@dataclass
 class RtlDiff:
-    """The frame's comparison: cycles of both rungs and each stream's first difference."""
+    """The frame's comparison: cycles of both rungs and each stream's first difference
+    (Cube-4 top) or each count's (vg500 top)."""
 
     rtl_cycles: int
     cycle_cycles: int
     images_equal: bool
     streams: list[StreamDiff] = field(default_factory=list)
+    counters: list[CounterDiff] = field(default_factory=list)
 
     @property
     def identical(self) -> bool:
         same = all(s.first_index is None for s in self.streams)
+        same = same and all(c.equal for c in self.counters)
         return same and self.images_equal and self.rtl_cycles == self.cycle_cycles
 
     @property
@@ -99,7 +126,7 @@ class RtlDiff:
         head = f"cycles: rtl {self.rtl_cycles}, cycle rung {self.cycle_cycles}; images " + (
             "bit-identical" if self.images_equal else "DIFFER"
         )
-        out = [head, *(s.line() for s in self.streams)]
+        out = [head, *(s.line() for s in self.streams), *(c.line() for c in self.counters)]
         if self.identical:
             out.append("no difference")
         elif self.first_clock is not None:
@@ -167,11 +194,16 @@ def rtl_diff(
     from models.machines.cube4.cycle import Cube4Machine
     from rtl.frame import RTL_ORDERS, prepare
     from rtl.rung import run_simulator
+    from rtl.vg500.frame import is_vg500
 
     frame = _frame(scene, arch, volume)
+    if is_vg500(frame.arch):
+        return _vg500_diff(frame, simulator)
     if frame.arch.order not in RTL_ORDERS:
         raise InputError(
-            f"{frame.arch.name} has no RTL top", key="--arch", allowed="the Cube-4 family"
+            f"{frame.arch.name} has no RTL top",
+            key="--arch",
+            allowed="the Cube-4 family, volumepro500, em-cube",
         )
     program = prepare(frame)  # the rtl rung's refusals first: no cycle frame wasted
     machine = Cube4Machine(Backend(frame))
@@ -192,4 +224,36 @@ def rtl_diff(
         cycle_cycles=cycle.cycles,
         images_equal=bool(np.array_equal(rtl.image, cycle.image)),
         streams=streams,
+    )
+
+
+#: The vg500 comparison's counts: (name, the rtl rung's counter, the cycle rung's).
+VG500_COUNTERS = (
+    ("samples", "frame.samples", "frame.samples"),
+    ("memory wait clocks", "memory.hold_cycles", "memory.stall_cycles"),
+    ("SDRAM bursts", "memory.bursts", "memory.bursts"),
+    ("SDRAM activations", "memory.sdram.checker.activates", "memory.sdram.activates"),
+    ("SDRAM refreshes", "memory.sdram.checker.refreshes", "memory.sdram.refreshes"),
+)
+
+
+def _vg500_diff(frame, simulator: str) -> RtlDiff:
+    """The vg500 top against the cycle rung: image, cycles and :data:`VG500_COUNTERS`
+    (the SDRAM checkers fail the rtl run on any violated datasheet rule)."""
+    from models.cycle import render_cycle
+    from rtl.vg500.frame import prepare_vg500
+    from rtl.vg500.rung import run_vg500
+
+    program = prepare_vg500(frame)  # the rtl rung's refusals first
+    cycle = render_cycle(frame)
+    rtl, _ = run_vg500(program, simulator)
+    rtl.counters.setdefault("frame.samples", rtl.samples)
+    counts = {**cycle.counters, "frame.samples": cycle.samples}
+    return RtlDiff(
+        rtl_cycles=rtl.cycles,
+        cycle_cycles=cycle.cycles,
+        images_equal=bool(np.array_equal(rtl.image, cycle.image)),
+        counters=[
+            CounterDiff(name, int(rtl.counters[a]), int(counts[b])) for name, a, b in VG500_COUNTERS
+        ],
     )

@@ -92,6 +92,10 @@ class Machine:
         (functional, transaction, cycle, rtl), so they refuse alike.
     rtl_top : str or None
         The module of the family's RTL top, where one exists.
+    rtl_archs : callable or None
+        ``rtl_archs(arch)``: whether the RTL top renders ``arch`` (a top built for some
+        of the family's machines, e.g. the VolumePro 500's and not the VolumePro
+        1000's); ``None``: every architecture of the family.
     silicon : callable or None
         ``silicon(arch, datapath)``: the machine's buffers and interpolator, a
         :class:`~models.machines.common.silicon.Silicon` (the energy and area model).
@@ -131,6 +135,7 @@ class Machine:
     steady_state: bool = False
     check_frame: Callable[..., None] | None = None
     rtl_top: str | None = None
+    rtl_archs: Callable[[ArchConfig], bool] | None = None
     package: str = field(default="")
     silicon: Callable[..., Any] | None = None
     accesses: Callable[..., Any] | None = None

@@ -32,11 +32,14 @@ __all__ = ["Vg500Program", "prepare_vg500", "is_vg500"]
 
 def is_vg500(arch) -> bool:
     """Whether ``arch`` is a machine the vg500 top renders (shear-warp VolumePro family,
-    four SDR modules, the mini-block skew)."""
+    four pipelines and SDR modules, the mini-block skew; the family's
+    ``models.machines.volumepro.machine.vg500_shaped``, which declares the rung, asks the
+    same)."""
     return (
         arch.family == "volumepro"
         and arch.order == "shear-warp"
         and arch.pipelines == MODULES
+        and arch.memory.get("modules", MODULES) == MODULES
         and arch.memory.get("skew", "miniblock") == "miniblock"
     )
 
@@ -67,24 +70,17 @@ def prepare_vg500(frame: Frame) -> Vg500Program:
         )
     if scene.render.supersampling != 1.0:
         raise _refuse(
-            "the vg500 top samples once per slice (z supersampling is not in it yet)",
+            "the vg500 top's pipelines sample once per slice, on the slice (Cube-4's slots: "
+            "z supersampling needs sample planes between slices, not in it)",
             "render.supersampling",
             "1",
         )
-    if scene.render.mode == "composite" and scene.lit:
-        raise _refuse(
-            "the vg500 top's pipelines shade with Phong; reflectance-map shading is not in it yet",
-            "lights",
-            "an unlit composite ([render] lit = false) or mip",
-        )
     memory = parse_memory(arch.memory, source=arch.source)
     timing = SdramTiming.of(memory.sdram)
-    # The pipelines are Cube-4's: the same loads, on the same datapath (unlit: the shader's
-    # method is not used, Phong is the one the pipelines carry).
-    dp = frame.datapath
-    inner_dp = dataclasses.replace(dp, shade=dataclasses.replace(dp.shade, method="phong"))
+    # The pipelines are Cube-4's: the same loads, on the same datapath (its shader's
+    # method: the VolumePro 500's reflectance maps, which the host computes and loads).
     inner_arch = dataclasses.replace(arch, order="slice-parallel")
-    program = prepare(dataclasses.replace(frame, arch=inner_arch, datapath=inner_dp))
+    program = prepare(dataclasses.replace(frame, arch=inner_arch))
     n_b = program.registers["n_b"]
     if -(-n_b // 2) < MODULES:
         raise _refuse(

@@ -16,8 +16,9 @@ from simulators import require
 
 import hwsim
 from hwsim.cli.commands import main
-from hwsim.studies.rtl_diff import _frame
+from hwsim.studies.rtl_diff import VG500_COUNTERS, _frame, rtl_diff
 from models.backend import Backend
+from models.cycle import render_cycle
 from models.machines.volumepro.cycle import SlabMachine
 from models.machines.volumepro.fifo_timing import slice_fifo_timing
 
@@ -47,3 +48,51 @@ def test_render_rtl_of_the_vg500_matches_the_cycle_rung_with_a_legal_sdram(tmp_p
     assert (rtl["cycles"], c["memory.hold_cycles"]) == held
     images = [np.load(tmp_path / d / "image.npy") for d in ("rtl", "cycle")]
     assert np.array_equal(*images)
+
+
+def test_a_lit_frame_shades_with_the_reflectance_maps_bit_identically(tmp_path):
+    """The default scene's light, the VolumePro 500's own reflectance maps (64 x 64 cells
+    a face, loaded by the host) on the vg500 top: the cycle rung's image, samples and
+    bursts; the cycles are the slice-FIFO rules' (docs/rtl.md)."""
+    require("verilator")
+    lit = [*SCENE[:3], "composite", *SCENE[4:]]
+    outs = {}
+    for fidelity in ("rtl", "cycle"):
+        argv = ["render", *lit, "--fidelity", fidelity, "--arch", "volumepro500"]
+        assert main([*argv, "--out", str(tmp_path / fidelity), "--quiet"]) == 0
+        outs[fidelity] = json.loads((tmp_path / fidelity / "stats.json").read_text())
+    images = [np.load(tmp_path / d / "image.npy") for d in ("rtl", "cycle")]
+    assert np.array_equal(*images) and images[0].any()
+    rtl, cyc = outs["rtl"], outs["cycle"]
+    assert rtl["samples"] == cyc["samples"]
+    assert rtl["counters"]["memory.bursts"] == cyc["counters"]["memory.bursts"]
+    assert rtl["counters"]["memory.sdram.checker.violations"] == 0
+    scene = hwsim.load_scene(None, volume="head:size=8", view=(30, 20), image=8)
+    rules = slice_fifo_timing(SlabMachine(Backend(_frame(scene, "volumepro500", None))))
+    assert (rtl["cycles"], rtl["counters"]["memory.hold_cycles"]) == (
+        rules.cycles,
+        rules.stall_cycles,
+    )
+
+
+def test_rtl_diff_compares_the_vg500_tops_counts_with_the_cycle_rungs(capsys):
+    """``hwsim rtl diff --arch volumepro500``: image, samples, cycles, memory waits and
+    the SDRAM's bursts, activations and refreshes, each from its own side; exit 0 only
+    when all agree."""
+    require("verilator")
+    scene = hwsim.load_scene(None, volume="head:size=8", view=(30, 20), image=8, mode="mip")
+    report = rtl_diff(scene, arch="volumepro500")
+    assert report.streams == [] and report.images_equal
+    counts = {c.name: c for c in report.counters}
+    assert set(counts) == {name for name, _, _ in VG500_COUNTERS}
+    assert counts["samples"].equal and counts["SDRAM bursts"].equal
+    assert counts["SDRAM bursts"].rtl == 64 and counts["memory wait clocks"].rtl > 0
+    cycle = render_cycle(_frame(scene, "volumepro500", None))
+    assert report.cycle_cycles == cycle.cycles
+    assert counts["memory wait clocks"].cycle == cycle.counters["memory.stall_cycles"]
+    argv = ["rtl", "diff", "--arch", "volumepro500", *SCENE]
+    status = main(argv)
+    out = capsys.readouterr().out
+    assert status == (0 if report.identical else 1)
+    assert f"cycles: rtl {report.rtl_cycles}, cycle rung {report.cycle_cycles}" in out
+    assert "images bit-identical" in out and "SDRAM bursts: 64 in both" in out

@@ -31,6 +31,20 @@ def transaction(frame: Frame, **options: Any) -> SlabTransaction:
     return SlabTransaction(frame, **options)
 
 
+def vg500_shaped(arch) -> bool:
+    """Whether the vg500 RTL top (rtl/vg500) renders ``arch``: a shear-warp machine of
+    four SDRAM modules and pipelines with the mini-block skew (VolumePro 500, EM-Cube).
+    The same test as ``rtl.vg500.frame.is_vg500``, which this package may not import
+    (layers: the RTL sits above the machines); tests/rtl/test_vg500_top.py checks that
+    the two agree."""
+    return (
+        arch.order == "shear-warp"
+        and arch.pipelines == 4
+        and arch.memory.get("modules", 4) == 4
+        and arch.memory.get("skew", "miniblock") == "miniblock"
+    )
+
+
 MACHINE = Machine(
     name="volumepro",
     orders=("shear-warp", "shear-image"),
@@ -43,4 +57,6 @@ MACHINE = Machine(
     accesses=silicon.accesses,
     buffers=SlabBuffers,
     skew_memory=True,
+    rtl_top="rtl.vg500.top",
+    rtl_archs=vg500_shaped,
 )
