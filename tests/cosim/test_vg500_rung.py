@@ -16,7 +16,7 @@ from simulators import require
 
 import hwsim
 from hwsim.cli.commands import main
-from hwsim.studies.rtl_diff import VG500_COUNTERS, _frame, rtl_diff
+from hwsim.studies.rtl_diff import VG500_COUNTERS, CounterDiff, RtlDiff, _frame, rtl_diff
 from models.backend import Backend
 from models.cycle import render_cycle
 from models.machines.volumepro.cycle import SlabMachine
@@ -96,3 +96,12 @@ def test_rtl_diff_compares_the_vg500_tops_counts_with_the_cycle_rungs(capsys):
     assert status == (0 if report.identical else 1)
     assert f"cycles: rtl {report.rtl_cycles}, cycle rung {report.cycle_cycles}" in out
     assert "images bit-identical" in out and "SDRAM bursts: 64 in both" in out
+
+
+def test_a_count_that_differs_fails_the_diff_and_says_by_how_much():
+    differs = RtlDiff(277, 277, True, counters=[CounterDiff("SDRAM refreshes", 3, 0)])
+    assert not differs.identical
+    assert differs.lines()[-1] == "SDRAM refreshes: rtl 3, cycle rung 0 (+3)"
+    same = RtlDiff(277, 277, True, counters=[CounterDiff("SDRAM bursts", 64, 64)])
+    assert same.identical and same.lines()[1:] == ["SDRAM bursts: 64 in both", "no difference"]
+    assert not RtlDiff(277, 279, True, counters=same.counters).identical
