@@ -260,16 +260,10 @@ def clear_cells(kernel) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     s_bits, _, _, lut_shift, entries = kernel.config[:5]
     next_visible = np.ascontiguousarray(be.transparent_ranges(), dtype=np.int64)
-    key = (
-        vox.dtype.str,
-        tuple(kernel.strides),
-        s_bits,
-        lut_shift,
-        entries,
-        hashlib.sha256(next_visible.tobytes()).hexdigest(),
-    )
-    maps = _CELLS.setdefault(be.volume, {})
-    if key not in maps:
+    layout = (be.dp.voxel_bits, vox.dtype.str, tuple(int(s) for s in kernel.strides))
+    key = (s_bits, lut_shift, entries, hashlib.sha256(next_visible.tobytes()).hexdigest())
+    maps = _CELLS.setdefault(be.volume, {})  # per layout: (classification, map)
+    if maps.get(layout, (None,))[0] != key:
         v_min, v_max = int(vox.min()), int(vox.max())
         # Each raw value's LUT index, by the unit's own arithmetic (promoted as read).
         values = np.arange(v_min, v_max + 1, dtype=np.int64)
@@ -277,9 +271,8 @@ def clear_cells(kernel) -> tuple[np.ndarray, np.ndarray] | None:
         out = np.zeros(vox.size, dtype=np.uint8)
         order = np.argsort(-kernel.strides, kind="stable")
         _clear_cell_map(vox, kernel.shape, kernel.strides, order, v_min, index, next_visible, out)
-        maps.clear()  # one classification at a time per volume
-        maps[key] = (out, kernel.strides.copy())
-    return maps[key]
+        maps[layout] = (key, (out, kernel.strides.copy()))  # one classification a layout
+    return maps[layout][1]
 
 
 class _Walker:
