@@ -7,7 +7,7 @@
 :func:`models.machines.volumepro.vp1000_transaction.beam_skips` for one sample slice: which
 cells hold a live sample, each beam's clock groups, the live samples and the busiest
 pipeline (each sample's lane is the module ``(q + a + b) mod P`` of its nearest voxel,
-:func:`~models.machines.volumepro.transaction.sample_lanes`' rule), then the cells the
+:func:`~models.machines.volumepro.lanes.sample_lanes`' rule), then the cells the
 memory sequencer reads for (alive ``lag`` slices earlier).  The same floating-point
 operations as the NumPy form (``floor``, a subtraction, a comparison with 1/2), so the same
 integers; the NumPy form stays as the reference

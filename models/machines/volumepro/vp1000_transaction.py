@@ -33,7 +33,7 @@ read.  What is coarser than the cycle rung: readiness and freeing per chunk (as 
 Each slice's busiest pipeline (what stretches a slice whose rays are denser than its
 voxels, magnified perspective: docs/cycle.md rule 4) is counted, not estimated: a live
 sample is evaluated by the pipeline of its nearest voxel, the skewed memory's module
-``(q + a + b) mod P`` (:func:`~models.machines.volumepro.transaction.sample_lanes`, the
+``(q + a + b) mod P`` (:func:`~models.machines.volumepro.lanes.sample_lanes`, the
 cycle rung's rule written again); several rays share a nearest voxel, so the ``P`` lanes
 are not loaded evenly and a slice lasts as long as its busiest one.  An even split of
 the live samples (``ceil(live / P)``, the model's earlier estimate) ran 2.1-4.7 % short
@@ -54,8 +54,9 @@ from hwsim.golden.positions import SamplePlan, make_plan
 from models.backend import Backend
 from models.frame import Frame
 from models.machines.common.transaction import ReadsTheFrame, TxnTiming
+from models.machines.volumepro.lanes import sample_lanes
 from models.machines.volumepro.timing import mini_blocks_read
-from models.machines.volumepro.transaction import SlabTransaction, sample_lanes
+from models.machines.volumepro.transaction import SlabTransaction
 
 __all__ = ["BeamSkips", "Vp1000Transaction", "beam_skips", "leaping_plan", "stopping_modes"]
 
@@ -71,7 +72,7 @@ class BeamSkips:
     live sample; 0: the beam is skipped); ``needed[s, u, m]``: whether mini-block ``m``
     of mini-block beam ``u`` of slab ``s`` is read; ``live[j]``: live samples of slice
     ``j``; ``busiest[j]``: live samples of slice ``j``'s busiest pipeline
-    (:func:`~models.machines.volumepro.transaction.sample_lanes`); ``stopped_rays``: rays
+    (:func:`~models.machines.volumepro.lanes.sample_lanes`); ``stopped_rays``: rays
     that stopped before their last planned sample; ``leaped``: planned samples space
     leaping removed.
     """
