@@ -173,8 +173,8 @@ def _check_scene(
         raise _refuse(
             "the RTL top's compositor blends front to back", "render.blend_order", "front-to-back"
         )
-    if scene.crop is not None or scene.cut_planes:
-        raise _refuse("the RTL top has no crop unit", "crop", "no crop box or cut planes")
+    if scene.cut_planes:
+        raise _refuse("the RTL top's crop unit has no cut planes", "cut_planes", "none")
     if mode == "composite" and scene.lit and transfer.modulates_illumination:
         raise _refuse(
             "the RTL top's shader has no gradient-magnitude illumination modulation",
@@ -191,7 +191,7 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
     InputError
         What the top does not model (key named): non-Cube-4 machines, perspective,
         volumes above ``max_axis`` voxels per axis, modes other than composite and MIP,
-        pre-classification, crop, more than ``MAX_LIGHTS`` lights on the Phong shader,
+        pre-classification, cut planes, more than ``MAX_LIGHTS`` lights on the Phong shader,
         gradient-magnitude illumination modulation, per-ray weights within a slice.
 
     ``max_axis``: the top's size (default: the smallest of :data:`SIZE_CLASSES` that holds
@@ -254,7 +254,7 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         (LOAD_RAYS, r, _pack(rlay, {"j_lo": j_lo[r], "j_hi": j_hi[r]})) for r in range(n_rays)
     ]
 
-    slices = _slice_constants(machine, plan, j_lo, j_hi)
+    slices = _slice_constants(machine, plan, j_lo, j_hi, scene.crop)
     slay = slice_layout(geo, dp)
     loads += [(LOAD_SLICES, j, _pack(slay, rec)) for j, rec in enumerate(slices)]
 
@@ -276,6 +276,9 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         "mip": int(mode == "mip"),
         "ert_enable": int(mode == "composite" and ert < 1.0),
         "ert_threshold": int(dp.composite.acc.quantize(min(max(ert, 0.0), 1.0))),
+        "crop": int(scene.crop is not None),
+        "crop_needed": scene.crop.slabs_needed if scene.crop is not None else 0,
+        "crop_invert": int(scene.crop is not None and scene.crop.invert),
     }
     units = ["memory", "ring", *elaborate_units(backend, ())[0][:-1], "pixel_bus"]
     return FrameProgram(
@@ -386,9 +389,47 @@ def _check_neighbours(machine: Cube4Frame, step, j: int, full: int) -> None:
                 )
 
 
-def _slice_constants(machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi) -> list[dict[str, int]]:
-    """Per step: slice, cell shift, base-plane offset and weights, checked sample by
-    sample against the plan (the hardware's slot rule must give exactly its samples)."""
+def _crop_slabs(machine: Cube4Frame, step, j: int, cells, crop) -> dict[str, int]:
+    """The crop box's slabs on step ``j``: whether the slice is inside the principal
+    axis's slab, and per in-slice axis the cells whose samples (the plan's positions) are
+    inside its slab, checked sample by sample (float positions one step's samples
+    disagree on are refused naming ``view``)."""
+    out = {"crop_k": 1}
+    every = (-2, max(machine.n_a, machine.n_b) + 1)  # an axis without limits: every cell
+    axes = (machine.a_ax, machine.b_ax)
+    k_col = next(c for c in range(3) if c not in axes)
+    limits = {0: crop.z, 1: crop.y, 2: crop.x} if crop is not None else {}
+    for col, name in ((k_col, "k"), (axes[0], "a"), (axes[1], "b")):
+        if name != "k":
+            out[f"crop_{name}_lo"], out[f"crop_{name}_hi"] = every
+        if limits.get(col) is None:
+            continue
+        lo, hi = limits[col]
+        p = step.zyx[:, col]
+        inside = (p >= lo) & (p <= hi)
+        if name == "k":
+            if np.unique(inside).size > 1:
+                raise _refuse(f"step {j}: the crop box cuts the slice", "view", "another view")
+            out["crop_k"] = int(inside[0])
+            continue
+        c = cells[name]
+        lo_c, hi_c = (int(c[inside].min()), int(c[inside].max())) if inside.any() else (1, 0)
+        if not np.array_equal(inside, (c >= lo_c) & (c <= hi_c)):
+            raise _refuse(
+                f"step {j}: the crop box's {name} slab is not a range of cells (float rounding)",
+                "view",
+                "another view",
+            )
+        out[f"crop_{name}_lo"], out[f"crop_{name}_hi"] = lo_c, hi_c
+    return out
+
+
+def _slice_constants(
+    machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi, crop=None
+) -> list[dict[str, int]]:
+    """Per step: slice, cell shift, base-plane offset and weights, the crop box's slabs,
+    checked sample by sample against the plan (the hardware's slot rule must give
+    exactly its samples)."""
     P, C, T = machine.P, machine.C, machine.T
     n_a, n_b = machine.n_a, machine.n_b
     W = plan.shape[1]
@@ -400,6 +441,7 @@ def _slice_constants(machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi) -> list[
     for j, step in enumerate(plan.steps()):
         q = machine.slice_of(j)
         rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
+        rec.update(crop_k=0, crop_a_lo=0, crop_a_hi=0, crop_b_lo=0, crop_b_hi=0)
         rays = step.rays
         if rays.size:
             full = 1 << machine.dp.interp.weight_bits
@@ -425,6 +467,7 @@ def _slice_constants(machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi) -> list[
                 wa=int(wa[0]),
                 wb=int(wb[0]),
             )
+            rec.update(_crop_slabs(machine, step, j, {"a": ca, "b": cb}, crop))
         # The hardware's samples: one per slot voxel, the cell whose nearest voxel it is.
         hu = a - rec["da"] - rec["ia"]
         hv = b - rec["db"] - rec["ib"]

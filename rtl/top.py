@@ -146,6 +146,11 @@ class Cube4Top(wiring.Component):
         index), ``C``, the pixel FIFO's usable depth (rule 4), base-plane width and height,
         MIP mode, early termination.  No timing value: the period ``T = n_a C`` is computed
         here, latencies are the pipeline's own.
+    crop, crop_needed, crop_invert : In
+        The crop box on: a sample is composited when it lies inside ``crop_needed`` of the
+        three slabs (sub-volume 3, cross 2, fence 1), or outside with ``crop_invert``;
+        the slabs per slice are in the slice table.  A cropped sample's ray still
+        leaves on the pixel bus after its last step.
     lit, modulate, gm_scale, ratio, ka : In
         Shading on, gradient-magnitude opacity modulation on and its UQ0.24 index scale,
         the gradient's ``to_world`` ratios (3 x UQ1.12, x first), the ambient coefficient
@@ -197,6 +202,9 @@ class Cube4Top(wiring.Component):
                 "mip": In(1),
                 "ert_enable": In(1),
                 "ert_threshold": In(dp.composite.acc_frac_bits + 1),
+                "crop": In(1),
+                "crop_needed": In(2),
+                "crop_invert": In(1),
                 "lit": In(1),
                 "modulate": In(1),
                 "gm_scale": In(32),

@@ -91,10 +91,13 @@ class TopGeometry:
 def slice_layout(geo: TopGeometry, dp: Datapath):
     """One step's constants: slice ``q`` (and ``q mod P``), cell shift ``da``/``db``,
     base-plane offsets ``ia``/``ib`` (cell = ray coordinate + offset) and weights
-    ``wa``/``wb``: what the host's geometry unit gives for a parallel view; nothing about
-    timing."""
+    ``wa``/``wb``: what the host's geometry unit gives for a parallel view; the crop
+    box's slabs on this slice (``crop_k``: the slice inside the principal axis's slab;
+    ``crop_a_lo .. crop_a_hi``, ``crop_b_lo .. crop_b_hi``: the cells whose samples are
+    inside the in-slice axes' slabs); nothing about timing."""
     ab = geo.axis_bits
     w = dp.interp.weight.width
+    cell = signed(ab + 2)
     return data.StructLayout(
         {
             "q": unsigned(ab),
@@ -105,6 +108,11 @@ def slice_layout(geo: TopGeometry, dp: Datapath):
             "ib": signed(geo.offset_bits),
             "wa": unsigned(w),
             "wb": unsigned(w),
+            "crop_k": unsigned(1),
+            "crop_a_lo": cell,
+            "crop_a_hi": cell,
+            "crop_b_lo": cell,
+            "crop_b_hi": cell,
         }
     )
 

@@ -125,6 +125,16 @@ def delay_line(m: Module, value, length: int, name: str) -> list:
     return taps
 
 
+def _crop_keep(top, consts, ca, cb):
+    """The crop unit: whether the sample of cell ``(ca, cb)`` is composited (the crop
+    box's three slabs from the slice's constants, comparators only; everything when the
+    box is off)."""
+    in_a = (consts.crop_a_lo <= ca) & (ca <= consts.crop_a_hi)
+    in_b = (consts.crop_b_lo <= cb) & (cb <= consts.crop_b_hi)
+    count = consts.crop_k + in_a + in_b
+    return ~top.crop | ((count >= top.crop_needed) ^ top.crop_invert)
+
+
 class PipelineFrontEnd:
     """What pipeline ``k``'s front end hands to the back ends: its evaluated cell
     (``record``: samples, edge lerps, slot flags, ray) and its sample history."""
@@ -187,6 +197,7 @@ def front_end(m: Module, top, k: int, ev: dict, bufs: list, rays) -> PipelineFro
         b == top.n_b - 1,
         rr == P - 1,  # the next voxel of the beam is in the next clock group
         rr == 0,  # the previous one in the previous group
+        _crop_keep(top, consts, ca, cb),
     )
     side1 = Signal(geo.ray_bits + 2 + (ab + 1) + len(flags), name=f"side1_{k}")
     ray = u[: geo.ray_bits] * top.width + v[: geo.ray_bits]
@@ -344,7 +355,7 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
         pos += len(f)
     takes, last, ray, flags = parts[:4]
     s_prev, s_cur, s_next, row0, row1, col0, col1 = parts[4:]
-    first_a, last_a, first_b, last_b, wrap_up, wrap_dn = (flags[i] for i in range(6))
+    first_a, last_a, first_b, last_b, wrap_up, wrap_dn, keep = (flags[i] for i in range(7))
     up_hist = Array(fronts[(k + 1) % P].history)
     dn_hist = Array(fronts[(k - 1) % P].history)
     c = top.c
@@ -432,7 +443,7 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     alpha = delayed(m, classify.o.payload.alpha, SHADE_LATENCY, f"alpha{k}")
     units = GRADIENT_LATENCY + CLASSIFY_LATENCY + SHADE_LATENCY
     sample = delayed(m, s_cur, units, f"sample_c{k}")
-    side = Cat(ray, last)
+    side = Cat(ray, last, keep)
     # The compositing buffer is read one clock before the sample reaches the compositor.
     side8 = delayed(m, side, units - 1, f"side_c{k}")
     buf_rd = ray_buffer.read_port()
@@ -452,9 +463,10 @@ def back_end(m: Module, top, k: int, fronts: list, ray_buffer, buffer_lay, loadi
     after = delayed(m, Cat(side9, entry.alive), COMPOSITE_LATENCY, f"sidew{k}")
     ray_w = after[: geo.ray_bits]
     last_w = after[geo.ray_bits]
+    keep_w = after[geo.ray_bits + 1]  # a cropped sample is not written back
     alive_w = after[len(side)]
     out = composite.o.payload
-    counted = composite.o.valid & (alive_w | top.mip)
+    counted = composite.o.valid & keep_w & (alive_w | top.mip)
     wb_data = Signal(buffer_lay.size, name=f"writeback_data{k}")
     m.d.comb += wb_data.eq(Cat(out.acc, out.mip, ~out.terminated))
     return {

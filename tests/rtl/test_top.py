@@ -16,7 +16,7 @@ from top_cases import scene_of
 from hwsim.core.errors import InputError, NotAvailableError
 from hwsim.golden import make_plan
 from hwsim.run.fidelity import resolve_arch
-from hwsim.spec.scene import CropSpec, Light
+from hwsim.spec.scene import CutPlane, Light
 from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.frame import frame_of
@@ -73,7 +73,7 @@ def _prepare(scene, size=8, arch="cube4"):
     [
         (scene_of(0, 0, "mip"), 129, "volume"),
         (scene_of(0, 0, "xray"), 8, "render.mode"),
-        (dataclasses.replace(scene_of(0, 0, "composite"), crop=CropSpec(x=(0.0, 4.0))), 8, "crop"),
+        (scene_of(0, 0, "composite").replace(cut_planes=(CutPlane(),)), 8, "cut_planes"),
         (scene_of(0, 0, "lit").replace(lights=(Light(),) * 3), 8, "lights"),
         (
             scene_of(0, 0, "lit").replace(

@@ -16,6 +16,7 @@ from sdram_standin import StandInSdram
 import hwsim
 from hwsim.core.errors import InputError
 from hwsim.run.fidelity import builtin_archs, machine_rungs, resolve_arch
+from hwsim.spec.scene import CropSpec
 from hwsim.studies.rtl_diff import _frame
 from models.backend import Backend
 from models.cycle import render_cycle
@@ -130,3 +131,28 @@ def test_em_cube_renders_lit_on_the_same_top_with_its_phong_shader():
     assert result.samples == cycle.samples and out["bursts"] == cycle.counters["memory.bursts"]
     rules = slice_fifo_timing(SlabMachine(Backend(f)))
     assert (result.cycles, out["hold_cycles"]) == (rules.cycles, rules.stall_cycles)
+
+
+@pytest.mark.parametrize(
+    ("mode", "crop"),
+    [
+        ("mip", CropSpec(x=(1.5, 5.2), y=(2.0, 6.0), z=(0.0, 4.5))),
+        ("composite", CropSpec(x=(1.5, 5.2), y=(2, 6), z=(0, 4.5), mode="cross", invert=True)),
+    ],
+)
+def test_the_crop_unit_keeps_the_samples_the_cycle_rung_keeps(mode, crop):
+    """VolumePro 500's crop box (three slabs, sub-volume / cross / fence, inverted): the
+    host writes each slice's slabs as cell ranges, checked against the plan's positions;
+    the unit's comparators gate the write-back, so a cropped ray still leaves the bus."""
+    f = frame(mode=mode)
+    f = dataclasses.replace(f, scene=f.scene.replace(crop=crop))
+    dp = f.datapath
+    f = dataclasses.replace(
+        f, datapath=dataclasses.replace(dp, shade=dataclasses.replace(dp.shade, map_size=4))
+    )
+    result, out = run_vg500_amaranth(prepare_vg500(f))
+    cycle = render_cycle(f)
+    assert np.array_equal(np.asarray(result.image), np.asarray(cycle.image))
+    assert result.samples == cycle.samples < render_cycle(frame(mode=mode)).samples
+    waits = cycle.counters["memory.stall_cycles"]
+    assert (result.cycles, out["hold_cycles"]) == (cycle.cycles, waits)
