@@ -9,7 +9,9 @@ step, one round (one step of each live ray) at a time.  Its reference form runs 
 round as a chain of NumPy calls on arrays of a few dozen samples: positions, the block
 cache's lookups (resolved at once, sorted by line), the fills' SDRAM bursts, the issue
 timing and the back end's units; at 64^3 that is 1569 rounds and some hundred calls each.
-Here one compiled call runs a whole packet, sample by sample in issue order:
+Here one compiled call runs a whole packet, each round's samples in issue order, first
+through the memory side (:func:`~models.machines.vizard2.ray_memory.gather_round`, one
+call a round), then the datapath:
 
 - the position (the plan's own float expression, ``SamplePlan.position``), the cell and
   weights (:func:`~models.units.interp.cell_weight`);
@@ -17,8 +19,8 @@ Here one compiled call runs a whole packet, sample by sample in issue order:
   of the cell's 8 voxels, corner order (the reference's ``BlockCache.fetch`` order),
   each a hit or a fill of its direct-mapped line from the memory image (the faults
   ``corrupt_line`` and ``dropped_fill`` applied as the fill writes); the sample's corners
-  are read from the lines at once (its up to 8 blocks sit in different lines): what the
-  reference's line-store rows hold for it;
+  are read from the lines at once (its up to 8 blocks sit in different lines) into the
+  round's corner rows: what the reference's line-store rows hold for it;
 - for a live ray, the datapath: trilinear value, LUT, interpolated gradient-table entries,
   modulation, then per round :func:`~models.fused_stage.shade_and_blend` (composite) or
   the maximum (MIP);
@@ -26,6 +28,10 @@ Here one compiled call runs a whole packet, sample by sample in issue order:
   SDRAM controller's own compiled loop (:func:`hwsim.memory.sdram_kernel.schedule_requests`,
   on the controller's state), the stalls, issue cycles, early-termination feedback and the
   stage counters (summed: the stages' accounting is linear in its blocks).
+
+Helpers called per sample take scalars only: an array handed to a helper numba inlines
+costs two atomic reference-count updates a call, which were a fifth of the loop's time
+when the lookups and the corner reads were per-sample helpers (issue 36, round 3).
 
 **Scope** (:meth:`RayKernel.for_machine`): composite within
 :func:`models.fused_stage.eligible` (so a lit perspective frame, a shader per ray, is out),
@@ -69,8 +75,8 @@ from models.machines.vizard2.ray_memory import (
     _STALLS,
     REGS,
     fills_timed,
+    gather_round,
     issue_round,
-    lookups,
 )
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
@@ -86,24 +92,18 @@ LOOP_HASH = hashlib.sha256(
 
 
 @numba.njit(inline="always")
-def _trilinear(v, wz, wy, wx, s_bits, w_bits, w_code):
-    """``interp.interpolate`` of one sample's 8 raw corners ``v`` (``c = 4 dz + 2 dy +
-    dx``): promoted, then lerps along x (four), y (two), z (``interp.lerp_corners``)."""
+def _trilinear(v0, v1, v2, v3, v4, v5, v6, v7, wz, wy, wx, s_bits, w_bits, w_code):
+    """``interp.interpolate`` of one sample's 8 raw corners ``v<c>`` (``c = 4 dz + 2 dy +
+    dx``): promoted, then lerps along x (four), y (two), z (``interp.lerp_corners``).
+    Scalars only: an array handed to an inlined helper costs a reference count a call."""
     lerp = interp_unit.lerp_raw
-    a0 = lerp(np.int64(v[0]) << s_bits, np.int64(v[1]) << s_bits, wx, w_bits, w_code)
-    a1 = lerp(np.int64(v[2]) << s_bits, np.int64(v[3]) << s_bits, wx, w_bits, w_code)
-    a2 = lerp(np.int64(v[4]) << s_bits, np.int64(v[5]) << s_bits, wx, w_bits, w_code)
-    a3 = lerp(np.int64(v[6]) << s_bits, np.int64(v[7]) << s_bits, wx, w_bits, w_code)
+    a0 = lerp(np.int64(v0) << s_bits, np.int64(v1) << s_bits, wx, w_bits, w_code)
+    a1 = lerp(np.int64(v2) << s_bits, np.int64(v3) << s_bits, wx, w_bits, w_code)
+    a2 = lerp(np.int64(v4) << s_bits, np.int64(v5) << s_bits, wx, w_bits, w_code)
+    a3 = lerp(np.int64(v6) << s_bits, np.int64(v7) << s_bits, wx, w_bits, w_code)
     b0 = lerp(a0, a1, wy, w_bits, w_code)
     b1 = lerp(a2, a3, wy, w_bits, w_code)
     return np.int64(lerp(b0, b1, wz, w_bits, w_code))
-
-
-@numba.njit(inline="always")
-def _corners(store, line, offset, out):
-    for c in range(8):
-        out[c] = store[line[c], offset[c]]
-    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -120,38 +120,6 @@ def _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_
             live[n] = r
             n += 1
     return n
-
-
-@numba.njit(inline="always")
-def _cell(orig, dirs, r, dr, t, hi, shape, cell, c1, w, w_bits, w_code):
-    """Plan ray ``r``'s position at ``t`` (``SamplePlan.position``'s expression): its
-    cell's low corner ``cell``, far corner ``c1`` (the low one along an axis of one voxel)
-    and quantised weights ``w`` (``interp.interp_taps``)."""
-    for a in range(3):
-        c, q = interp_unit.cell_weight(orig[r, a] + t * dirs[dr, a], hi[a], w_bits, w_code)
-        cell[a], w[a] = np.int64(c), np.int64(q)
-        c1[a] = cell[a] + (1 if shape[a] > 1 else 0)
-
-
-@numba.njit(inline="always")
-def _keep(rgba, g, vis_rays, m, rgb12, idx, alpha, gx, gy, gz, ray):
-    """Visible sample number ``m`` (colour from LUT entry ``idx``) kept for shading and
-    blending; returns the new count."""
-    g[0, m], g[1, m], g[2, m] = gx, gy, gz
-    rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
-    rgba[3, m] = alpha
-    vis_rays[m] = ray
-    return m + 1
-
-
-@numba.njit(inline="always")
-def _gradient(cgx, cgy, cgz, line, offset, v, w, s_bits, w_bits, w_code):
-    """The sample's interpolated gradient-table entries ``(dx, dy, dz)``."""
-    return (
-        _trilinear(_corners(cgx, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code),
-        _trilinear(_corners(cgy, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code),
-        _trilinear(_corners(cgz, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code),
-    )
 
 
 @numba.njit(inline="always")
@@ -202,18 +170,16 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         values = not timing or ert_on
         grads = grads and (not timing or (ert_on and modulates))
         gm_scale, gm_entries = grad_p[GRAD_FLAGS[2]], grad_p[GRAD_FLAGS[3]]
-        per_ray_dir = dirs.shape[0] > 1
-        hi = (shape[0] - 1.0, shape[1] - 1.0, shape[2] - 1.0)
         n_pk = packet.shape[0]
         # Per round: its live rays, their state before it, issue cycles, the groups'
-        # stalls, the misses (sample, block) and the visible samples' colours and gradients.
+        # stalls, the misses (sample, block), each sample's weights and corners (8 values,
+        # 24 gradient-table entries) and the visible samples' colours and gradients.
         rows = np.empty((3, n_pk), np.int64)
         live, vis_rays, issue = rows[0], rows[1], rows[2]
         before, stall = np.empty(n_pk, np.bool_), np.zeros(n_pk // P + 1, np.int64)
         miss_s, miss_b = np.empty(8 * n_pk, np.int64), np.empty(8 * n_pk, np.int64)
         rgba, g = np.empty((4, n_pk), np.int64), np.empty((3, n_pk), np.int64)
-        cell, c1, w = np.empty(3, np.int64), np.empty(3, np.int64), np.empty(3, np.int64)
-        line, offset, v = np.empty(8, np.int64), np.empty(8, np.int64), np.empty(8, np.int64)
+        w, v = np.empty((n_pk, 3), np.int64), np.empty((n_pk, 32), np.int64)
         j0, j1 = j_lo[packet].min(), j_hi[packet].max()
         for j in range(j0, j1 + 1):
             clock = regs[_CLOCK]
@@ -221,27 +187,36 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                            feedback, live)  # fmt: skip
             if n == 0:
                 continue
-            t = (k_first + k_dir * j) * dt
-            n_miss = 0
+            n_miss = gather_round(
+                n, live, ray_ids, orig, dirs, (k_first + k_dir * j) * dt, shape, nb, sets, tag,
+                cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, values, mip, faults, miss_s,
+                miss_b, regs, alive, before, w, v, w_bits, w_code,
+            )  # fmt: skip
             m = 0
             for i in range(n):
-                r = live[i]
-                ray = ray_ids[r]
-                dr = r if per_ray_dir else 0
-                _cell(orig, dirs, r, dr, t, hi, shape, cell, c1, w, w_bits, w_code)
-                n_miss = lookups(
-                    cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
-                    values, faults, line, offset, i, miss_s, miss_b, n_miss, regs,
-                )  # fmt: skip
-                before[i] = alive[ray]
                 if not (mip or before[i]):
                     continue  # a dead ray's sample: fetched, not processed
                 regs[_SAMPLES] += 1
                 if not values:
                     continue  # timing only, no ray ends early: no clock waits on a value
+                ray = ray_ids[live[i]]
                 touched[ray] = True
+                wz, wy, wx = w[i, 0], w[i, 1], w[i, 2]
                 value = _trilinear(
-                    _corners(cvals, line, offset, v), w[0], w[1], w[2], s_bits, w_bits, w_code
+                    v[i, 0],
+                    v[i, 1],
+                    v[i, 2],
+                    v[i, 3],
+                    v[i, 4],
+                    v[i, 5],
+                    v[i, 6],
+                    v[i, 7],
+                    wz,
+                    wy,
+                    wx,
+                    s_bits,
+                    w_bits,
+                    w_code,
                 )
                 if mip:
                     acc[ray, 0] = max(acc[ray, 0], value)
@@ -252,13 +227,61 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                     continue  # transparent: changes nothing (Backend._composite's `vis`)
                 gx = gy = gz = np.int64(0)
                 if grads:
-                    gx, gy, gz = _gradient(
-                        cgx, cgy, cgz, line, offset, v, w, s_bits, w_bits, w_code
+                    gx = _trilinear(
+                        v[i, 8],
+                        v[i, 9],
+                        v[i, 10],
+                        v[i, 11],
+                        v[i, 12],
+                        v[i, 13],
+                        v[i, 14],
+                        v[i, 15],
+                        wz,
+                        wy,
+                        wx,
+                        s_bits,
+                        w_bits,
+                        w_code,
+                    )
+                    gy = _trilinear(
+                        v[i, 16],
+                        v[i, 17],
+                        v[i, 18],
+                        v[i, 19],
+                        v[i, 20],
+                        v[i, 21],
+                        v[i, 22],
+                        v[i, 23],
+                        wz,
+                        wy,
+                        wx,
+                        s_bits,
+                        w_bits,
+                        w_code,
+                    )
+                    gz = _trilinear(
+                        v[i, 24],
+                        v[i, 25],
+                        v[i, 26],
+                        v[i, 27],
+                        v[i, 28],
+                        v[i, 29],
+                        v[i, 30],
+                        v[i, 31],
+                        wz,
+                        wy,
+                        wx,
+                        s_bits,
+                        w_bits,
+                        w_code,
                     )
                     gx, gy, gz, alpha = world_and_modulate(
                         gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale, gm_entries, gm_table
                     )
-                m = _keep(rgba, g, vis_rays, m, rgb12, idx, alpha, gx, gy, gz, ray)
+                g[0, m], g[1, m], g[2, m] = gx, gy, gz
+                rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+                rgba[3, m], vis_rays[m] = alpha, ray
+                m += 1
             if timing and values:
                 _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one,
                                acc_code)  # fmt: skip

@@ -18,8 +18,9 @@ import numba
 import numpy as np
 
 from hwsim.memory.sdram_kernel import schedule_requests
+from models.units.interp import cell_weight
 
-__all__ = ["REGS", "fills_timed", "issue_round", "lookups"]
+__all__ = ["REGS", "fills_timed", "gather_round", "issue_round"]
 
 #: ``regs`` of the packet kernel, by position.
 REGS = (
@@ -55,20 +56,22 @@ def _fill_line(line, block, k, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads
 
 @numba.njit(cache=True, nogil=True)
 def _grown(a, need):
-    """``a`` (2-D) with at least ``need`` columns (doubling), its columns kept."""
+    """``a`` (2-D) with at least ``need`` columns (growing fourfold), its columns kept;
+    the new ones uninitialised (the scheduler writes every request's column)."""
     if need <= a.shape[1]:
         return a
-    b = np.zeros((a.shape[0], max(2 * a.shape[1], need)), a.dtype)
+    b = np.empty((a.shape[0], max(4 * a.shape[1], need)), a.dtype)
     b[:, : a.shape[1]] = a
     return b
 
 
 @numba.njit(cache=True, nogil=True)
 def _grown1(a, need):
-    """``a`` (1-D) with at least ``need`` entries (doubling), its entries kept."""
+    """``a`` (1-D) with at least ``need`` entries (growing fourfold), its entries kept;
+    the new ones uninitialised (written before they are read)."""
     if need <= a.shape[0]:
         return a
-    b = np.zeros(max(2 * a.shape[0], need), a.dtype)
+    b = np.empty(max(4 * a.shape[0], need), a.dtype)
     b[: a.shape[0]] = a
     return b
 
@@ -82,7 +85,7 @@ def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_
     vw, gw, gbase, vb, gb, bl, cols, banks, nrows, data_lat, fill_write = lay
     waited = 0
     s = 0
-    keys = np.empty(n_miss * (vb + gb), np.int64)
+    keys = np.empty((3, n_miss * (vb + gb)), np.int64)  # page keys, their banks and rows
     while s < n_miss:
         g = miss_s[s] // P
         e = s
@@ -94,18 +97,21 @@ def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_
                 else:
                     addr = gbase + miss_b[e] * gw + (k - vb) * bl
                 page = addr // cols
-                keys[nk] = (page % banks) * nrows + page // banks
+                keys[0, nk] = (page % banks) * nrows + page // banks
                 nk += 1
             e += 1
         arrive = start + g + waited
-        order = np.sort(keys[:nk])  # lexsort((rows, banks)): bank, then row
+        order = keys[0, :nk]
+        order.sort()  # lexsort((rows, banks)): bank, then row
+        for q in range(nk):
+            keys[1, q], keys[2, q] = order[q] // nrows, order[q] % nrows
         earliest = np.int64(np.ceil(arrive * ratio))
         first = regs[_SD_N]
         need = first + nk
         sd_out, sd_arr = _grown(sd_out, need), _grown1(sd_arr, need)
         sd_arr[first:need] = earliest
         sd_booked, sd_log = schedule_requests(
-            sd_params, sd_regs, sd_banks, order // nrows, order % nrows, sd_arr[first:need],
+            sd_params, sd_regs, sd_banks, keys[1, :nk], keys[2, :nk], sd_arr[first:need],
             sd_out, first, sd_booked, sd_log,
         )  # fmt: skip
         regs[_SD_N] = need
@@ -118,48 +124,77 @@ def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_
     return sd_out, sd_arr, sd_booked, sd_log
 
 
-@numba.njit(inline="always")
-def lookups(cell, c1, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads,
-             values, faults, line, offset, i, miss_s, miss_b, n_miss, regs):  # fmt: skip
-    """The cache lookups of one sample whose cell's low corner is ``cell`` (``c1``: its
-    far corner per axis): per corner its ``line`` and ``offset``; the distinct blocks
-    looked up in corner order, a miss filling its line (its words copied only when
-    ``values``: timing only copies none unless a ray may end early).  Returns the new
-    miss count."""
-    # Each axis's two block coordinates and their sets, once; the distinct blocks in
-    # corner order (a corner's block is a lower corner's unless all its set axes cross).
-    bz0, by0, bx0 = cell[0] >> 2, cell[1] >> 2, cell[2] >> 2
-    bz1, by1, bx1 = c1[0] >> 2, c1[1] >> 2, c1[2] >> 2
-    sz0, sy0, sx0 = bz0 % sets[0], by0 % sets[1], bx0 % sets[2]
-    sz1, sy1, sx1 = bz1 % sets[0], by1 % sets[1], bx1 % sets[2]
-    for dz in range(2 if bz1 != bz0 else 1):
-        bz, sz = (bz1, sz1) if dz else (bz0, sz0)
-        for dy in range(2 if by1 != by0 else 1):
-            by, sy = (by1, sy1) if dy else (by0, sy0)
-            for dx in range(2 if bx1 != bx0 else 1):
-                bx, sx = (bx1, sx1) if dx else (bx0, sx0)
-                at = (sz * sets[1] + sy) * sets[2] + sx
-                block = (bz * nb[1] + by) * nb[2] + bx
-                regs[_LOOKUPS] += 1
-                if tag[at] == block:
-                    regs[_HITS] += 1
-                    continue
-                tag[at] = block
-                if values:
-                    _fill_line(
-                        at, block, regs[_FILLS], cvals, cgx, cgy, cgz, ivals, igx, igy, igz,
-                        grads, faults,
-                    )  # fmt: skip
-                regs[_FILLS] += 1
-                miss_s[n_miss], miss_b[n_miss] = i, block
-                n_miss += 1
-    for c in range(8 if values else 0):  # where the datapath reads each corner
-        hz, hy, hx = c & 4 != 0, c & 2 != 0, c & 1 != 0
-        z, sz = (c1[0], sz1) if hz else (cell[0], sz0)
-        y, sy = (c1[1], sy1) if hy else (cell[1], sy0)
-        x, sx = (c1[2], sx1) if hx else (cell[2], sx0)
-        offset[c] = (((z & 3) << 2) | (y & 3)) << 2 | (x & 3)
-        line[c] = (sz * sets[1] + sy) * sets[2] + sx
+@numba.njit(cache=True, nogil=True)
+def gather_round(n, live, ray_ids, orig, dirs, t, shape, nb, sets, tag, cvals, cgx, cgy, cgz,
+                 ivals, igx, igy, igz, grads, values, keep_dead, faults, miss_s, miss_b, regs,
+                 alive, before, weights, corners, w_bits, w_code):  # fmt: skip
+    """A round's ``n`` samples (plan rays ``live``, at ray parameter ``t``) in issue order:
+    each one's position, cell and quantised weights (``SamplePlan.position``'s expression,
+    :func:`~models.units.interp.cell_weight`; ``weights[i]``), the cache lookups of its
+    cell's distinct blocks in corner order (a miss fills its direct-mapped line: its
+    words copied only when ``values``; the miss noted in ``miss_s``/``miss_b``), its
+    ray's state before the round (``before[i]``) and, when ``values`` and the ray is
+    live (or ``keep_dead``), its corners as the lines hold them right after its lookups
+    (``corners[i]``: 8 values, then 8 each of the gradient table's x, y, z when
+    ``grads``).  One call per round: no array is handed to a per-sample helper (each
+    would cost a reference count per sample).  Returns the round's miss count."""
+    n_miss = 0
+    per_ray_dir = dirs.shape[0] > 1
+    s0, s1, s2 = sets[0], sets[1], sets[2]
+    for i in range(n):
+        r = live[i]
+        dr = r if per_ray_dir else 0
+        # Position, cell and weights (``interp.interp_taps``), one axis at a time.
+        p0, q0 = cell_weight(orig[r, 0] + t * dirs[dr, 0], shape[0] - 1.0, w_bits, w_code)
+        p1, q1 = cell_weight(orig[r, 1] + t * dirs[dr, 1], shape[1] - 1.0, w_bits, w_code)
+        p2, q2 = cell_weight(orig[r, 2] + t * dirs[dr, 2], shape[2] - 1.0, w_bits, w_code)
+        z0, y0, x0 = np.int64(p0), np.int64(p1), np.int64(p2)
+        z1 = z0 + (1 if shape[0] > 1 else 0)
+        y1 = y0 + (1 if shape[1] > 1 else 0)
+        x1 = x0 + (1 if shape[2] > 1 else 0)
+        weights[i, 0], weights[i, 1], weights[i, 2] = np.int64(q0), np.int64(q1), np.int64(q2)
+        # Each axis's two block coordinates and their sets; the distinct blocks in corner
+        # order (a corner's block is a lower corner's unless all its set axes cross).
+        bz0, by0, bx0 = z0 >> 2, y0 >> 2, x0 >> 2
+        bz1, by1, bx1 = z1 >> 2, y1 >> 2, x1 >> 2
+        sz0, sy0, sx0 = bz0 % s0, by0 % s1, bx0 % s2
+        sz1, sy1, sx1 = bz1 % s0, by1 % s1, bx1 % s2
+        for dz in range(2 if bz1 != bz0 else 1):
+            bz, sz = (bz1, sz1) if dz else (bz0, sz0)
+            for dy in range(2 if by1 != by0 else 1):
+                by, sy = (by1, sy1) if dy else (by0, sy0)
+                for dx in range(2 if bx1 != bx0 else 1):
+                    bx, sx = (bx1, sx1) if dx else (bx0, sx0)
+                    at = (sz * s1 + sy) * s2 + sx
+                    block = (bz * nb[1] + by) * nb[2] + bx
+                    regs[_LOOKUPS] += 1
+                    if tag[at] == block:
+                        regs[_HITS] += 1
+                        continue
+                    tag[at] = block
+                    if values:
+                        _fill_line(
+                            at, block, regs[_FILLS], cvals, cgx, cgy, cgz, ivals, igx, igy,
+                            igz, grads, faults,
+                        )  # fmt: skip
+                    regs[_FILLS] += 1
+                    miss_s[n_miss], miss_b[n_miss] = i, block
+                    n_miss += 1
+        live_ray = alive[ray_ids[r]]
+        before[i] = live_ray
+        if not values or not (live_ray or keep_dead):
+            continue
+        for c in range(8):  # where the datapath reads each corner
+            z, sz = (z1, sz1) if c & 4 else (z0, sz0)
+            y, sy = (y1, sy1) if c & 2 else (y0, sy0)
+            x, sx = (x1, sx1) if c & 1 else (x0, sx0)
+            off = (((z & 3) << 2) | (y & 3)) << 2 | (x & 3)
+            line = (sz * s1 + sy) * s2 + sx
+            corners[i, c] = cvals[line, off]
+            if grads:
+                corners[i, 8 + c] = cgx[line, off]
+                corners[i, 16 + c] = cgy[line, off]
+                corners[i, 24 + c] = cgz[line, off]
     return n_miss
 
 
