@@ -5,7 +5,7 @@ the reads handed to the SDRAM ports late and in bulk.
 #      process); hwsim/memory/sdram_events.py (SdramTransactionPort.read_runs).
 
 :class:`ChunkStreams` holds every chunk's bursts split by module (built by
-:meth:`models.machines.volumepro.transaction.SlabTransaction._chunk_streams`);
+:func:`chunk_streams`, laying out only the mini-blocks a chunk reads);
 :class:`DeferredReads` records when each chunk issues and hands the ports every chunk
 issued so far when the pipelines first ask when one is ready.
 """
@@ -13,10 +13,20 @@ issued so far when the pipelines first ask when one is ready.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["ChunkStreams", "DeferredReads"]
+from models.machines.volumepro.lanes import miniblock_layout
+from models.machines.volumepro.memory import mini_block_bursts
+
+__all__ = ["ChunkStreams", "DeferredReads", "chunk_streams"]
+
+#: Bursts of the slab layouts kept for the next frame (a 256^3 volume's 2 Mi with one
+#: word a voxel); larger volumes are laid out again each frame.
+_KEEP = 1 << 22
+#: The last slab layouts, by voxel layout and view axes (:func:`slab_layouts`).
+_layouts: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
 
 @dataclass
@@ -27,6 +37,71 @@ class ChunkStreams:
 
     modules: list[tuple[np.ndarray, np.ndarray, list[int], np.ndarray]]
     batches: list[int]
+
+
+def slab_layouts(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Module, bank and row of every burst of every slab's mini-block beams, ``(slabs,
+    n_u, n_mb words_per_voxel)``: mbb ``u`` of slab ``s`` holds voxel rows ``2u, 2u + 1``
+    of voxel slices ``2s, 2s + 1``, its mini-blocks along the beam in read order, a
+    mini-block's bursts back to back.  ``model``: the
+    :class:`~models.machines.volumepro.transaction.SlabTransaction`.  The layout is the
+    volume's, not the view's: the last one (up to :data:`_KEEP` bursts) is kept for the
+    next frame with the same memory, volume size and axes."""
+    n_mb, wpv = -(-model.n_b // 2), model.words_per_voxel
+    axes = (model.kp, model.a_ax, model.b_ax)
+    key = (repr(model.memory), model.n_even, axes, model.n_slabs, model.n_u, n_mb, wpv)
+    if key in _layouts:
+        return _layouts[key]
+    shape = (model.n_slabs, model.n_u, n_mb * wpv)
+    out = (np.empty(shape, np.int16), np.empty(shape, np.int16), np.empty(shape, np.int64))
+    coords: list[Any] = [None, None, None]
+    coords[model.a_ax] = np.repeat(2 * np.arange(model.n_u)[:, None], n_mb, axis=1)
+    coords[model.b_ax] = np.repeat(2 * np.arange(n_mb)[None, :], model.n_u, axis=0)
+    for slab in range(model.n_slabs):  # a slab at a time: the temporaries stay small
+        coords[model.kp] = np.full((model.n_u, n_mb), 2 * slab)
+        module, bank, address = miniblock_layout(
+            model.memory, model.n_even, coords[2], coords[1], coords[0]
+        )
+        bursts = mini_block_bursts(model.memory, module, bank, address, wpv)
+        for whole, part in zip(out, bursts, strict=True):
+            whole[slab] = part
+    if out[0].size <= _KEEP:
+        _layouts.clear()
+        _layouts[key] = out
+    return out
+
+
+def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkStreams:
+    """Every chunk's bursts (mini-blocks read: all, or with skipping those a live cell
+    needs, ``model.skips.needed``), split by module into one stream each in read order,
+    checked against the device once.  ``model``: the
+    :class:`~models.machines.volumepro.transaction.SlabTransaction`; ``chunks``: its
+    ``(band, slab, u_lo, u_hi)`` in read order.  The split is compiled
+    (:func:`~models.machines.volumepro.streams_kernel.split_streams`) over the slab
+    layouts (:func:`slab_layouts`)."""
+    from models.machines.volumepro.streams_kernel import split_streams  # imports numba
+
+    M, cfg, nc = model.memory.modules, model.memory.sdram, len(chunks)
+    if not nc:
+        empty = np.zeros(0, np.int64)
+        return ChunkStreams([(empty, empty, [0], empty)] * M, [])
+    spans = np.array([(slab, lo, hi + 1) for _, slab, lo, hi in chunks], dtype=np.int64)
+    sk = model.skips
+    needed = np.zeros((0, 0, 0), dtype=bool) if sk is None else sk.needed
+    module, bank, row = slab_layouts(model)
+    per, banks, rows = split_streams(module, bank, row, spans, needed, model.words_per_voxel, M)
+    if banks.size and (banks.min() < 0 or banks.max() >= cfg.banks):
+        raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
+    if rows.size and (rows.min() < 0 or rows.max() >= cfg.rows):
+        raise ValueError(f"row out of range 0 .. {cfg.rows - 1}")
+    bounds = np.zeros((M, nc + 1), dtype=np.int64)
+    np.cumsum(per, axis=1, out=bounds[:, 1:])
+    modules, at = [], 0
+    for k in range(M):
+        n = int(bounds[k, -1])
+        modules.append((banks[at : at + n], rows[at : at + n], bounds[k].tolist(), per[k]))
+        at += n
+    return ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
 
 
 class DeferredReads:

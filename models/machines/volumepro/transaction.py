@@ -71,7 +71,7 @@ from models.machines.common.transaction import (
     require_pipeline_clock,
     slice_loads,
 )
-from models.machines.volumepro.chunk_reads import ChunkStreams, DeferredReads
+from models.machines.volumepro.chunk_reads import DeferredReads, chunk_streams
 from models.machines.volumepro.fifo_timing import (
     DESKEW_WRITE,
     stream_latency,
@@ -79,7 +79,7 @@ from models.machines.volumepro.fifo_timing import (
 )
 from models.machines.volumepro.fifo_transaction import fifo_schedule
 from models.machines.volumepro.lanes import busiest_lanes, miniblock_layout, sample_lanes
-from models.machines.volumepro.memory import mini_block_bursts, words_per_voxel
+from models.machines.volumepro.memory import words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade
 
@@ -170,19 +170,6 @@ class SlabTransaction:
         p = min(max(slice_position(self.plan, j, self.forward), 0.0), n - 1.0)
         i0 = int(min(np.floor(p), max(n - 2, 0)))
         return max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2
-
-    def _slab_layout(self, slab: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Module, bank and row of every mini-block of ``slab``, ``(n_u, n_b / 2)``: mbb
-        ``u`` (rows ``2u, 2u + 1``), mini-blocks along the beam in read order."""
-        n_mb = -(-self.n_b // 2)
-        coords: list[Any] = [None, None, None]
-        coords[self.kp] = np.full((self.n_u, n_mb), 2 * slab)
-        coords[self.a_ax] = np.repeat(2 * np.arange(self.n_u)[:, None], n_mb, axis=1)
-        coords[self.b_ax] = np.repeat(2 * np.arange(n_mb)[None, :], self.n_u, axis=0)
-        module, bank, address = miniblock_layout(
-            self.memory, self.n_even, coords[2], coords[1], coords[0]
-        )
-        return mini_block_bursts(self.memory, module, bank, address, self.words_per_voxel)
 
     def _schedule(self, n_steps: int):
         """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
@@ -336,7 +323,7 @@ class SlabTransaction:
         )
         env = simpy.Environment()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        reads = DeferredReads(ports, self._chunk_streams(chunks), nc, frames)
+        reads = DeferredReads(ports, chunk_streams(self, chunks), nc, frames)
         freed = [env.event() for _ in range(nc * frames)]
         frees_at: dict[int, list[int]] = {}
         for c, g in enumerate(free_after.tolist()):
@@ -432,59 +419,18 @@ class SlabTransaction:
         """Rays leaving over the pixel bus after sample slice ``j`` of band ``bi``."""
         return int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
 
-    def _chunk_streams(self, chunks) -> ChunkStreams:
-        """Every chunk's bursts (mini-blocks read: all, or with skipping those a live cell
-        needs), split by module into one stream each in read order, checked against the
-        device once."""
-        parts: list[tuple[np.ndarray, ...]] = []
-        sk, wpv, nc = self.skips, self.words_per_voxel, len(chunks)
-        c = 0
-        while c < nc:  # the chunks of one band's read of one slab together
-            bi, slab = chunks[c][:2]
-            e = c
-            while e < nc and chunks[e][:2] == (bi, slab):
-                e += 1
-            spans = [(u_lo, u_hi + 1) for _, _, u_lo, u_hi in chunks[c:e]]
-            rows = np.concatenate([np.arange(lo, hi) for lo, hi in spans])
-            owner = np.repeat(np.arange(c, e), [hi - lo for lo, hi in spans])
-            module, bank, row = (x[rows] for x in self._slab_layout(slab))
-            if sk is None:
-                counts = np.full(rows.size, module.shape[1])
-                module, bank, row = module.ravel(), bank.ravel(), row.ravel()
-            else:  # only the mini-blocks a live cell needs
-                keep = np.repeat(sk.needed[slab][rows], wpv, axis=-1)
-                counts = keep.sum(axis=1)
-                module, bank, row = module[keep], bank[keep], row[keep]
-            parts.append((module, bank, row, np.repeat(owner, counts)))
-            c = e
-        M, cfg = self.memory.modules, self.memory.sdram
-        if not parts:
-            empty = np.zeros(0, np.int64)
-            return ChunkStreams([(empty, empty, [0], empty)] * M, [])
-        module, bank, row, chunk = (np.concatenate([p[i] for p in parts]) for i in range(4))
-        if bank.size and (bank.min() < 0 or bank.max() >= cfg.banks):
-            raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
-        if row.size and (row.min() < 0 or row.max() >= cfg.rows):
-            raise ValueError(f"row out of range 0 .. {cfg.rows - 1}")
-        key = np.asarray(module, dtype=np.int64) * nc + chunk
-        per = np.bincount(key, minlength=M * nc).reshape(M, nc)
-        bounds = np.zeros((M, nc + 1), dtype=np.int64)
-        np.cumsum(per, axis=1, out=bounds[:, 1:])
-        modules = []
-        for k in range(M):
-            on = module == k
-            banks = np.asarray(bank[on], dtype=np.int64)  # no copy: the layout's int64
-            rows = np.asarray(row[on], dtype=np.int64)
-            modules.append((banks, rows, bounds[k].tolist(), per[k]))
-        return ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
-
     def _mbb_reads(self, chunks) -> int:
         """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
         mini-block that is read."""
         if self.skips is None:
             return sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks)
-        needed = self.skips.needed
-        return sum(int(needed[s, lo : hi + 1].any(axis=1).sum()) for _, s, lo, hi in chunks)
+        if not chunks:
+            return 0
+        read = self.skips.needed.any(axis=2)  # (slab, mbb): some mini-block of it is read
+        upto = np.zeros((read.shape[0], read.shape[1] + 1), dtype=np.int64)
+        np.cumsum(read, axis=1, out=upto[:, 1:])  # mbbs read before each mbb of a slab
+        s, lo, hi = np.array([c[1:] for c in chunks], dtype=np.int64).T
+        return int((upto[s, hi + 1] - upto[s, lo]).sum())
 
     def _skip_counters(self) -> dict[str, int]:
         """Rule 6's counters (beams and bursts skipped) when the machine skips."""
