@@ -186,12 +186,15 @@ class SlabTransaction:
         if not self.forward:
             slab_order.reverse()
         chunks, index = [], {}
+        # Per slab and mbb, whether a mini-block of it is read (lists: a chunk's test is
+        # a slice of 2 U flags, cheaper in Python than a NumPy call per chunk).
+        read = None if sk is None else sk.needed.any(axis=2).tolist()
         for bi, (a0, a1) in enumerate(self.bands):
             u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
             for slab in slab_order:
                 for k, u in enumerate(range(u0, u1 + 1, U)):
                     hi = min(u + U - 1, u1)
-                    if sk is not None and not sk.needed[slab, u : hi + 1].any():
+                    if read is not None and not any(read[slab][u : hi + 1]):
                         continue  # no mini-block of these mbbs is read
                     index[bi, slab, k] = len(chunks)
                     chunks.append((bi, slab, u, hi))
@@ -227,10 +230,11 @@ class SlabTransaction:
                 if len(groups) == first:  # every beam of the slice skipped
                     groups.append((bi, j, 0, -1))
                     needs.append([])
-        free_after = np.full(len(chunks), -1, dtype=np.int64)
+        last = [-1] * len(chunks)
         for g, ids in enumerate(needs):
-            free_after[ids] = g  # groups are numbered in processing order
-        return chunks, groups, free_after
+            for c in ids:
+                last[c] = g  # groups are numbered in processing order
+        return chunks, groups, np.array(last, dtype=np.int64)
 
     # ------------------------------------------------------------------ frame
 
