@@ -14,8 +14,9 @@ cycles of the slice-FIFO rules (models/machines/volumepro/fifo_timing.py, the RT
 structure on the cycle rung's SDRAM scheduler), the RTL's held clocks and bursts, the
 image equality, the SDRAM checkers' counts, and the simulated clocks per second of the
 Verilator clock loop (goal: 100 k over a 64^3 frame, build excluded) and of the whole
-simulator process, and the rtl rung's wall time (build excluded) over the cycle rung's in
-the same run.  One thread (``HWSIM_THREADS=1``).
+simulator process, per second of wall time and per second of the process's CPU time (its
+hex-file loads included: the figure a loaded machine does not change), and the rtl rung's
+wall time (build excluded) over the cycle rung's in the same run.  One thread (``HWSIM_THREADS=1``).
 Nothing is asserted: benchmarks are not tests.
 """
 
@@ -87,6 +88,7 @@ def run(n: int, volume: str = "head", scratch: Path | None = None) -> dict:
         "rtl": {
             "cycles": rtl.cycles,
             "hold_cycles": c["memory.hold_cycles"],
+            "frame_refreshes": c["memory.sdram.frame_refreshes"],
             "bursts": c["memory.bursts"],
             **{k.rsplit(".", 1)[1]: v for k, v in c.items() if ".checker." in k},
             "build_seconds": timing["build_seconds"],
@@ -94,6 +96,8 @@ def run(n: int, volume: str = "head", scratch: Path | None = None) -> dict:
             "clocks": timing["clocks"],
             "clocks_per_second_loop": timing["clocks"] / timing["sim_seconds"],
             "clocks_per_second_process": timing["clocks"] / timing["run_seconds"],
+            "cpu_seconds": timing["cpu_seconds"],
+            "clocks_per_cpu_second_process": timing["clocks"] / timing["cpu_seconds"],
             "wall_over_cycle_rung": timing["run_seconds"] / (t1 - t0),
         },
         "image_equal": bool(np.array_equal(np.asarray(rtl.image), np.asarray(cycle.image))),
@@ -116,6 +120,7 @@ def main(argv=None) -> int:
             f"  held {r['rtl']['hold_cycles']:>7}  image {'=' if r['image_equal'] else '!='}"
             f"  violations {r['rtl'].get('violations')}"
             f"  {r['rtl']['clocks_per_second_loop'] / 1e3:.0f} k clocks/s (loop)"
+            f"  {r['rtl']['clocks_per_cpu_second_process'] / 1e3:.0f} k per CPU second"
             f"  wall {r['rtl']['wall_over_cycle_rung']:.1f}x the cycle rung's"
         )
     report = {

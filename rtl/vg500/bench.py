@@ -15,7 +15,11 @@ reset (two clocks) and the ``go`` pulse come from a power-on counter inside it, 
 logic depends on a port the C++ main writes (Verilator re-evaluates such logic on every
 ``eval``: with ``rst`` and ``go`` as ports that was nearly half the simulation's time).
 The C++ main for Verilator (:func:`vg500_main`) prints the Cube-4 bench's ``HWSIM {...}``
-line and a ``HWSIM_VG500 {...}`` line with the memory's counters.
+line and a ``HWSIM_VG500 {...}`` line with the memory's counters, among them
+``frame_refreshes``: the checkers' refreshes from the frame's start to its last READ (what
+the cycle rung's scheduler counts: no refresh before the frame's first request or after
+its last; the checkers' ``refreshes`` count from the devices' power-up, the host's loads
+and the frame's tail included).
 """
 
 from __future__ import annotations
@@ -102,19 +106,32 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
     )
     body = "\n".join(decl)
     names = ["clk", "finished", "clocks", "cycles", "samples", "stall_cycles"]
-    names += ["hold_cycles", "bursts", *COUNTERS]
+    names += ["hold_cycles", "bursts", "frame_refreshes", *COUNTERS]
     return f"""module vg500_bench({", ".join(names)});
   input clk;
   output reg finished;
   output reg [31:0] clocks;
   output [31:0] cycles, samples, stall_cycles, hold_cycles, bursts;
   output [31:0] {", ".join(COUNTERS)};
+  output [31:0] frame_refreshes;
 {body}
 {chr(10).join(devices)}
 {sums}
   reg [{load_bits - 1}:0] rom [0:{load_words_bound(geo, dp) - 1}];
   reg [8*512-1:0] path;
   integer nloads, fd;
+  reg [31:0] refreshes_at_start, refreshes_at_read, reads_seen;
+  assign frame_refreshes = refreshes_at_read - refreshes_at_start;
+  always @(posedge clk) begin
+    if (state == 3) begin
+      refreshes_at_start <= refreshes;
+      refreshes_at_read <= refreshes;
+      reads_seen <= reads;
+    end else if (state == 4 && reads != reads_seen) begin
+      reads_seen <= reads;
+      refreshes_at_read <= refreshes;
+    end
+  end
   reg [1:0] power_on;  // clocks 0, 1: reset; clock 2: go
   wire rst = power_on < 2;
   wire go = power_on == 2;
@@ -128,6 +145,9 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
   wire pixel_valid, busy, done, memory_ready;
   wire [{pixel_bits - 1}:0] pixel_payload;
   initial begin
+    refreshes_at_start = 0;
+    refreshes_at_read = 0;
+    reads_seen = 0;
     power_on = 0;
     state = 0;
     finished = 0;
@@ -181,8 +201,9 @@ def vg500_main() -> str:
     clocks at most, ``seconds``: the clock loop after the power-on clocks), a
     ``HWSIM_PROGRESS <samples>`` line every 16384 clocks and one ``HWSIM_VG500 {...}``
     line with the memory's counters."""
-    extra = ", ".join(f'\\"{c}\\": %u' for c in ("hold_cycles", "bursts", *COUNTERS))
-    args = ", ".join(f"bench->{c}" for c in ("hold_cycles", "bursts", *COUNTERS))
+    names = ("hold_cycles", "bursts", "frame_refreshes", *COUNTERS)
+    extra = ", ".join(f'\\"{c}\\": %u' for c in names)
+    args = ", ".join(f"bench->{c}" for c in names)
     return (
         r"""#include <chrono>
 #include <cstdio>

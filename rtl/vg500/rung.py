@@ -19,6 +19,7 @@ import hashlib
 import json
 import os
 import re
+import resource
 import time
 from pathlib import Path
 
@@ -168,7 +169,8 @@ def run_vg500(
     program: Vg500Program, simulator: str = "verilator", *, strict: bool = False, progress=None
 ) -> tuple[CycleResult, dict]:
     """Run one frame; returns the result and timings (``build_seconds``, ``run_seconds``,
-    ``sim_seconds``: the clock loop alone, ``clocks``) and the memory's counters."""
+    ``sim_seconds``: the clock loop alone, ``cpu_seconds``: the simulator process's CPU
+    time, ``clocks``) and the memory's counters."""
     require_simulator(simulator)
     if simulator != "verilator":
         raise NotAvailableError(
@@ -203,7 +205,9 @@ def run_vg500(
     plusargs += [f"+pixels={scratch['pixels']}", f"+nloads={len(words)}", f"+limit={limit}"]
     plusargs += [f"+r_{name}={int(value):x}" for name, value in regs.items()]
     try:
+        cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         returncode, output = _simulate([str(exe), *plusargs], inner.plan.samples, progress)
+        cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         line = next((x for x in output if x.startswith("HWSIM ")), None)
         extra = next((x for x in output if x.startswith("HWSIM_VG500 ")), None)
         if returncode != 0 or line is None or extra is None:
@@ -225,6 +229,8 @@ def run_vg500(
     result.counters["rtl.simulated_clocks"] = raw["clocks"]
     result.counters["memory.hold_cycles"] = mem["hold_cycles"]
     result.counters["memory.bursts"] = mem["bursts"]
+    # the frame's refreshes, first request to last READ (the cycle rung's count)
+    result.counters["memory.sdram.frame_refreshes"] = mem["frame_refreshes"]
     for name in ("violations", "activates", "reads", "precharges", "refreshes"):
         result.counters[f"memory.sdram.checker.{name}"] = mem[name]
     violations = [x for x in output if "violat" in x.lower() or "breach" in x.lower()]
@@ -236,6 +242,8 @@ def run_vg500(
         "build_seconds": t1 - t0,
         "run_seconds": t2 - t1,
         "sim_seconds": raw.get("seconds"),
+        # the simulator process's CPU time (its file loads included): speed under load
+        "cpu_seconds": (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime),
         "clocks": raw["clocks"],
     }
     return result, timing
