@@ -233,8 +233,8 @@ VG500_COUNTERS = (
     ("memory wait clocks", "memory.hold_cycles", "memory.stall_cycles"),
     ("SDRAM bursts", "memory.bursts", "memory.bursts"),
     ("SDRAM activations", "memory.sdram.checker.activates", "memory.sdram.activates"),
-    # The checkers count from power-up: the refreshes during the host's table loads too.
-    ("SDRAM refreshes", "memory.sdram.checker.refreshes", "memory.sdram.refreshes"),
+    # The frame's (from its start to its last READ); checker.refreshes counts from power-up.
+    ("SDRAM refreshes", "memory.sdram.frame_refreshes", "memory.sdram.refreshes"),
 )
 
 
