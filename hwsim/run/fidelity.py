@@ -549,6 +549,20 @@ def check_family(frame) -> None:
         family.check_frame(frame)
 
 
+def _require_rtl_top(arch: ArchConfig) -> None:
+    """Refuse the rtl rung for an arch whose family declares no RTL top for it
+    (``Machine.rtl_top``, ``Machine.rtl_archs``): a top is another machine's hardware, so a
+    Cube-1 (slice-parallel too) must not be rendered by the Cube-4 top."""
+    if "rtl" in machine_rungs(arch):
+        return
+    tops = [name for name, cfg in builtin_archs().items() if "rtl" in machine_rungs(cfg)]
+    raise NotAvailableError(
+        f"{arch.name} has no RTL top (the rtl rung builds only its own machine's hardware)",
+        key="--arch",
+        allowed=", ".join(tops) + " or a FILE.toml of their families",
+    )
+
+
 def _render_machine(frame, request: RenderRequest):
     """``frame`` at ``request.fidelity``, one of the machine rungs (imported on use: each
     pulls in its models), after the family's own refusals (the same for every rung)."""
@@ -571,6 +585,7 @@ def _render_machine(frame, request: RenderRequest):
     if fidelity == "rtl":
         from rtl.rung import render_rtl
 
+        _require_rtl_top(frame.arch)
         simulator = request.simulator or "verilator"
         return render_rtl(frame, simulator=simulator, trace=trace, progress=progress)
     from models.functional import render_functional

@@ -96,3 +96,27 @@ def _scene():
     base = load_scene("head")
     view = dataclasses.replace(base.view, width=12, height=12)
     return base.replace(volume=VolumeSpec(phantom="ball", params=(("size", 10),)), view=view)
+
+
+@pytest.mark.parametrize(
+    "name", [n for n, cfg in builtin_archs().items() if "rtl" not in machine_rungs(cfg)]
+)
+def test_the_rtl_rung_never_lends_one_machines_top_to_another(name, monkeypatch):
+    """A family without an RTL top is refused at the rtl rung by name, before any top is
+    built: Cube-1 is slice-parallel like Cube-4, and its frames once reached the Cube-4 top."""
+    import rtl.rung
+
+    def built(*args, **kwargs):
+        raise AssertionError(f"{name}: an RTL top was built for a machine that has none")
+
+    monkeypatch.setattr(rtl.rung, "render_rtl", built)
+    from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec, VolumeSpec
+
+    scene = Scene(
+        volume=VolumeSpec(phantom="head", params=(("size", 16),)),
+        transfer=TransferSpec(preset="ct"),
+        view=ViewSpec(azimuth=0, elevation=0, width=16, height=16),
+        render=RenderSpec(mode="composite"),
+    )
+    with pytest.raises(NotAvailableError, match=f"{name} has no RTL top"):
+        render(scene, fidelity="rtl", arch=name)

@@ -125,7 +125,7 @@ def test_scene_file_and_listing_commands(tmp_path):
         (["render", "--volume", "/nonexistent/x.nrrd"], "/nonexistent/x.nrrd"),
         (
             ["render", "--fidelity", "rtl", "--arch", "volumepro1000"],
-            "volumepro1000 (shear-image order) has no RTL top",
+            "--arch: volumepro1000 has no RTL top",
         ),
         (
             # Every machine has a transaction model now; it refuses what the machine did.
