@@ -9,9 +9,9 @@ and run on Amaranth's simulator in this process (no source copy: nothing else ch
 * one bank less in the RTL's skew: the words come from the wrong addresses, the image
   differs from the cycle rung's;
 * a shallower slab buffer (the least the frame allows): the pipelines wait on the memory
-  longer; the image stays, the cycles grow past those of the slice-FIFO rules on the
-  cycle rung's scheduler (models/machines/volumepro/fifo_timing.py), which the unmutated
-  top equals.  (The cycle rung's own rules 3, 5 and 8 are not yet those: docs/rtl.md.)
+  longer; the image stays, the cycles grow past the cycle rung's (its slice-FIFO rules
+  3', 5', 8', models/machines/volumepro/fifo_timing.py, since issue 35), which the
+  unmutated top equals.
 """
 
 import dataclasses
