@@ -196,7 +196,7 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         (
             "models.machines.vizard2.cycle.VizardMachine.timing",
             "models.machines.vizard2.ray_kernel.RayKernel",
-            "models.machines.vizard2.ray_memory.lookups",
+            "models.machines.vizard2.ray_memory.gather_round",
             "models.machines.vizard2.ray_memory.fills_timed",
             "hwsim.memory.SdramController",
         ),
