@@ -50,6 +50,7 @@ from models.machines.volumepro.fifo_timing import (
 from models.machines.volumepro.fifo_timing import reach as fifo_reach
 from models.machines.volumepro.memory import SdramVolume, words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
+from models.machines.volumepro.slice_loads import SliceLoads, differences_numpy, load_numpy
 from models.machines.volumepro.timing import (
     SliceRecord,
     frame_period,
@@ -58,7 +59,6 @@ from models.machines.volumepro.timing import (
     timing_inputs,
 )
 from models.machines.volumepro.trilinear import TrilinearSource
-from models.units import classify as classify_unit
 from models.units.voxel import converted_planes
 
 __all__ = ["SlabFaults", "SlabMachine", "TrilinearSource"]
@@ -130,6 +130,7 @@ class SlabMachine(SliceOrderMachine):
             from models.machines.volumepro.slab_kernel import SlabKernel  # imports numba
 
             self.kernel = SlabKernel.for_backend(backend, self)
+        self.loads = SliceLoads(self)
         if backend.mode == "composite":
             self.next_visible = backend.transparent_ranges()
         self._planes: dict[int, dict[str, np.ndarray]] = {}
@@ -214,28 +215,12 @@ class SlabMachine(SliceOrderMachine):
         return planes
 
     def _load(self, q: int) -> dict[str, np.ndarray]:
-        be, S = self.be, self.dp.interp.sample_frac_bits
-        stream = self.memory.read_slice(self.kp, q)
-        payloads = {}
-        if be.pre_classified:
-            rgba = be.classified_voxels(stream)
-            payloads.update((c, v.reshape(stream.shape)) for c, v in zip("rgba", rgba, strict=True))
-        if self.need_value:
-            payloads["value"] = stream
-        corners = {k: self.datapath.corners(v, q) for k, v in payloads.items()}
-        if "value" in corners:
-            self._voxels[q] = corners["value"][0, 2 : 2 + self.n_a, 2 : 2 + self.n_b]
-        planes = {}
-        if self.skip_transparent:
-            if be.pre_classified:
-                planes["amax"] = corners["a"].max(axis=0).ravel()
-            else:
-                value = corners["value"] << S
-                planes["lo"], planes["hi"] = (
-                    classify_unit.lut_index(x.ravel(), self.dp.voxel_bits, S, self.dp.classify)
-                    for x in (value.min(axis=0), value.max(axis=0))
-                )
-        planes.update((k, _cell_rows(v, S)) for k, v in corners.items())
+        """Corner planes of voxel slice ``q`` from the SDRAM words (its voxel plane kept
+        for the differences): compiled (:class:`SliceLoads`) unless the frame runs the
+        unit chain or is pre-classified (:func:`slice_loads.load_numpy`, the reference)."""
+        if self.kernel is None or self.be.pre_classified:
+            return load_numpy(self, q)
+        planes, self._voxels[q] = self.loads.load(q)
         return planes
 
     @property
@@ -252,37 +237,17 @@ class SlabMachine(SliceOrderMachine):
         """The gradient unit at voxels (``source = "voxel"``): central differences of the
         delivered slices ``q - 1, q, q + 1`` (``2 (v[1] - v[0])`` at edges), streamed back
         through the ring and beam FIFO as corner planes to be interpolated."""
-        S = self.dp.interp.sample_frac_bits
-        cur = self._voxel_plane(q)
-        n = self.n_kp
-        diffs: list[np.ndarray] = [None, None, None]  # type: ignore[list-item]
-        if n >= 2:
-            if q == 0:
-                dk = 2 * (self._voxel_plane(1) - cur)
-            elif q == n - 1:
-                dk = 2 * (cur - self._voxel_plane(n - 2))
-            else:
-                dk = self._voxel_plane(q + 1) - self._voxel_plane(q - 1)
-        else:
-            dk = np.zeros_like(cur)
-        diffs[self.kp] = dk
-        for ax, axis in ((self.a_ax, 0), (self.b_ax, 1)):
-            d = np.zeros_like(cur)
-            if cur.shape[axis] >= 2:
-                v, dv = np.moveaxis(cur, axis, 0), np.moveaxis(d, axis, 0)
-                dv[1:-1] = v[2:] - v[:-2]
-                dv[0] = 2 * (v[1] - v[0])
-                dv[-1] = 2 * (v[-1] - v[-2])
-            diffs[ax] = d
-        sched = self.memory.schedule(self.kp, q)
-        b = np.where(sched.valid, sched.b, 0)
-        idle = ~sched.valid
-        out = {}
-        for name, axis in (("dx", 2), ("dy", 1), ("dz", 0)):
-            stream = diffs[axis][sched.a, b]
-            stream[idle] = 0
-            out[name] = _cell_rows(self.datapath.corners(stream, q), S)
-        return out
+        if self.kernel is None:
+            return differences_numpy(self, q)
+        cur, n = self._voxel_plane(q), self.n_kp
+        if n < 2:
+            return self.loads.differences(q, cur, cur, 0, cur)
+        if q == 0:
+            return self.loads.differences(q, cur, self._voxel_plane(1), 2, cur)
+        if q == n - 1:
+            return self.loads.differences(q, self._voxel_plane(n - 2), cur, 2, cur)
+        hi = self._voxel_plane(q + 1)
+        return self.loads.differences(q, self._voxel_plane(q - 1), hi, 1, cur)
 
     def _evict(self, lo: int) -> None:
         """Drop slices behind the window (processing order)."""
@@ -528,15 +493,6 @@ class SlabMachine(SliceOrderMachine):
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))
         image = be.finish(bus["acc"], bus["touched"], bus["dt_sum"])
         return frame_result(self, image, state, cycles, latency=latency)
-
-
-def _cell_rows(corners: np.ndarray, shift: int) -> np.ndarray:
-    """Corner planes ``(4, ...)`` as one row of four corners per cell, shifted left by
-    ``shift`` (the samples' fraction bits): ``(corners << shift).reshape(4, -1).T``, made
-    C-contiguous in one pass."""
-    rows = np.empty((corners[0].size, 4), dtype=corners.dtype)
-    np.left_shift(corners.reshape(4, -1).T, shift, out=rows)
-    return rows
 
 
 def _return_freed_memory() -> None:
