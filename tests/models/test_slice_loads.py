@@ -17,8 +17,9 @@ from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.backend import Backend
 from models.frame import frame_of
-from models.machines.volumepro import slice_loads
+from models.machines.volumepro import skips_kernel, slice_loads
 from models.machines.volumepro.cycle import SlabFaults, SlabMachine
+from models.machines.volumepro.timing import mini_blocks_read
 
 pytestmark = pytest.mark.model
 
@@ -85,3 +86,29 @@ def test_read_plane_is_the_stream_in_voxel_order():
         valid = sched.valid
         np.testing.assert_array_equal(plane[sched.a[valid], sched.b[valid]], stream[valid])
         assert (plane == 77).any()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_rule6_cells_equal_the_numpy_form(seed):
+    """skips_kernel.slice_cells: the beams' clock groups and the mini-blocks read, as
+    cycle.py's NumPy form computes them (positions past the edges included)."""
+    rng = np.random.default_rng(seed)
+    n_a, n_b, P = int(rng.integers(3, 30)), int(rng.integers(3, 30)), int(rng.integers(1, 6))
+    C = -(-n_b // P)
+    n = int(rng.integers(1, 400))
+    pa, pb = rng.uniform(-1.5, n_a + 0.5, n), rng.uniform(-1.5, n_b + 0.5, n)
+    live = rng.random(n) < 0.5
+    known = live | (rng.random(n) < 0.3)
+    cost = np.empty(n_a, dtype=np.int64)
+    blocks = np.empty((-(-n_a // 2), -(-n_b // 2)), dtype=bool)
+    skips_kernel.slice_cells(
+        pa, pb, live, known, P, n_b, np.empty((n_a, C * P), bool), cost, blocks
+    )
+    ra = np.clip(np.floor(pa), 0, n_a - 1).astype(np.int64)
+    rb = np.clip(np.floor(pb), 0, n_b - 1).astype(np.int64)
+    cells = np.zeros((n_a, C * P), dtype=bool)
+    cells[ra[live], rb[live]] = True
+    np.testing.assert_array_equal(cost, cells.reshape(n_a, C, P).any(axis=2).sum(axis=1))
+    cells[ra[known], rb[known]] = True
+    np.testing.assert_array_equal(blocks, mini_blocks_read(cells[:, :n_b]))
+    assert blocks.any()

@@ -49,6 +49,7 @@ from models.machines.volumepro.fifo_timing import (
 )
 from models.machines.volumepro.fifo_timing import reach as fifo_reach
 from models.machines.volumepro.memory import SdramVolume, words_per_voxel
+from models.machines.volumepro.skips_kernel import slice_cells
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.slice_loads import SliceLoads, differences_numpy, load_numpy
 from models.machines.volumepro.timing import (
@@ -395,6 +396,14 @@ class SlabMachine(SliceOrderMachine):
         reads voxel rows ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` of the window's
         slices (corners and gradient neighbours)."""
         P, C = self.P, self.C
+        if self.kernel is not None:  # compiled (skips_kernel.slice_cells): the same marks
+            cost = np.empty(self.n_a, dtype=np.int64)
+            blocks = np.empty((-(-self.n_a // 2), -(-self.n_b // 2)), dtype=bool)
+            cells = np.empty((self.n_a, C * P), dtype=bool)
+            pa, pb = np.ascontiguousarray(source.pa), np.ascontiguousarray(source.pb)
+            slice_cells(pa, pb, live, known, P, self.n_b, cells, cost, blocks)
+            needed[si, window[0] // 2 : window[1] // 2 + 1] |= blocks
+            return cost
         ra = np.clip(np.floor(source.pa), 0, self.n_a - 1).astype(np.int64)
         rb = np.clip(np.floor(source.pb), 0, self.n_b - 1).astype(np.int64)
         cells = np.zeros((self.n_a, C * P), dtype=bool)

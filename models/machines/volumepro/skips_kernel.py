@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["step_cells"]
+__all__ = ["slice_cells", "step_cells"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -93,3 +93,40 @@ def step_cells(zyx, axes, shape, P, last, j, lag, cells, cost_row):
             if j < lag or last[i] > j - lag:
                 cells[_cell(zyx[i, a_ax], n_a), _cell(zyx[i, b_ax], n_b)] = True
     return live, lanes.max()
+
+
+@numba.njit(cache=True, nogil=True)
+def slice_cells(pa, pb, live, known, P, n_b, cells, cost_row, blocks):
+    """Rule 6 at one sample slice of the cycle machine (:meth:`SlabMachine._live_cells`),
+    its samples at in-slice positions ``pa``, ``pb``: ``cost_row`` each beam's clock
+    groups of ``P`` cells holding a sample of a ``live`` ray, ``blocks`` ``(ceil(n_a / 2),
+    ceil(n_b / 2))`` the mini-blocks holding a voxel that a cell of a ``known`` ray reads
+    (rows ``a - 1 .. a + 2``, columns ``b - 1 .. b + 2``: the NumPy form's
+    :func:`~models.machines.volumepro.timing.mini_blocks_read`).  ``cells`` ``(n_a, C P)``
+    is scratch, overwritten."""
+    n_a = cells.shape[0]
+    C = cells.shape[1] // P
+    cells[:] = False
+    for i in range(pa.shape[0]):
+        if live[i]:
+            cells[_cell(pa[i], n_a), _cell(pb[i], n_b)] = True
+    for a in range(n_a):
+        groups = 0
+        for c in range(C):
+            for p in range(P):
+                if cells[a, c * P + p]:
+                    groups += 1
+                    break
+        cost_row[a] = groups
+    for i in range(pa.shape[0]):
+        if known[i]:
+            cells[_cell(pa[i], n_a), _cell(pb[i], n_b)] = True
+    blocks[:] = False
+    for a in range(n_a):
+        u0, u1 = max(a - 1, 0) // 2, min(a + 2, n_a - 1) // 2
+        for b in range(n_b):
+            if cells[a, b]:
+                v0, v1 = max(b - 1, 0) // 2, min(b + 2, n_b - 1) // 2
+                for u in range(u0, u1 + 1):
+                    for v in range(v0, v1 + 1):
+                        blocks[u, v] = True
