@@ -21,7 +21,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["slice_cells", "step_cells"]
+__all__ = ["beam_needs", "slice_cells", "step_cells"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -130,3 +130,26 @@ def slice_cells(pa, pb, live, known, P, n_b, cells, cost_row, blocks):
                 for u in range(u0, u1 + 1):
                     for v in range(v0, v1 + 1):
                         blocks[u, v] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def beam_needs(index, rows, s0, s1, n_a, first, need, free_after):
+    """The deliveries of one sample slice's processed beams (the windowed rules' reads,
+    :func:`~models.machines.volumepro.timing.timing_inputs`): beam ``i`` (voxel row
+    ``rows[i]``, beam number ``first + i``) reads mini-block beams ``u`` of ``(rows[i] -
+    1) // 2 .. (rows[i] + 2) // 2`` (clamped) in slabs ``s0 .. s1``, whose delivery
+    numbers are ``index[slab, u]`` (-1: not read); ``need[i]`` the last of them (-1:
+    none) and ``free_after[d]`` raised to the last beam reading delivery ``d``."""
+    for i in range(rows.shape[0]):
+        r = rows[i]
+        u_lo, u_hi = max(r - 1, 0) // 2, min(r + 2, n_a - 1) // 2
+        last = -1
+        for d in range(3):
+            u = min(u_lo + d, u_hi)
+            for slab in range(s0, s1 + 1):
+                g = index[slab, u]
+                if g > last:
+                    last = g
+                if g >= 0 and free_after[g] < first + i:
+                    free_after[g] = first + i
+        need[i] = last

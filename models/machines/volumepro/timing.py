@@ -27,6 +27,7 @@ from models.machines.volumepro.fifo_timing import (
     fifo_work,
     uses_slice_fifos,
 )
+from models.machines.volumepro.skips_kernel import beam_needs
 from models.machines.volumepro.slab_timing import DeliveryTable, SliceWork, run_timing
 
 if TYPE_CHECKING:
@@ -101,18 +102,12 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
         else:
             cycles = rec.cost[a0:a1]
             rows, cycles = rows[cycles > 0], cycles[cycles > 0]
-        u_lo = np.maximum(rows - 1, 0) // 2
-        u_hi = np.minimum(rows + 2, m.n_a - 1) // 2
-        slabs = np.arange(rec.window[0] // 2, rec.window[1] // 2 + 1)
         need = np.full(rows.size, -1, dtype=np.int64)
-        ids = np.arange(beam, beam + rows.size)
-        for d in range(3):
-            u = np.minimum(u_lo + d, u_hi)
-            got = index[rec.section][np.ix_(slabs, u)]  # (slabs, beams)
-            need = np.maximum(need, got.max(axis=0, initial=-1))
-            for row_ids in got:
-                ok = row_ids >= 0
-                np.maximum.at(free_after, row_ids[ok], ids[ok])
+        s0, s1 = rec.window[0] // 2, rec.window[1] // 2
+        if m.be.compiled:  # the same reads, one compiled loop (skips_kernel.beam_needs)
+            beam_needs(index[rec.section], rows, s0, s1, m.n_a, beam, need, free_after)
+        else:
+            _beam_needs(index[rec.section], rows, s0, s1, m.n_a, beam, need, free_after)
         beam += rows.size
         pre = 0
         if rec.section != prev_section:
@@ -130,6 +125,22 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
             )
         )
     return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices, None
+
+
+def _beam_needs(index, rows, s0, s1, n_a, first, need, free_after) -> None:
+    """:func:`skips_kernel.beam_needs` in NumPy (the reference): ``need`` and
+    ``free_after`` updated in place."""
+    u_lo = np.maximum(rows - 1, 0) // 2
+    u_hi = np.minimum(rows + 2, n_a - 1) // 2
+    slabs = np.arange(s0, s1 + 1)
+    ids = np.arange(first, first + rows.size)
+    for d in range(3):
+        u = np.minimum(u_lo + d, u_hi)
+        got = index[np.ix_(slabs, u)]  # (slabs, beams)
+        need[:] = np.maximum(need, got.max(axis=0, initial=-1))
+        for row_ids in got:
+            ok = row_ids >= 0
+            np.maximum.at(free_after, row_ids[ok], ids[ok])
 
 
 def record_trace(m: SlabMachine, timing, deliveries: DeliveryTable) -> None:
