@@ -29,7 +29,7 @@ import numpy as np
 
 from models.units import classify as classify_unit
 
-__all__ = ["SliceLoads", "differences_numpy", "load_numpy", "read_plane"]
+__all__ = ["SliceLoads", "differences_numpy", "load_numpy", "read_plane", "visible"]
 
 _NO_RANGE = 0  # _value_rows: no transparency bounds wanted
 
@@ -229,6 +229,21 @@ def _difference_rows(lo, hi, factor, cur, routes, shift, dk, da, db):
             dk[c, k] = diff[i, 0]
             da[c, k] = diff[i, 1]
             db[c, k] = diff[i, 2]
+
+
+@numba.njit(nogil=True, cache=True)
+def visible(lo0, hi0, lo1, hi1, ca, cb, pw, next_visible, out):
+    """:meth:`TrilinearSource.maybe_visible` of a step's samples (cells ``(ca, cb)``,
+    planes of width ``pw``): False where every LUT entry between the smallest and the
+    largest corner of the sample's cells in the two slices (``lo0 / hi0``, ``lo1 /
+    hi1``: the same slice twice when one is read) has opacity 0."""
+    for i in range(ca.shape[0]):
+        c = (ca[i] + 2) * pw + cb[i] + 2
+        if c < 0 or c >= lo0.shape[0]:
+            raise IndexError("a sample's cell lies outside the delivered corner planes")
+        lo = min(lo0[c], lo1[c])
+        hi = max(hi0[c], hi1[c])
+        out[i] = next_visible[lo] <= hi
 
 
 # ------------------------------------------------------------------ the NumPy form

@@ -13,6 +13,7 @@ import numpy as np
 
 from hwsim.golden.positions import Step
 from models.backend import run_compiled
+from models.machines.volumepro.slice_loads import visible
 from models.units import interp as interp_unit
 
 if TYPE_CHECKING:
@@ -81,9 +82,15 @@ class TrilinearSource:
         if not m.skip_transparent:
             return None
         (ca, _, _), (cb, _, _) = self._cells
-        idx = (ca + 2) * m.plane_width + (cb + 2)
         i0, i1, w = m.k_taps(self.pk)
         slices = [i0] if w == 0 else [i1] if w == m.weight_one else [i0, i1]
+        if m.kernel is not None and not m.be.pre_classified:  # slice_loads.visible: compiled
+            p0, p1 = m.planes(slices[0]), m.planes(slices[-1])
+            out = np.empty(ca.size, dtype=bool)
+            visible(p0["lo"], p0["hi"], p1["lo"], p1["hi"], ca, cb, m.plane_width,
+                    m.next_visible, out)  # fmt: skip
+            return out
+        idx = (ca + 2) * m.plane_width + (cb + 2)
         if m.be.pre_classified:
             return np.logical_or.reduce([m.planes(s)["amax"][idx] > 0 for s in slices])
         lo = np.minimum.reduce([m.planes(s)["lo"][idx] for s in slices])
