@@ -32,7 +32,8 @@ CASES = {
     "vp1000-short-beam-fifo": ("volumepro1000", 30, 20, SlabFaults(beam_fifo_adjust=-1), {}),
     "vp500-stuck-module": ("volumepro500", 30, 20, SlabFaults(stuck_module=(2, 4095)), {}),
     "em-cube": ("em-cube", 100, 10, None, {}),
-    "vp500-block-layout": ("volumepro500", 45, 45, None, {"skew": "block"}),
+    "vp500-block-layout": ("volumepro500", 45, 45, None, {"memory": {"skew": "block"}}),
+    "vp500-3-modules": ("volumepro500", 30, 20, None, {"memory": {"modules": 3, "banks": 2}}),
     "vp500-P3": ("volumepro500", -60, 30, None, {"pipelines": 3}),
 }
 
@@ -40,8 +41,8 @@ CASES = {
 def _machines(case):
     arch_name, az, el, faults, changes = case
     arch = resolve_arch(arch_name)
-    if "skew" in changes:
-        arch = dataclasses.replace(arch, memory={**arch.memory, "skew": changes["skew"]})
+    if "memory" in changes:  # a layout, or module and bank counts not powers of two
+        arch = dataclasses.replace(arch, memory={**arch.memory, **changes["memory"]})
     if "pipelines" in changes:
         arch = dataclasses.replace(arch, pipelines=changes["pipelines"])
     volume = make_phantom("head", size=19)  # odd: padding words in the layout

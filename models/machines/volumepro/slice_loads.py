@@ -127,12 +127,25 @@ def read_plane(memory, kp: int, q: int) -> np.ndarray:
 
 
 @numba.njit(nogil=True, cache=True)
+def _log2(v):
+    """``log2(v)`` when ``v`` is a power of two, else -1."""
+    if v <= 0 or (v & (v - 1)) != 0:
+        return -1
+    k = 0
+    while (1 << k) < v:
+        k += 1
+    return k
+
+
+@numba.njit(nogil=True, cache=True)
 def _read_plane(words, kp, q, n, K, columns, block, stuck, plane, reads):
     """``plane[a, b]``: the word of voxel ``(a, b)`` of slice ``q`` (``vp500_miniblock``'s
     or ``block_miniblock``'s module, bank and address, the same formulas); ``stuck``: the
     stuck module and its value, the stuck bank's module, bank and value (-1: none)."""
     M = words.shape[0]
     mk = M * K
+    lm, lmk = _log2(M), _log2(mk)
+    shifts = lm >= 0 and lmk >= 0 and _log2(K) >= 0
     nb = (n + 1) // 2
     pitch = -(-nb // mk) * mk
     if block:
@@ -152,13 +165,19 @@ def _read_plane(words, kp, q, n, K, columns, block, stuck, plane, reads):
             bx, by, bz = x >> 1, y >> 1, z >> 1
             s = bx + by + bz
             o = ((z & 1) << 2) | ((y & 1) << 1) | (x & 1)
-            module = s % M
+            lb = (bz * nb + by) * pitch + bx
             if block:
-                linear = 8 * (((bz * nb + by) * pitch + bx) // M) + o
+                module = s % M
+                linear = 8 * (lb // M) + o
                 bank, address = linear // per_bank, linear % per_bank
+            elif shifts:  # M and K powers of two: the same quotients, shifted
+                module = s & (M - 1)
+                bank = (s >> lm) & (K - 1)
+                address = ((lb >> lmk) << 3) | o
             else:
+                module = s % M
                 bank = (s // M) % K
-                address = ((((bz * nb + by) * pitch + bx) // mk) << 3) | o
+                address = ((lb // mk) << 3) | o
             v = np.int64(words[module, bank, address])
             if module == stuck[0]:
                 v = stuck[1]
