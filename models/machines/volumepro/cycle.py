@@ -34,11 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from hwsim.core.errors import InputError
+from hwsim.core.threads import frame_threads
 from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import make_plan
 from hwsim.memory import SdramStats, parse_memory
-from models.backend import Backend, subset_step
+from models.backend import Backend
 from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
 from models.machines.common.slice_order import SliceFaults, SliceOrderMachine, slice_position
 from models.machines.volumepro.fifo_timing import (
@@ -52,6 +53,7 @@ from models.machines.volumepro.memory import SdramVolume, words_per_voxel
 from models.machines.volumepro.skips_kernel import slice_cells
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.slice_loads import SliceLoads, differences_numpy, load_numpy
+from models.machines.volumepro.threads import finish_behind, steps_ahead
 from models.machines.volumepro.timing import (
     SliceRecord,
     frame_period,
@@ -298,6 +300,8 @@ class SlabMachine(SliceOrderMachine):
             for si, (a0, a1) in enumerate(sections):
                 needed[si, :, max(a0 - 1, 0) // 2 : (min(a1 + 1, self.n_a - 1)) // 2 + 1] = True
         total = plan.n_steps * len(sections)
+        threads = frame_threads()  # helper threads: models/machines/volumepro/threads.py
+        behind = finish_behind(self, threads)
         for si, (a0, a1) in enumerate(sections):
             if parked.size:  # reload the partial rays this section continues
                 state.acc[parked] = sram_acc[parked]
@@ -311,21 +315,15 @@ class SlabMachine(SliceOrderMachine):
             self._planes.clear()
             self._voxels.clear()
             self._diffed.clear()
-            for j, step in enumerate(plan.steps()):
-                lo, hi = self.window(j)
+            ahead = steps_ahead(self, (a0, a1), len(sections) > 1, threads)
+            for j, (step, (lo, hi), slots) in enumerate(ahead):
                 self._evict(lo if self.forward else hi)
-                if len(sections) > 1 and step.rays.size:
-                    rows = np.clip(np.floor(step.zyx[:, self.a_ax]), 0, self.n_a - 1)
-                    inside = (rows >= a0) & (rows < a1)
-                    step = subset_step(step, inside)
                 busy = np.zeros(P, dtype=np.int64)
                 cost = None
                 fin = np.zeros(0, dtype=np.int64)
                 if step.rays.size:
                     seen[step.rays] = True
-                    source = TrilinearSource(self, step)
-                    a, b = self._slots(source)
-                    lanes = (source.q + a + b) % P
+                    source, a, b, lanes = slots
                     if fifo:  # rule 8': the record and the slot of each ray's last sample
                         last_seen[0, step.rays] = len(records)
                         last_seen[1, step.rays], last_seen[2, step.rays] = a, b
@@ -347,12 +345,7 @@ class SlabMachine(SliceOrderMachine):
                         state,
                     )
                     fin = step.rays[last_j[step.rays] == j]
-                    if fin.size:
-                        done[fin] = True
-                        bus["acc"][fin] = state.acc[fin]
-                        bus["touched"][fin] = state.touched[fin]
-                        if bus["dt_sum"] is not None:
-                            bus["dt_sum"][fin] = state.dt_sum[fin]
+                    done[fin] = True
                 elif self.skipping:
                     cost = np.zeros(self.n_a, dtype=np.int64)
                 reach = fifo_reach(self, j) if fifo else -1
@@ -361,6 +354,11 @@ class SlabMachine(SliceOrderMachine):
                     history.append(state.alive.copy())
                 if progress is not None:
                     progress(si * plan.n_steps + j + 1, total)
+            behind.join()  # the section's blends, then its finished rays to the pixel bus
+            fin = np.flatnonzero(done)
+            for key, value in bus.items():
+                if value is not None:
+                    value[fin] = getattr(state, key)[fin]
             parked = np.flatnonzero(seen & ~done)
             parked_counts.append(int(parked.size))
             if fifo:
@@ -375,6 +373,7 @@ class SlabMachine(SliceOrderMachine):
                     state.dt_sum[parked] = 0
                 if records:
                     records[-1].arrivals += int(parked.size)
+        behind.close()
         # The last slices' corner planes, the SDRAM words and the ring's routes are not
         # read again: dropped before the timing pass (at 512^3 a slice's planes are ~8 MB
         # a channel over a window of four or five slices, the words 0.27 GB, the routes

@@ -41,6 +41,7 @@ from models.fused_stage import (
     slice_cell,
     world_and_modulate,
 )
+from models.machines.volumepro.threads import FinishBehind
 from models.units import classify as classify_unit
 from models.units import interp as interp_unit
 
@@ -209,6 +210,15 @@ class SlabKernel(StageConstants):
         self.config_arr = np.asarray(self.config, dtype=np.int64)
         self.need_grad = bool(backend.need_grad)
         self._no_factor = np.zeros(0, dtype=np.int64)
+        #: Where the second pass runs: at once, or behind the data pass on a worker
+        #: thread (the frame's :class:`~models.machines.volumepro.threads.FinishBehind`).
+        self.behind = FinishBehind(1)
+
+    def table(self, dt) -> np.ndarray | None:
+        table = super().table(dt)
+        if table is None:  # the unit chain blends this step: the passes behind first
+            self.behind.join()
+        return table
 
     def _taps(self, channel: str, taps) -> tuple[np.ndarray, np.ndarray, int]:
         """The planes a trilinear sample at ``taps = (i0, i1, w)`` reads, asked for as
@@ -249,7 +259,7 @@ class SlabKernel(StageConstants):
                 pk = src.pk
                 u0, u1, wu = self._taps("value", m.k_taps(pk + 1.0))
                 d0, d1, wd = self._taps("value", m.k_taps(pk - 1.0))
-        self.finish(
+        args = (
             keep, k, idx, alpha, *grads, gk, u0, u1, wu, d0, d1, wd, v0, v1, wk,
             m.plane_width, np.ascontiguousarray(src.pa, dtype=np.float64),
             np.ascontiguousarray(src.pb, dtype=np.float64), ca, wa, cb, wb,
@@ -258,6 +268,10 @@ class SlabKernel(StageConstants):
             self.spec, self.maps, table, state.acc, self.ert_thr, state.alive, sat,
             self.config_arr, self.axes,
         )  # fmt: skip
+        self.behind.launch(self.finish, args, functools.partial(self._finished, sat))
+
+    def _finished(self, sat: np.ndarray) -> None:
+        """After a second pass, on the frame's thread: its checks and saturation counts."""
         if sat[_OUTSIDE]:
             raise IndexError("a sample's cell lies outside the delivered corner planes")
         self.count_saturations(sat)

@@ -1,0 +1,179 @@
+"""Two threads for one VolumePro-family cycle frame: the steps' geometry ahead of the data
+pass, the compiled stage's second pass behind it.
+
+# Ref: models/machines/volumepro/cycle.py (``SlabMachine.run``, the data pass these
+#      threads serve); hwsim/core/threads.py (``HWSIM_THREADS``, threads per frame).
+
+With :func:`~hwsim.core.threads.frame_threads` above one, :meth:`SlabMachine.run
+<models.machines.volumepro.cycle.SlabMachine.run>` hands work that reads no ray state to
+two helper threads, and keeps on its own thread everything else, in the same order:
+
+- :func:`steps_ahead`: each step's sample positions (``plan.steps()``), its voxel-slice
+  window, its section's samples, their cells and lanes, computed up to
+  :data:`STEPS_AHEAD` steps early on a worker thread (pure functions of the plan: the
+  same arrays on any thread);
+- :class:`FinishBehind`: the compiled stage's second pass
+  (:meth:`SlabKernel.run <models.machines.volumepro.slab_kernel.SlabKernel.run>`'s
+  gradients, shading and blend, a numba call that releases the GIL) on a worker thread
+  while the data pass goes on to the next steps.  It writes only the accumulators of its
+  step's rays, which nothing reads before :meth:`FinishBehind.join` (the pixel bus takes
+  a section's finished rays and its partial rays are parked after the join); the passes
+  run one at a time in step order, so every ray blends its samples in order.  A frame
+  whose kernel also ends rays (early termination, ``alive``) or that takes the unit
+  chain for a step (``SlabKernel.table`` is None) joins first, and a fault that clears
+  accumulators on a hand-off (``dropped_handoff``) turns it off.
+
+Slice loads, counters and the saturation log stay on the frame's thread, so images,
+cycles and counters are the same bits for any thread count
+(``tests/models/test_volumepro_threads.py``).
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections import deque
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+
+import numpy as np
+
+from hwsim.golden.positions import Step
+from models.backend import subset_step
+from models.machines.volumepro.trilinear import TrilinearSource
+
+__all__ = ["STEPS_AHEAD", "FinishBehind", "finish_behind", "steps_ahead"]
+
+#: Steps whose geometry the worker may hold ready (each a few arrays of a step's size).
+STEPS_AHEAD = 4
+#: Second passes queued behind the data pass at most (each holds its step's planes).
+FINISH_BEHIND = 2
+
+Slots = tuple[TrilinearSource, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _geometry(machine, band: tuple[int, int], cut: bool) -> Iterator[tuple]:
+    """Per step of the plan: ``(step, window, slots)``, ``step`` cut to the section rows
+    ``band = [a0, a1)`` when ``cut``, ``slots = (source, a, b, lanes)`` (None for an
+    empty step): the trilinear source, each sample's slot and its pipeline."""
+    m, (a0, a1) = machine, band
+    for j, step in enumerate(m.plan.steps()):
+        window = m.window(j)
+        if cut and step.rays.size:
+            rows = np.clip(np.floor(step.zyx[:, m.a_ax]), 0, m.n_a - 1)
+            step = subset_step(step, (rows >= a0) & (rows < a1))
+        slots = None
+        if step.rays.size:
+            source = TrilinearSource(m, step)
+            a, b = m._slots(source)
+            slots = source, a, b, (source.q + a + b) % m.P
+        yield step, window, slots
+
+
+def steps_ahead(
+    machine, band: tuple[int, int], cut: bool, threads: int
+) -> Iterator[tuple[Step, tuple[int, int], Slots | None]]:
+    """:func:`_geometry`'s steps, on a worker thread up to :data:`STEPS_AHEAD` early when
+    ``threads > 1`` (in the caller's thread otherwise)."""
+    items = _geometry(machine, band, cut)
+    if threads <= 1:
+        return items
+    return _ahead(items)
+
+
+def _ahead(items: Iterator) -> Iterator:
+    """``items`` computed on a worker thread; its exception is raised here, in order."""
+    ready: queue.Queue = queue.Queue(STEPS_AHEAD)
+    stop = threading.Event()
+
+    def put(entry) -> bool:
+        while not stop.is_set():
+            try:
+                ready.put(entry, timeout=0.05)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def work() -> None:
+        try:
+            for item in items:
+                if not put((True, item)):
+                    return
+            put((False, None))
+        except BaseException as exc:  # handed to the consumer, raised there
+            put((None, exc))
+
+    worker = threading.Thread(target=work, name="hwsim-steps", daemon=True)
+    worker.start()
+    try:
+        while True:
+            kind, item = ready.get()
+            if kind is None:
+                raise item
+            if not kind:
+                return
+            yield item
+    finally:
+        stop.set()
+        worker.join()
+
+
+def finish_behind(machine, threads: int) -> FinishBehind:
+    """The frame's :class:`FinishBehind`, installed on its kernel: active when ``threads >
+    1``, the frame has a compiled stage whose passes end no rays (no early termination)
+    and no fault clears accumulators on a hand-off."""
+    kernel = machine.kernel
+    active = (
+        threads > 1
+        and kernel is not None
+        and kernel.ert_thr < 0
+        and machine.faults.dropped_handoff is None
+    )
+    behind = FinishBehind(2 if active else 1)
+    if kernel is not None:
+        kernel.behind = behind
+    return behind
+
+
+class FinishBehind:
+    """The compiled stage's second passes of one frame, run on a worker thread in step
+    order (``threads > 1``) or at once; :meth:`join` waits for them and runs their
+    ``after`` calls (checks and counts) on the frame's thread, in order."""
+
+    def __init__(self, threads: int) -> None:
+        self._pool = ThreadPoolExecutor(1, "hwsim-finish") if threads > 1 else None
+        self._pending: deque[tuple[Future, Callable[[], None]]] = deque()
+
+    @property
+    def active(self) -> bool:
+        """Whether passes may still be running when :meth:`launch` returns."""
+        return self._pool is not None
+
+    def launch(self, fn: Callable, args: tuple, after: Callable[[], None]) -> None:
+        """Run ``fn(*args)`` (behind the data pass when active), then ``after()``."""
+        if self._pool is None:
+            fn(*args)
+            after()
+            return
+        while len(self._pending) >= FINISH_BEHIND:
+            self._settle()
+        self._pending.append((self._pool.submit(fn, *args), after))
+
+    def _settle(self) -> None:
+        future, after = self._pending.popleft()
+        future.result()
+        after()
+
+    def join(self) -> None:
+        """Wait for every pass launched so far (their results and ``after`` calls)."""
+        while self._pending:
+            self._settle()
+
+    def close(self) -> None:
+        """End the worker thread (after :meth:`join`, or after an exception: the passes
+        not yet joined are dropped, the running one finished first)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+        self._pending.clear()

@@ -1,0 +1,160 @@
+"""The VolumePro family's cycle rung on two threads (``HWSIM_THREADS=2``): the steps'
+geometry ahead of the data pass and the compiled stage's second pass behind it
+(models/machines/volumepro/threads.py) give the bits of one thread, image, samples,
+cycles and every counter, on every machine of the family, with sections, supersampling,
+early termination, faults, perspective rays and the unit chain; the helper threads ran
+where they should."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from hwsim.core.threads import using
+from hwsim.golden import make_plan
+from hwsim.numerics import SATURATIONS
+from hwsim.run.fidelity import resolve_arch
+from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec
+from hwsim.spec.transfer import resolve_transfer
+from hwsim.volumes import make_phantom
+from models.cycle import render_cycle
+from models.frame import frame_of
+from models.machines.volumepro import threads as vp_threads
+from models.machines.volumepro.cycle import SlabFaults
+
+pytestmark = pytest.mark.model
+
+MODULATED = TransferSpec(preset="ct", gradient_opacity=((100.0, 0.0), (1500.0, 1.0)))
+
+
+def _scene(az=30, el=20, size=40, projection="parallel", modulated=False, **render):
+    view = ViewSpec(
+        azimuth=az, elevation=el, width=size, height=size, zoom=1.3, projection=projection
+    )
+    return Scene(
+        transfer=MODULATED if modulated else TransferSpec(preset="ct"),
+        view=view,
+        render=RenderSpec(mode="composite", **render),
+    )
+
+
+def _case(arch, scene, changes=None, faults=None, compiled=True, behind=True, volume="head"):
+    """(machine, changes to it, scene, faults, compiled, second pass behind the data pass,
+    phantom)."""
+    return arch, changes or {}, scene, faults, compiled, behind, volume
+
+
+VP500, VP1000 = "volumepro500", "volumepro1000"
+SECTIONS = {"section_width": 9}
+CASES = {
+    "vp500": _case(VP500, _scene()),
+    # Visible samples up to the last step: a missing wait before the pixel bus shows.
+    "vp500-marschner-lobb": _case(VP500, _scene(az=15), volume="marschner-lobb"),
+    "vp500-sections": _case(VP500, _scene(az=-40), SECTIONS),
+    "vp500-supersampled": _case(VP500, _scene(20, 50, supersampling=2.0)),
+    "vp500-modulated": _case(VP500, _scene(-70, 25, modulated=True)),
+    "em-cube": _case("em-cube", _scene(100, 10)),
+    "vp1000": _case(VP1000, _scene(-20, 60)),
+    # Its kernel ends rays: the second pass stays on the frame's thread.
+    "vp1000-early-termination": _case(VP1000, _scene(early_termination=0.9), behind=False),
+    # Outside the kernel's scope: the unit chain.
+    "vp1000-perspective": _case(VP1000, _scene(-30, 10, projection="perspective"), behind=False),
+    "vp500-unit-chain": _case(VP500, _scene(az=60), compiled=False, behind=False),
+    "vp500-stuck-module": _case(VP500, _scene(), faults=SlabFaults(stuck_module=(1, 4095))),
+    "vp500-dropped-link": _case(VP500, _scene(), faults=SlabFaults(dropped_link=2)),
+    # A hand-off that clears accumulators: the second pass stays on the frame's thread.
+    "vp500-lost-handoff": _case(
+        VP500, _scene(), faults=SlabFaults(dropped_handoff=1), behind=False
+    ),
+    "vp500-lost-spill": _case(VP500, _scene(az=-40), SECTIONS, SlabFaults(lost_spill=0)),
+}
+
+
+@pytest.fixture(scope="module")
+def volumes():
+    return {name: make_phantom(name, size=32) for name in ("head", "marschner-lobb")}
+
+
+def _render(case, volumes):
+    arch_name, changes, scene, faults, compiled, _, phantom = case
+    volume = volumes[phantom]
+    arch = resolve_arch(arch_name)
+    arch = dataclasses.replace(arch, **changes) if changes else arch
+    tf = resolve_transfer(scene.transfer, volume)
+    frame = frame_of(scene, volume, tf, arch, make_plan(scene, volume, arch.order))
+    SATURATIONS.clear()
+    run = render_cycle(frame, faults=faults, compiled=compiled)
+    return run, dict(SATURATIONS)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_two_threads_give_the_bits_of_one(name, volumes, monkeypatch):
+    case = CASES[name]
+    launches = {True: 0, False: 0}
+    launch = vp_threads.FinishBehind.launch
+
+    def counted(self, fn, args, after):
+        launches[self.active] += 1
+        if self.active:  # a slow second pass: a missing wait would read unblended rays
+            return launch(self, lambda *a: time.sleep(0.002) or fn(*a), args, after)
+        return launch(self, fn, args, after)
+
+    monkeypatch.setattr(vp_threads.FinishBehind, "launch", counted)
+    ahead = []
+    monkeypatch.setattr(
+        vp_threads, "_ahead", lambda items, f=vp_threads._ahead: ahead.append(1) or f(items)
+    )
+    with using(1):
+        one, sat_one = _render(case, volumes)
+    assert launches[True] == 0 and not ahead
+    with using(2):
+        two, sat_two = _render(case, volumes)
+    np.testing.assert_array_equal(two.image, one.image)
+    assert (two.samples, two.rays, two.cycles) == (one.samples, one.rays, one.cycles)
+    assert two.counters == one.counters
+    assert sat_two == sat_one
+    assert one.image[..., 3].max() > 0.05  # something was composited
+    assert ahead, "the steps were not computed ahead"
+    behind = case[5]
+    assert (launches[True] > 0) == behind, launches
+
+
+def test_an_error_in_the_geometry_thread_is_raised_in_the_frame(volumes, monkeypatch):
+    def broken(machine, band, cut):
+        yield from ()
+        raise ValueError("geometry broke")
+
+    monkeypatch.setattr(vp_threads, "_geometry", broken)
+    with using(2), pytest.raises(ValueError, match="geometry broke"):
+        _render(CASES["vp500"], volumes)
+
+
+def test_passes_behind_run_in_order_and_join_waits_for_them():
+    """A worker runs the passes one at a time in launch order; ``join`` returns once all
+    ran, their ``after`` calls made on the caller's thread in the same order."""
+    gate = threading.Event()
+    ran, after = [], []
+    behind = vp_threads.FinishBehind(2)
+    assert behind.active
+
+    def first(k):
+        gate.wait()  # held until the caller has launched the second pass
+        ran.append((k, threading.current_thread().name))
+
+    behind.launch(first, (0,), lambda: after.append((0, threading.current_thread().name)))
+    behind.launch(ran.append, ((1, "second"),), lambda: after.append((1, "main")))
+    assert ran == []  # launch returned while the first pass still waits
+    gate.set()
+    behind.join()
+    assert [k for k, _ in ran] == [0, 1] and ran[0][1].startswith("hwsim-finish")
+    assert [k for k, _ in after] == [0, 1]
+    assert after[0][1] == threading.current_thread().name
+    behind.launch(lambda: 1 / 0, (), lambda: None)
+    with pytest.raises(ZeroDivisionError):
+        behind.join()
+    behind.close()
+    assert not behind.active
