@@ -19,9 +19,8 @@ refuses, naming the key, what the top does not model.  :func:`decode` assembles 
 image from the pixels the bus delivered, exactly as the cycle rung's host does.
 
 The per-slice constants are found by reading the plan (the geometry unit's output) and
-are then *checked* against it: every sample the hardware will take (one per slot, the
-sample whose nearest voxel is the slot's voxel) must be exactly the plan's samples of
-that step, with the same cells and quantised weights.
+are then *checked* against it (:mod:`rtl.frame_slices`); the tables, registers and
+word packing are :mod:`rtl.frame_tables`'s.
 """
 
 from __future__ import annotations
@@ -31,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from hwsim.core.errors import InputError, NotAvailableError
+from hwsim.core.errors import NotAvailableError
 from hwsim.golden.positions import SamplePlan
 from hwsim.spec.arch import ArchConfig
 from hwsim.spec.scene import Scene
@@ -43,16 +42,14 @@ from models.frame import Frame
 from models.machines.common.results import UNITS, CycleResult, elaborate_units
 from models.machines.cube4.frame import Cube4Frame
 from models.units import composite as composite_unit
-from models.units import skew
-from rtl.top import RMW_WINDOW
+from rtl.frame_slices import refuse, slice_constants
+from rtl.frame_tables import pack_fields, shader_loads, shading_registers, voxel_memory_words
 from rtl.top_layouts import (
     LOAD_CORRECTION,
-    LOAD_DIFFUSE_MAP,
     LOAD_GM,
     LOAD_LUT,
     LOAD_RAYS,
     LOAD_SLICES,
-    LOAD_SPEC,
     TopGeometry,
     load_layout,
     ray_layout,
@@ -114,19 +111,6 @@ class FrameProgram:
         return [(t << t_off) | (a << a_off) | (d << d_off) for t, a, d in self.loads]
 
 
-def _refuse(message: str, key: str, allowed: str, source=None) -> InputError:
-    return InputError(message, source=source, key=key, allowed=allowed)
-
-
-def _pack(layout, fields: dict[str, int]) -> int:
-    word = 0
-    for name, value in fields.items():
-        f = layout[name]
-        width = f.shape.width
-        word |= (int(value) & ((1 << width) - 1)) << f.offset
-    return word
-
-
 def _check_scene(
     scene: Scene, volume: Volume, transfer: TransferFunction, arch: ArchConfig, dp: Datapath
 ):
@@ -139,7 +123,7 @@ def _check_scene(
             "slice-parallel FILE.toml",
         )
     if scene.view.projection != "parallel":
-        raise _refuse(
+        raise refuse(
             "the RTL top renders parallel views (per-slice constants); perspective is "
             "modelled at the cycle rung only",
             "view.projection",
@@ -147,36 +131,36 @@ def _check_scene(
             scene.source if hasattr(scene, "source") else None,
         )
     if max(volume.shape) > MAX_AXIS:
-        raise _refuse(
+        raise refuse(
             f"volume {volume.shape[::-1]} is too big for the RTL top",
             "volume",
             f"at most {MAX_AXIS} voxels per axis",
         )
     if min(volume.shape) < 4:
-        raise _refuse(
+        raise refuse(
             f"volume {volume.shape[::-1]} is too small for the RTL top", "volume", ">= 4 per axis"
         )
     mode = scene.render.mode
     if mode not in ("composite", "mip"):
-        raise _refuse(f"mode {mode!r} is not in the RTL top", "render.mode", "composite, mip")
+        raise refuse(f"mode {mode!r} is not in the RTL top", "render.mode", "composite, mip")
     if scene.lit and dp.shade.method == "phong" and len(scene.lights) > MAX_LIGHTS:
-        raise _refuse(
+        raise refuse(
             f"{len(scene.lights)} lights; the RTL top's shader sums {MAX_LIGHTS}",
             "lights",
             f"at most {MAX_LIGHTS} lights",
         )
     if mode == "composite" and transfer.order == "pre":
-        raise _refuse("the RTL top post-classifies", "transfer.order", "post")
+        raise refuse("the RTL top post-classifies", "transfer.order", "post")
     if scene.cursor is not None:
-        raise _refuse("the RTL top has no cursor unit", "cursor", "no [cursor]")
+        raise refuse("the RTL top has no cursor unit", "cursor", "no [cursor]")
     if scene.render.blend_order != "front-to-back":
-        raise _refuse(
+        raise refuse(
             "the RTL top's compositor blends front to back", "render.blend_order", "front-to-back"
         )
     if scene.cut_planes:
-        raise _refuse("the RTL top's crop unit has no cut planes", "cut_planes", "none")
+        raise refuse("the RTL top's crop unit has no cut planes", "cut_planes", "none")
     if mode == "composite" and scene.lit and transfer.modulates_illumination:
-        raise _refuse(
+        raise refuse(
             "the RTL top's shader has no gradient-magnitude illumination modulation",
             "transfer.gradient_illumination",
             "none (gradient_opacity is modelled)",
@@ -206,9 +190,9 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
     geo = TopGeometry(P, size_class(volume.shape) if max_axis is None else max_axis)
     n_rays = plan.shape[0] * plan.shape[1]
     if n_rays > geo.max_rays:
-        raise _refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
+        raise refuse(f"{n_rays} base-plane rays", "view", f"<= {geo.max_rays} rays")
     if arch.slice_overhead_cycles:
-        raise _refuse(
+        raise refuse(
             f"{arch.name} adds {arch.slice_overhead_cycles} clocks between slices; the RTL "
             "top's slices follow each other back to back (a what-if of the cycle rung only)",
             "overheads.slice_cycles",
@@ -217,7 +201,7 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         )
     fifo = machine.capacity["pixel_fifo_entries"]
     if fifo < 1:
-        raise _refuse(
+        raise refuse(
             "a pixel FIFO of depth 0 never accepts a pixel (the frame deadlocks)",
             "buffers.pixel_fifo_entries",
             ">= 1",
@@ -227,7 +211,7 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
     cx = -(-nx // P)
     loads: list[tuple[int, int, int]] = []
 
-    volume_words = _volume_words(backend.raw, P, dp.voxel_bits)
+    volume_words = voxel_memory_words(backend.raw, P, dp.voxel_bits)
 
     mode = scene.render.mode
     if mode == "composite":
@@ -242,7 +226,7 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         loads += [(LOAD_GM, i, int(e)) for i, e in enumerate(backend.gm_table)]
     lit = mode == "composite" and scene.lit
     if lit:
-        loads += _shader_loads(backend.shader)
+        loads += shader_loads(backend.shader)
 
     # Ray table: first and last step of every base-plane ray (never for unused ones).
     rlay = ray_layout(geo)
@@ -251,16 +235,16 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
     j_hi = np.zeros(n_rays, dtype=np.int64)
     j_lo[plan.ray_ids], j_hi[plan.ray_ids] = plan.j_lo, plan.j_hi
     loads += [
-        (LOAD_RAYS, r, _pack(rlay, {"j_lo": j_lo[r], "j_hi": j_hi[r]})) for r in range(n_rays)
+        (LOAD_RAYS, r, pack_fields(rlay, {"j_lo": j_lo[r], "j_hi": j_hi[r]})) for r in range(n_rays)
     ]
 
-    slices = _slice_constants(machine, plan, j_lo, j_hi, scene.crop)
+    slices = slice_constants(machine, plan, j_lo, j_hi, scene.crop)
     slay = slice_layout(geo, dp)
-    loads += [(LOAD_SLICES, j, _pack(slay, rec)) for j, rec in enumerate(slices)]
+    loads += [(LOAD_SLICES, j, pack_fields(slay, rec)) for j, rec in enumerate(slices)]
 
     ert = backend.ert
     registers = {
-        **_shading_registers(backend, dp, lit, modulate),
+        **shading_registers(backend, dp, lit, modulate),
         "n_kp": machine.n_kp,
         "n_a": machine.n_a,
         "n_b": machine.n_b,
@@ -289,213 +273,6 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         volume_words=volume_words,
         elaborated=units,
     )
-
-
-def _volume_words(raw: np.ndarray, P: int, B: int) -> list[int]:
-    """The voxel memory's contents in the Cube-4 skewed layout (``models.units.skew``):
-    word ``w`` holds module ``k``'s voxel at its word ``w`` in bits ``k B``."""
-    nz, ny, nx = raw.shape
-    z, y, x = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
-    module = skew.cube4_module(x, y, z, P).ravel()
-    word = skew.cube4_address_zyx(z, y, x, raw.shape, P).ravel()
-    voxels = np.asarray(raw, dtype=np.int64).ravel()
-    fields = np.zeros((nz * ny * -(-nx // P), P), dtype=np.int64)
-    fields[word, module] = voxels
-    words = [0] * fields.shape[0]
-    for k in range(P):  # Python ints: P B may exceed 64 bits
-        column = fields[:, k].tolist()
-        words = [w | (v << (k * B)) for w, v in zip(words, column, strict=True)]
-    return words
-
-
-def _shader_loads(shader) -> list[tuple[int, int, int]]:
-    """The shader's tables: the reflectance maps (diffuse, specular: one entry per cube
-    cell, the lights summed in, ``models.units.shade.setup``) or Phong's specular table."""
-    if shader.maps is not None:
-        diffuse, specular = shader.maps
-        return [(LOAD_DIFFUSE_MAP, i, int(e)) for i, e in enumerate(diffuse)] + [
-            (LOAD_SPEC, i, int(e)) for i, e in enumerate(specular)
-        ]
-    return [(LOAD_SPEC, i, int(e)) for i, e in enumerate(shader.spec)]
-
-
-def _shading_registers(backend: Backend, dp: Datapath, lit: bool, modulate: bool) -> dict:
-    """Gradient, modulation and shading registers (zeros where the scene does not use
-    them; unused lights have intensity 0, which adds exactly nothing).  A reflectance-map
-    shader has only ``ka``: its lights are in the maps."""
-    f = dp.shade.normal_frac_bits
-    spacing_xyz = np.asarray(backend.volume.spacing, dtype=np.float64)[::-1]
-    ratio = np.floor(spacing_xyz.min() / spacing_xyz * 4096 + 0.5).astype(np.int64)
-    regs = {
-        "lit": int(lit),
-        "modulate": int(modulate),
-        "gm_scale": int(backend.gm_scale) if modulate else 0,
-        "ratio": _fields([int(r) for r in ratio], 13),
-        "ka": int(backend.shader.ka) if lit else 0,
-    }
-    if dp.shade.method != "phong":
-        return regs
-    regs.update(kd=0, ks=0, light=0, half=0, intensity=0)
-    if lit:
-        sh = backend.shader
-        k = sh.light.shape[0]
-        pad = [[0, 0, 0]] * (MAX_LIGHTS - k)
-        regs.update(
-            kd=sh.kd,
-            ks=sh.ks,
-            light=_fields([c for v in [*sh.light.tolist(), *pad] for c in v], f + 2),
-            half=_fields([c for v in [*sh.half.tolist(), *pad] for c in v], f + 2),
-            intensity=_fields([*sh.intensity.tolist(), *[0] * (MAX_LIGHTS - k)], 12),
-        )
-    return regs
-
-
-def _fields(values: list[int], width: int) -> int:
-    """Two's-complement ``width``-bit fields packed first at bit 0."""
-    word = 0
-    for i, value in enumerate(values):
-        word |= (int(value) & ((1 << width) - 1)) << (i * width)
-    return word
-
-
-def _canonical(cell, weight, frac, full: int):
-    """A weight that quantised to exactly 1.0 in cell ``c`` is weight 0 in cell ``c + 1``:
-    ``lerp(a, b, 2**W) = b = lerp(b, c, 0)`` exactly, in every rounding mode (no
-    remainder).  Float positions a hair below an integer (``frac`` ~ 1.0) thus get the
-    same constants as their neighbours on the integer."""
-    up = weight == full
-    if not up.any():
-        return cell, weight, frac
-    return cell + up, np.where(up, 0, weight), np.where(up, 0.0, frac)
-
-
-def _check_neighbours(machine: Cube4Frame, step, j: int, full: int) -> None:
-    """The gradient's in-slice neighbours (positions ``p +- 1`` along each in-slice axis,
-    the cells and weights the cycle rung gives them) must be the cells next to the
-    sample's with the sample's own weight: the top reads them off the neighbouring slots."""
-    for axis in (machine.a_ax, machine.b_ax):
-        p = step.zyx[:, axis]
-        own = machine.cell(p)
-        cell, weight, _ = _canonical(*own, full)
-        for shift in (1.0, -1.0):
-            n_cell, n_weight, _ = _canonical(*machine.cell(p + shift, own), full)
-            if not (np.all(n_cell - cell == int(shift)) and np.array_equal(n_weight, weight)):
-                raise _refuse(
-                    f"step {j}: a gradient neighbour's weight differs from its sample's "
-                    "(float rounding of p +- 1); the RTL top takes neighbours from the "
-                    "adjacent slots",
-                    "view",
-                    "another view",
-                )
-
-
-def _crop_slabs(machine: Cube4Frame, step, j: int, cells, crop) -> dict[str, int]:
-    """The crop box's slabs on step ``j``: whether the slice is inside the principal
-    axis's slab, and per in-slice axis the cells whose samples (the plan's positions) are
-    inside its slab, checked sample by sample (float positions one step's samples
-    disagree on are refused naming ``view``)."""
-    out = {"crop_k": 1}
-    every = (-2, max(machine.n_a, machine.n_b) + 1)  # an axis without limits: every cell
-    axes = (machine.a_ax, machine.b_ax)
-    k_col = next(c for c in range(3) if c not in axes)
-    limits = {0: crop.z, 1: crop.y, 2: crop.x} if crop is not None else {}
-    for col, name in ((k_col, "k"), (axes[0], "a"), (axes[1], "b")):
-        if name != "k":
-            out[f"crop_{name}_lo"], out[f"crop_{name}_hi"] = every
-        if limits.get(col) is None:
-            continue
-        lo, hi = limits[col]
-        p = step.zyx[:, col]
-        inside = (p >= lo) & (p <= hi)
-        if name == "k":
-            if np.unique(inside).size > 1:
-                raise _refuse(f"step {j}: the crop box cuts the slice", "view", "another view")
-            out["crop_k"] = int(inside[0])
-            continue
-        c = cells[name]
-        lo_c, hi_c = (int(c[inside].min()), int(c[inside].max())) if inside.any() else (1, 0)
-        if not np.array_equal(inside, (c >= lo_c) & (c <= hi_c)):
-            raise _refuse(
-                f"step {j}: the crop box's {name} slab is not a range of cells (float rounding)",
-                "view",
-                "another view",
-            )
-        out[f"crop_{name}_lo"], out[f"crop_{name}_hi"] = lo_c, hi_c
-    return out
-
-
-def _slice_constants(
-    machine: Cube4Frame, plan: SamplePlan, j_lo, j_hi, crop=None
-) -> list[dict[str, int]]:
-    """Per step: slice, cell shift, base-plane offset and weights, the crop box's slabs,
-    checked sample by sample against the plan (the hardware's slot rule must give
-    exactly its samples)."""
-    P, C, T = machine.P, machine.C, machine.T
-    n_a, n_b = machine.n_a, machine.n_b
-    W = plan.shape[1]
-    a = np.repeat(np.arange(n_a), n_b)
-    b = np.tile(np.arange(n_b), n_a)
-    period = T  # slices back to back (an overhead is refused above)
-    last_issue = np.full(plan.shape[0] * W, -(10**9), dtype=np.int64)
-    out = []
-    for j, step in enumerate(plan.steps()):
-        q = machine.slice_of(j)
-        rec = {"q": q, "qm": q % P, "da": 0, "db": 0, "ia": 0, "ib": 0, "wa": 0, "wb": 0}
-        rec.update(crop_k=0, crop_a_lo=0, crop_a_hi=0, crop_b_lo=0, crop_b_hi=0)
-        rays = step.rays
-        if rays.size:
-            full = 1 << machine.dp.interp.weight_bits
-            ca, wa, fa = _canonical(*machine.cell(step.zyx[:, machine.a_ax]), full)
-            cb, wb, fb = _canonical(*machine.cell(step.zyx[:, machine.b_ax]), full)
-            _check_neighbours(machine, step, j, full)
-            u, v = rays // W, rays % W
-            uniform = all(
-                np.unique(x).size == 1 for x in (wa, wb, fa >= 0.5, fb >= 0.5, ca - u, cb - v)
-            )
-            if not uniform:
-                raise _refuse(
-                    f"step {j}: the plan's weights or cell offsets differ between rays (float "
-                    "rounding); the RTL top takes one set of constants per slice",
-                    "view",
-                    "another view",
-                )
-            rec.update(
-                da=int(fa[0] >= 0.5),
-                db=int(fb[0] >= 0.5),
-                ia=int(ca[0] - u[0]),
-                ib=int(cb[0] - v[0]),
-                wa=int(wa[0]),
-                wb=int(wb[0]),
-            )
-            rec.update(_crop_slabs(machine, step, j, {"a": ca, "b": cb}, crop))
-        # The hardware's samples: one per slot voxel, the cell whose nearest voxel it is.
-        hu = a - rec["da"] - rec["ia"]
-        hv = b - rec["db"] - rec["ib"]
-        inside = (hu >= 0) & (hu < plan.shape[0]) & (hv >= 0) & (hv < W)
-        ray = np.where(inside, hu * W + hv, 0)
-        takes = inside & (j_lo[ray] <= j) & (j <= j_hi[ray])
-        hw = np.sort(ray[takes])
-        if not np.array_equal(hw, np.sort(rays)):
-            raise _refuse(
-                f"step {j}: {rays.size} samples in the plan, {hw.size} slots would take one "
-                "(a sample exactly half a voxel beyond the volume shares its slot)",
-                "view",
-                "another view",
-            )
-        # Read-modify-write distance on the compositing buffer between a ray's samples.
-        issue = (j + 1) * period + a * C + b // P
-        issue = issue[takes]
-        gap = issue - last_issue[ray[takes]]
-        if gap.size and gap.min() < RMW_WINDOW:
-            raise _refuse(
-                f"step {j}: a ray's samples {gap.min()} clocks apart, the compositing "
-                f"buffer needs {RMW_WINDOW}",
-                "volume",
-                "a larger volume",
-            )
-        last_issue[ray[takes]] = issue
-        out.append(rec)
-    return out
 
 
 def decode(
