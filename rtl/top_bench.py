@@ -20,17 +20,27 @@ Around it only a clock, a reset and one ``go``: a C++ main for Verilator
 (:func:`verilator_main`: no VPI, so Verilator optimises the whole model) and a Verilog
 top level for Icarus (:func:`icarus_testbench`).  Both print the counters as one JSON
 line.  ``clocks`` counts the bench's clocks from ``go`` (loads and frame).  This is
-testbench code: ``hwsim rtl build top`` exports the top alone.
+testbench code: ``hwsim rtl build top`` exports the top alone.  The host side it shares
+with the vg500 bench (registers, sequencer, C++ clock loop) is :mod:`rtl.bench_host`'s.
 """
 
 from __future__ import annotations
 
 from amaranth.hdl import Value
 
+from rtl.bench_host import host_connections, host_sequencer, register_lines, verilator_main_text
 from rtl.export import ports_of
 from rtl.top_layouts import load_words_bound
 
 __all__ = ["bench_verilog", "icarus_testbench", "register_ports", "verilator_main"]
+
+#: The frame state's event lines (``+events=FILE``): period starts, frozen clocks, pixels.
+_EVENTS = r"""          if (efd != 0) begin
+            if (period_start) $fwrite(efd, "S %0d\n", frame_clock);
+            if (frozen) $fwrite(efd, "F %0d\n", frame_clock);
+            if (pixel_valid && pixel_ready) $fwrite(efd, "P %0d %h\n", frame_clock, pixel_payload);
+          end
+"""
 
 #: Top ports the bench drives or reads itself (everything else is a frame register).
 _BENCH_OWNED = {
@@ -79,30 +89,18 @@ def bench_verilog(top, name: str = "cube4_top") -> str:
         "  output [31:0] stall_cycles;",
     ]
     names = ["clk", "rst", "go", "finished", "clocks", "cycles", "samples", "stall_cycles"]
-    for port, bits in registers.items():
-        vec = f"[{bits - 1}:0] " if bits > 1 else ""
-        decl.append(f"  reg {vec}{port};")
-    plusargs = "\n".join(f'    if (!$value$plusargs("r_{p}=%h", {p})) {p} = 0;' for p in registers)
-    conn = [".clk(clk)", ".rst(rst)", *(f".{p}({p})" for p in registers)]
-    conn += [
-        ".load__valid(load_valid)",
-        ".load__payload(load_payload)",
-        ".vmem_addr(vmem_addr)",
-        ".vmem_en(vmem_en)",
-        ".vmem_data(vmem_data)",
-        ".start(start)",
-        ".pixel__valid(pixel_valid)",
-        ".pixel__ready(pixel_ready)",
-        ".pixel__payload(pixel_payload)",
-        ".busy(busy)",
-        ".done(done)",
-        ".cycles(cycles)",
-        ".samples(samples)",
-        ".stall_cycles(stall_cycles)",
-        ".frame_clock(frame_clock)",
-        ".frozen(frozen)",
-        ".period_start(period_start)",
-    ]
+    reg_decl, plusargs = register_lines(registers)
+    decl += reg_decl
+    memory = (".vmem_addr(vmem_addr)", ".vmem_en(vmem_en)", ".vmem_data(vmem_data)")
+    conn = host_connections(registers, memory)
+    conn += [".frame_clock(frame_clock)", ".frozen(frozen)", ".period_start(period_start)"]
+    sequencer = host_sequencer(
+        3,
+        "        2: begin\n          state <= 3;\n          tick <= 0;\n        end",
+        each_clock="          tick <= tick + 1;\n",
+        after_pixel=_EVENTS,
+        on_done="            if (efd != 0) $fclose(efd);\n",
+    )
     reads = "\n".join(
         f"      if (vmem_addr[{k * A + A - 1}:{k * A}] < {geo.module_words})\n"
         f"        vmem_data[{k * B + B - 1}:{k * B}] <= "
@@ -151,45 +149,7 @@ def bench_verilog(top, name: str = "cube4_top") -> str:
 {reads}
     end
   end
-  always @(posedge clk) begin
-    if (rst) begin
-      state <= 0;
-      finished <= 0;
-    end else begin
-      if (state != 0 && state != 4) clocks <= clocks + 1;
-      case (state)
-        0: if (go) begin
-          state <= nloads != 0 ? 1 : 2;
-          index <= 0;
-          clocks <= 0;
-        end
-        1: begin
-          if (index == nloads - 1) state <= 2;
-          index <= index + 1;
-        end
-        2: begin
-          state <= 3;
-          tick <= 0;
-        end
-        3: begin
-          tick <= tick + 1;
-          if (pixel_valid && pixel_ready && fd != 0) $fwrite(fd, "%h\\n", pixel_payload);
-          if (efd != 0) begin
-            if (period_start) $fwrite(efd, "S %0d\\n", frame_clock);
-            if (frozen) $fwrite(efd, "F %0d\\n", frame_clock);
-            if (pixel_valid && pixel_ready) $fwrite(efd, "P %0d %h\\n", frame_clock, pixel_payload);
-          end
-          if (done) begin
-            state <= 4;
-            finished <= 1;
-            if (fd != 0) $fclose(fd);
-            if (efd != 0) $fclose(efd);
-          end
-        end
-        default: ;
-      endcase
-    end
-  end
+{sequencer}
   {name} dut({", ".join(conn)});
 endmodule
 """
@@ -235,27 +195,9 @@ def verilator_main() -> str:
     in the model, the counters and the simulated seconds printed as one ``HWSIM {...}``
     JSON line (``+limit=N`` clocks at most); every 16384 clocks, the samples taken so far
     as a ``HWSIM_PROGRESS <samples>`` line (the rtl rung's progress)."""
-    return r"""#include <chrono>
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include "Vcube4_bench.h"
-#include "verilated.h"
-
-int main(int argc, char** argv) {
-  VerilatedContext* ctx = new VerilatedContext;
-  ctx->commandArgs(argc, argv);
-  Vcube4_bench* bench = new Vcube4_bench{ctx};
-  long long limit = 100000000LL;
-  const char* arg = ctx->commandArgsPlusMatch("limit=");
-  if (arg && std::strlen(arg) > 7) limit = std::atoll(arg + 7);
-  auto tick = [&]() {
-    bench->clk = 1;
-    bench->eval();
-    bench->clk = 0;
-    bench->eval();
-  };
-  bench->clk = 0;
+    return verilator_main_text(
+        "cube4_bench",
+        """  bench->clk = 0;
   bench->rst = 1;
   bench->go = 0;
   bench->eval();
@@ -265,24 +207,5 @@ int main(int argc, char** argv) {
   bench->go = 1;
   tick();
   bench->go = 0;
-  auto start = std::chrono::steady_clock::now();
-  long long n = 0;
-  while (!bench->finished && n < limit) {
-    tick();
-    ++n;
-    if ((n & 0x3FFF) == 0) {
-      std::printf("HWSIM_PROGRESS %u\n", bench->samples);
-      std::fflush(stdout);
-    }
-  }
-  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("HWSIM {\"finished\": %d, \"cycles\": %u, \"samples\": %u, "
-              "\"stall_cycles\": %u, \"clocks\": %u, \"seconds\": %.6f}\n",
-              (int)bench->finished, bench->cycles, bench->samples, bench->stall_cycles,
-              bench->clocks, seconds);
-  bench->final();
-  delete bench;
-  delete ctx;
-  return 0;
-}
-"""
+""",
+    )

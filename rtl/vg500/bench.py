@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from amaranth.hdl import Value
 
+from rtl.bench_host import host_connections, host_sequencer, register_lines, verilator_main_text
 from rtl.export import ports_of
 from rtl.top_bench import register_ports
 from rtl.top_layouts import load_words_bound
@@ -38,6 +39,11 @@ __all__ = ["vg500_bench_verilog", "vg500_main", "COUNTERS"]
 COUNTERS = ("violations", "activates", "reads", "precharges", "refreshes")
 _OWNED = {f"sdram{k}_{p}" for k in range(4) for p in (*PINS_OUT, "dq_in")}
 _OWNED |= {"memory_ready", "hold_cycles", "bursts"}
+
+
+#: The sequencer's states between the loads and the frame: wait for the devices'
+#: power-up (``memory_ready``), then pulse ``start``.
+_BEFORE_FRAME = "        2: if (memory_ready) state <= 3;\n        3: state <= 4;"
 
 
 def _timing_params(t: SdramTiming) -> str:
@@ -54,25 +60,9 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
     ports = {n: len(Value.cast(v)) for n, (v, _) in ports_of(top).items()}
     load_bits, pixel_bits = ports["load__payload"], ports["pixel__payload"]
     registers = {k: v for k, v in register_ports(top).items() if k not in _OWNED}
-    decl = [f"  reg {f'[{b - 1}:0] ' if b > 1 else ''}{p};" for p, b in registers.items()]
-    plusargs = "\n".join(f'    if (!$value$plusargs("r_{p}=%h", {p})) {p} = 0;' for p in registers)
-    conn = [".clk(clk)", ".rst(rst)", *(f".{p}({p})" for p in registers)]
-    conn += [
-        ".load__valid(load_valid)",
-        ".load__payload(load_payload)",
-        ".start(start)",
-        ".pixel__valid(pixel_valid)",
-        ".pixel__ready(pixel_ready)",
-        ".pixel__payload(pixel_payload)",
-        ".busy(busy)",
-        ".done(done)",
-        ".cycles(cycles)",
-        ".samples(samples)",
-        ".stall_cycles(stall_cycles)",
-        ".hold_cycles(hold_cycles)",
-        ".bursts(bursts)",
-        ".memory_ready(memory_ready)",
-    ]
+    decl, plusargs = register_lines(registers)
+    conn = host_connections(registers)
+    conn += [".hold_cycles(hold_cycles)", ".bursts(bursts)", ".memory_ready(memory_ready)"]
     devices = []
     for k in range(4):
         conn += [f".sdram{k}_{p}(s{k}_{p})" for p in (*PINS_OUT, "dq_in")]
@@ -160,36 +150,7 @@ def vg500_bench_verilog(top, rows: int, *, strict: bool = False) -> str:
 {loads}
 {plusargs}
   end
-  always @(posedge clk) begin
-    if (rst) begin
-      state <= 0;
-      finished <= 0;
-    end else begin
-      if (state != 0 && state != 5) clocks <= clocks + 1;
-      case (state)
-        0: if (go) begin
-          state <= nloads != 0 ? 1 : 2;
-          index <= 0;
-          clocks <= 0;
-        end
-        1: begin
-          if (index == nloads - 1) state <= 2;
-          index <= index + 1;
-        end
-        2: if (memory_ready) state <= 3;
-        3: state <= 4;
-        4: begin
-          if (pixel_valid && pixel_ready && fd != 0) $fwrite(fd, "%h\\n", pixel_payload);
-          if (done) begin
-            state <= 5;
-            finished <= 1;
-            if (fd != 0) $fclose(fd);
-          end
-        end
-        default: ;
-      endcase
-    end
-  end
+{host_sequencer(4, _BEFORE_FRAME)}
   vg500_top dut({", ".join(conn)});
 endmodule
 """
@@ -204,51 +165,7 @@ def vg500_main() -> str:
     names = ("hold_cycles", "bursts", "frame_refreshes", *COUNTERS)
     extra = ", ".join(f'\\"{c}\\": %u' for c in names)
     args = ", ".join(f"bench->{c}" for c in names)
-    return (
-        r"""#include <chrono>
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include "Vvg500_bench.h"
-#include "verilated.h"
-
-int main(int argc, char** argv) {
-  VerilatedContext* ctx = new VerilatedContext;
-  ctx->commandArgs(argc, argv);
-  Vvg500_bench* bench = new Vvg500_bench{ctx};
-  long long limit = 100000000LL;
-  const char* arg = ctx->commandArgsPlusMatch("limit=");
-  if (arg && std::strlen(arg) > 7) limit = std::atoll(arg + 7);
-  auto tick = [&]() {
-    bench->clk = 1;
-    bench->eval();
-    bench->clk = 0;
-    bench->eval();
-  };
-  bench->clk = 0;
-  bench->eval();
-  for (int k = 0; k < 3; ++k) tick();  // the bench's reset and go
-  auto start = std::chrono::steady_clock::now();
-  long long n = 0;
-  while (!bench->finished && n < limit) {
-    tick();
-    ++n;
-    if ((n & 0x3FFF) == 0) {
-      std::printf("HWSIM_PROGRESS %u\n", bench->samples);
-      std::fflush(stdout);
-    }
-  }
-  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::printf("HWSIM {\"finished\": %d, \"cycles\": %u, \"samples\": %u, "
-              "\"stall_cycles\": %u, \"clocks\": %u, \"seconds\": %.6f}\n",
-              (int)bench->finished, bench->cycles, bench->samples, bench->stall_cycles,
-              bench->clocks, seconds);
-"""
-        + f'  std::printf("HWSIM_VG500 {{{extra}}}\\n", {args});\n'
-        + """  bench->final();
-  delete bench;
-  delete ctx;
-  return 0;
-}
-"""
-    )
+    after = f'  std::printf("HWSIM_VG500 {{{extra}}}\\n", {args});\n'
+    reset = "  bench->clk = 0;\n  bench->eval();\n"
+    reset += "  for (int k = 0; k < 3; ++k) tick();  // the bench's reset and go\n"
+    return verilator_main_text("vg500_bench", reset, after)
