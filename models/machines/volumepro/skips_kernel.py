@@ -12,6 +12,12 @@ memory sequencer reads for (alive ``lag`` slices earlier).  The same floating-po
 operations as the NumPy form (``floor``, a subtraction, a comparison with 1/2), so the same
 integers; the NumPy form stays as the reference
 (``beam_skips(..., compiled=False)``, compared by ``tests/models/test_transaction_vp1000.py``).
+
+The cycle machine's side: :func:`slice_cells` (rule 6 at one sample slice of
+:meth:`SlabMachine._live_cells`: clock groups and the mini-blocks read) and
+:func:`beam_needs` (each processed beam's last delivery and each delivery's last reader,
+:func:`~models.machines.volumepro.timing.timing_inputs`), their NumPy forms kept for the
+unit chain (tests/models/test_slice_loads.py, tests/models/test_cycle_fused.py).
 """
 
 from __future__ import annotations
