@@ -124,7 +124,7 @@ def test_two_threads_give_the_bits_of_one(name, volumes, monkeypatch):
 
 
 def test_an_error_in_the_geometry_thread_is_raised_in_the_frame(volumes, monkeypatch):
-    def broken(machine, band, cut):
+    def broken(*args):
         yield from ()
         raise ValueError("geometry broke")
 

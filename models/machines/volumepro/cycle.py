@@ -53,7 +53,7 @@ from models.machines.volumepro.memory import SdramVolume, words_per_voxel
 from models.machines.volumepro.skips_kernel import slice_cells
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
 from models.machines.volumepro.slice_loads import SliceLoads, differences_numpy, load_numpy
-from models.machines.volumepro.threads import finish_behind, steps_ahead
+from models.machines.volumepro.threads import SectionBook, finish_behind, steps_ahead
 from models.machines.volumepro.timing import (
     SliceRecord,
     frame_period,
@@ -307,26 +307,22 @@ class SlabMachine(SliceOrderMachine):
                 state.acc[parked] = sram_acc[parked]
                 if sram_dt is not None:
                     state.dt_sum[parked] = sram_dt[parked]
-            seen = np.zeros(plan.n_rays, dtype=bool)
+            book = SectionBook(self, last_j, prev_lane, last_seen if fifo else None, len(records))
             # Termination masks of the last slices: the memory reads a slab while the
             # pipelines are up to ``lag`` sample slices behind (rule 6).
             history: deque[np.ndarray] = deque(maxlen=self.read_lag)
-            done = np.zeros(plan.n_rays, dtype=bool)
+            seen, done = book.seen, book.done  # kept with the steps (threads.py)
             self._planes.clear()
             self._voxels.clear()
             self._diffed.clear()
-            ahead = steps_ahead(self, (a0, a1), len(sections) > 1, threads)
+            ahead = steps_ahead(self, (a0, a1), len(sections) > 1, threads, book)
             for j, (step, (lo, hi), slots) in enumerate(ahead):
                 self._evict(lo if self.forward else hi)
                 busy = np.zeros(P, dtype=np.int64)
                 cost = None
                 fin = np.zeros(0, dtype=np.int64)
                 if step.rays.size:
-                    seen[step.rays] = True
-                    source, a, b, lanes = slots
-                    if fifo:  # rule 8': the record and the slot of each ray's last sample
-                        last_seen[0, step.rays] = len(records)
-                        last_seen[1, step.rays], last_seen[2, step.rays] = a, b
+                    source, a, b, lanes, fin, handoffs = slots
                     live = np.ones(step.rays.size, dtype=bool)
                     if ert_hardware:
                         live = state.alive[step.rays]
@@ -336,7 +332,7 @@ class SlabMachine(SliceOrderMachine):
                         if ert_hardware and len(history) == history.maxlen:
                             known = history[0][step.rays]
                         cost = self._live_cells(source, live, known, si, (lo, hi), needed)
-                    self._hand_off(step.rays, lanes, prev_lane, state)
+                    book.hand_off(handoffs, step.rays, lanes, state)
                     be.process(
                         step,
                         lambda s, src=source, full=step: (
@@ -344,8 +340,6 @@ class SlabMachine(SliceOrderMachine):
                         ),
                         state,
                     )
-                    fin = step.rays[last_j[step.rays] == j]
-                    done[fin] = True
                 elif self.skipping:
                     cost = np.zeros(self.n_a, dtype=np.int64)
                 reach = fifo_reach(self, j) if fifo else -1

@@ -9,9 +9,10 @@ With :func:`~hwsim.core.threads.frame_threads` above one, :meth:`SlabMachine.run
 two helper threads, and keeps on its own thread everything else, in the same order:
 
 - :func:`steps_ahead`: each step's sample positions (``plan.steps()``), its voxel-slice
-  window, its section's samples, their cells and lanes, computed up to
-  :data:`STEPS_AHEAD` steps early on a worker thread (pure functions of the plan: the
-  same arrays on any thread);
+  window, its section's samples, their cells and lanes, and the section's book of them
+  (:class:`SectionBook`: rays seen and finished, rule 8''s last slots, ring hand-offs),
+  computed up to :data:`STEPS_AHEAD` steps early on a worker thread (pure functions of
+  the plan: the same arrays on any thread);
 - :class:`FinishBehind`: the compiled stage's second pass
   (:meth:`SlabKernel.run <models.machines.volumepro.slab_kernel.SlabKernel.run>`'s
   gradients, shading and blend, a numba call that releases the GIL) on a worker thread
@@ -42,20 +43,19 @@ from hwsim.golden.positions import Step
 from models.backend import subset_step
 from models.machines.volumepro.trilinear import TrilinearSource
 
-__all__ = ["STEPS_AHEAD", "FinishBehind", "finish_behind", "steps_ahead"]
+__all__ = ["STEPS_AHEAD", "FinishBehind", "SectionBook", "finish_behind", "steps_ahead"]
 
 #: Steps whose geometry the worker may hold ready (each a few arrays of a step's size).
 STEPS_AHEAD = 4
 #: Second passes queued behind the data pass at most (each holds its step's planes).
 FINISH_BEHIND = 2
 
-Slots = tuple[TrilinearSource, np.ndarray, np.ndarray, np.ndarray]
 
-
-def _geometry(machine, band: tuple[int, int], cut: bool) -> Iterator[tuple]:
+def _geometry(machine, band: tuple[int, int], cut: bool, book: SectionBook) -> Iterator[tuple]:
     """Per step of the plan: ``(step, window, slots)``, ``step`` cut to the section rows
-    ``band = [a0, a1)`` when ``cut``, ``slots = (source, a, b, lanes)`` (None for an
-    empty step): the trilinear source, each sample's slot and its pipeline."""
+    ``band = [a0, a1)`` when ``cut``, ``slots = (source, a, b, lanes, fin, handoffs)``
+    (None for an empty step): the trilinear source, each sample's slot and pipeline, and
+    what ``book`` records of the step (:meth:`SectionBook.step`)."""
     m, (a0, a1) = machine, band
     for j, step in enumerate(m.plan.steps()):
         window = m.window(j)
@@ -66,19 +66,70 @@ def _geometry(machine, band: tuple[int, int], cut: bool) -> Iterator[tuple]:
         if step.rays.size:
             source = TrilinearSource(m, step)
             a, b = m._slots(source)
-            slots = source, a, b, (source.q + a + b) % m.P
+            lanes = (source.q + a + b) % m.P
+            slots = source, a, b, lanes, *book.step(j, step.rays, a, b, lanes)
         yield step, window, slots
 
 
 def steps_ahead(
-    machine, band: tuple[int, int], cut: bool, threads: int
-) -> Iterator[tuple[Step, tuple[int, int], Slots | None]]:
+    machine, band: tuple[int, int], cut: bool, threads: int, book: SectionBook
+) -> Iterator[tuple[Step, tuple[int, int], tuple | None]]:
     """:func:`_geometry`'s steps, on a worker thread up to :data:`STEPS_AHEAD` early when
     ``threads > 1`` (in the caller's thread otherwise)."""
-    items = _geometry(machine, band, cut)
+    items = _geometry(machine, band, cut, book)
     if threads <= 1:
         return items
     return _ahead(items)
+
+
+class _Tally(list):
+    """Counter increments made off the frame's thread, replayed on it in order."""
+
+    def add(self, path: str, amount) -> None:
+        self.append((path, int(amount)))
+
+    def replay(self, counters) -> None:
+        for path, amount in self:
+            counters.add(path, amount)
+
+
+class SectionBook:
+    """What the data pass records of one section's steps that no ray state decides, kept
+    by :func:`_geometry` (ahead, on its thread): the rays seen and finished (their last
+    sample in this step, ``last_j``), each ray's record and slot of its last sample
+    (``last_seen``, rule 8'; None: not kept) and the ring hand-offs (``prev_lane``: each
+    ray's pipeline).  The frame reads ``seen`` and ``done`` once the section's steps are
+    all taken; a hand-off that can clear accumulators (``dropped_handoff``) is made by the
+    frame, in the step (:meth:`hand_off`)."""
+
+    def __init__(self, machine, last_j, prev_lane, last_seen, first_record: int) -> None:
+        n = last_j.size
+        self.m, self.last_j, self.prev_lane, self.last_seen = machine, last_j, prev_lane, last_seen
+        self.first_record = first_record
+        self.seen, self.done = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        self.ahead = machine.faults.dropped_handoff is None
+
+    def step(self, j: int, rays, a, b, lanes) -> tuple[np.ndarray, _Tally | None]:
+        """Step ``j``'s rays seen (their record and slot), those it finishes, and its
+        hand-offs' counts (None: made by the frame)."""
+        self.seen[rays] = True
+        if self.last_seen is not None:
+            self.last_seen[0, rays] = self.first_record + j
+            self.last_seen[1, rays], self.last_seen[2, rays] = a, b
+        fin = rays[self.last_j[rays] == j]
+        self.done[fin] = True
+        if not self.ahead:
+            return fin, None
+        tally = _Tally()
+        self.m._hand_off(rays, lanes, self.prev_lane, None, tally)
+        return fin, tally
+
+    def hand_off(self, handoffs: _Tally | None, rays, lanes, state) -> None:
+        """The step's ring hand-offs on the frame's thread: counted, or made."""
+        if handoffs is None:
+            self.m._hand_off(rays, lanes, self.prev_lane, state)
+        else:
+            handoffs.replay(self.m.counters)
 
 
 def _ahead(items: Iterator) -> Iterator:
