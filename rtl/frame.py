@@ -41,20 +41,9 @@ from models.datapath import Datapath
 from models.frame import Frame
 from models.machines.common.results import UNITS, CycleResult, elaborate_units
 from models.machines.cube4.frame import Cube4Frame
-from models.units import composite as composite_unit
-from rtl.frame_slices import refuse, slice_constants
-from rtl.frame_tables import pack_fields, shader_loads, shading_registers, voxel_memory_words
-from rtl.top_layouts import (
-    LOAD_CORRECTION,
-    LOAD_GM,
-    LOAD_LUT,
-    LOAD_RAYS,
-    LOAD_SLICES,
-    TopGeometry,
-    load_layout,
-    ray_layout,
-    slice_layout,
-)
+from rtl.frame_slices import geometry_loads, refuse
+from rtl.frame_tables import shading_registers, table_loads, voxel_memory_words
+from rtl.top_layouts import TopGeometry, load_layout
 from rtl.top_pipeline import MAX_LIGHTS
 
 #: Processing orders the RTL top implements (the Cube-4 family).
@@ -209,39 +198,10 @@ def prepare(frame: Frame, *, max_axis: int | None = None) -> FrameProgram:
         )
     nz, ny, nx = volume.shape
     cx = -(-nx // P)
-    loads: list[tuple[int, int, int]] = []
-
     volume_words = voxel_memory_words(backend.raw, P, dp.voxel_bits)
-
     mode = scene.render.mode
-    if mode == "composite":
-        lut, c = backend.lut, dp.classify.color_bits
-        entry = lut.rgb[:, 0] | lut.rgb[:, 1] << c | lut.rgb[:, 2] << 2 * c | lut.alpha << 3 * c
-        loads += [(LOAD_LUT, i, int(e)) for i, e in enumerate(entry)]
-        k = float(plan._dt) / backend.ref
-        table = composite_unit.correction_table(int(dp.composite.ratio.quantize(k)), dp.composite)
-        loads += [(LOAD_CORRECTION, i, int(e)) for i, e in enumerate(table)]
-    modulate = mode == "composite" and backend.need_grad and transfer.modulates
-    if modulate:
-        loads += [(LOAD_GM, i, int(e)) for i, e in enumerate(backend.gm_table)]
-    lit = mode == "composite" and scene.lit
-    if lit:
-        loads += shader_loads(backend.shader)
-
-    # Ray table: first and last step of every base-plane ray (never for unused ones).
-    rlay = ray_layout(geo)
-    never = (1 << geo.axis_bits) - 1
-    j_lo = np.full(n_rays, never, dtype=np.int64)
-    j_hi = np.zeros(n_rays, dtype=np.int64)
-    j_lo[plan.ray_ids], j_hi[plan.ray_ids] = plan.j_lo, plan.j_hi
-    loads += [
-        (LOAD_RAYS, r, pack_fields(rlay, {"j_lo": j_lo[r], "j_hi": j_hi[r]})) for r in range(n_rays)
-    ]
-
-    slices = slice_constants(machine, plan, j_lo, j_hi, scene.crop)
-    slay = slice_layout(geo, dp)
-    loads += [(LOAD_SLICES, j, pack_fields(slay, rec)) for j, rec in enumerate(slices)]
-
+    loads, lit, modulate = table_loads(scene, transfer, plan, backend, dp)
+    loads += geometry_loads(machine, plan, geo, dp, scene.crop)
     ert = backend.ert
     registers = {
         **shading_registers(backend, dp, lit, modulate),

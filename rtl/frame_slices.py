@@ -1,11 +1,11 @@
-"""The per-slice constants the host writes for the RTL top (:mod:`rtl.frame`), read off
-the plan (the geometry unit's output) and *checked* against it: every sample the
-hardware will take (one per slot, the sample whose nearest voxel is the slot's voxel)
-must be exactly the plan's samples of that step, with the same cells and quantised
-weights; the gradient's in-slice neighbours must sit in the adjacent slots; the crop
-box's slabs must be ranges of cells; a ray's samples must be far enough apart for the
-compositing buffer's read-modify-write.  What fails is refused naming ``view`` (another
-view) or ``volume``.
+"""The geometry unit's tables the host writes for the RTL top (:mod:`rtl.frame`): the
+ray table and the per-slice constants, read off the plan (the geometry unit's output)
+and *checked* against it: every sample the hardware will take (one per slot, the sample
+whose nearest voxel is the slot's voxel) must be exactly the plan's samples of that
+step, with the same cells and quantised weights; the gradient's in-slice neighbours must
+sit in the adjacent slots; the crop box's slabs must be ranges of cells; a ray's samples
+must be far enough apart for the compositing buffer's read-modify-write.  What fails is
+refused naming ``view`` (another view) or ``volume``.
 
 # Ref: architectures.md section 1 (Cube-4: the per-slice constants of a parallel
 #      projection); docs/rtl.md (the host's writes).
@@ -17,15 +17,37 @@ import numpy as np
 
 from hwsim.core.errors import InputError
 from hwsim.golden.positions import SamplePlan
+from models.datapath import Datapath
 from models.machines.cube4.frame import Cube4Frame
+from rtl.frame_tables import pack_fields
 from rtl.top import RMW_WINDOW
+from rtl.top_layouts import LOAD_RAYS, LOAD_SLICES, TopGeometry, ray_layout, slice_layout
 
-__all__ = ["refuse", "slice_constants"]
+__all__ = ["geometry_loads", "refuse", "slice_constants"]
 
 
 def refuse(message: str, key: str, allowed: str, source=None) -> InputError:
     """The host's refusal: one :class:`InputError` naming ``key`` and what is allowed."""
     return InputError(message, source=source, key=key, allowed=allowed)
+
+
+def geometry_loads(
+    machine: Cube4Frame, plan: SamplePlan, geo: TopGeometry, dp: Datapath, crop=None
+) -> list[tuple[int, int, int]]:
+    """The geometry unit's loads: the ray table (first and last step of every base-plane
+    ray; ``never`` for unused ones) and the per-slice constants (:func:`slice_constants`)."""
+    n_rays = plan.shape[0] * plan.shape[1]
+    rlay = ray_layout(geo)
+    never = (1 << geo.axis_bits) - 1
+    j_lo = np.full(n_rays, never, dtype=np.int64)
+    j_hi = np.zeros(n_rays, dtype=np.int64)
+    j_lo[plan.ray_ids], j_hi[plan.ray_ids] = plan.j_lo, plan.j_hi
+    loads = [
+        (LOAD_RAYS, r, pack_fields(rlay, {"j_lo": j_lo[r], "j_hi": j_hi[r]})) for r in range(n_rays)
+    ]
+    slices = slice_constants(machine, plan, j_lo, j_hi, crop)
+    slay = slice_layout(geo, dp)
+    return loads + [(LOAD_SLICES, j, pack_fields(slay, rec)) for j, rec in enumerate(slices)]
 
 
 def _canonical(cell, weight, frac, full: int):

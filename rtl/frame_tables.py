@@ -13,11 +13,18 @@ import numpy as np
 
 from models.backend import Backend
 from models.datapath import Datapath
+from models.units import composite as composite_unit
 from models.units import skew
-from rtl.top_layouts import LOAD_DIFFUSE_MAP, LOAD_SPEC
+from rtl.top_layouts import LOAD_CORRECTION, LOAD_DIFFUSE_MAP, LOAD_GM, LOAD_LUT, LOAD_SPEC
 from rtl.top_pipeline import MAX_LIGHTS
 
-__all__ = ["pack_fields", "shader_loads", "shading_registers", "voxel_memory_words"]
+__all__ = [
+    "pack_fields",
+    "shader_loads",
+    "shading_registers",
+    "table_loads",
+    "voxel_memory_words",
+]
 
 
 def pack_fields(layout, fields: dict[str, int]) -> int:
@@ -46,6 +53,28 @@ def voxel_memory_words(raw: np.ndarray, P: int, B: int) -> list[int]:
         column = fields[:, k].tolist()
         words = [w | (v << (k * B)) for w, v in zip(words, column, strict=True)]
     return words
+
+
+def table_loads(scene, transfer, plan, backend: Backend, dp: Datapath):
+    """``(loads, lit, modulate)``: the classification LUT and the opacity-correction
+    table (for the plan's ``dt``) of a composite, the gradient-magnitude table when the
+    scene modulates opacity, the shader's tables when it is lit."""
+    loads: list[tuple[int, int, int]] = []
+    mode = scene.render.mode
+    if mode == "composite":
+        lut, c = backend.lut, dp.classify.color_bits
+        entry = lut.rgb[:, 0] | lut.rgb[:, 1] << c | lut.rgb[:, 2] << 2 * c | lut.alpha << 3 * c
+        loads += [(LOAD_LUT, i, int(e)) for i, e in enumerate(entry)]
+        k = float(plan._dt) / backend.ref
+        table = composite_unit.correction_table(int(dp.composite.ratio.quantize(k)), dp.composite)
+        loads += [(LOAD_CORRECTION, i, int(e)) for i, e in enumerate(table)]
+    modulate = mode == "composite" and backend.need_grad and transfer.modulates
+    if modulate:
+        loads += [(LOAD_GM, i, int(e)) for i, e in enumerate(backend.gm_table)]
+    lit = mode == "composite" and scene.lit
+    if lit:
+        loads += shader_loads(backend.shader)
+    return loads, lit, modulate
 
 
 def shader_loads(shader) -> list[tuple[int, int, int]]:
