@@ -29,7 +29,7 @@ the code it runs, and leaves no build of the old code under the new code's key.
 Why not hash the generated Verilog itself, the most direct key: exporting it takes
 8-11 s for the 16-64 size classes and 31 s for 128 (Yosys; the RTLIL alone 6.5 s at 16),
 every run, against a 0.06 s warm 16^3 frame.  The import closure costs 0.25 s once per
-process (parsing 44 files) and 5-10 ms after.  It is conservative: an edit to one of
+process (parsing the closure, ~57 files) and 5-10 ms after.  It is conservative: an edit to one of
 those files, a comment included, rebuilds (also ``hwsim/spec/scene.py``, which
 ``models.units.classify`` reaches through ``hwsim.spec.transfer``); an edit elsewhere
 (``rtl/frame.py``, ``rtl/rung.py``, the machines' models, the CLI) does not.
