@@ -106,7 +106,9 @@ def test_two_threads_give_the_bits_of_one(name, volumes, monkeypatch):
     monkeypatch.setattr(vp_threads.FinishBehind, "launch", counted)
     ahead = []
     monkeypatch.setattr(
-        vp_threads, "_ahead", lambda items, f=vp_threads._ahead: ahead.append(1) or f(items)
+        vp_threads,
+        "_ahead",
+        lambda items, depth, f=vp_threads._ahead: ahead.append(depth) or f(items, depth),
     )
     with using(1):
         one, sat_one = _render(case, volumes)

@@ -11,8 +11,9 @@ two helper threads, and keeps on its own thread everything else, in the same ord
 - :func:`steps_ahead`: each step's sample positions (``plan.steps()``), its voxel-slice
   window, its section's samples, their cells and lanes, and the section's book of them
   (:class:`SectionBook`: rays seen and finished, rule 8''s last slots, ring hand-offs),
-  computed up to :data:`STEPS_AHEAD` steps early on a worker thread (pure functions of
-  the plan: the same arrays on any thread);
+  computed up to :data:`STEPS_AHEAD` steps early (fewer for large images:
+  :data:`RAYS_AHEAD`) on a worker thread (pure functions of the plan: the same arrays on
+  any thread);
 - :class:`FinishBehind`: the compiled stage's second pass
   (:meth:`SlabKernel.run <models.machines.volumepro.slab_kernel.SlabKernel.run>`'s
   gradients, shading and blend, a numba call that releases the GIL) on a worker thread
@@ -43,10 +44,20 @@ from hwsim.golden.positions import Step
 from models.backend import subset_step
 from models.machines.volumepro.trilinear import TrilinearSource
 
-__all__ = ["STEPS_AHEAD", "FinishBehind", "SectionBook", "finish_behind", "steps_ahead"]
+__all__ = [
+    "RAYS_AHEAD",
+    "STEPS_AHEAD",
+    "FinishBehind",
+    "SectionBook",
+    "finish_behind",
+    "steps_ahead",
+]
 
-#: Steps whose geometry the worker may hold ready (each a few arrays of a step's size).
+#: Steps whose geometry the worker may hold ready (each a few arrays of a step's size:
+#: ~25 MB for a 512^2 image), and the rays they may hold in all (4 steps of a 256^2 image,
+#: 1 of a 512^2: a large frame's memory peak stays near one thread's).
 STEPS_AHEAD = 4
+RAYS_AHEAD = 1 << 18
 #: Second passes queued behind the data pass at most (each holds its step's planes).
 FINISH_BEHIND = 2
 
@@ -74,12 +85,12 @@ def _geometry(machine, band: tuple[int, int], cut: bool, book: SectionBook) -> I
 def steps_ahead(
     machine, band: tuple[int, int], cut: bool, threads: int, book: SectionBook
 ) -> Iterator[tuple[Step, tuple[int, int], tuple | None]]:
-    """:func:`_geometry`'s steps, on a worker thread up to :data:`STEPS_AHEAD` early when
-    ``threads > 1`` (in the caller's thread otherwise)."""
+    """:func:`_geometry`'s steps, on a worker thread up to :data:`STEPS_AHEAD` early (and
+    :data:`RAYS_AHEAD` rays) when ``threads > 1``; in the caller's thread otherwise."""
     items = _geometry(machine, band, cut, book)
     if threads <= 1:
         return items
-    return _ahead(items)
+    return _ahead(items, max(1, min(STEPS_AHEAD, RAYS_AHEAD // max(machine.plan.n_rays, 1))))
 
 
 class _Tally(list):
@@ -132,9 +143,10 @@ class SectionBook:
             handoffs.replay(self.m.counters)
 
 
-def _ahead(items: Iterator) -> Iterator:
-    """``items`` computed on a worker thread; its exception is raised here, in order."""
-    ready: queue.Queue = queue.Queue(STEPS_AHEAD)
+def _ahead(items: Iterator, depth: int) -> Iterator:
+    """``items`` computed on a worker thread, up to ``depth`` ready; its exception is
+    raised here, in order."""
+    ready: queue.Queue = queue.Queue(depth)
     stop = threading.Event()
 
     def put(entry) -> bool:
