@@ -27,7 +27,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["beam_needs", "slice_cells", "step_cells"]
+__all__ = ["beam_needs", "cell_blocks", "slice_cells", "step_cells"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -127,6 +127,16 @@ def slice_cells(pa, pb, live, known, P, n_b, cells, cost_row, blocks):
     for i in range(pa.shape[0]):
         if known[i]:
             cells[_cell(pa[i], n_a), _cell(pb[i], n_b)] = True
+    cell_blocks(cells, n_b, blocks)
+
+
+@numba.njit(cache=True, nogil=True)
+def cell_blocks(cells, n_b, blocks):
+    """:func:`~models.machines.volumepro.timing.mini_blocks_read` of ``cells[:, :n_b]``
+    into ``blocks`` ``(ceil(n_a / 2), ceil(n_b / 2))``, overwritten: the mini-blocks
+    holding voxel rows ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2`` of a marked cell
+    ``(a, b)``."""
+    n_a = cells.shape[0]
     blocks[:] = False
     for a in range(n_a):
         u0, u1 = max(a - 1, 0) // 2, min(a + 2, n_a - 1) // 2

@@ -136,8 +136,9 @@ def beam_skips(
     live_count = np.zeros(plan.n_steps, dtype=np.int64)
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
     cells = np.zeros((n_a, C * P), dtype=bool)
+    blocks = np.zeros((n_u, n_mb), dtype=bool)
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import step_cells
+    from models.machines.volumepro.skips_kernel import cell_blocks, step_cells
 
     axes, dims = np.array([kp, a_ax, b_ax]), np.array(shape, dtype=np.int64)
     never = np.zeros(0, dtype=np.int64)
@@ -147,7 +148,8 @@ def beam_skips(
             last = never if stopped is None else stopped[rays].astype(np.int64)
             live_count[j], busiest[j] = step_cells(zyx, axes, dims, P, last, j, lag, cells, cost[j])
             lo, hi = window(j)
-            needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
+            cell_blocks(cells, n_b, blocks)
+            needed[lo : hi + 1] |= blocks
             continue
         ra = np.clip(np.floor(zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
         rb = np.clip(np.floor(zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
