@@ -31,8 +31,6 @@ from models.units import classify as classify_unit
 
 __all__ = ["SliceLoads", "differences_numpy", "load_numpy", "read_plane", "visible"]
 
-_NO_RANGE = 0  # _value_rows: no transparency bounds wanted
-
 
 class SliceLoads:
     """The compiled slice loads of one :class:`~models.machines.volumepro.cycle.SlabMachine`
