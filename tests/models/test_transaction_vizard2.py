@@ -8,9 +8,9 @@ termination threshold it follows the machine's rules exactly (the same lookups, 
 bursts and cycles as the cycle rung); with one, it stays within the 2 % contract.
 
 These tests are the SimPy packet model's (``VizardTransaction.play``; the fixture below
-keeps the rung from timing on the cycle rung's compiled ray loop, which it does for
-every frame that loop holds: :func:`test_the_loop_times_what_the_cycle_rung_times`,
-shared code, a consistency check).
+keeps the rung from timing on its compiled packet model, the default, tested in
+test_packet_timing_vizard2.py, or on the cycle rung's compiled ray loop,
+:func:`test_the_loop_times_what_the_cycle_rung_times`, shared code, a consistency check).
 
 Partly shared (``hwsim.studies.trade.independence``): both rungs call the cycle-exact
 ``SdramController``, ``BlockLayout.bursts``, ``FEEDBACK``/``FILL_WRITE``, the cache
@@ -74,8 +74,9 @@ def timing(scene, volume, arch, **options):
 
 @pytest.fixture(autouse=True)
 def event_model(monkeypatch):
-    """The transaction rung on its SimPy packet model, never on the cycle rung's loop."""
-    monkeypatch.setattr(VizardTransaction, "_on_the_ray_loop", lambda self: None)
+    """The transaction rung on its SimPy packet model, never on the compiled packet
+    model or the cycle rung's loop."""
+    monkeypatch.setattr(VizardTransaction, "run", VizardTransaction.play)
 
 
 @pytest.fixture(scope="module")
@@ -226,7 +227,7 @@ def test_the_loop_times_what_the_cycle_rung_times(
     scene = scene_of(phantom, ert=ert, **kind)
     tf = resolve_transfer(scene.transfer, volume)
     exact = render_cycle(frame_of(scene, volume, tf, arch))
-    alone = timing_only(frame_of(scene, volume, tf, arch))
+    alone = transaction_timing(frame_of(scene, volume, tf, arch), shared_loop=True)
     assert alone.counters["transaction.granularity"] == "the cycle rung's ray loop, timing only"
     assert alone.cycles == exact.cycles
     keys = (*EXACT, "ert.speculative_samples", "memory.row_hits", "pixel_bus.max_occupancy")
@@ -235,12 +236,15 @@ def test_the_loop_times_what_the_cycle_rung_times(
         assert alone.counters["ert.speculative_samples"] > 0
 
 
-def test_frames_out_of_the_loops_scope_take_the_event_model(phantoms, monkeypatch):
+def test_frames_out_of_the_loops_scope_take_the_packet_model(phantoms, monkeypatch):
     monkeypatch.undo()
     volume = phantoms["head"]
     scene = scene_of(projection="perspective")  # lit: a shader per ray, not the loop's
     tf = resolve_transfer(scene.transfer, volume)
     alone = timing_only(frame_of(scene, volume, tf, machine()))
-    assert alone.counters["transaction.events"] > 0  # the SimPy model played it
+    assert alone.counters["transaction.granularity"] == "packets, rounds and page runs (compiled)"
+    assert transaction_timing(frame_of(scene, volume, tf, machine()), shared_loop=True).counters[
+        "transaction.events"
+    ]  # out of the loop's scope: the SimPy model played it
     forced = transaction_timing(frame_of(scene_of(), volume, tf, machine()), event_model=True)
     assert forced.counters["transaction.events"] > 0

@@ -130,8 +130,9 @@ _VOLUMEPRO_SHARED = (
 )
 
 #: The transaction rung's event model against the cycle rung, on frame cycles, per family
-#: (``volumepro-skipping``: VolumePro 1000's :class:`Vp1000Transaction`; ``vizard2-event-model``:
-#: VIZARD II's SimPy packet model, for the frames its ray loop does not hold).
+#: (``volumepro-skipping``: VolumePro 1000's :class:`Vp1000Transaction`; ``vizard2``: VIZARD
+#: II's compiled packet model, ``vizard2-shared-loop`` the cycle rung's loop it falls back
+#: to, ``vizard2-event-model`` its SimPy packet model).
 TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
     "cube4": _transaction(
         SHARED,
@@ -188,11 +189,37 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         cycle="live cells from its data pass (SlabMachine._live_cells), then the "
         "beam-by-beam recurrence as VolumePro 500",
     ),
-    # VIZARD II's transaction rung times a frame the compiled ray loop holds
-    # (RayKernel.for_machine: composite within the fused stage's scope, MIP; no crop or
-    # cut planes) on that loop with the datapath cut to what decides a clock: the same
-    # code as the cycle rung, so equal cycles are a consistency check.
+    # VIZARD II's transaction rung times a frame on its compiled packet model
+    # (models/machines/vizard2/packet_timing.py, issue 36): the machine's rules written
+    # again at packet / round / page-run granularity, its own tag-only cache and SDRAM
+    # timing from the arch file's values; it shares the plan (positions, leap ranges),
+    # the memory layout's sizes, the latency constants and the rays' termination steps
+    # (the functional rung's back end, not the cycle rung's loop).
     "vizard2": _transaction(
+        PARTLY_SHARED,
+        (
+            "hwsim.golden.positions.SamplePlan.position (the plan's positions)",
+            "hwsim.golden.positions.SamplePlan.leap",
+            "models.backend.Backend.occupied_blocks",
+            "models.machines.vizard2.memory.BlockLayout (words and bursts per block)",
+            "models.machines.vizard2.config.FEEDBACK",
+            "models.machines.vizard2.config.FILL_WRITE",
+            "models.machines.vizard2.config.parse_buffers",
+            "models.backend.Backend (the rays' termination steps, functional rung)",
+        ),
+        txn="packets and rounds (ceil(live / P) clocks a round), a tag-only direct-mapped "
+        "cache over each sample's cell blocks, fills as page runs timed from the "
+        "published SDRAM timings (no command bus, no per-burst controller), refresh, "
+        "early termination from the functional rung's steps in its own clocks, the "
+        "pixel FIFO in closed form (packet_timing.PacketTiming, packet_timing._frame)",
+        cycle="the compiled ray loop with the datapath (RayKernel, ray_memory.gather_round "
+        "and fills_timed), BlockCache.fetch, the cycle-exact SdramController, the "
+        "opacity that ends a ray from its own blend, hwsim.engine.DrainFifo",
+    ),
+    # The cycle rung's own ray loop without its datapath (VizardTransaction(frame,
+    # shared_loop=True), and the fallback where the packet model refuses a frame): the
+    # same code as the cycle rung, so equal cycles are a consistency check.
+    "vizard2-shared-loop": _transaction(
         SHARED,
         (
             "models.machines.vizard2.cycle.VizardMachine.timing",
@@ -205,8 +232,8 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         "skipped; the opacity that ends a ray kept (RayKernel.timing)",
         cycle="the datapath's colours, shading and saturation counts, the image",
     ),
-    # The SimPy packet model: frames outside the loop's scope (lit perspective, crop,
-    # cut planes) and VizardTransaction(event_model=True), the rules written again.
+    # The SimPy packet model: VizardTransaction(event_model=True), and frames neither the
+    # packet model nor the loop holds; the rules written again over the shared SDRAM.
     "vizard2-event-model": _transaction(
         PARTLY_SHARED,
         (

@@ -64,6 +64,7 @@ from models.machines.vizard2.config import (
     parse_buffers,
 )
 from models.machines.vizard2.memory import BlockLayout
+from models.machines.vizard2.packet_timing import PacketTiming
 from models.units import interp as interp_unit
 
 __all__ = ["VizardTransaction"]
@@ -81,13 +82,20 @@ class VizardTransaction(ReadsTheFrame):
     pixel_fifo_depth : int, optional
         Override of ``[buffers] pixel_fifo_entries``.
     event_model : bool, optional
-        Play the packets in this SimPy model even where the cycle rung's compiled ray
-        loop could time the frame (:meth:`run`): the model's own rules, the reference
-        the shared loop is checked against.
+        Play the packets in this SimPy model (:meth:`play`) instead of the compiled
+        packet model (:mod:`models.machines.vizard2.packet_timing`).
+    shared_loop : bool, optional
+        Time the frame on the cycle rung's compiled ray loop (shared code, a consistency
+        check) instead of the packet model, where the loop holds the frame.
     """
 
     def __init__(
-        self, frame: Frame, *, pixel_fifo_depth: int | None = None, event_model: bool = False
+        self,
+        frame: Frame,
+        *,
+        pixel_fifo_depth: int | None = None,
+        event_model: bool = False,
+        shared_loop: bool = False,
     ) -> None:
         scene, arch, plan, volume = frame.scene, frame.arch, frame.plan, frame.volume
         self.frame, self.volume, self.datapath = frame, volume, frame.datapath
@@ -99,7 +107,7 @@ class VizardTransaction(ReadsTheFrame):
         self.backend = be = Backend(frame)
         stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"
         self.ert = arch.early_termination and stops
-        self.event_model = event_model
+        self.event_model, self.shared_loop = event_model, shared_loop
         self.layout = BlockLayout.of(  # the cycle rung's memory image and capacity check
             volume.shape, self.memory.sdram, self.datapath.voxel_bits, be.need_grad, arch.source
         )
@@ -283,15 +291,28 @@ class VizardTransaction(ReadsTheFrame):
     # ------------------------------------------------------------------ frame
 
     def run(self) -> TxnTiming:
-        """Time the frame: on the cycle rung's compiled ray loop without its datapath
-        where the loop's scope holds the frame and ``event_model`` is off (shared code:
-        a consistency check with the cycle rung, not independent evidence), else in this
+        """Time the frame: on the compiled packet model (:class:`PacketTiming`, the
+        machine's rules written again, coarser) unless ``event_model`` or
+        ``shared_loop`` asks otherwise or the model refuses the frame; then on the cycle
+        rung's compiled ray loop without its datapath where that loop holds the frame
+        (shared code: a consistency check, not independent evidence), else in this
         SimPy model (:meth:`play`)."""
-        if not self.event_model:
-            timed = self._on_the_ray_loop()
-            if timed is not None:
-                return timed
-        return self.play()
+        if self.event_model:
+            return self.play()
+        refused = None
+        if not self.shared_loop:
+            model = PacketTiming(self)
+            refused = model.refusal()
+            if refused is None:
+                start = time.perf_counter()
+                cycles, counters = model.run()
+                counters["transaction.granularity"] = "packets, rounds and page runs (compiled)"
+                counters["transaction.timing_seconds"] = time.perf_counter() - start
+                return TxnTiming(cycles, counters)
+        timed = self._on_the_ray_loop() or self.play()
+        if refused is not None:
+            timed.counters["transaction.packet_model_refused"] = refused
+        return timed
 
     def _on_the_ray_loop(self) -> TxnTiming | None:
         """``VizardMachine.timing`` on this frame; None out of the loop's scope."""
