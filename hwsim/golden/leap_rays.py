@@ -72,6 +72,9 @@ def _march(
 ):  # pragma: no cover
     n_rays = o.shape[0]
     fblock = np.float64(block)
+    # A power-of-two block: the quotient of a clipped (>= 0) position is exact, so its
+    # floor is ``numpy.floor_divide``'s without the remainder (``fmod`` was half the march).
+    exact = block > 0 and (block & (block - 1)) == 0
     blk = np.empty(3)
     p = np.empty(3)
     for sign in (1, -1):
@@ -83,7 +86,11 @@ def _march(
                 t = (k_first + k_dir * j) * dt
                 for a in range(3):
                     p[a] = o[r, a] + t * d[dr, a]
-                    blk[a] = _floor_divide(min(max(p[a], 0.0), top[a]), fblock)
+                    clipped = min(max(p[a], 0.0), top[a])
+                    if exact:
+                        blk[a] = math.floor(clipped / fblock)
+                    else:
+                        blk[a] = _floor_divide(clipped, fblock)
                 c = distance[np.int64(blk[0]), np.int64(blk[1]), np.int64(blk[2])]
                 if c <= 0:
                     break

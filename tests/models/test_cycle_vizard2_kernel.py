@@ -157,3 +157,20 @@ def test_frames_outside_the_scope_take_the_chain(volumes, scene):
     assert ray_kernel.RayKernel.for_machine(VizardMachine(Backend(frame))) is None
     run = render_cycle(frame)  # and still renders
     assert run.samples > 0
+
+
+@pytest.mark.parametrize("faults", [None, VizardFaults(ray_queue_entries=5, pixel_fifo_depth=1)])
+def test_one_call_a_frame_equals_one_call_a_packet(volumes, faults):
+    """The loop runs a frame's packets in one call, the pixel FIFO in it; with a progress
+    report it runs one call a packet, the FIFO in Python: the same image, cycles and
+    counters (and the report counts every packet)."""
+    scene = _scene(render={"early_termination": 0.9})
+    arch, tf, plan = rungs.prepared(scene, volumes["head"], "vizard2")
+    frame = frame_of(scene, volumes["head"], tf, arch, plan)
+    seen = []
+    whole = render_cycle(frame, faults=faults)
+    packets = render_cycle(frame, faults=faults, progress=lambda k, n: seen.append((k, n)))
+    assert np.array_equal(whole.image, packets.image)
+    assert (whole.cycles, whole.counters) == (packets.cycles, packets.counters)
+    assert len(seen) > 1 and seen[-1][0] == seen[-1][1] == len(seen)
+    assert whole.counters["pixel_bus.pixels"] == whole.rays

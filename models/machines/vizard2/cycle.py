@@ -376,7 +376,7 @@ class VizardMachine:
         """The memory's, cache's, pixel bus's and frame's counters; returns the SDRAM
         schedule."""
         c = self.counters
-        schedule = self.sdram.schedule()
+        schedule = self.sdram.schedule(copy=False)  # the frame's own controller: views
         for key, value in schedule.stats.to_counters("memory").items():
             c.set(key, value)
         c.set("cache.lines", self.cache.lines)

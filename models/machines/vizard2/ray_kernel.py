@@ -1,4 +1,5 @@
-"""VIZARD II's ray loop compiled: a packet's rounds through cache, SDRAM and datapath.
+"""VIZARD II's ray loop compiled: a frame's packets, round by round, through cache, SDRAM
+and datapath, and out through the pixel FIFO.
 
 # Ref: architectures.md section 5 (VIZARD II); models/machines/vizard2/cycle.py (the unit
 #      chain this loop is checked against, and its timing rules 1-6); models/fused_stage.py
@@ -9,9 +10,11 @@ step, one round (one step of each live ray) at a time.  Its reference form runs 
 round as a chain of NumPy calls on arrays of a few dozen samples: positions, the block
 cache's lookups (resolved at once, sorted by line), the fills' SDRAM bursts, the issue
 timing and the back end's units; at 64^3 that is 1569 rounds and some hundred calls each.
-Here one compiled call runs a whole packet, each round's samples in issue order, first
-through the memory side (:func:`~models.machines.vizard2.ray_memory.gather_round`, one
-call a round), then the datapath:
+Here one compiled call runs the frame's packets in the ray generator's order (one call a
+packet when a progress report is asked for or the pixel FIFO has depth 0), each round's
+samples in issue order, first through the memory side
+(:func:`~models.machines.vizard2.ray_memory.gather_round`, one call a round), then the
+datapath:
 
 - the position (the plan's own float expression, ``SamplePlan.position``), the cell and
   weights (:func:`~models.units.interp.cell_weight`);
@@ -27,7 +30,10 @@ call a round), then the datapath:
 - per round, the fills' bursts per lookup group sorted page by page and scheduled by the
   SDRAM controller's own compiled loop (:func:`hwsim.memory.sdram_kernel.schedule_requests`,
   on the controller's state), the stalls, issue cycles, early-termination feedback and the
-  stage counters (summed: the stages' accounting is linear in its blocks).
+  stage counters (summed: the stages' accounting is linear in its blocks);
+- per packet, its retirement (rule 5): the accumulators to the pixel bus and the pixels
+  through the pixel FIFO (:func:`~models.machines.vizard2.ray_memory.retire_packet`,
+  ``hwsim.engine.DrainFifo``'s rules on its state), a full FIFO stalling the issue.
 
 Helpers called per sample take scalars only: an array handed to a helper numba inlines
 costs two atomic reference-count updates a call, which were a fifth of the loop's time
@@ -65,18 +71,22 @@ from models.machines.vizard2.config import FEEDBACK, FILL_WRITE
 from models.machines.vizard2.ray_memory import (
     _CLOCK,
     _CYCLES,
+    _FIFO_STALLS,
     _FILLS,
     _HITS,
     _ISSUED,
     _LOOKUPS,
+    _RETIRED,
     _SAMPLES,
     _SD_N,
     _SPEC,
     _STALLS,
+    FIFO,
     REGS,
     fills_timed,
     gather_round,
     issue_round,
+    retire_packet,
 )
 from models.units import classify as classify_unit
 from models.units import composite as composite_unit
@@ -106,7 +116,7 @@ def _trilinear(v0, v1, v2, v3, v4, v5, v6, v7, wz, wy, wx, s_bits, w_bits, w_cod
     return np.int64(lerp(b0, b1, wz, w_bits, w_code))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(inline="always")
 def _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_at, feedback,
                live):  # fmt: skip
     """The packet's rays that issue step ``j`` into ``live`` (their count): those whose
@@ -150,8 +160,9 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
     fixed = constants if constants is not None else (0,) * 9
 
     def kernel(
-        packet, ray_ids, j_lo, j_hi, orig, dirs, k_first, k_dir, dt, shape, nb, sets, tag,
-        cvals, cgx, cgy, cgz, ivals, igx, igy, igz, faults, lay, ratio, sd_out, sd_arr,
+        flat, starts, k0, k1, fifo, bus_acc, bus_touched, ray_ids, j_lo, j_hi, orig, dirs,
+        k_first, k_dir, dt, shape, nb, sets, tag, cvals, cgx, cgy, cgz, ivals, igx, igy, igz,
+        faults, lay, ratio, sd_out, sd_arr,
         sd_params, sd_regs, sd_banks, sd_booked, sd_log, terminated_at, alive, touched, acc,
         flags, busy, regs, rgb12, alpha12, grad_p, w_ratio, gm_table, light, half, intensity,
         spec, maps, table, ert_thr, sat, config,
@@ -170,7 +181,9 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         values = not timing or ert_on
         grads = grads and (not timing or (ert_on and modulates))
         gm_scale, gm_entries = grad_p[GRAD_FLAGS[2]], grad_p[GRAD_FLAGS[3]]
-        n_pk = packet.shape[0]
+        n_pk = 1  # the largest packet's rays
+        for k in range(k0, k1):
+            n_pk = max(n_pk, starts[k + 1] - starts[k])
         # Per round: its live rays, their state before it, issue cycles, the groups'
         # stalls, the misses (sample, block), each sample's weights and corners (8 values,
         # 24 gradient-table entries) and the visible samples' colours and gradients.
@@ -180,124 +193,131 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         miss_s, miss_b = np.empty(8 * n_pk, np.int64), np.empty(8 * n_pk, np.int64)
         rgba, g = np.empty((4, n_pk), np.int64), np.empty((3, n_pk), np.int64)
         w, v = np.empty((n_pk, 3), np.int64), np.empty((n_pk, 32), np.int64)
-        j0, j1 = j_lo[packet].min(), j_hi[packet].max()
-        for j in range(j0, j1 + 1):
-            clock = regs[_CLOCK]
-            n = _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_at,
-                           feedback, live)  # fmt: skip
-            if n == 0:
-                continue
-            n_miss = gather_round(
-                n, live, ray_ids, orig, dirs, (k_first + k_dir * j) * dt, shape, nb, sets, tag,
-                cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, values, mip, faults, miss_s,
-                miss_b, regs, alive, before, w, v, w_bits, w_code,
-            )  # fmt: skip
-            m = 0
-            for i in range(n):
-                if not (mip or before[i]):
-                    continue  # a dead ray's sample: fetched, not processed
-                regs[_SAMPLES] += 1
-                if not values:
-                    continue  # timing only, no ray ends early: no clock waits on a value
-                ray = ray_ids[live[i]]
-                touched[ray] = True
-                wz, wy, wx = w[i, 0], w[i, 1], w[i, 2]
-                value = _trilinear(
-                    v[i, 0],
-                    v[i, 1],
-                    v[i, 2],
-                    v[i, 3],
-                    v[i, 4],
-                    v[i, 5],
-                    v[i, 6],
-                    v[i, 7],
-                    wz,
-                    wy,
-                    wx,
-                    s_bits,
-                    w_bits,
-                    w_code,
-                )
-                if mip:
-                    acc[ray, 0] = max(acc[ray, 0], value)
+        keys = np.empty((3, 8 * n_pk * (lay[3] + lay[4])), np.int64)  # fills' page keys
+        for k in range(k0, k1):  # packets k0 .. k1 - 1, in the ray generator's order
+            packet = flat[starts[k] : starts[k + 1]]
+            j0, j1 = j_lo[packet].min(), j_hi[packet].max()
+            for j in range(j0, j1 + 1):
+                clock = regs[_CLOCK]
+                n = _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_at,
+                               feedback, live)  # fmt: skip
+                if n == 0:
                     continue
-                idx = classify_unit.lut_index_raw(value, lut_shift, entries)
-                alpha = alpha12[idx]
-                if alpha <= 0:
-                    continue  # transparent: changes nothing (Backend._composite's `vis`)
-                gx = gy = gz = np.int64(0)
-                if grads:
-                    gx = _trilinear(
-                        v[i, 8],
-                        v[i, 9],
-                        v[i, 10],
-                        v[i, 11],
-                        v[i, 12],
-                        v[i, 13],
-                        v[i, 14],
-                        v[i, 15],
-                        wz,
-                        wy,
-                        wx,
-                        s_bits,
-                        w_bits,
-                        w_code,
-                    )
-                    gy = _trilinear(
-                        v[i, 16],
-                        v[i, 17],
-                        v[i, 18],
-                        v[i, 19],
-                        v[i, 20],
-                        v[i, 21],
-                        v[i, 22],
-                        v[i, 23],
-                        wz,
-                        wy,
-                        wx,
-                        s_bits,
-                        w_bits,
-                        w_code,
-                    )
-                    gz = _trilinear(
-                        v[i, 24],
-                        v[i, 25],
-                        v[i, 26],
-                        v[i, 27],
-                        v[i, 28],
-                        v[i, 29],
-                        v[i, 30],
-                        v[i, 31],
-                        wz,
-                        wy,
-                        wx,
-                        s_bits,
-                        w_bits,
-                        w_code,
-                    )
-                    gx, gy, gz, alpha = world_and_modulate(
-                        gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale, gm_entries, gm_table
-                    )
-                g[0, m], g[1, m], g[2, m] = gx, gy, gz
-                rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
-                rgba[3, m], vis_rays[m] = alpha, ray
-                m += 1
-            if timing and values:
-                _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one,
-                               acc_code)  # fmt: skip
-            elif not mip:
-                shade_and_blend(
-                    rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table, acc,
-                    ert_thr, alive, sat, f_bits, spec_entries, one, acc_code,
+                n_miss = gather_round(
+                    n, live, ray_ids, orig, dirs, (k_first + k_dir * j) * dt, shape, nb, sets, tag,
+                    cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, values, mip, faults, miss_s,
+                    miss_b, regs, alive, before, w, v, w_bits, w_code,
                 )  # fmt: skip
-            stall[: (n + P - 1) // P] = 0
-            if n_miss:
-                sd_out, sd_arr, sd_booked, sd_log = fills_timed(
-                    miss_s, miss_b, n_miss, clock, stall, P, lay, ratio, sd_out, sd_arr,
-                    sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs,
-                )  # fmt: skip
-            issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live,
-                        terminated_at, issue, regs)  # fmt: skip
+                m = 0
+                for i in range(n):
+                    if not (mip or before[i]):
+                        continue  # a dead ray's sample: fetched, not processed
+                    regs[_SAMPLES] += 1
+                    if not values:
+                        continue  # timing only, no ray ends early: no clock waits on a value
+                    ray = ray_ids[live[i]]
+                    touched[ray] = True
+                    wz, wy, wx = w[i, 0], w[i, 1], w[i, 2]
+                    value = _trilinear(
+                        v[i, 0],
+                        v[i, 1],
+                        v[i, 2],
+                        v[i, 3],
+                        v[i, 4],
+                        v[i, 5],
+                        v[i, 6],
+                        v[i, 7],
+                        wz,
+                        wy,
+                        wx,
+                        s_bits,
+                        w_bits,
+                        w_code,
+                    )
+                    if mip:
+                        acc[ray, 0] = max(acc[ray, 0], value)
+                        continue
+                    idx = classify_unit.lut_index_raw(value, lut_shift, entries)
+                    alpha = alpha12[idx]
+                    if alpha <= 0:
+                        continue  # transparent: changes nothing (Backend._composite's `vis`)
+                    gx = gy = gz = np.int64(0)
+                    if grads:
+                        gx = _trilinear(
+                            v[i, 8],
+                            v[i, 9],
+                            v[i, 10],
+                            v[i, 11],
+                            v[i, 12],
+                            v[i, 13],
+                            v[i, 14],
+                            v[i, 15],
+                            wz,
+                            wy,
+                            wx,
+                            s_bits,
+                            w_bits,
+                            w_code,
+                        )
+                        gy = _trilinear(
+                            v[i, 16],
+                            v[i, 17],
+                            v[i, 18],
+                            v[i, 19],
+                            v[i, 20],
+                            v[i, 21],
+                            v[i, 22],
+                            v[i, 23],
+                            wz,
+                            wy,
+                            wx,
+                            s_bits,
+                            w_bits,
+                            w_code,
+                        )
+                        gz = _trilinear(
+                            v[i, 24],
+                            v[i, 25],
+                            v[i, 26],
+                            v[i, 27],
+                            v[i, 28],
+                            v[i, 29],
+                            v[i, 30],
+                            v[i, 31],
+                            wz,
+                            wy,
+                            wx,
+                            s_bits,
+                            w_bits,
+                            w_code,
+                        )
+                        gx, gy, gz, alpha = world_and_modulate(
+                            gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale,
+                            gm_entries, gm_table,
+                        )  # fmt: skip
+                    g[0, m], g[1, m], g[2, m] = gx, gy, gz
+                    rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+                    rgba[3, m], vis_rays[m] = alpha, ray
+                    m += 1
+                if timing and values:
+                    _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one,
+                                   acc_code)  # fmt: skip
+                elif not mip:
+                    shade_and_blend(
+                        rgba, vis_rays, g, m, grad_p, light, half, intensity, spec, maps, table,
+                        acc, ert_thr, alive, sat, f_bits, spec_entries, one, acc_code,
+                    )  # fmt: skip
+                for q in range((n + P - 1) // P):  # a loop, not a slice: no view to count
+                    stall[q] = 0
+                if n_miss:
+                    sd_out, sd_arr, sd_booked, sd_log = fills_timed(
+                        miss_s, miss_b, n_miss, clock, stall, P, lay, ratio, sd_out, sd_arr,
+                        sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs, keys,
+                    )  # fmt: skip
+                issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live,
+                            terminated_at, issue, regs)  # fmt: skip
+            if fifo[0] > 0:  # rule 5 here: the packet's pixels leave through the FIFO
+                retire_packet(packet, ray_ids, acc, touched, bus_acc, bus_touched, fifo, regs)
         return sd_out, sd_arr, sd_booked, sd_log
 
     return numba.njit(cache=True, nogil=True)(kernel)
@@ -405,26 +425,35 @@ class RayKernel(StageConstants):
         store = self._cache_arrays()
         shape = np.asarray(m.image.shape, dtype=np.int64)
         nb, sets = np.asarray(m.image.nb, np.int64), np.asarray(m.cache.sets, np.int64)
-        fifo_stall, retired = 0, 0
-        for k, packet in enumerate(packets):
+        # One call for the frame, the pixel FIFO in the loop; one a packet (the FIFO
+        # here) for a progress report or a FIFO of depth 0 (its deadlock is reported
+        # by the Python FIFO).
+        compiled_fifo = progress is None and pixel_fifo.depth > 0
+        fifo = np.array([getattr(pixel_fifo, f) for f in FIFO], dtype=np.int64)
+        fifo[0] = fifo[0] if compiled_fifo else 0
+        sizes = np.array([p.size for p in packets], dtype=np.int64)
+        starts = np.concatenate([[0], np.cumsum(sizes)])
+        flat = np.concatenate(packets) if packets else np.zeros(0, dtype=np.int64)
+        bus_acc = bus.acc.reshape(-1, 1) if mip else bus.acc
+        chunks = [(0, len(packets))] if compiled_fifo else [(k, k + 1) for k in range(len(packets))]
+        for k0, k1 in chunks:
             arrays = self.kernel(
-                packet, plan.ray_ids, plan.j_lo, plan.j_hi, plan._o, dirs, plan.k_first,
-                plan.k_dir, float(plan._dt), shape, nb, sets, m.cache.tag, *store, faults,
-                layout, float(sdc.clock_ratio), *arrays[:2], sd._params, sd._regs, sd._banks,
-                *arrays[2:], m.terminated_at, state.alive, state.touched, acc, flags, busy, regs,
-                self.rgb12, self.alpha12, self.grad_p, self.ratio, self.gm_table, self.light,
-                self.half, self.intensity, self.spec, self.maps, self.dt_table, self.ert_thr,
-                sat, self.config,
+                flat, starts, k0, k1, fifo, bus_acc, bus.touched, plan.ray_ids, plan.j_lo,
+                plan.j_hi, plan._o, dirs, plan.k_first, plan.k_dir, float(plan._dt), shape, nb,
+                sets, m.cache.tag, *store, faults, layout, float(sdc.clock_ratio), *arrays[:2],
+                sd._params, sd._regs, sd._banks, *arrays[2:], m.terminated_at, state.alive,
+                state.touched, acc, flags, busy, regs, self.rgb12, self.alpha12, self.grad_p,
+                self.ratio, self.gm_table, self.light, self.half, self.intensity, self.spec,
+                self.maps, self.dt_table, self.ert_thr, sat, self.config,
             )  # fmt: skip
-            rays = plan.ray_ids[packet]
-            bus.acc[rays] = state.acc[rays]
-            bus.touched[rays] = state.touched[rays]
-            stall = pixel_fifo.advance(int(regs[_CLOCK]) - retired, int(rays.size), retired)
-            regs[_CLOCK] += stall
-            fifo_stall += stall
-            retired = int(regs[_CLOCK])
-            if progress is not None:
-                progress(k + 1, len(packets))
+            if not compiled_fifo:
+                rays = plan.ray_ids[flat[starts[k0] : starts[k1]]]
+                self._retire(rays, state, bus, pixel_fifo, regs)
+                if progress is not None:
+                    progress(k1, len(packets))
+        if compiled_fifo:
+            for name, value in zip(FIFO[2:], fifo[2:], strict=True):
+                setattr(pixel_fifo, name, int(value))
         sd._out, sd._arrivals, sd._booked, sd._log = arrays
         sd._n = int(regs[_SD_N])
         self.count_saturations(sat)
@@ -433,4 +462,18 @@ class RayKernel(StageConstants):
         cache.fills, cache.lookups, cache.hits = (int(regs[i]) for i in (_FILLS, _LOOKUPS, _HITS))
         m.issued, m.speculative = int(regs[_ISSUED]), int(regs[_SPEC])
         state.samples += int(regs[_SAMPLES])
+        fifo_stall = int(regs[_FIFO_STALLS])
         return busy, int(regs[_CYCLES]) + fifo_stall, int(regs[_STALLS]) + fifo_stall
+
+    @staticmethod
+    def _retire(rays, state, bus, pixel_fifo, regs) -> None:
+        """Rule 5 in Python (:func:`~models.machines.vizard2.ray_memory.retire_packet`'s
+        work, for a FIFO the loop does not hold): the packet's accumulators (pixels
+        ``rays``) to the pixel bus, its pixels into the FIFO, the clock past its stall."""
+        bus.acc[rays] = state.acc[rays]
+        bus.touched[rays] = state.touched[rays]
+        retired = int(regs[_RETIRED])
+        stall = pixel_fifo.advance(int(regs[_CLOCK]) - retired, int(rays.size), retired)
+        regs[_CLOCK] += stall
+        regs[_FIFO_STALLS] += stall
+        regs[_RETIRED] = regs[_CLOCK]

@@ -20,7 +20,15 @@ import numpy as np
 from hwsim.memory.sdram_kernel import schedule_requests
 from models.units.interp import cell_weight
 
-__all__ = ["REGS", "fills_timed", "gather_round", "issue_round"]
+__all__ = [
+    "FIFO",
+    "REGS",
+    "fills_timed",
+    "gather_round",
+    "issue_round",
+    "pixel_fifo_advance",
+    "retire_packet",
+]
 
 #: ``regs`` of the packet kernel, by position.
 REGS = (
@@ -34,8 +42,13 @@ REGS = (
     "cycles",
     "stalls",
     "sdram_requests",
+    "fifo_stalls",
+    "retired",
 )
-_CLOCK, _FILLS, _LOOKUPS, _HITS, _ISSUED, _SPEC, _SAMPLES, _CYCLES, _STALLS, _SD_N = range(10)
+(_CLOCK, _FILLS, _LOOKUPS, _HITS, _ISSUED, _SPEC, _SAMPLES, _CYCLES, _STALLS, _SD_N,
+ _FIFO_STALLS, _RETIRED) = range(12)  # fmt: skip
+#: ``fifo`` of :func:`pixel_fifo_advance`, by position (a ``hwsim.engine.DrainFifo``'s state).
+FIFO = ("depth", "rate", "occupancy", "max_occupancy", "pushed", "popped", "busy_cycles")
 
 
 @numba.njit(cache=True, nogil=True)
@@ -76,16 +89,31 @@ def _grown1(a, need):
     return b
 
 
+@numba.njit(inline="always")
+def _sort_keys(keys, nk):
+    """``keys[0, :nk]`` sorted ascending in place, by insertion: a group's keys come in
+    a few ascending runs (each block's bursts are consecutive words), so this is about
+    one pass where ``numpy.sort`` called the general quicksort for a few dozen keys."""
+    for q in range(1, nk):
+        key = keys[0, q]
+        p = q - 1
+        while p >= 0 and keys[0, p] > key:
+            keys[0, p + 1] = keys[0, p]
+            p -= 1
+        keys[0, p + 1] = key
+
+
 @numba.njit(cache=True, nogil=True)
 def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_arr,
-                 sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs):  # fmt: skip
+                 sd_params, sd_regs, sd_banks, sd_booked, sd_log, regs, keys):  # fmt: skip
     """Rule 2: each lookup group with misses sends its fills' bursts (page by page) to the
     SDRAM when it reaches the cache, and waits for the last beat (``stall[g]``), on the
-    controller's state (``sd_*``); returns its four arrays that may grow."""
+    controller's state (``sd_*``); returns its four arrays that may grow.  ``keys``:
+    scratch, 3 rows of at least ``n_miss`` times a block's bursts (page keys, their
+    banks and rows)."""
     vw, gw, gbase, vb, gb, bl, cols, banks, nrows, data_lat, fill_write = lay
     waited = 0
     s = 0
-    keys = np.empty((3, n_miss * (vb + gb)), np.int64)  # page keys, their banks and rows
     while s < n_miss:
         g = miss_s[s] // P
         e = s
@@ -101,21 +129,24 @@ def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_
                 nk += 1
             e += 1
         arrive = start + g + waited
-        order = keys[0, :nk]
-        order.sort()  # lexsort((rows, banks)): bank, then row
+        _sort_keys(keys, nk)  # lexsort((rows, banks)): bank, then row
         for q in range(nk):
-            keys[1, q], keys[2, q] = order[q] // nrows, order[q] % nrows
+            keys[1, q], keys[2, q] = keys[0, q] // nrows, keys[0, q] % nrows
         earliest = np.int64(np.ceil(arrive * ratio))
         first = regs[_SD_N]
         need = first + nk
         sd_out, sd_arr = _grown(sd_out, need), _grown1(sd_arr, need)
-        sd_arr[first:need] = earliest
+        for q in range(first, need):
+            sd_arr[q] = earliest
         sd_booked, sd_log = schedule_requests(
             sd_params, sd_regs, sd_banks, keys[1, :nk], keys[2, :nk], sd_arr[first:need],
             sd_out, first, sd_booked, sd_log,
         )  # fmt: skip
         regs[_SD_N] = need
-        last = sd_out[0, first:need].max() + data_lat
+        last = sd_out[0, first]
+        for q in range(first + 1, need):
+            last = max(last, sd_out[0, q])
+        last += data_lat
         ready = np.int64(np.ceil(last / ratio)) + fill_write
         if ready > arrive:
             stall[g] += ready - arrive
@@ -198,7 +229,7 @@ def gather_round(n, live, ray_ids, orig, dirs, t, shape, nb, sets, tag, cvals, c
     return n_miss
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(inline="always")
 def issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live, terminated_at,
                 issue, regs):  # fmt: skip
     """Rules 1 and 3 for a round of ``n`` samples from ``clock``: each sample's issue cycle
@@ -220,3 +251,51 @@ def issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live, 
     regs[_CYCLES] += end - clock
     regs[_STALLS] += waited
     regs[_ISSUED] += n
+
+
+@numba.njit(inline="always")
+def _fifo_drain(fifo, cycles):
+    out = min(fifo[2], cycles * fifo[1])
+    fifo[6] += -(-out // fifo[1])
+    fifo[2] -= out
+    fifo[5] += out
+
+
+@numba.njit(cache=True, nogil=True)
+def pixel_fifo_advance(fifo, cycles, arrivals):
+    """``hwsim.engine.DrainFifo.advance`` on its state ``fifo`` (:data:`FIFO`; depth > 0,
+    the caller's check: a FIFO of depth 0 is a deadlock the Python FIFO reports): drain
+    for ``cycles`` cycles, push ``arrivals`` entries; returns the producer's stall cycles."""
+    depth, rate = fifo[0], fifo[1]
+    _fifo_drain(fifo, cycles)
+    stall = 0
+    space = depth - fifo[2]
+    remaining = arrivals
+    while remaining > space:
+        fifo[2] += space
+        remaining -= space
+        fifo[3] = max(fifo[3], fifo[2])
+        need = -(-remaining // rate) if remaining <= depth else -(-depth // rate)
+        _fifo_drain(fifo, need)
+        stall += need
+        space = depth - fifo[2]
+    fifo[2] += remaining
+    fifo[4] += arrivals
+    fifo[3] = max(fifo[3], fifo[2])
+    return stall
+
+
+@numba.njit(cache=True, nogil=True)
+def retire_packet(packet, ray_ids, acc, touched, bus_acc, bus_touched, fifo, regs):
+    """Rule 5: a retiring packet's accumulators cross to the pixel bus (``bus_*``) and its
+    pixels enter the pixel FIFO (:func:`pixel_fifo_advance`, drained since the last
+    retirement); a full FIFO stalls the issue (the clock moves on)."""
+    for q in range(packet.shape[0]):
+        ray = ray_ids[packet[q]]
+        for c in range(acc.shape[1]):
+            bus_acc[ray, c] = acc[ray, c]
+        bus_touched[ray] = touched[ray]
+    stall = pixel_fifo_advance(fifo, regs[_CLOCK] - regs[_RETIRED], packet.shape[0])
+    regs[_CLOCK] += stall
+    regs[_FIFO_STALLS] += stall
+    regs[_RETIRED] = regs[_CLOCK]
