@@ -40,6 +40,18 @@ as they were, so the kernel skips that sample's gradient, shading and blend: the
 bits, the work of a ray that has stopped changing (half the kernel's time on the
 VolPack benchmark's MR frames).
 
+**Shared weights.**  In shear-warp order every sample of a step lies on one voxel slice
+at the same fractional position, so its trilinear sample is the same call for every ray
+but the cell.  The kernel builds a *plane* per call (:func:`_plane`): those samples over
+the bounding box of the step's cells, widened by one, each computed once, on a voxel
+slice as rows of ``b`` lerps shared by two cells (:func:`_slice_plane`, vectorised).  A
+sample at the step's cell along the principal axis and weights reads its value there,
+and inside the volume four of its six gradient neighbours (the centre's weights, the
+next cells: :func:`_inner`); the two on the neighbouring slices, and every sample whose
+position rounds to other weights (edges, shear-image and ray orders), take the direct
+call.  Same calls, same bits; ``tests/models/test_functional_fused.py`` compares each
+plane entry with the direct call.
+
 **Scope.**  Post-classified composite through one LUT, steps whose samples share one
 ``dt`` (parallel views) and frames with one shader (or none), Phong or reflectance maps
 (:func:`~models.units.shade.cell_index_raw`), gradients from samples or voxels, any
@@ -57,13 +69,12 @@ stage recompiles the kernel instead of loading stale arithmetic.
 
 from __future__ import annotations
 
-import weakref
-
 import numba
 import numpy as np
 
 from hwsim.core.threads import THREADS_ENV_VAR
 from hwsim.numerics import round_shift_raw
+from models.fused_layout import kernel_voxels
 from models.fused_stage import (
     _BTF_UP,
     _FROM_VOXELS,
@@ -115,7 +126,7 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
     fixed = constants if constants is not None else (0,) * 9
 
     def kernel(
-        vox, dxyz, shape, strides, offsets, zyx, rays, factor, rgb12, alpha12,
+        vox, dxyz, shape, strides, offsets, kp, zyx, rays, factor, rgb12, alpha12,
         grad_p, ratio, gm_table, light, half, intensity, spec, maps, table, acc, ert_thr, alive,
         sat, config,
     ):  # fmt: skip
@@ -130,11 +141,20 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         cut = factor.shape[0] > 0
         world, modulates = grad_p[_WORLD] != 0, grad_p[_MODULATES] != 0
         gm_scale, gm_entries = grad_p[_GM_SCALE], grad_p[_GM_ENTRIES]
+        n = zyx.shape[0]
+        # Every sample's cell (rows z, y, x) and raw weights (rows 3-5), then the plane
+        # of the step's shared cell along kp and weights (see _plane).
+        cw = np.empty((6, n), np.int64)
+        for i in range(n):
+            for a in range(3):
+                c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
+                cw[a, i], cw[3 + a, i] = np.int64(c), np.int64(q)
+        plane, key, box = _plane(vox, strides, offsets, shape, kp, cw, s_bits, w_bits, w_code)
+        a_ax, b_ax, a_lo, b_lo, pw = box[0], box[1], box[2], box[3], box[4]
         cell = np.empty(3, np.int64)  # the centre's cell along z, y, x
         w = np.empty(3, np.int64)  # its raw weights
         # Pass 1, per sample: value, classification, gradient; the visible samples are
         # kept in these arrays (colour, opacity, ray, gradient x y z).
-        n = zyx.shape[0]
         rgba = np.empty((4, n), np.int64)
         vis_rays = np.empty(n, np.int64)
         g = np.empty((3, n), np.int64)
@@ -144,10 +164,22 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         m = 0
         for i in range(n):
             for a in range(3):
-                c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
-                cell[a], w[a] = np.int64(c), np.int64(q)
+                cell[a], w[a] = cw[a, i], cw[3 + a, i]
             base = cell[0] * st_z + cell[1] * st_y + cell[2] * st_x
-            value = _trilinear(vox, base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code)
+            on_plane = (
+                pw > 0
+                and cell[kp] == key[0]
+                and w[0] == key[1]
+                and w[1] == key[2]
+                and w[2] == key[3]
+            )
+            if on_plane:  # the plane holds this sample: the same call, made once
+                at = (cell[a_ax] - a_lo) * pw + cell[b_ax] - b_lo
+                value = plane[at]
+            else:
+                value = _trilinear(
+                    vox, base, o1, o2, o3, o4, w[0], w[1], w[2], s_bits, w_bits, w_code
+                )
             idx = classify_unit.lut_index_raw(value, lut_shift, entries)
             alpha = alpha12[idx]
             if cut:
@@ -175,8 +207,13 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                     and _inner(zyx[i, 2], hi[2])
                 ):
                     # Inside the volume, p +- 1 along every axis has the centre's weights
-                    # and the next cell (see _inner): the six samples without cell_weight.
+                    # and the next cell (see _inner): the six samples without cell_weight,
+                    # the four in the plane's slice read from it.
                     for a in range(3):
+                        if on_plane and a != kp:
+                            step = pw if a == a_ax else 1
+                            g[2 - a, m] = plane[at + step] - plane[at - step]
+                            continue
                         ahead = _trilinear(
                             vox, base + strides[a], o1, o2, o3, o4, w[0], w[1], w[2],
                             s_bits, w_bits, w_code,
@@ -224,6 +261,99 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
         )  # fmt: skip
 
     return numba.njit(cache=True, nogil=True)(kernel)
+
+
+#: Samples sharing a step's key from which a kernel call builds the plane, and the most
+#: cells it computes per such sample (a sparse step's bounding box costs more than it
+#: saves).
+_PLANE_MIN, _PLANE_CELLS = 16, 4
+
+
+@numba.njit(inline="always")
+def _plane(vox, strides, offsets, shape, kp, cw, s_bits, w_bits, w_code):
+    """The trilinear samples at the middle sample's cell along axis ``kp`` and raw
+    weights (``key``: that cell, then the weights z, y, x) over the bounding box of the
+    cells of the samples that share them, widened by one cell along the two other axes
+    ``a`` and ``b`` (``box``: ``a``, ``b``, the box's first cells, its width; width 0
+    when there is no plane).
+
+    Shear-warp's regularity: a slice step's samples share one set of weights, so their
+    values and the in-slice gradient neighbours (the centre's weights, the next cells:
+    :func:`_inner`) are these entries, each computed by the same :func:`_trilinear`
+    call as before, once per cell instead of once per use.  A sample whose cell along
+    ``kp`` or weights differ (a rounding of its position, a clamp at the volume's
+    edge, another plan kind) takes the direct call."""
+    key = np.zeros(4, np.int64)
+    box = np.zeros(5, np.int64)
+    n = cw.shape[1]
+    if kp < 0 or n < _PLANE_MIN:
+        return np.empty(0, np.int64), key, box
+    a_ax, b_ax = (1, 2) if kp == 0 else ((0, 2) if kp == 1 else (0, 1))
+    mid = n // 2  # the first sample may sit on the volume's edge (clamped)
+    key[0], key[1], key[2], key[3] = cw[kp, mid], cw[3, mid], cw[4, mid], cw[5, mid]
+    a_lo, a_hi, b_lo, b_hi = shape[a_ax], -1, shape[b_ax], -1
+    shared = 0
+    for i in range(n):
+        if cw[kp, i] == key[0] and cw[3, i] == key[1] and cw[4, i] == key[2]:
+            if cw[5, i] == key[3]:
+                shared += 1
+                a_lo, a_hi = min(a_lo, cw[a_ax, i]), max(a_hi, cw[a_ax, i])
+                b_lo, b_hi = min(b_lo, cw[b_ax, i]), max(b_hi, cw[b_ax, i])
+    a_lo, b_lo = max(a_lo - 1, 0), max(b_lo - 1, 0)
+    # Cells run to the last but one voxel (interp.cell_weight), 0 on an axis of one.
+    a_hi = min(a_hi + 1, max(shape[a_ax] - 2, 0))
+    b_hi = min(b_hi + 1, max(shape[b_ax] - 2, 0))
+    pw = b_hi - b_lo + 1
+    cells = (a_hi - a_lo + 1) * pw
+    if shared < _PLANE_MIN or cells > _PLANE_CELLS * shared:
+        return np.empty(0, np.int64), key, box
+    box[0], box[1], box[2], box[3], box[4] = a_ax, b_ax, a_lo, b_lo, pw
+    plane = np.empty(cells, np.int64)
+    st_a, st_b = strides[a_ax], strides[b_ax]
+    if key[1 + kp] == 0 and st_b == 1 and shape[a_ax] > 1 and shape[b_ax] > 1:
+        _slice_plane(
+            vox, key[0] * strides[kp] + b_lo, st_a, a_lo, a_hi, pw, key[1 + a_ax],
+            key[1 + b_ax], plane, s_bits, w_bits, w_code,
+        )  # fmt: skip
+        return plane, key, box
+    o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
+    wz, wy, wx = key[1], key[2], key[3]
+    for ia in range(a_lo, a_hi + 1):
+        row = key[0] * strides[kp] + ia * st_a
+        out = (ia - a_lo) * pw - b_lo
+        for ib in range(b_lo, b_hi + 1):
+            plane[out + ib] = _trilinear(
+                vox, row + ib * st_b, o1, o2, o3, o4, wz, wy, wx, s_bits, w_bits, w_code
+            )
+    return plane, key, box
+
+
+@numba.njit(inline="always")
+def _slice_plane(vox, first, st_a, a_lo, a_hi, pw, wa, wb, plane, s_bits, w_bits, w_code):
+    """:func:`_plane`'s entries for samples on a voxel slice (weight 0 along ``kp``),
+    the slice's ``b`` axis contiguous: :func:`_trilinear` of such a sample is
+    :func:`~models.units.interp.bilinear_raw` of the slice's four corners (lerps along
+    ``b``, then ``a``; a lerp of weight 0 returns its first operand exactly, so
+    ``_trilinear``'s skipped lerps change nothing), here with each row's ``b`` lerps
+    computed once for the two cells that read them.  ``first``: the voxel at the box's
+    first ``a`` row and ``b`` cell."""
+    above = np.empty(pw, np.int64)
+    below = np.empty(pw, np.int64)
+    for ia in range(a_lo, a_hi + 2):
+        src = first + ia * st_a
+        for ib in range(pw):
+            below[ib] = interp_unit.lerp_raw(
+                interp_unit.promote_raw(np.int64(vox[src + ib]), s_bits),
+                interp_unit.promote_raw(np.int64(vox[src + ib + 1]), s_bits),
+                wb,
+                w_bits,
+                w_code,
+            )
+        if ia > a_lo:
+            out = (ia - 1 - a_lo) * pw
+            for ib in range(pw):
+                plane[out + ib] = interp_unit.lerp_raw(above[ib], below[ib], wa, w_bits, w_code)
+        above, below = below, above
 
 
 @numba.njit(inline="always")
@@ -282,37 +412,6 @@ def _bilinear(vox, base, ob, oa, wa, wb, s_bits, w_bits, w_code):
     )
 
 
-def _laid_out(a: np.ndarray, shape, order: tuple[int, int, int]) -> np.ndarray:
-    """Flat ``a`` (a ``(z, y, x)`` volume of ``shape``) with its axes in memory ``order``
-    (slowest first)."""
-    a = np.asarray(a).reshape(shape)
-    return (a if order == (0, 1, 2) else a.transpose(order)).ravel()
-
-
-def _strides(shape, order: tuple[int, int, int]) -> np.ndarray:
-    """Element strides of the z, y, x axes of a ``shape`` volume laid out in ``order``."""
-    strides = np.zeros(3, dtype=np.int64)
-    step = 1
-    for axis in reversed(order):
-        strides[axis] = step
-        step *= shape[axis]
-    return strides
-
-
-def _narrowest(a: np.ndarray) -> np.ndarray:
-    """``a`` in the narrowest of uint8, uint16, int16, int32, int64 holding its values."""
-    lo, hi = (int(a.min()), int(a.max())) if a.size else (0, 0)
-    for dtype in (np.uint8, np.uint16, np.int16, np.int32):
-        info = np.iinfo(dtype)
-        if info.min <= lo and hi <= info.max:
-            return a.astype(dtype)
-    return a.astype(np.int64)
-
-
-#: Per-volume voxels (and voxel differences) in the kernel's layouts, by datapath voxel
-#: width and memory order; dropped with the volume.
-_DERIVED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
 #: Compiled kernels of this process, by configuration.
 _KERNELS: dict[tuple[int, ...] | None, object] = {}
 
@@ -333,44 +432,13 @@ class CompositeKernel(StageConstants):
         """``voxel_diffs``: the gradient comes from voxels (the kernel then reads the
         voxel differences, ``gradient.voxel_differences``)."""
         super().__init__(backend)
-        be, dp = backend, backend.dp
-        # The raw voxels (and differences) in their narrowest integer type, promoted as
-        # they are read: a quarter of the promoted int64 bytes, half of int32 (memory
-        # traffic is what a 256^3 frame waits on).
-        # Laid out with the principal axis slowest: a step's samples lie on one voxel
-        # slice, read from contiguous rows instead of one cache line each (x principal).
-        shape = be.volume.shape
-        axis = be.plan.principal_axis
-        order = (2, 0, 1) if axis == 2 else (0, 1, 2)
-        # Kept per volume (as the golden renderer keeps its derived arrays): successive
-        # frames of one volume and datapath width lay the voxels out once per order.
-        derived = _DERIVED.setdefault(be.volume, {})
-        key = (dp.voxel_bits, order)
-        if key not in derived:
-            derived[key] = _narrowest(_laid_out(be.raw, shape, order))
-        self.vox = derived[key]
-        self.shape = np.asarray(shape, dtype=np.int64)
-        self.strides = _strides(shape, order)
-        dz, dy, dx = (int(st) if n > 1 else 0 for st, n in zip(self.strides, shape, strict=True))
-        self.offsets = np.array(
-            [0, dx, dy, dx + dy, dz, dz + dx, dz + dy, dz + dy + dx], dtype=np.int64
-        )  # interp.corner_offsets in this layout
-        if not voxel_diffs:
-            self.dxyz = (self.vox[:1],) * 3
-        else:
-            key = (dp.voxel_bits, order, "differences")
-            if key not in derived:
-                # One axis at a time, narrowed before it is laid out: a 512^3 volume
-                # never holds three wide (int32) difference volumes at once.
-                diffs = [
-                    _laid_out(
-                        _narrowest(gradient_unit.voxel_difference(be.raw, axis)), shape, order
-                    )
-                    for axis in (2, 1, 0)
-                ]
-                wide = np.result_type(*diffs)
-                derived[key] = tuple(d.astype(wide, copy=False) for d in diffs)
-            self.dxyz = derived[key]
+        self.vox, self.shape, self.strides, self.offsets, self.dxyz = kernel_voxels(
+            backend, voxel_diffs
+        )
+        axis = backend.plan.principal_axis
+        #: The axis of the kernel's planes (:func:`_plane`): the plan's principal axis,
+        #: -1 for none.
+        self.kp = -1 if axis is None else int(axis)
         self.kernel = _kernel_for(self.config if self.own_formats else None)
 
     def run(self, step, factor, state, table: np.ndarray) -> None:
@@ -391,6 +459,7 @@ class CompositeKernel(StageConstants):
             self.shape,
             self.strides,
             self.offsets,
+            self.kp,
             zyx,
             rays,
             factor,

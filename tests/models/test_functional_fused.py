@@ -438,3 +438,69 @@ def test_frames_outside_the_kernels_scope_take_the_unit_chain(arch, scene, overr
     fast = _render(arch, volume, scene, overrides)
     ref = _render(arch, volume, scene, overrides, compiled=False)
     np.testing.assert_array_equal(fast.image, ref.image)
+
+
+@numba.njit
+def _plane_and_direct(kernel_vox, strides, offsets, shape, kp, zyx, config):
+    """The kernel's plane for one step's samples (``fused._plane``) and the direct
+    ``fused._trilinear`` call at every cell of its box."""
+    s_bits, w_bits, w_code = config[0], config[1], config[2]
+    n = zyx.shape[0]
+    hi = (shape[0] - 1.0, shape[1] - 1.0, shape[2] - 1.0)
+    cw = np.empty((6, n), np.int64)
+    for i in range(n):
+        for a in range(3):
+            c, q = interp_unit.cell_weight(zyx[i, a], hi[a], w_bits, w_code)
+            cw[a, i], cw[3 + a, i] = np.int64(c), np.int64(q)
+    plane, key, box = fused._plane(
+        kernel_vox, strides, offsets, shape, kp, cw, s_bits, w_bits, w_code
+    )
+    direct = np.empty_like(plane)
+    a_ax, b_ax, a_lo, b_lo, pw = box[0], box[1], box[2], box[3], box[4]
+    o1, o2, o3, o4 = offsets[1], offsets[2], offsets[3], offsets[4]
+    shared = 0
+    for i in range(n):
+        if pw > 0 and cw[kp, i] == key[0] and cw[3, i] == key[1]:
+            if cw[4, i] == key[2] and cw[5, i] == key[3]:
+                shared += 1
+    for e in range(plane.size):
+        ia, ib = a_lo + e // max(pw, 1), b_lo + e % max(pw, 1)
+        base = key[0] * strides[kp] + ia * strides[a_ax] + ib * strides[b_ax]
+        direct[e] = fused._trilinear(
+            kernel_vox, base, o1, o2, o3, o4, key[1], key[2], key[3], s_bits, w_bits, w_code
+        )
+    return plane, direct, shared
+
+
+@pytest.mark.parametrize(
+    "case", ["vp500", "vp500-axis", "vp500-anisotropic", "vp500-supersampled", "em-cube", "cube4",
+             "nearest-even-narrow"],
+)  # fmt: skip
+def test_a_steps_plane_holds_the_direct_samples_of_its_cells(case, volumes, monkeypatch):
+    """Shear-warp's shared weights (fused._plane): every entry of a step's plane is the
+    direct trilinear call at its cell and the step's weights, bit for bit (on voxel
+    slices the plane's rows of lerps, fused._slice_plane; supersampled, the trilinear
+    itself), and the planes hold most of the kernel's samples.  (Shear-image steps, as
+    VolumePro 1000's, have a ray's own weights: no plane, the direct calls.)"""
+    arch, volume, scene, overrides = CASES[case]
+    steps = []
+    original = fused.CompositeKernel.run_part
+
+    def captured(self, zyx, rays, factor, state, table):
+        steps.append((self, zyx.copy()))
+        return original(self, zyx, rays, factor, state, table)
+
+    monkeypatch.setattr(fused.CompositeKernel, "run_part", captured)
+    _render(arch, volumes[volume], scene, overrides)
+    entries = held = samples = 0
+    for kernel, zyx in steps:
+        assert kernel.kp >= 0
+        config = np.asarray(kernel.config, dtype=np.int64)
+        plane, direct, shared = _plane_and_direct(
+            kernel.vox, kernel.strides, kernel.offsets, kernel.shape, kernel.kp, zyx, config
+        )
+        np.testing.assert_array_equal(plane, direct)
+        entries += plane.size
+        held += shared if plane.size else 0
+        samples += zyx.shape[0]
+    assert entries > 0 and held > samples // 2
