@@ -1,5 +1,10 @@
 """VIZARD II as a SimPy event model at ray-packet granularity (the ``transaction`` rung).
 
+:meth:`VizardTransaction.run` times a frame on the compiled packet model
+(:mod:`models.machines.vizard2.packet_timing`, the default), else on the cycle rung's
+ray loop (``shared_loop``, and where the packet model refuses the frame), else here
+(:meth:`VizardTransaction.play`, also on request: ``event_model``).
+
 # Ref: docs/cycle.md "VIZARD II" timing rules 1-6 (the rules this model approximates);
 #      architectures.md section 5 (image-order ray casting, ray queueing, VoxelCache's
 #      4^3 blocks, pre-computed gradient table, early ray termination, space leaping).
