@@ -7,7 +7,9 @@ the reads handed to the SDRAM ports late and in bulk.
 :class:`ChunkStreams` holds every chunk's bursts split by module (built by
 :func:`chunk_streams`, laying out only the mini-blocks a chunk reads);
 :class:`DeferredReads` records when each chunk issues and hands the ports every chunk
-issued so far when the pipelines first ask when one is ready.
+issued so far when the pipelines first ask when one is ready; :func:`memory_process`
+issues the chunks on its own clock, told by the pipelines through :class:`ChunkLink`
+when each buffer slot is freed.
 """
 
 from __future__ import annotations
@@ -16,11 +18,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import simpy
 
 from models.machines.volumepro.lanes import miniblock_layout
 from models.machines.volumepro.memory import mini_block_bursts
 
-__all__ = ["ChunkStreams", "DeferredReads", "chunk_streams"]
+__all__ = ["ChunkLink", "ChunkStreams", "DeferredReads", "chunk_streams", "memory_process"]
 
 #: Bursts of the slab layouts kept for the next frame (a 256^3 volume's 2 Mi with one
 #: word a voxel); larger volumes are laid out again each frame.
@@ -164,3 +167,50 @@ class DeferredReads:
                     ready = [max(x, y) for x, y in zip(ready, done, strict=True)]
             self.ready.extend(ready)
             a = b
+
+
+class ChunkLink:
+    """What the memory and pipelines processes share: the deferred reads, the cycle each
+    chunk's buffer slot was freed (-1: not yet), and who waits for whom."""
+
+    def __init__(self, env: simpy.Environment, reads: DeferredReads, total: int) -> None:
+        self.env, self.reads, self.total = env, reads, total
+        self.free_at = [-1] * total
+        self.waiting: list[Any] = [None, None]  # the chunk the pipelines wait to see issued
+        self.memory_waits: list[Any] = [-1, None]  # the slot the memory waits to see freed
+
+    def free(self, c: int, t: int) -> None:
+        """Chunk ``c``'s slot is freed at cycle ``t``."""
+        self.free_at[c] = t
+        if self.memory_waits[0] == c:
+            self.memory_waits[0] = -1
+            self.memory_waits[1].succeed()
+
+    def sync(self, t: int):
+        """Process step: bring SimPy's clock to a process's own clock ``t``."""
+        if t > self.env.now:
+            yield self.env.timeout(t - self.env.now)
+
+
+def memory_process(link: ChunkLink, cap: int, stats: dict):
+    """The memory process: chunk ``g`` issues at the later of chunk ``g - 1``'s issue
+    and the freeing of chunk ``g - cap``'s slot (a run free at one cycle issues
+    together); it yields only while that slot's freeing is not known yet."""
+    env, reads, free_at = link.env, link.reads, link.free_at
+    g, now = 0, 0
+    while g < link.total:
+        if g >= cap:
+            while free_at[g - cap] < 0:  # the pipelines have not freed it yet
+                link.memory_waits = [g - cap, env.event()]
+                yield link.memory_waits[1]
+            if free_at[g - cap] > now:
+                stats["buffer_full"] += free_at[g - cap] - now
+                now = free_at[g - cap]
+        h = g + 1
+        while h < link.total and (h < cap or 0 <= free_at[h - cap] <= now):
+            h += 1
+        stats["events"] += reads.issue(now, g, h)
+        g = h
+        if link.waiting[0] is not None and link.waiting[0] < h:
+            link.waiting[1].succeed()
+            link.waiting[0] = None

@@ -29,6 +29,14 @@ as cooperating SimPy processes at *beam-group* granularity:
   each sample's pipeline is its nearest voxel's module, :func:`sample_lanes`) and the
   pixel FIFO (:class:`PixelBus`).
 
+Each of the two processes keeps its own clock ahead of SimPy's and yields only where it
+waits: the pipelines for a chunk not ready by their clock (or to push pixels, the pixel
+bus running on SimPy's clock), the memory for a slot whose freeing the pipelines have not
+reached yet (:class:`~models.machines.volumepro.chunk_reads.ChunkLink`).  A run of beam
+groups whose chunks are ready costs no event, and the memory issues a chunk at the later
+of its predecessor's issue and its slot's freeing: the same cycles as an event per group
+and per chunk.
+
 On the slice-FIFO machines (VolumePro 500, EM-Cube: rules 3', 5', 8' of docs/cycle.md,
 :func:`~models.machines.volumepro.fifo_timing.uses_slice_fifos`) the groups are those of
 :mod:`models.machines.volumepro.fifo_transaction` instead: periods that read each voxel
@@ -71,7 +79,12 @@ from models.machines.common.transaction import (
     require_pipeline_clock,
     slice_loads,
 )
-from models.machines.volumepro.chunk_reads import DeferredReads, chunk_streams
+from models.machines.volumepro.chunk_reads import (
+    ChunkLink,
+    DeferredReads,
+    chunk_streams,
+    memory_process,
+)
 from models.machines.volumepro.fifo_timing import (
     DESKEW_WRITE,
     stream_latency,
@@ -318,8 +331,12 @@ class SlabTransaction:
         """Run the memory and the pipelines over ``frames`` identical frames back to back
         (the same controllers, buffer and pixel FIFO carry on); returns the statistics
         (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
-        SDRAM ports."""
-        n_steps = len(busiest)
+        SDRAM ports.
+
+        Both processes keep their own clock ahead of SimPy's and yield only where they
+        wait on each other or on the pixel bus (:meth:`_pipelines`,
+        :func:`~models.machines.volumepro.chunk_reads.memory_process`): the same cycles as
+        an event per beam group and per chunk, far fewer events."""
         nc, ng = len(chunks), len(groups)
         # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
         free_after = np.concatenate(
@@ -327,96 +344,101 @@ class SlabTransaction:
         )
         env = simpy.Environment()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        reads = DeferredReads(ports, chunk_streams(self, chunks), nc, frames)
-        freed = [env.event() for _ in range(nc * frames)]
+        link = ChunkLink(
+            env, DeferredReads(ports, chunk_streams(self, chunks), nc, frames), nc * frames
+        )
         frees_at: dict[int, list[int]] = {}
         for c, g in enumerate(free_after.tolist()):
             frees_at.setdefault(g, []).append(c)
-        for c in frees_at.pop(-1, []):  # no group needs it
-            freed[c].succeed()
+        for c in frees_at.pop(-1, []):  # no group needs it: free from the start
+            link.free_at[c] = 0
         bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
         stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
         stats["section"] = 0
         stats["pipe_ends"] = []
-        waiting: list[Any] = [None, None]  # the chunk the pipelines wait to see issued
+        env.process(memory_process(link, cap, stats))
+        env.process(
+            self._pipelines(
+                link,
+                groups,
+                free_after,
+                frees_at,
+                cap,
+                frames,
+                bus,
+                stats,
+                (busiest, beam_clocks, by_band, parked),
+            )
+        )
+        env.run()
+        link.reads.flush(link.reads.issued_count)  # bursts of chunks no group waited on
+        if stats["pipe_end"] == 0 and groups:
+            raise DeadlockError("the pipelines never finished: the input buffer is too small")
+        return stats, bus, ports
 
-        def memory():
-            # Chunk g issues once the slot of chunk g - cap is free; a run of chunks free
-            # to issue at one cycle issues together.
-            g, total = 0, nc * frames
-            while g < total:
-                if g >= cap and not freed[g - cap].triggered:
-                    waited = env.now
-                    yield freed[g - cap]
-                    stats["buffer_full"] += int(env.now - waited)
-                h = g + 1
-                while h < total and (h < cap or freed[h - cap].triggered):
-                    h += 1
-                stats["events"] += reads.issue(int(env.now), g, h)
-                g = h
-                if waiting[0] is not None and waiting[0] < h:
-                    waiting[1].succeed()
-                    waiting[0] = None
-
-        def pipelines():
-            single = len(self.bands) == 1
-            deskew = DESKEW_WRITE if self.slice_fifo else 0  # rule 3': usable a clock later
-            for k, (f, (bi, j, clocks, need)) in enumerate(
-                (f, group) for f in range(frames) for group in groups
-            ):
-                need = need + f * nc if need >= 0 else need
-                first = k % ng == 0 or groups[k % ng - 1][:2] != (bi, j)
-                if bi and first and groups[k % ng - 1][0] != bi:
-                    # Section change: overhead, then reload the rays parked by the last band.
-                    pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
-                    stats["section"] += pre
-                    yield env.timeout(pre)
-                if need >= 0 and not reads.ready_by(need, env.now - deskew):
+    def _pipelines(self, link, groups, free_after, frees_at, cap, frames, bus, stats, loads):
+        """The pipelines process: beam group after beam group on its own clock ``t``,
+        syncing SimPy's to it only to wait for a chunk not ready by then and to push
+        pixels (the pixel bus runs on SimPy's clock)."""
+        busiest, beam_clocks, by_band, parked = loads
+        env, reads = link.env, link.reads
+        n_steps, nc, ng = len(busiest), link.total // frames, len(groups)
+        single = len(self.bands) == 1
+        deskew = DESKEW_WRITE if self.slice_fifo else 0  # rule 3': usable a clock later
+        t = 0
+        for k, (f, (bi, j, clocks, need)) in enumerate(
+            (f, group) for f in range(frames) for group in groups
+        ):
+            need = need + f * nc if need >= 0 else need
+            first = k % ng == 0 or groups[k % ng - 1][:2] != (bi, j)
+            if bi and first and groups[k % ng - 1][0] != bi:
+                # Section change: overhead, then reload the rays parked by the last band.
+                pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
+                stats["section"] += pre
+                t += pre
+            if need >= 0 and not reads.ready_by(need, t - deskew):
+                yield from link.sync(t)
+                if not reads.ready_by(need, t - deskew):
                     if need - cap >= 0 and free_after[need - cap] >= k:
                         raise DeadlockError(
                             f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
                             f"hold the sample window of slice {j}"
                         )
-                    waited = env.now
                     if not reads.issued(need):
-                        waiting[:] = [need, env.event()]
-                        yield waiting[1]
-                    yield env.timeout(reads.ready_at(need) + deskew - env.now)
-                    stats["stall"] += int(env.now - waited)
-                if self.slice_fifo and first and j >= 0:  # rule 8': from the period's start
-                    yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
-                if clocks:
-                    yield env.timeout(clocks)
-                stats["events"] += 2
-                for c in frees_at.get(k, ()):
-                    freed[c].succeed()
-                if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
-                    continue  # more beam groups of this slice
-                if j < 0:  # a read-only period (rule 3'): no samples, no pixels
-                    continue
-                # Sections are parallel-only, where a slice never has more samples than
-                # voxels: the perspective stretch applies to the unsectioned frame.
-                stretch = max(0, int(busiest[j]) - int(beam_clocks[j]))
-                stretch = stretch if single else 0
-                stats["stretch"] += stretch
-                extra = self.arch.slice_overhead_cycles + stretch
-                if extra:
-                    yield env.timeout(extra)
-                if not self.slice_fifo:  # rule 8: the slice's pixels at its end
-                    yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
-                self._slices_done[0] += 1
-                report_progress(self, *self._slices_done)
-                if k % ng == ng - 1:
-                    stats["pipe_ends"].append(int(env.now))
-            stats["pipe_end"] = int(env.now)
-
-        env.process(memory())
-        env.process(pipelines())
-        env.run()
-        reads.flush(reads.issued_count)  # bursts of chunks no group waited on
-        if stats["pipe_end"] == 0 and groups:
-            raise DeadlockError("the pipelines never finished: the input buffer is too small")
-        return stats, bus, ports
+                        link.waiting[:] = [need, env.event()]
+                        yield link.waiting[1]
+                    # The memory process may not have run since the slot it waited on
+                    # was freed: a chunk it issues now at an earlier cycle may be ready
+                    # by t (no stall).
+                    ready = max(t, reads.ready_at(need) + deskew)
+                    stats["stall"] += ready - t
+                    t = ready
+            if self.slice_fifo and first and j >= 0:  # rule 8': from the period's start
+                yield from link.sync(t)
+                yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
+                t = int(env.now)
+            t += clocks
+            stats["events"] += 2
+            for c in frees_at.get(k, ()):
+                link.free(c, t)
+            if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
+                continue  # more beam groups of this slice
+            if j < 0:  # a read-only period (rule 3'): no samples, no pixels
+                continue
+            # Sections are parallel-only, where a slice never has more samples than
+            # voxels: the perspective stretch applies to the unsectioned frame.
+            stretch = max(0, int(busiest[j]) - int(beam_clocks[j])) if single else 0
+            stats["stretch"] += stretch
+            t += self.arch.slice_overhead_cycles + stretch
+            if not self.slice_fifo:  # rule 8: the slice's pixels at its end
+                yield from link.sync(t)
+                yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
+                t = int(env.now)
+            self._slices_done[0] += 1
+            report_progress(self, *self._slices_done)
+            if k % ng == ng - 1:
+                stats["pipe_ends"].append(t)
+        stats["pipe_end"] = t
 
     @staticmethod
     def _leaving(by_band, parked, bi: int, j: int, n_steps: int) -> int:
