@@ -142,14 +142,28 @@ def beam_skips(
 
     axes, dims = np.array([kp, a_ax, b_ax]), np.array(shape, dtype=np.int64)
     never = np.zeros(0, dtype=np.int64)
+    # Per slab of the current windows, the cells read for it so far, OR-ed: the
+    # mini-blocks of a union of cells are the union of theirs, so one cell_blocks call
+    # per slab (when the windows have moved past it) instead of one per slice.
+    unions: dict[int, np.ndarray] = {}
+
+    def read_unions(lo: int, hi: int) -> None:
+        for s in [s for s in unions if not lo <= s <= hi]:
+            cell_blocks(unions.pop(s), n_b, blocks)
+            needed[s] |= blocks
+
     # Every planned sample's position, step by step (compiled; the plan's own floats).
     for j, zyx, rays in fused_steps.plan_positions(plan):
         if compiled:
             last = never if stopped is None else stopped[rays].astype(np.int64)
             live_count[j], busiest[j] = step_cells(zyx, axes, dims, P, last, j, lag, cells, cost[j])
             lo, hi = window(j)
-            cell_blocks(cells, n_b, blocks)
-            needed[lo : hi + 1] |= blocks
+            read_unions(lo, hi)
+            for s in range(lo, hi + 1):
+                if s in unions:
+                    unions[s] |= cells
+                else:
+                    unions[s] = cells.copy()
             continue
         ra = np.clip(np.floor(zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
         rb = np.clip(np.floor(zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
@@ -177,6 +191,7 @@ def beam_skips(
             cells[ra if known is None else ra[known], rb if known is None else rb[known]] = True
         lo, hi = window(j)
         needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
+    read_unions(0, -1)  # the slabs still open
     stops = 0
     if stopped is not None and plan.ray_ids.size:
         stops = int(np.sum(stopped[plan.ray_ids] < plan.j_hi))
