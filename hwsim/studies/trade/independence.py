@@ -177,7 +177,6 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
         _VOLUMEPRO_SHARED
         + (
             "models.machines.volumepro.timing.mini_blocks_read",
-            "models.machines.volumepro.skips_kernel.cell_blocks",
             "models.backend.Backend.occupied_blocks",
             "hwsim.golden.occupancy.occupancy_from_ranges",
             "models.backend.Backend (the rays' termination steps)",

@@ -136,21 +136,20 @@ def beam_skips(
     live_count = np.zeros(plan.n_steps, dtype=np.int64)
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
     cells = np.zeros((n_a, C * P), dtype=bool)
-    blocks = np.zeros((n_u, n_mb), dtype=bool)
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import cell_blocks, step_cells
+    from models.machines.volumepro.skips_kernel import step_cells
 
     axes, dims = np.array([kp, a_ax, b_ax]), np.array(shape, dtype=np.int64)
     never = np.zeros(0, dtype=np.int64)
     # Per slab of the current windows, the cells read for it so far, OR-ed: the
-    # mini-blocks of a union of cells are the union of theirs, so one cell_blocks call
-    # per slab (when the windows have moved past it) instead of one per slice.
+    # mini-blocks of a union of cells are the union of theirs, so one mini_blocks_read
+    # per slab (when the windows have moved past it) instead of one per slice; on such
+    # dense unions its whole-plane shifts beat the compiled per-cell loop.
     unions: dict[int, np.ndarray] = {}
 
     def read_unions(lo: int, hi: int) -> None:
         for s in [s for s in unions if not lo <= s <= hi]:
-            cell_blocks(unions.pop(s), n_b, blocks)
-            needed[s] |= blocks
+            needed[s] |= mini_blocks_read(unions.pop(s)[:, :n_b])
 
     # Every planned sample's position, step by step (compiled; the plan's own floats).
     for j, zyx, rays in fused_steps.plan_positions(plan):
