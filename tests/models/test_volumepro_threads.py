@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 import time
+import types
 
 import numpy as np
 import pytest
@@ -160,3 +161,31 @@ def test_passes_behind_run_in_order_and_join_waits_for_them():
         behind.join()
     behind.close()
     assert not behind.active
+
+
+@pytest.mark.parametrize("keep", [True, False])
+def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep):
+    rng = np.random.default_rng(7)
+    n = 500
+    last_j = rng.integers(-1, 6, n)
+
+    def book(compiled):
+        machine = types.SimpleNamespace(
+            be=types.SimpleNamespace(compiled=compiled),
+            faults=types.SimpleNamespace(dropped_handoff=0),  # hand-offs made by the frame
+        )
+        seen = np.zeros((3, n), dtype=np.int64) if keep else None
+        return vp_threads.SectionBook(machine, last_j, None, seen, 11)
+
+    numpy_book, compiled_book = book(False), book(True)
+    for j in range(6):
+        rays = np.sort(rng.choice(n, size=rng.integers(0, n), replace=False))
+        a, b = rng.integers(0, 40, (2, rays.size))
+        want, handoffs = numpy_book.step(j, rays, a, b, None)
+        got, _ = compiled_book.step(j, rays, a, b, None)
+        assert handoffs is None
+        np.testing.assert_array_equal(got, want)
+        assert got.dtype == want.dtype
+    assert numpy_book.done.any() and numpy_book.seen.any()
+    for key in ("seen", "done", "last_seen"):
+        np.testing.assert_array_equal(getattr(compiled_book, key), getattr(numpy_book, key))

@@ -10,10 +10,10 @@ two helper threads, and keeps on its own thread everything else, in the same ord
 
 - :func:`steps_ahead`: each step's sample positions (``plan.steps()``), its voxel-slice
   window, its section's samples, their cells and lanes, and the section's book of them
-  (:class:`SectionBook`: rays seen and finished, rule 8''s last slots, ring hand-offs),
-  computed up to :data:`STEPS_AHEAD` steps early (fewer for large images:
-  :data:`RAYS_AHEAD`) on a worker thread (pure functions of the plan: the same arrays on
-  any thread);
+  (:class:`SectionBook`: rays seen and finished, rule 8''s last slots, ring hand-offs;
+  its marks one compiled loop that releases the GIL, :func:`_book_step`), computed up
+  to :data:`STEPS_AHEAD` steps early (fewer for large images: :data:`RAYS_AHEAD`) on a
+  worker thread (pure functions of the plan: the same arrays on any thread);
 - :class:`FinishBehind`: the compiled stage's second pass
   (:meth:`SlabKernel.run <models.machines.volumepro.slab_kernel.SlabKernel.run>`'s
   gradients, shading and blend, a numba call that releases the GIL) on a worker thread
@@ -38,6 +38,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 
+import numba
 import numpy as np
 
 from hwsim.golden.positions import Step
@@ -123,12 +124,27 @@ class SectionBook:
     def step(self, j: int, rays, a, b, lanes) -> tuple[np.ndarray, _Tally | None]:
         """Step ``j``'s rays seen (their record and slot), those it finishes, and its
         hand-offs' counts (None: made by the frame)."""
-        self.seen[rays] = True
-        if self.last_seen is not None:
-            self.last_seen[0, rays] = self.first_record + j
-            self.last_seen[1, rays], self.last_seen[2, rays] = a, b
-        fin = rays[self.last_j[rays] == j]
-        self.done[fin] = True
+        if self.m.be.compiled:  # one compiled loop, the GIL released (_book_step)
+            keep = self.last_seen is not None
+            fin = _book_step(
+                j,
+                self.first_record + j,
+                rays,
+                a,
+                b,
+                self.last_j,
+                self.seen,
+                self.done,
+                self.last_seen if keep else _NO_SEEN,
+                keep,
+            )
+        else:
+            self.seen[rays] = True
+            if self.last_seen is not None:
+                self.last_seen[0, rays] = self.first_record + j
+                self.last_seen[1, rays], self.last_seen[2, rays] = a, b
+            fin = rays[self.last_j[rays] == j]
+            self.done[fin] = True
         if not self.ahead:
             return fin, None
         tally = _Tally()
@@ -141,6 +157,31 @@ class SectionBook:
             self.m._hand_off(rays, lanes, self.prev_lane, state)
         else:
             handoffs.replay(self.m.counters)
+
+
+_NO_SEEN = np.zeros((3, 0), dtype=np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _book_step(j, record, rays, a, b, last_j, seen, done, last_seen, keep):
+    """:meth:`SectionBook.step`'s marks in one loop over the step's rays (each at most
+    once in a step, so the same arrays as its NumPy form): ``seen``, rule 8''s record and
+    slot (when ``keep``), and the rays finished (``last_j == j``, in ``rays``' order),
+    marked ``done`` and returned."""
+    fin = np.empty(rays.size, dtype=np.int64)
+    n = 0
+    for i in range(rays.size):
+        r = rays[i]
+        seen[r] = True
+        if keep:
+            last_seen[0, r] = record
+            last_seen[1, r] = a[i]
+            last_seen[2, r] = b[i]
+        if last_j[r] == j:
+            done[r] = True
+            fin[n] = r
+            n += 1
+    return fin[:n].copy()
 
 
 def _ahead(items: Iterator, depth: int) -> Iterator:
