@@ -13,7 +13,7 @@ voxels promoted as read, :func:`~models.units.interp.promote_raw`), the LUT read
 (:func:`~models.units.classify.lut_index_raw`) and, for the visible samples, the six
 neighbours of the sample gradient or the three interpolated voxel differences and the
 gradient-opacity modulation; then branch-free loops over the visible samples compute the
-normals (:func:`~models.units.gradient.normal_raw`), each light's Phong terms
+normals (:func:`~models.units.gradient.normal_float_raw`), each light's Phong terms
 (:func:`~models.units.shade.light_terms_raw`) and the shaded colours
 (:func:`~models.units.shade.shade_raw`); a last loop applies the opacity-correction table
 and the front-to-back blend (:func:`~models.units.composite.ftb_weight_raw`).

@@ -62,6 +62,7 @@ _UNIT_FUNCTIONS = (
     classify_unit.scale_alpha_raw,
     gradient_unit.isqrt_raw,
     gradient_unit.normal_raw,
+    gradient_unit.normal_float_raw,
     gradient_unit.floor_div_raw,
     gradient_unit.bit_length_raw,
     shade_unit.light_terms_raw,
@@ -135,7 +136,9 @@ def shade_and_blend(
         # Pass 2, shading, in loops without branches over the visible samples (the
         # compiler vectorises them): normals, each light's terms, the colours.
         for j in range(m):
-            g[0, j], g[1, j], g[2, j] = gradient_unit.normal_raw(g[0, j], g[1, j], g[2, j], f_bits)
+            g[0, j], g[1, j], g[2, j] = gradient_unit.normal_float_raw(
+                g[0, j], g[1, j], g[2, j], f_bits
+            )
         diffuse = np.zeros(m, np.int64)
         specular = np.zeros(m, np.int64)
         kd, ks, ka = grad_p[_KD], grad_p[_KS], grad_p[_KA]

@@ -49,6 +49,7 @@ __all__ = [
     "normals",
     "isqrt_raw",
     "normal_raw",
+    "normal_float_raw",
     "floor_div_raw",
     "bit_length_raw",
     "LATENCY",
@@ -266,3 +267,36 @@ def floor_div_raw(n, d):
     q = np.int64(np.floor(np.float64(n) / np.float64(d)))
     r = n - q * d
     return q - (r < 0) + (r >= d)
+
+
+#: Below this ``|g|**2`` (and ``F <= 24``) every intermediate of :func:`normal_raw` is an
+#: integer under ``2**53``, so float64 holds it exactly.
+_FLOAT_EXACT = 2.0**52
+
+
+def normal_float_raw(gx, gy, gz, f: int):
+    """:func:`normal_raw` of one vector (int64 scalars), computed in float64: the same
+    integers.  With ``|g|**2 < 2**52`` and ``f <= 24`` every value is an integer below
+    ``2**53`` (exact in float64): the squares and their sums; the roots, since a float
+    root of an exact ``s < 2**52`` floors to ``isqrt(s)`` (it rounds up to an integer ``k``
+    only when ``k > 2**26``); the shift, a power-of-two scale (the shifted root is the
+    unshifted float root scaled, so one square root serves both); and the quotients,
+    whose float division floors exactly (a non-integer quotient lies at least ``1 / d``,
+    ``d <= 2**27``, from an integer, more than half its ulp).  Outside that range it is
+    :func:`normal_raw`.  Half the time of :func:`normal_raw` in compiled loops (fewer
+    int64/float64 conversions; tests/units/test_gradient.py compares the two)."""
+    x, y, z = np.float64(gx), np.float64(gy), np.float64(gz)
+    s0 = x * x + y * y + z * z
+    if s0 >= _FLOAT_EXACT or f > 24:
+        return normal_raw(gx, gy, gz, f)
+    root = np.sqrt(s0)
+    bits = bit_length_raw(max(np.int64(np.floor(root)), 1))
+    scale = np.float64(np.int64(1) << min(max(f + 2 - bits, 0), 40))
+    safe = max(np.floor(root * scale), 1.0)  # isqrt of the shifted components' squares
+    top, d = -2.0 * scale * np.float64(np.int64(1) << f), 2.0 * safe
+    limit = np.float64(np.int64(1) << f)
+    return (
+        np.int64(min(max(np.floor((top * x + safe) / d), -limit), limit)),
+        np.int64(min(max(np.floor((top * y + safe) / d), -limit), limit)),
+        np.int64(min(max(np.floor((top * z + safe) / d), -limit), limit)),
+    )

@@ -103,6 +103,42 @@ def test_the_bound_is_needed_where_the_magnitude_truncates_most():
     assert 2.0**-16 + 2.0**-17 < err < 2.0**-15
 
 
+@settings(max_examples=500, deadline=None)
+@given(component, component, component, st.integers(0, 20))
+def test_the_float_normal_is_normal_raw(gx, gy, gz, f):
+    """normal_float_raw (the compiled stage's normals) gives normal_raw's integers, in
+    its float range and beyond it (where it falls back)."""
+    g = (np.int64(gx), np.int64(gy), np.int64(gz))
+    want = tuple(int(v) for v in gu.normal_raw(*g, f))
+    assert tuple(int(v) for v in gu.normal_float_raw(*g, f)) == want
+
+
+@pytest.mark.parametrize("f", [1, 8, 10, 15, 24])
+def test_the_compiled_float_normal_is_normal_raw_on_many_vectors(rng, f):
+    """Compiled, over a million vectors of every magnitude up to the float range's edge
+    (``|g|**2`` near ``2**52``), zero, the axes and perfect-square magnitudes."""
+    import numba
+
+    from models import fused_stage  # noqa: F401  (registers the unit functions)
+
+    @numba.njit
+    def both(g, f):
+        out = np.empty((2, 3, g.shape[1]), np.int64)
+        for j in range(g.shape[1]):
+            out[0, :, j] = gu.normal_raw(g[0, j], g[1, j], g[2, j], f)
+            out[1, :, j] = gu.normal_float_raw(g[0, j], g[1, j], g[2, j], f)
+        return out
+
+    parts = [rng.integers(-hi, hi + 1, (3, 50_000)) for hi in (1, 3, 40, 3000, 1 << 16)]
+    parts += [rng.integers(-hi, hi + 1, (3, 50_000)) for hi in (1 << 20, 1 << 25)]
+    k = np.arange(1, 1 << 12)
+    edges = [np.stack([k * k - 1, k * 0, k * 0]), np.stack([k, 2 * k, 2 * k])]  # |g| = 3k
+    edges.append(np.array([[0, 1 << 25, -(1 << 25), 0], [0, 0, 0, 1 << 26], [0, 0, 1, 0]]))
+    g = np.concatenate(parts + edges, axis=1).astype(np.int64)
+    out = both(g, f)
+    assert np.array_equal(out[0], out[1])
+
+
 def test_the_zero_gradient_gives_the_zero_normal_never_nan():
     n = gu.normals(np.zeros((3, 3), dtype=np.int64), gu.GradientConfig())
     assert n.dtype == np.int64 and not n.any()
