@@ -59,7 +59,7 @@ from hwsim.golden.positions import SamplePlan
 from models.backend import Backend, RayState
 from models.units import classify as classify_unit
 
-__all__ = ["applies", "busiest_lanes", "plan_positions", "run_steps_compiled"]
+__all__ = ["applies", "busiest_lanes", "plan_positions", "position_terms", "run_steps_compiled"]
 
 
 def applies(backend: Backend, plan: SamplePlan, kernel, blocks: Occupancy | None) -> bool:
@@ -410,6 +410,16 @@ def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray, np.ndarr
         m = walk.step(j, alive)
         if m:
             yield j, walk.zyx[:m], walk.rays[:m]
+
+
+def position_terms(plan: SamplePlan) -> tuple[np.ndarray, np.ndarray]:
+    """The plan rays with samples by ascending ``j_lo`` (the walker's join order) and
+    their position terms (:func:`_ray_terms`, the last row the leap's): for loops that
+    form :func:`plan_positions`' floats themselves
+    (:func:`models.machines.volumepro.skips_kernel.plan_step_cells`)."""
+    has_samples = plan.j_lo <= plan.j_hi
+    join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
+    return join, _ray_terms(plan, 1 << 62)
 
 
 def busiest_lanes(plan: SamplePlan, pipelines: int, lanes_of) -> np.ndarray:

@@ -249,10 +249,12 @@ def test_brute_force_skips_only_beams_no_ray_reaches(phantoms):
 
 @pytest.mark.parametrize("projection", ["parallel", "perspective"])
 def test_compiled_skips_equal_the_numpy_reference(phantoms, projection):
-    """Rule 6 per slice by the compiled loop (``skips_kernel.step_cells``) and by the NumPy
-    form it replaced: the same clocks, mini-blocks, live samples and busiest lanes, with
-    no ray stopping, with the functional rung's ends and with random ends; a mutated end
-    changes them (the comparison can fail)."""
+    """Rule 6 per slice by the compiled loop (``skips_kernel.plan_step_cells``, its own
+    positions) and by the NumPy form it replaced: the same clocks, mini-blocks, live
+    samples and busiest lanes, with no ray stopping, with the functional rung's ends and
+    with random ends, at the machine's pipelines and at counts that are not a power of
+    two (lanes by ``mod``, clock groups not a machine word); a mutated end changes them
+    (the comparison can fail)."""
     volume = phantoms["head"]
     scene = scene_of(az=35, el=25, image=48, ert=0.9, projection=projection)
     tf = resolve_transfer(scene.transfer, volume)
@@ -262,10 +264,10 @@ def test_compiled_skips_equal_the_numpy_reference(phantoms, projection):
     rng = np.random.default_rng(3)
     fields = ("cost", "needed", "live", "busiest")
     for stopped in (None, ends, rng.integers(-1, plan.n_steps, ends.shape)):
-        for lag in (4, 8):
+        for P, lag in ((model.P, 4), (model.P, 8), (3, 4), (6, 8)):
             runs = [
                 vp1000_transaction.beam_skips(
-                    plan, model.P, stopped, lag, model._window_slabs, compiled=compiled
+                    plan, P, stopped, lag, model._window_slabs, compiled=compiled
                 )
                 for compiled in (True, False)
             ]

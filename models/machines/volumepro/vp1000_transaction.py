@@ -122,7 +122,7 @@ def beam_skips(
         ``window(j) -> (lo, hi)``: the slabs holding sample slice ``j``'s voxel window.
     compiled : bool
         Each slice's cells, clocks and lanes by the compiled loop
-        (:func:`models.machines.volumepro.skips_kernel.step_cells`); False: the NumPy
+        (:func:`models.machines.volumepro.skips_kernel.plan_step_cells`); False: the NumPy
         form, its reference (the same results).
     """
     kp = plan.principal_axis
@@ -137,10 +137,8 @@ def beam_skips(
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
     cells = np.zeros((n_a, C * P), dtype=bool)
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import step_cells
+    from models.machines.volumepro.skips_kernel import count_groups, plan_step_cells
 
-    axes, dims = np.array([kp, a_ax, b_ax]), np.array(shape, dtype=np.int64)
-    never = np.zeros(0, dtype=np.int64)
     # Per slab of the current windows, the cells read for it so far, OR-ed: the
     # mini-blocks of a union of cells are the union of theirs, so one mini_blocks_read
     # per slab (when the windows have moved past it) instead of one per slice; on such
@@ -151,11 +149,32 @@ def beam_skips(
         for s in [s for s in unions if not lo <= s <= hi]:
             needed[s] |= mini_blocks_read(unions.pop(s)[:, :n_b])
 
-    # Every planned sample's position, step by step (compiled; the plan's own floats).
-    for j, zyx, rays in fused_steps.plan_positions(plan):
-        if compiled:
-            last = never if stopped is None else stopped[rays].astype(np.int64)
-            live_count[j], busiest[j] = step_cells(zyx, axes, dims, P, last, j, lag, cells, cost[j])
+    compiled = compiled and plan.kind == "shear-image"  # the compiled loop's positions
+    if compiled:
+        join, terms = fused_steps.position_terms(plan)  # in join order from here on
+        last = np.zeros(0, dtype=np.int64)
+        if stopped is not None:
+            last = stopped[plan.ray_ids[join]].astype(np.int64)
+        walk = (
+            float(plan.scene.render.supersampling),
+            np.ascontiguousarray(terms[:, join]),
+            plan.j_lo[join].astype(np.int64),
+            plan.j_hi[join].astype(np.int64),
+            last,
+            np.array([kp, a_ax, b_ax], dtype=np.int64),
+            np.array(shape, dtype=np.int64),
+            P,
+            lag,
+            np.zeros(max(join.size, 1), dtype=np.int64),  # active rays
+            np.zeros(2, dtype=np.int64),  # cursor
+            cells,
+            held := np.zeros_like(cells),
+        )
+        for j in range(plan.n_steps):
+            m, live_count[j], busiest[j] = plan_step_cells(j, *walk)
+            if not m:
+                continue
+            cost[j] = count_groups(held, P)
             lo, hi = window(j)
             read_unions(lo, hi)
             for s in range(lo, hi + 1):
@@ -163,7 +182,9 @@ def beam_skips(
                     unions[s] |= cells
                 else:
                     unions[s] = cells.copy()
-            continue
+    # The NumPy form: every planned sample's position, step by step (the compiled
+    # walker; the plan's own floats).
+    for j, zyx, rays in () if compiled else fused_steps.plan_positions(plan):
         ra = np.clip(np.floor(zyx[:, a_ax]), 0, n_a - 1).astype(np.int64)
         rb = np.clip(np.floor(zyx[:, b_ax]), 0, n_b - 1).astype(np.int64)
         known = live = None
