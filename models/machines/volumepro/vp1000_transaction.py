@@ -137,7 +137,6 @@ def beam_skips(
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
     cells = np.zeros((n_a, C * P), dtype=bool)
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import count_groups, plan_step_cells
 
     # Per slab of the current windows, the cells read for it so far, OR-ed: the
     # mini-blocks of a union of cells are the union of theirs, so one mini_blocks_read
@@ -151,30 +150,7 @@ def beam_skips(
 
     compiled = compiled and plan.kind == "shear-image"  # the compiled loop's positions
     if compiled:
-        join, terms = fused_steps.position_terms(plan)  # in join order from here on
-        last = np.zeros(0, dtype=np.int64)
-        if stopped is not None:
-            last = stopped[plan.ray_ids[join]].astype(np.int64)
-        walk = (
-            float(plan.scene.render.supersampling),
-            np.ascontiguousarray(terms[:, join]),
-            plan.j_lo[join].astype(np.int64),
-            plan.j_hi[join].astype(np.int64),
-            last,
-            np.array([kp, a_ax, b_ax], dtype=np.int64),
-            np.array(shape, dtype=np.int64),
-            P,
-            lag,
-            np.zeros(max(join.size, 1), dtype=np.int64),  # active rays
-            np.zeros(2, dtype=np.int64),  # cursor
-            cells,
-            held := np.zeros_like(cells),
-        )
-        for j in range(plan.n_steps):
-            m, live_count[j], busiest[j] = plan_step_cells(j, *walk)
-            if not m:
-                continue
-            cost[j] = count_groups(held, P)
+        for j in _compiled_slices(plan, P, stopped, lag, cells, cost, live_count, busiest):
             lo, hi = window(j)
             read_unions(lo, hi)
             for s in range(lo, hi + 1):
@@ -216,6 +192,41 @@ def beam_skips(
     if stopped is not None and plan.ray_ids.size:
         stops = int(np.sum(stopped[plan.ray_ids] < plan.j_hi))
     return BeamSkips(cost, needed, live_count, busiest, stops)
+
+
+def _compiled_slices(plan, P, stopped, lag, cells, cost, live_count, busiest):
+    """:func:`beam_skips`' compiled loop: each sample slice ``j`` with planned samples,
+    after :func:`~models.machines.volumepro.skips_kernel.plan_step_cells` has filled
+    ``cells`` (read) and ``cost[j]``, ``live_count[j]``, ``busiest[j]``."""
+    from models import fused_steps  # imports numba: only for the frames that need it
+    from models.machines.volumepro.skips_kernel import count_groups, plan_step_cells
+
+    kp = plan.principal_axis
+    a_ax, b_ax = (ax for ax in range(3) if ax != kp)
+    join, terms = fused_steps.position_terms(plan)  # in join order from here on
+    last = np.zeros(0, dtype=np.int64)
+    if stopped is not None:
+        last = stopped[plan.ray_ids[join]].astype(np.int64)
+    walk = (
+        float(plan.scene.render.supersampling),
+        np.ascontiguousarray(terms[:, join]),
+        plan.j_lo[join].astype(np.int64),
+        plan.j_hi[join].astype(np.int64),
+        last,
+        np.array([kp, a_ax, b_ax], dtype=np.int64),
+        np.array(plan.volume.shape, dtype=np.int64),
+        P,
+        lag,
+        np.zeros(max(join.size, 1), dtype=np.int64),  # active rays
+        np.zeros(2, dtype=np.int64),  # cursor
+        cells,
+        held := np.zeros_like(cells),
+    )
+    for j in range(plan.n_steps):
+        m, live_count[j], busiest[j] = plan_step_cells(j, *walk)
+        if m:
+            cost[j] = count_groups(held, P)
+            yield j
 
 
 class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
