@@ -380,6 +380,10 @@ class PacketTiming:
                 "cache.lines": txn.buffers.cache_lines,
                 "cache.hits": counters["cache.lookups"] - counters["cache.fills"],
                 "cache.misses": counters["cache.fills"],
+                # One ACTIVATE opens the row of each row miss and each row conflict
+                # (docs/memory.md; the energy model prices them per command).
+                "memory.activates": counters["memory.row_misses"]
+                + counters["memory.row_conflicts"],
                 "ray_generator.rays": int(plan.ray_ids.size),
                 "pixel_bus.pixels": int(plan.ray_ids.size),
                 "pipeline.latency_cycles": FEEDBACK,
