@@ -67,10 +67,11 @@ def test_the_error_table_gains_its_independence_columns_without_re_measuring():
     ]
     report = annotate({"schema": 1, "cases": rows}, {n: quick[n]["arch"] for n in names})
     shown = [r["independence"] for r in report["cases"]]
-    # VIZARD II's rung times on the cycle rung's ray loop (issue 36): shared as well.
-    assert shown == ["shared", "partly shared", "shared"]
+    # VIZARD II's rung times on a packet model of its own (issue 36, packet_timing.py),
+    # sharing the plan and the termination steps with the cycle rung: partly shared.
+    assert shown == ["shared", "partly shared", "partly shared"]
     # A shared row's number is no measurement: the largest measured error leaves it out.
-    assert report["max_abs_error"] == 0.05 and report["max_abs_error_not_shared"] == 0.003
+    assert report["max_abs_error"] == 0.05 and report["max_abs_error_not_shared"] == 0.01
     assert set(report["independence"]) == {"cube4", "volumepro", "vizard2"}
     assert report["independence"]["cube4"]["shared"][0].endswith("cube4_latency")
     assert report["worst"]["cube4-P4 parallel"]["error_shown"].startswith("consistency check")
