@@ -24,6 +24,7 @@ from hwsim.spec.transfer import resolve_transfer
 from hwsim.volumes import make_phantom
 from models.cycle import render_cycle
 from models.frame import frame_of
+from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.volumepro import threads as vp_threads
 from models.machines.volumepro.cycle import SlabFaults
 
@@ -163,29 +164,42 @@ def test_passes_behind_run_in_order_and_join_waits_for_them():
     assert not behind.active
 
 
+@pytest.mark.parametrize("hand", [True, False], ids=["hand-offs-ahead", "hand-offs-by-frame"])
 @pytest.mark.parametrize("keep", [True, False])
-def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep):
+def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
+    """Marks, finished rays and, unless a fault makes them on the frame's thread, the
+    ring hand-offs (pipelines and moves counted) of the compiled loop and the NumPy
+    form (``SliceOrderMachine._hand_off``), step after step."""
     rng = np.random.default_rng(7)
-    n = 500
+    n, P = 500, 3
     last_j = rng.integers(-1, 6, n)
 
     def book(compiled):
         machine = types.SimpleNamespace(
             be=types.SimpleNamespace(compiled=compiled),
-            faults=types.SimpleNamespace(dropped_handoff=0),  # hand-offs made by the frame
+            faults=types.SimpleNamespace(dropped_handoff=None if hand else 0),
         )
+        machine._hand_off = types.MethodType(SliceOrderMachine._hand_off, machine)
         seen = np.zeros((3, n), dtype=np.int64) if keep else None
-        return vp_threads.SectionBook(machine, last_j, None, seen, 11)
+        return vp_threads.SectionBook(machine, last_j, np.full(n, -1, np.int64), seen, 11)
 
     numpy_book, compiled_book = book(False), book(True)
+    moves = 0
     for j in range(6):
         rays = np.sort(rng.choice(n, size=rng.integers(0, n), replace=False))
         a, b = rng.integers(0, 40, (2, rays.size))
-        want, handoffs = numpy_book.step(j, rays, a, b, None)
-        got, _ = compiled_book.step(j, rays, a, b, None)
-        assert handoffs is None
+        lanes = rng.integers(0, P, rays.size)
+        want, want_tally = numpy_book.step(j, rays, a, b, lanes)
+        got, got_tally = compiled_book.step(j, rays, a, b, lanes)
         np.testing.assert_array_equal(got, want)
         assert got.dtype == want.dtype
+        assert (got_tally is None) == (want_tally is None) == (not hand)
+        if hand:
+            assert list(got_tally) == list(want_tally)
+            moves += want_tally[0][1]
     assert numpy_book.done.any() and numpy_book.seen.any()
-    for key in ("seen", "done", "last_seen"):
+    assert not hand or moves > 0  # rays changed pipelines: the counts compared mean something
+    keys = ["seen", "done", "last_seen"] + (["prev_lane"] if hand else [])
+    for key in keys:
         np.testing.assert_array_equal(getattr(compiled_book, key), getattr(numpy_book, key))
+    assert (compiled_book.prev_lane >= 0).any() == hand

@@ -11,9 +11,10 @@ two helper threads, and keeps on its own thread everything else, in the same ord
 - :func:`steps_ahead`: each step's sample positions (``plan.steps()``), its voxel-slice
   window, its section's samples, their cells and lanes, and the section's book of them
   (:class:`SectionBook`: rays seen and finished, rule 8''s last slots, ring hand-offs;
-  its marks one compiled loop that releases the GIL, :func:`_book_step`), computed up
-  to :data:`STEPS_AHEAD` steps early (fewer for large images: :data:`RAYS_AHEAD`) on a
-  worker thread (pure functions of the plan: the same arrays on any thread);
+  its marks and hand-offs one compiled loop that releases the GIL, :func:`_book_step`),
+  computed up to :data:`STEPS_AHEAD` steps early (fewer for large images:
+  :data:`RAYS_AHEAD`) on a worker thread (pure functions of the plan: the same arrays
+  on any thread);
 - :class:`FinishBehind`: the compiled stage's second pass
   (:meth:`SlabKernel.run <models.machines.volumepro.slab_kernel.SlabKernel.run>`'s
   gradients, shading and blend, a numba call that releases the GIL) on a worker thread
@@ -126,7 +127,7 @@ class SectionBook:
         hand-offs' counts (None: made by the frame)."""
         if self.m.be.compiled:  # one compiled loop, the GIL released (_book_step)
             keep = self.last_seen is not None
-            fin = _book_step(
+            fin, moved = _book_step(
                 j,
                 self.first_record + j,
                 rays,
@@ -137,14 +138,21 @@ class SectionBook:
                 self.done,
                 self.last_seen if keep else _NO_SEEN,
                 keep,
+                lanes if self.ahead else _NO_LANES,
+                self.prev_lane if self.ahead else _NO_LANES,
+                self.ahead,
             )
-        else:
-            self.seen[rays] = True
-            if self.last_seen is not None:
-                self.last_seen[0, rays] = self.first_record + j
-                self.last_seen[1, rays], self.last_seen[2, rays] = a, b
-            fin = rays[self.last_j[rays] == j]
-            self.done[fin] = True
+            if not self.ahead:
+                return fin, None
+            tally = _Tally()
+            tally.add("composite.handoffs", moved)
+            return fin, tally
+        self.seen[rays] = True
+        if self.last_seen is not None:
+            self.last_seen[0, rays] = self.first_record + j
+            self.last_seen[1, rays], self.last_seen[2, rays] = a, b
+        fin = rays[self.last_j[rays] == j]
+        self.done[fin] = True
         if not self.ahead:
             return fin, None
         tally = _Tally()
@@ -160,16 +168,21 @@ class SectionBook:
 
 
 _NO_SEEN = np.zeros((3, 0), dtype=np.int64)
+_NO_LANES = np.zeros(0, dtype=np.int64)
 
 
 @numba.njit(cache=True, nogil=True)
-def _book_step(j, record, rays, a, b, last_j, seen, done, last_seen, keep):
+def _book_step(j, record, rays, a, b, last_j, seen, done, last_seen, keep, lanes, prev_lane, hand):
     """:meth:`SectionBook.step`'s marks in one loop over the step's rays (each at most
     once in a step, so the same arrays as its NumPy form): ``seen``, rule 8''s record and
-    slot (when ``keep``), and the rays finished (``last_j == j``, in ``rays``' order),
-    marked ``done`` and returned."""
+    slot (when ``keep``), the rays finished (``last_j == j``, in ``rays``' order), marked
+    ``done``, and (when ``hand``) the ring hand-offs of
+    :meth:`~models.machines.common.slice_order.SliceOrderMachine._hand_off` with no fault:
+    each ray's pipeline ``prev_lane`` set to its lane, the moves counted.  Returns the
+    rays finished and the moves."""
     fin = np.empty(rays.size, dtype=np.int64)
     n = 0
+    moved = 0
     for i in range(rays.size):
         r = rays[i]
         seen[r] = True
@@ -181,7 +194,12 @@ def _book_step(j, record, rays, a, b, last_j, seen, done, last_seen, keep):
             done[r] = True
             fin[n] = r
             n += 1
-    return fin[:n].copy()
+        if hand:
+            before = prev_lane[r]
+            if before >= 0 and before != lanes[i]:
+                moved += 1
+            prev_lane[r] = lanes[i]
+    return fin[:n].copy(), moved
 
 
 def _ahead(items: Iterator, depth: int) -> Iterator:
