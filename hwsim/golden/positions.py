@@ -37,6 +37,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Iterator
 
+import numba
 import numpy as np
 
 from hwsim.core.errors import InputError
@@ -218,11 +219,17 @@ class SamplePlan:
             return self._o[sel] + (t * d if np.isscalar(t) else t[:, None] * d)
         kp = self.principal_axis
         if self.kind == "shear-image":
-            q = self._q0[sel] + self._sign[sel] * (np.asarray(j) / self.scene.render.supersampling)
-            o, d = self._o[sel], self._d[sel]
-            pos = o + ((q - o[:, kp]) / d[:, kp])[:, None] * d
-            pos[:, kp] = q  # exactly on the slice
-            return pos
+            if np.ndim(j) == 0:  # one step: compiled, the same bits (_shear_image_rows)
+                sel = np.asarray(sel)
+                if sel.dtype == bool:
+                    sel = np.flatnonzero(sel)
+                pos = np.empty((sel.size, 3))
+                _shear_image_rows(
+                    self._q0, self._sign, self._o, self._d, float(j),
+                    float(self.scene.render.supersampling), kp, sel.ravel(), pos,
+                )  # fmt: skip
+                return pos
+            return self._shear_image_numpy(j, sel)
         a_ax, b_ax = self.other_axes
         ids = self.ray_ids[sel]
         off = self.offsets[j]
@@ -230,6 +237,16 @@ class SamplePlan:
         pos[:, kp] = self.order[j]
         pos[:, a_ax] = ids // self.shape[1] + self.base_origin[0] + off[..., 0]
         pos[:, b_ax] = ids % self.shape[1] + self.base_origin[1] + off[..., 1]
+        return pos
+
+    def _shear_image_numpy(self, j: int | np.ndarray, sel: np.ndarray) -> np.ndarray:
+        """The ``shear-image`` positions in NumPy (any ``j``): the reference
+        :func:`_shear_image_rows` is compared with (``tests/golden/test_plans.py``)."""
+        kp = self.principal_axis
+        q = self._q0[sel] + self._sign[sel] * (np.asarray(j) / self.scene.render.supersampling)
+        o, d = self._o[sel], self._d[sel]
+        pos = o + ((q - o[:, kp]) / d[:, kp])[:, None] * d
+        pos[:, kp] = q  # exactly on the slice
         return pos
 
     def principal_position(self, j: int, forward: bool) -> float:
@@ -371,6 +388,21 @@ class SamplePlan:
         if self.principal_axis is not None:
             out["principal_axis"] = "zyx"[self.principal_axis]
         return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _shear_image_rows(q0, sign, o, d, j, ss, kp, sel, out):  # pragma: no cover - compiled
+    """:meth:`SamplePlan._shear_image_numpy` at one step ``j``, one ray at a time: the same
+    float64 operations in the same order (``q = q0 + sign (j / ss)``, ``o + ((q - o_kp) /
+    d_kp) d``, no fused multiply-adds), so the same bits, without the gathered copies."""
+    step = j / ss
+    for i in range(sel.size):
+        r = sel[i]
+        q = q0[r] + sign[r] * step
+        t = (q - o[r, kp]) / d[r, kp]
+        for ax in range(3):
+            out[i, ax] = o[r, ax] + t * d[r, ax]
+        out[i, kp] = q  # exactly on the slice
 
 
 def make_plan(

@@ -166,3 +166,22 @@ def test_slice_plans_sample_exactly_on_slices(sampling):
     for step in plan.steps():
         q = step.zyx[:, plan.principal_axis] * 2
         assert np.array_equal(q, np.round(q)) and np.unique(q).size <= 1
+
+
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+@pytest.mark.parametrize("order", ["front-to-back", "back-to-front"])
+def test_shear_image_positions_compiled_match_their_numpy_form(projection, order):
+    volume = Volume(data=np.zeros((9, 10, 11)), spacing=(1.0, 0.8, 1.1))
+    scene = make_scene(
+        "composite", 37, 21, size=12, supersampling=3.0, projection=projection, blend_order=order
+    )
+    plan = make_plan(scene, volume, "shear-image")
+    rays = np.arange(plan.ray_ids.size)
+    steps = 0
+    for step_j in range(plan.n_steps):
+        sel = rays[(plan.j_lo <= step_j) & (plan.j_hi >= step_j)][::-1]
+        compiled = plan.position(step_j, sel)
+        reference = plan._shear_image_numpy(step_j, sel)
+        assert compiled.tobytes() == reference.tobytes()
+        steps += sel.size > 0
+    assert steps > 10
