@@ -54,46 +54,53 @@ _OUTSIDE = 2  # sat[2]: a cell outside the delivered planes (a geometry bug, nev
 def _tri(p0, p1, row, wk, wa, wb, kp, w_bits, w_code):
     """The trilinear sample of cell ``row``: ``p0`` / ``p1`` the near and far slices'
     interleaved corner planes (corner ``2 da + db``), ``wk`` the principal-axis weight
-    (0: ``p0`` alone, a bilinear), ``kp`` the principal axis; the eight corners lerped
-    x, then y, then z (``TrilinearSource._tri``), written out per principal axis."""
+    (0: ``p0`` alone, a bilinear), ``kp`` the principal axis (:func:`_tri8`)."""
+    return _tri8(
+        p0[row, 0], p0[row, 1], p0[row, 2], p0[row, 3],
+        p1[row, 0], p1[row, 1], p1[row, 2], p1[row, 3], wk, wa, wb, kp, w_bits, w_code,
+    )  # fmt: skip
+
+
+@numba.njit(inline="always")
+def _tri_routed(d0, d1, r0, r1, col, row, wk, wa, wb, kp, w_bits, w_code):
+    """:func:`_tri` of the voxel differences' column ``col`` (x, y, z: 2, 1, 0): the
+    corners of cell ``row`` are the per-voxel differences ``d0`` / ``d1`` of the near and
+    far slices at the voxels their routes ``r0`` / ``r1`` name (row 0: nothing, 0), the
+    values :meth:`SliceLoads.differences` gathers into corner planes."""
+    return _tri8(
+        d0[r0[row, 0], col], d0[r0[row, 1], col], d0[r0[row, 2], col], d0[r0[row, 3], col],
+        d1[r1[row, 0], col], d1[r1[row, 1], col], d1[r1[row, 2], col], d1[r1[row, 3], col],
+        wk, wa, wb, kp, w_bits, w_code,
+    )  # fmt: skip
+
+
+@numba.njit(inline="always")
+def _tri8(n0, n1, n2, n3, f0, f1, f2, f3, wk, wa, wb, kp, w_bits, w_code):
+    """The trilinear sample of one cell's near (``n*``) and far (``f*``) corners (corner
+    ``2 da + db``); ``wk`` 0: the near corners alone, a bilinear.  The eight corners are
+    lerped x, then y, then z (``TrilinearSource._tri``), written out per principal axis."""
     if wk == 0:
-        return np.int64(
-            interp_unit.bilinear_raw(
-                p0[row, 0], p0[row, 1], p0[row, 2], p0[row, 3], wa, wb, w_bits, w_code
-            )
-        )
+        return np.int64(interp_unit.bilinear_raw(n0, n1, n2, n3, wa, wb, w_bits, w_code))
     lerp = interp_unit.lerp_raw
     if kp == 0:  # a = y, b = x: a bilinear on each slice, then z
-        near = interp_unit.bilinear_raw(
-            p0[row, 0], p0[row, 1], p0[row, 2], p0[row, 3], wa, wb, w_bits, w_code
-        )
-        far = interp_unit.bilinear_raw(
-            p1[row, 0], p1[row, 1], p1[row, 2], p1[row, 3], wa, wb, w_bits, w_code
-        )
+        near = interp_unit.bilinear_raw(n0, n1, n2, n3, wa, wb, w_bits, w_code)
+        far = interp_unit.bilinear_raw(f0, f1, f2, f3, wa, wb, w_bits, w_code)
         return np.int64(lerp(near, far, wk, w_bits, w_code))
     if kp == 1:  # a = z, b = x: x along b, y across the slices, z along a
         y0 = lerp(
-            lerp(p0[row, 0], p0[row, 1], wb, w_bits, w_code),
-            lerp(p1[row, 0], p1[row, 1], wb, w_bits, w_code),
-            wk, w_bits, w_code,
-        )  # fmt: skip
+            lerp(n0, n1, wb, w_bits, w_code), lerp(f0, f1, wb, w_bits, w_code), wk, w_bits, w_code
+        )
         y1 = lerp(
-            lerp(p0[row, 2], p0[row, 3], wb, w_bits, w_code),
-            lerp(p1[row, 2], p1[row, 3], wb, w_bits, w_code),
-            wk, w_bits, w_code,
-        )  # fmt: skip
+            lerp(n2, n3, wb, w_bits, w_code), lerp(f2, f3, wb, w_bits, w_code), wk, w_bits, w_code
+        )
         return np.int64(lerp(y0, y1, wa, w_bits, w_code))
     # kp == 2: a = z, b = y: x across the slices, y along b, z along a
     y0 = lerp(
-        lerp(p0[row, 0], p1[row, 0], wk, w_bits, w_code),
-        lerp(p0[row, 1], p1[row, 1], wk, w_bits, w_code),
-        wb, w_bits, w_code,
-    )  # fmt: skip
+        lerp(n0, f0, wk, w_bits, w_code), lerp(n1, f1, wk, w_bits, w_code), wb, w_bits, w_code
+    )
     y1 = lerp(
-        lerp(p0[row, 2], p1[row, 2], wk, w_bits, w_code),
-        lerp(p0[row, 3], p1[row, 3], wk, w_bits, w_code),
-        wb, w_bits, w_code,
-    )  # fmt: skip
+        lerp(n2, f2, wk, w_bits, w_code), lerp(n3, f3, wk, w_bits, w_code), wb, w_bits, w_code
+    )
     return np.int64(lerp(y0, y1, wa, w_bits, w_code))
 
 
@@ -123,14 +130,15 @@ def _make_kernels(stage_hash: str):
         return m
 
     def finish(
-        keep, m, idx_in, alpha_in, gx0, gx1, gy0, gy1, gz0, gz1, gk, u0, u1, wu, d0, d1, wd,
+        keep, m, idx_in, alpha_in, diff0, diff1, routes0, routes1, gk, u0, u1, wu, d0, d1, wd,
         v0, v1, wk, pw, pa, pb,
         ca, wa, cb, wb, rays, voxel_grad, need_grad, rgb12, grad_p, ratio, gm_table, light,
         half, intensity, spec, maps, table, acc, ert_thr, alive, sat, config, axes,
     ):  # fmt: skip
-        """Pass 2: gradients of the visible samples, shading and the blend.  ``g*0, g*1``:
-        the voxel-difference planes (x, y, z) at the value's taps; ``u*, d*``: the value
-        planes of the taps at ``p + 1`` and ``p - 1`` along the principal axis."""
+        """Pass 2: gradients of the visible samples, shading and the blend.  ``diff*``,
+        ``routes*``: the per-voxel differences (z, y, x) of the value's taps' slices and
+        their cells' routes; ``u*, d*``: the value planes of the taps at ``p + 1`` and
+        ``p - 1`` along the principal axis."""
         if len(stage_hash) == 0:
             return
         w_bits, w_code = config[1], config[2]
@@ -148,9 +156,11 @@ def _make_kernels(stage_hash: str):
             alpha = alpha_in[j]
             if need_grad:
                 if voxel_grad:  # the interpolated x, y, z voxel differences
-                    g[0, j] = _tri(gx0, gx1, row, gk, wa[i], wb[i], kp, w_bits, w_code)
-                    g[1, j] = _tri(gy0, gy1, row, gk, wa[i], wb[i], kp, w_bits, w_code)
-                    g[2, j] = _tri(gz0, gz1, row, gk, wa[i], wb[i], kp, w_bits, w_code)
+                    for col in range(3):  # g[0]: x, the differences' column 2
+                        g[col, j] = _tri_routed(
+                            diff0, diff1, routes0, routes1, 2 - col, row, gk, wa[i], wb[i],
+                            kp, w_bits, w_code,
+                        )  # fmt: skip
                 else:
                     ahead = _tri(u0, u1, row, wu, wa[i], wb[i], kp, w_bits, w_code)
                     behind = _tri(d0, d1, row, wd, wa[i], wb[i], kp, w_bits, w_code)
@@ -210,6 +220,8 @@ class SlabKernel(StageConstants):
         self.config_arr = np.asarray(self.config, dtype=np.int64)
         self.need_grad = bool(backend.need_grad)
         self._no_factor = np.zeros(0, dtype=np.int64)
+        self._no_diff = np.zeros((1, 3), dtype=np.int64)
+        self._no_routes = np.zeros((1, 4), dtype=np.int64)
         #: Where the second pass runs: at once, or behind the data pass on a worker
         #: thread (the frame's :class:`~models.machines.volumepro.threads.FinishBehind`).
         self.behind = FinishBehind(1)
@@ -246,15 +258,15 @@ class SlabKernel(StageConstants):
             raise IndexError("a sample's cell lies outside the delivered corner planes")
         if k == 0:
             return  # nothing visible: the gradient's slices are not asked for
-        grads = [v0] * 6  # unused unless the gradient reads them (typed arguments)
+        grads = [self._no_diff] * 2 + [self._no_routes] * 2  # typed, unread unless used
         u0 = u1 = d0 = d1 = v0
         gk = wu = wd = 0
         voxel = m.voxel_gradients
         if self.need_grad:
-            if voxel:
-                planes = [self._taps(ch, taps) for ch in ("dx", "dy", "dz")]
-                grads = [plane for p in planes for plane in p[:2]]
-                gk = planes[0][2]
+            if voxel:  # the slices' per-voxel differences and routes (SliceLoads)
+                diff0, diff1, gk = self._taps("diff", taps)
+                routes0, routes1, _ = self._taps("routes", taps)
+                grads = [diff0, diff1, routes0, routes1]
             else:
                 pk = src.pk
                 u0, u1, wu = self._taps("value", m.k_taps(pk + 1.0))

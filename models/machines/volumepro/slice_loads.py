@@ -16,9 +16,11 @@ Each slice is then three compiled, GIL-free passes instead of the NumPy chain
 (stream read, de-skew, ring gather, shift, per channel): :func:`read_plane`
 (the words at the layout's addresses, the stuck module and bank), :func:`_value_rows`
 (corners shifted to the samples' fraction bits, the slice's voxel plane and the
-transparency bounds of each cell) and :func:`_difference_rows` (central differences of
-the delivered voxels, then the same routes: the planes the NumPy form streamed through the
-de-skew network and ring).  ``tests/models/test_slice_loads.py`` compares them with the
+transparency bounds of each cell) and :func:`_voxel_differences` (central differences of
+the delivered voxels, kept per voxel: the compiled stage reads a visible sample's corners
+through the same routes, so only the planes the unit chain asks for are gathered, by
+:class:`CornerPlanes`, into the rows the NumPy form streamed through the de-skew network
+and ring).  ``tests/models/test_slice_loads.py`` compares them with the
 NumPy form (kept: pre-classified frames, and the reference) on every fault that moves data.
 """
 
@@ -29,7 +31,7 @@ import numpy as np
 
 from models.units import classify as classify_unit
 
-__all__ = ["SliceLoads", "differences_numpy", "load_numpy", "read_plane", "visible"]
+__all__ = ["CornerPlanes", "SliceLoads", "differences_numpy", "load_numpy", "read_plane", "visible"]
 
 
 class SliceLoads:
@@ -73,24 +75,41 @@ class SliceLoads:
             plane.ravel(), routes, self.S, rows, voxels, m.n_b + 3,
             want, self.lut_shift, self.entries, lo, hi,
         )  # fmt: skip
-        planes = {"lo": lo, "hi": hi} if want else {}
+        planes = CornerPlanes(lo=lo, hi=hi) if want else CornerPlanes()
         planes["value"] = rows
         return planes, voxels
 
     def differences(self, q: int, lo: np.ndarray, hi: np.ndarray, factor: int, cur: np.ndarray):
-        """``dx``, ``dy``, ``dz`` corner planes of slice ``q``: ``factor (hi - lo)`` along
-        the principal axis, central differences of ``cur`` in the slice (``2 (v[1] -
-        v[0])`` at its edges)."""
+        """The voxel differences of slice ``q`` as :class:`CornerPlanes` entries ``diff``
+        (``(n_a n_b + 1, 3)``: row ``1 + a n_b + b`` the differences at voxel ``(a, b)``
+        along volume axes z, y, x, shifted left by the samples' fraction bits; row 0 the
+        zeros of a corner nothing reaches) and ``routes`` (:meth:`routes`): ``factor (hi -
+        lo)`` along the principal axis, central differences of ``cur`` in the slice
+        (``2 (v[1] - v[0])`` at its edges).  The compiled stage reads a visible sample's
+        corners through the routes; ``dx``, ``dy``, ``dz`` corner planes are gathered only
+        when asked for (:meth:`CornerPlanes.__missing__`)."""
         m = self.m
-        routes = self.routes(q)
-        out = [np.empty((routes.shape[0], 4), dtype=np.int64) for _ in range(3)]
-        # out[axis]: the difference along volume axis (z, y, x) = (0, 1, 2).
-        _difference_rows(
+        n_a, n_b = cur.shape
+        diff = np.empty((n_a * n_b + 1, 3), dtype=np.int64)
+        _voxel_differences(
             np.ascontiguousarray(lo), np.ascontiguousarray(hi), factor,
-            np.ascontiguousarray(cur), routes, self.S,
-            out[m.kp], out[m.a_ax], out[m.b_ax],
+            np.ascontiguousarray(cur), self.S, m.kp, m.a_ax, m.b_ax, diff,
         )  # fmt: skip
-        return {"dx": out[2], "dy": out[1], "dz": out[0]}
+        return CornerPlanes(diff=diff, routes=self.routes(q))
+
+
+class CornerPlanes(dict):
+    """A voxel slice's corner planes by channel (``(cells, 4)`` int64 rows), whose voxel
+    differences are kept per voxel (``diff``, ``routes``: :meth:`SliceLoads.differences`)
+    and gathered into ``dx`` / ``dy`` / ``dz`` rows on first use (the unit chain's)."""
+
+    _COLUMNS = {"dx": 2, "dy": 1, "dz": 0}
+
+    def __missing__(self, key: str) -> np.ndarray:
+        if key not in self._COLUMNS or "diff" not in self:
+            raise KeyError(key)
+        rows = self[key] = np.ascontiguousarray(self["diff"][:, self._COLUMNS[key]][self["routes"]])
+        return rows
 
 
 def read_plane(memory, kp: int, q: int) -> np.ndarray:
@@ -228,24 +247,18 @@ def _central(v, a, b, axis):
 
 
 @numba.njit(nogil=True, cache=True)
-def _difference_rows(lo, hi, factor, cur, routes, shift, dk, da, db):
-    """The voxel differences at every corner of every cell (0 where nothing arrives),
-    shifted left by ``shift``: ``dk`` across slices, ``da`` / ``db`` along the slice's
-    rows / columns; computed once per voxel, then gathered along the routes."""
+def _voxel_differences(lo, hi, factor, cur, shift, kp, a_ax, b_ax, diff):
+    """``diff``: row 0 zeros, row ``1 + a n_b + b`` the differences at voxel ``(a, b)``
+    shifted left by ``shift``, in columns by volume axis: ``factor (hi - lo)`` at ``kp``,
+    the in-slice central differences along the rows at ``a_ax`` and columns at ``b_ax``."""
     n_a, n_b = cur.shape
-    diff = np.zeros((n_a * n_b + 1, 3), dtype=np.int64)  # row 0: nothing arrives
+    diff[0, 0] = diff[0, 1] = diff[0, 2] = 0  # nothing arrives
     for a in range(n_a):
         for b in range(n_b):
             j = 1 + a * n_b + b
-            diff[j, 0] = (factor * (hi[a, b] - lo[a, b])) << shift
-            diff[j, 1] = _central(cur, a, b, 0) << shift
-            diff[j, 2] = _central(cur, a, b, 1) << shift
-    for c in range(routes.shape[0]):
-        for k in range(4):
-            i = routes[c, k]
-            dk[c, k] = diff[i, 0]
-            da[c, k] = diff[i, 1]
-            db[c, k] = diff[i, 2]
+            diff[j, kp] = (factor * (hi[a, b] - lo[a, b])) << shift
+            diff[j, a_ax] = _central(cur, a, b, 0) << shift
+            diff[j, b_ax] = _central(cur, a, b, 1) << shift
 
 
 @numba.njit(nogil=True, cache=True)
@@ -266,7 +279,7 @@ def visible(lo0, hi0, lo1, hi1, ca, cb, pw, next_visible, out):
 # ------------------------------------------------------------------ the NumPy form
 
 
-def load_numpy(m, q: int) -> dict[str, np.ndarray]:
+def load_numpy(m, q: int) -> CornerPlanes:
     """:meth:`SlabMachine._load` in NumPy: the de-skewed stream of each channel (the
     voxels, or their pre-classified colours) through the ring to the corner planes; the
     reference :class:`SliceLoads` is compared with, and the pre-classified frames' path."""
@@ -281,7 +294,7 @@ def load_numpy(m, q: int) -> dict[str, np.ndarray]:
     corners = {k: m.datapath.corners(v, q) for k, v in payloads.items()}
     if "value" in corners:
         m._voxels[q] = corners["value"][0, 2 : 2 + m.n_a, 2 : 2 + m.n_b]
-    planes = {}
+    planes = CornerPlanes()
     if m.skip_transparent:
         if be.pre_classified:
             planes["amax"] = corners["a"].max(axis=0).ravel()
