@@ -27,6 +27,7 @@ from models.frame import frame_of
 from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.volumepro import threads as vp_threads
 from models.machines.volumepro.cycle import SlabFaults
+from models.units.interp import InterpConfig
 
 pytestmark = pytest.mark.model
 
@@ -203,3 +204,52 @@ def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
     for key in keys:
         np.testing.assert_array_equal(getattr(compiled_book, key), getattr(numpy_book, key))
     assert (compiled_book.prev_lane >= 0).any() == hand
+
+
+def _numpy_cell(machine, p, like=None):
+    """The geometry unit's cells as NumPy computed them before the compiled pass."""
+    c = np.floor(p)
+    frac = p - c
+    quantize = machine.dp.interp.weight.quantize
+    if like is None:
+        if frac.size and (frac == frac[0]).all():
+            weight = np.full(frac.shape, quantize(frac[:1])[0], dtype=np.int64)
+            return c.astype(np.int64), weight, frac
+        return c.astype(np.int64), quantize(frac), frac
+    weight = like[1].copy()
+    other = frac != like[2]
+    if other.any():
+        weight[other] = quantize(frac[other])
+    return c.astype(np.int64), weight, frac
+
+
+@pytest.mark.parametrize("case", ["one-fraction", "many-fractions", "like", "strided", "empty"])
+def test_the_compiled_cells_are_the_numpy_cells(case):
+    """``SliceOrderMachine.cell`` (a compiled pass on the geometry thread): the cells,
+    weights and fractions of NumPy's formula, one fraction per slice or many, the
+    weights of ``like`` reused where the fractions agree, on a view and on an empty
+    step; a NaN position is still refused."""
+    machine = types.SimpleNamespace(dp=types.SimpleNamespace(interp=InterpConfig()))
+    rng = np.random.default_rng(3)
+    p = np.arange(-3, 60, dtype=np.float64) + 0.375
+    like = None
+    if case == "many-fractions":
+        p = rng.uniform(-3, 60, 500)
+    elif case == "like":
+        like = _numpy_cell(machine, p)
+        p = p + np.where(rng.random(p.size) < 0.3, 0.01, 0.0)  # another weight
+    elif case == "strided":
+        p = np.stack([p, p * 0.5 + 0.1, p], axis=1)[:, 1]
+    elif case == "empty":
+        p = p[:0]
+    got = SliceOrderMachine.cell(machine, p, like)
+    want = _numpy_cell(machine, p, like)
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_array_equal(g, w)
+        assert g.dtype == w.dtype and g.shape == w.shape
+    weights = np.unique(got[1]).size
+    assert weights == {"one-fraction": 1, "empty": 0}.get(case, weights) and (
+        case in ("one-fraction", "empty") or weights > 1
+    )
+    with pytest.raises(ValueError, match="NaN"):
+        SliceOrderMachine.cell(machine, np.array([1.5, np.nan]), like)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from hwsim.core.errors import InputError
@@ -95,22 +96,29 @@ class SliceOrderMachine:
         """Cell index, quantised weight and float fraction of in-slice positions (the
         geometry unit).  ``like``: cells of positions whose fractions are probably the
         same floats; their quantised weights are reused where they are."""
-        c = np.floor(p)
-        frac = p - c
         quantize = self.dp.interp.weight.quantize
+        if p.dtype == np.float64 and p.ndim == 1:  # one compiled pass, the GIL released
+            c, frac = np.empty(p.size, dtype=np.int64), np.empty(p.size)
+            ref = _NO_FRAC if like is None else like[2]
+            other = np.empty(p.size, dtype=np.bool_)
+            n_other = _cell_rows(p, ref, like is not None, c, frac, other)
+        else:
+            floor = np.floor(p)
+            c, frac = floor, p - floor
+            other = frac != (frac[:1] if like is None else like[2])
+            n_other = int(other.sum())
         if like is None:
             # Parallel projection: one fraction per slice, usually the very same float
             # for every ray; then quantise it once (same input, same weight).
-            if frac.size and (frac == frac[0]).all():
+            if frac.size and not n_other:
                 weight = np.full(frac.shape, quantize(frac[:1])[0], dtype=np.int64)
             else:
                 weight = quantize(frac)
-            return c.astype(np.int64), weight, frac
+            return c.astype(np.int64, copy=False), weight, frac
         weight = like[1].copy()
-        other = frac != like[2]
-        if other.any():
-            weight[other] = self.dp.interp.weight.quantize(frac[other])
-        return c.astype(np.int64), weight, frac
+        if n_other:
+            weight[other] = quantize(frac[other])
+        return c.astype(np.int64, copy=False), weight, frac
 
     def _hand_off(
         self, rays: np.ndarray, lanes: np.ndarray, prev_lane: np.ndarray, state, counters=None
@@ -128,3 +136,23 @@ class SliceOrderMachine:
                 self.be.cleared_acc(lost, state)
                 counters.add("composite.lost_handoffs", int(lost.size))
         prev_lane[rays] = lanes
+
+
+_NO_FRAC = np.zeros(0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _cell_rows(p, ref, like, c, frac, other):  # pragma: no cover - compiled
+    """:meth:`SliceOrderMachine.cell`'s array work in one pass: ``c = floor(p)`` (as
+    int64), ``frac = p - floor(p)`` (the same floats as NumPy's) and ``other``, the
+    fractions that differ from ``ref[i]`` (``like``) or from the first fraction; returns
+    how many do (NaN differs from everything, so it is quantised, and refused, there)."""
+    n = 0
+    for i in range(p.size):
+        f = np.floor(p[i])
+        frac[i] = p[i] - f
+        c[i] = np.int64(f) if np.isfinite(f) else np.int64(0)
+        d = frac[i] != (ref[i] if like else frac[0])
+        other[i] = d
+        n += d
+    return n
