@@ -17,6 +17,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from hwsim.engine import Counters, DrainFifo
@@ -69,11 +70,16 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
             keep = np.repeat(needed[si, slab, us], per_block, axis=1)
             module, bank, row = module[us], bank[us], row[us]
             # Each module's kept bursts of every beam u at once, in the beams' order.
-            count = np.empty((M, us.size), dtype=np.int64)
-            for k in range(M):
-                sel = (module == k) & keep
-                count[k] = sel.sum(axis=1)
-                chunks[k].append((bank[sel].astype(np.int32), row[sel].astype(np.int32)))
+            count = np.zeros((M, us.size), dtype=np.int64)
+            if m.be.compiled:  # one compiled pass (_module_bursts), the same arrays
+                banks, rows, ends = _module_bursts(module, bank, row, keep, count)
+                for k in range(M):
+                    chunks[k].append((banks[ends[k] : ends[k + 1]], rows[ends[k] : ends[k + 1]]))
+            else:
+                for k in range(M):
+                    sel = (module == k) & keep
+                    count[k] = sel.sum(axis=1)
+                    chunks[k].append((bank[sel].astype(np.int32), row[sel].astype(np.int32)))
             counts.append(count)
             index[si, slab, us] = n_deliveries + np.arange(us.size)
             n_deliveries += us.size
@@ -125,6 +131,35 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
             )
         )
     return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices, None
+
+
+@numba.njit(cache=True, nogil=True)
+def _module_bursts(module, bank, row, keep, count):  # pragma: no cover - compiled
+    """The kept bursts (``keep``) of a slab's beams ``(u, burst)`` split by module: their
+    banks and rows as int32, module by module (module ``k``'s from ``ends[k]`` to
+    ``ends[k + 1]``), each in the beams' row-major order, and ``count[k, u]`` the bursts
+    of beam ``u`` on module ``k`` (zeros in): ``bank[(module == k) & keep]`` for each
+    ``k`` in one pass."""
+    n_u, n_b = module.shape
+    M = count.shape[0]
+    for u in range(n_u):
+        for i in range(n_b):
+            if keep[u, i]:
+                count[module[u, i], u] += 1
+    ends = np.zeros(M + 1, dtype=np.int64)
+    for k in range(M):
+        ends[k + 1] = ends[k] + count[k].sum()
+    banks = np.empty(ends[M], dtype=np.int32)
+    rows = np.empty(ends[M], dtype=np.int32)
+    fill = ends[:M].copy()
+    for u in range(n_u):
+        for i in range(n_b):
+            if keep[u, i]:
+                k = module[u, i]
+                banks[fill[k]] = bank[u, i]
+                rows[fill[k]] = row[u, i]
+                fill[k] += 1
+    return banks, rows, ends
 
 
 def _beam_needs(index, rows, s0, s1, n_a, first, need, free_after) -> None:

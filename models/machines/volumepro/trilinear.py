@@ -33,9 +33,10 @@ class TrilinearSource:
 
     def __init__(self, machine: SlabMachine, step: Step) -> None:
         m = self.m = machine
-        self.pa = step.zyx[:, m.a_ax]
-        self.pb = step.zyx[:, m.b_ax]
-        self.pk = step.zyx[:, m.kp]
+        # Contiguous copies: every pass reads them (cells, slots, rule 6, the kernel).
+        self.pa = np.ascontiguousarray(step.zyx[:, m.a_ax])
+        self.pb = np.ascontiguousarray(step.zyx[:, m.b_ax])
+        self.pk = np.ascontiguousarray(step.zyx[:, m.kp])
         self._cells = m.cell(self.pa), m.cell(self.pb)
         self.q = m.nearest_slice(self.pk)
 
