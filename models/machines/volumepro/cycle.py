@@ -165,11 +165,16 @@ class SlabMachine(SliceOrderMachine):
             raise AssertionError("samples of one step lie on one slice")
         taps = self._taps.get(p)
         if taps is None:  # once per slice position (the windows and every source ask)
+            # The first: all of the frame's slice positions at once (its windows ask each).
+            first = [] if self._taps else map(self.slice_position, range(self.plan.n_steps))
+            ps = list(dict.fromkeys([*first, p]))
             n = self.n_kp
-            c = min(max(p, 0.0), n - 1.0)
-            i0 = int(min(np.floor(c), max(n - 2, 0)))
-            w = int(self.dp.interp.weight.quantize(np.array([c - i0]))[0])
-            taps = self._taps[p] = (i0, min(i0 + 1, n - 1), w)
+            c = np.minimum(np.maximum(np.array(ps), 0.0), n - 1.0)
+            i0 = np.minimum(np.floor(c), max(n - 2, 0)).astype(np.int64)
+            w = self.dp.interp.weight.quantize(c - i0)
+            for key, a, b in zip(ps, i0.tolist(), w.tolist(), strict=True):
+                self._taps[key] = (a, min(a + 1, n - 1), b)
+            taps = self._taps[p]
         return taps
 
     def nearest_slice(self, pk: np.ndarray) -> int:

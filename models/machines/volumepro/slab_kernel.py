@@ -62,23 +62,11 @@ def _tri(p0, p1, row, wk, wa, wb, kp, w_bits, w_code):
 
 
 @numba.njit(inline="always")
-def _tri_routed(d0, d1, r0, r1, col, row, wk, wa, wb, kp, w_bits, w_code):
-    """:func:`_tri` of the voxel differences' column ``col`` (x, y, z: 2, 1, 0): the
-    corners of cell ``row`` are the per-voxel differences ``d0`` / ``d1`` of the near and
-    far slices at the voxels their routes ``r0`` / ``r1`` name (row 0: nothing, 0), the
-    values :meth:`SliceLoads.differences` gathers into corner planes."""
-    return _tri8(
-        d0[r0[row, 0], col], d0[r0[row, 1], col], d0[r0[row, 2], col], d0[r0[row, 3], col],
-        d1[r1[row, 0], col], d1[r1[row, 1], col], d1[r1[row, 2], col], d1[r1[row, 3], col],
-        wk, wa, wb, kp, w_bits, w_code,
-    )  # fmt: skip
-
-
-@numba.njit(inline="always")
 def _tri8(n0, n1, n2, n3, f0, f1, f2, f3, wk, wa, wb, kp, w_bits, w_code):
     """The trilinear sample of one cell's near (``n*``) and far (``f*``) corners (corner
     ``2 da + db``); ``wk`` 0: the near corners alone, a bilinear.  The eight corners are
-    lerped x, then y, then z (``TrilinearSource._tri``), written out per principal axis."""
+    lerped x, then y, then z (``TrilinearSource._tri``), written out per principal axis;
+    the voxel differences' corners are read through the ring's routes (``finish``)."""
     if wk == 0:
         return np.int64(interp_unit.bilinear_raw(n0, n1, n2, n3, wa, wb, w_bits, w_code))
     lerp = interp_unit.lerp_raw
@@ -156,10 +144,26 @@ def _make_kernels(stage_hash: str):
             alpha = alpha_in[j]
             if need_grad:
                 if voxel_grad:  # the interpolated x, y, z voxel differences
-                    for col in range(3):  # g[0]: x, the differences' column 2
-                        g[col, j] = _tri_routed(
-                            diff0, diff1, routes0, routes1, 2 - col, row, gk, wa[i], wb[i],
-                            kp, w_bits, w_code,
+                    # The cell's corners: the voxels the routes name (0: nothing, zeros),
+                    # read once for the three components; g[0] is x, column 2.
+                    n0, n1, n2, n3 = (
+                        routes0[row, 0],
+                        routes0[row, 1],
+                        routes0[row, 2],
+                        routes0[row, 3],
+                    )
+                    f0, f1, f2, f3 = (
+                        routes1[row, 0],
+                        routes1[row, 1],
+                        routes1[row, 2],
+                        routes1[row, 3],
+                    )
+                    for col in range(3):
+                        c = 2 - col
+                        g[col, j] = _tri8(
+                            diff0[n0, c], diff0[n1, c], diff0[n2, c], diff0[n3, c],
+                            diff1[f0, c], diff1[f1, c], diff1[f2, c], diff1[f3, c],
+                            gk, wa[i], wb[i], kp, w_bits, w_code,
                         )  # fmt: skip
                 else:
                     ahead = _tri(u0, u1, row, wu, wa[i], wb[i], kp, w_bits, w_code)
