@@ -182,8 +182,11 @@ def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
     ``floor(((c - 1) block - 1e-6) / |delta|_inf)`` for any ``c >= 1``."""
     kp, a_ax, b_ax = _axes(plan)
     n = plan.ray_ids.size
-    delta = np.broadcast_to(plan._delta, (n, 3))
-    leap = (block - 1e-6) / np.max(np.abs(delta), axis=1)
+    delta = np.asarray(plan._delta, dtype=np.float64)
+    if delta.ndim == 1:  # one step for every ray (a parallel view): one quotient
+        leap = np.full(n, (block - 1e-6) / np.max(np.abs(delta)))
+    else:
+        leap = (block - 1e-6) / np.max(np.abs(np.broadcast_to(delta, (n, 3))), axis=1)
     if plan.kind == "shear-warp":
         ids = plan.ray_ids
         cols = [

@@ -19,6 +19,7 @@ that and specular by ``ks I n`` times that.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,11 +114,19 @@ def setup(
     if cfg.method == "reflectance-map":
         if v.ndim == 2:
             raise ValueError("reflectance maps need one view direction (parallel projection)")
-        centres = np.vstack([_cell_normals(cfg.map_size), np.zeros((1, 3))])
-        q = _q(centres, f)
-        d, s = _lighting_terms(shader, q, shader.half)
+        d, s = _lighting_terms(shader, _map_normals(cfg.map_size, f), shader.half)
         shader = Shader(**{**shader.__dict__, "maps": (d, s)})
     return shader
+
+
+@functools.lru_cache(maxsize=8)
+def _map_normals(r: int, f: int) -> np.ndarray:
+    """The SQ1.``f`` normals a reflectance map is computed at: its cells' centres
+    (:func:`_cell_normals`), then the zero normal; the same for every frame of a map
+    size and normal width, so computed once (read-only)."""
+    q = _q(np.vstack([_cell_normals(r), np.zeros((1, 3))]), f)
+    q.flags.writeable = False
+    return q
 
 
 def _cell_normals(r: int) -> np.ndarray:
