@@ -10,8 +10,11 @@ blocks the occupancy marks empty, in NumPy over the set of rays still marching. 
 serial NumPy and a third of a compiled golden frame; here each ray marches in compiled
 code with the NumPy march's arithmetic: the position ``o + t d`` with ``t = (k_first +
 k_dir j) dt``, ``numpy.floor_divide``'s rule for the block, the same skip and face
-formulas, the same bounds.  ``tests/golden/test_leap_rays.py`` checks the step ranges are
-the NumPy march's exactly.
+formulas, the same bounds.  Two shortcuts keep every result: a power-of-two block's
+quotient is a product by its exact inverse, and the face term is computed first for the
+longest step's axis only (the minimum over the axes is at most that term, so when the
+distance's leap already reaches past it the other two are not needed).
+``tests/golden/test_leap_rays.py`` checks the step ranges are the NumPy march's exactly.
 """
 
 from __future__ import annotations
@@ -66,6 +69,24 @@ def _floor_divide(a, b):  # pragma: no cover - compiled
     return math.copysign(0.0, a / b)
 
 
+@numba.njit(inline="always")
+def _block_of(p, top, fblock, inv_block, exact):  # pragma: no cover - compiled
+    """Block index (float) of position ``p`` clipped to ``[0, top]``: ``floor_divide``'s,
+    or for a power-of-two block the quotient by multiplying with its exact inverse."""
+    clipped = min(max(p, 0.0), top)
+    if exact:
+        return math.floor(clipped * inv_block)
+    return _floor_divide(clipped, fblock)
+
+
+@numba.njit(inline="always")
+def _face(step, p, blk, block):  # pragma: no cover - compiled
+    """Steps of ``step`` from ``p`` to the face of block ``blk`` it moves towards."""
+    if step > 0:
+        return ((blk + 1) * block - p) / abs(step)
+    return (p - blk * block) / abs(step)
+
+
 @numba.njit(cache=True, nogil=True)
 def _march(
     o, d, k_first, k_dir, dt, delta, reach, top, block, distance, j_lo, j_hi
@@ -73,38 +94,46 @@ def _march(
     n_rays = o.shape[0]
     fblock = np.float64(block)
     # A power-of-two block: the quotient of a clipped (>= 0) position is exact, so its
-    # floor is ``numpy.floor_divide``'s without the remainder (``fmod`` was half the march).
+    # floor is ``numpy.floor_divide``'s without the remainder (``fmod`` was half the
+    # march), and dividing by it is multiplying by its inverse, exactly.
     exact = block > 0 and (block & (block - 1)) == 0
-    blk = np.empty(3)
-    p = np.empty(3)
+    inv_block = 1.0 / fblock if exact else 0.0
     for sign in (1, -1):
         for r in range(n_rays):
             dr = 0 if d.shape[0] == 1 else r
             er = 0 if delta.shape[0] == 1 else r
+            s0, s1, s2 = sign * delta[er, 0], sign * delta[er, 1], sign * delta[er, 2]
+            # The axis of the longest step: its face bounds the leap to the block's end
+            # from above (the minimum over the axes is at most its term).
+            a_max = (
+                0 if abs(s0) >= abs(s1) and abs(s0) >= abs(s2) else (1 if abs(s1) >= abs(s2) else 2)
+            )
+            s_max = (s0, s1, s2)[a_max]
             j = j_lo[r] if sign > 0 else j_hi[r]
             while True:
                 t = (k_first + k_dir * j) * dt
-                for a in range(3):
-                    p[a] = o[r, a] + t * d[dr, a]
-                    clipped = min(max(p[a], 0.0), top[a])
-                    if exact:
-                        blk[a] = math.floor(clipped / fblock)
-                    else:
-                        blk[a] = _floor_divide(clipped, fblock)
-                c = distance[np.int64(blk[0]), np.int64(blk[1]), np.int64(blk[2])]
+                p0, p1, p2 = o[r, 0] + t * d[dr, 0], o[r, 1] + t * d[dr, 1], o[r, 2] + t * d[dr, 2]
+                b0 = _block_of(p0, top[0], fblock, inv_block, exact)
+                b1 = _block_of(p1, top[1], fblock, inv_block, exact)
+                b2 = _block_of(p2, top[2], fblock, inv_block, exact)
+                c = distance[np.int64(b0), np.int64(b1), np.int64(b2)]
                 if c <= 0:
                     break
                 skip = math.floor(((c - 1) * block - 1e-6) / reach[r])
-                along = np.inf
-                for a in range(3):
-                    step = sign * delta[er, a]
-                    if abs(step) > _TINY:
-                        if step > 0:
-                            face = (blk[a] + 1) * block - p[a]
-                        else:
-                            face = p[a] - blk[a] * block
-                        along = min(along, face / abs(step))
-                skip = max(max(skip, math.ceil(along - 1e-6)), 1.0)
+                bound = (
+                    _face(s_max, (p0, p1, p2)[a_max], (b0, b1, b2)[a_max], block)
+                    if abs(s_max) > _TINY
+                    else np.inf
+                )
+                if not (skip >= 1.0 and bound < np.inf and math.ceil(bound - 1e-6) <= skip):
+                    along = np.inf
+                    if abs(s0) > _TINY:
+                        along = min(along, _face(s0, p0, b0, block))
+                    if abs(s1) > _TINY:
+                        along = min(along, _face(s1, p1, b1, block))
+                    if abs(s2) > _TINY:
+                        along = min(along, _face(s2, p2, b2, block))
+                    skip = max(max(skip, math.ceil(along - 1e-6)), 1.0)
                 j += sign * np.int64(skip)
                 if not (j <= j_hi[r] and j >= j_lo[r]):
                     break
