@@ -182,7 +182,8 @@ TRANSACTION_VS_CYCLE: dict[str, Comparison] = {
             "models.backend.Backend (the rays' termination steps)",
         ),
         txn="per-beam clock groups and mini-blocks needed from the plan's positions "
-        "(vp1000_transaction.beam_skips), each slice's busiest lane from them by the "
+        "(vp1000_transaction.beam_skips; compiled, mini_blocks_read's rule written again as "
+        "skips_kernel.union_blocks), each slice's busiest lane from them by the "
         "cycle rung's lane rule written again (transaction.sample_lanes, the same rule "
         "as SlabMachine._slots), then the chunk-granular event model as VolumePro 500",
         cycle="live cells from its data pass (SlabMachine._live_cells), then the "

@@ -92,18 +92,17 @@ def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkS
     sk = model.skips
     needed = np.zeros((0, 0, 0), dtype=bool) if sk is None else sk.needed
     module, bank, row = slab_layouts(model)
-    per, banks, rows = split_streams(module, bank, row, spans, needed, model.words_per_voxel, M)
-    if banks.size and (banks.min() < 0 or banks.max() >= cfg.banks):
-        raise ValueError(f"bank out of range 0 .. {cfg.banks - 1}")
-    if rows.size and (rows.min() < 0 or rows.max() >= cfg.rows):
-        raise ValueError(f"row out of range 0 .. {cfg.rows - 1}")
+    per, banks, rows, total = split_streams(
+        module, bank, row, spans, needed, model.words_per_voxel, M
+    )
     bounds = np.zeros((M, nc + 1), dtype=np.int64)
     np.cumsum(per, axis=1, out=bounds[:, 1:])
-    modules, at = [], 0
-    for k in range(M):
-        n = int(bounds[k, -1])
-        modules.append((banks[at : at + n], rows[at : at + n], bounds[k].tolist(), per[k]))
-        at += n
+    # Module k's stream: its bursts from k total on.
+    used = [(banks[k * total :][:n], rows[k * total :][:n]) for k, n in enumerate(bounds[:, -1])]
+    for i, (name, limit) in enumerate((("bank", cfg.banks), ("row", cfg.rows))):
+        if any(v.size and (v.min() < 0 or v.max() >= limit) for v in (u[i] for u in used)):
+            raise ValueError(f"{name} out of range 0 .. {limit - 1}")
+    modules = [(b, r, bounds[k].tolist(), per[k]) for k, (b, r) in enumerate(used)]
     return ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
 
 
@@ -120,7 +119,7 @@ class DeferredReads:
         self.issue_at: list[int] = []  # cycle each chunk issued, in read order
         self.ready: list[int] = []  # cycle each flushed chunk is ready
         for port, (bank, _, _, _) in zip(ports, streams.modules, strict=True):
-            port.controller.reserve(frames * bank.size)
+            _reserve(port.controller, frames * bank.size)
 
     @property
     def issued_count(self) -> int:
@@ -167,6 +166,19 @@ class DeferredReads:
                     ready = [max(x, y) for x, y in zip(ready, done, strict=True)]
             self.ready.extend(ready)
             a = b
+
+
+def _reserve(controller, n: int) -> None:
+    """``controller.reserve(n)`` in steps of at most 32 times from its first 64 requests:
+    each step widens its arrays by ``np.resize``, which concatenates as many copies of the
+    old array as fit (one step from 64 to a 256^3 frame's half million was 8,000 copies,
+    ~10 ms a module); the zeroed request log is allocated lazily, so a step costs little
+    else."""
+    room = 64 * 32
+    while room < n:
+        controller.reserve(room)
+        room *= 32
+    controller.reserve(n)
 
 
 class ChunkLink:

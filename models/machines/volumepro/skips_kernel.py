@@ -1,20 +1,23 @@
-"""VolumePro 1000's per-slice beam skipping (rule 6) at one sample slice, compiled (numba).
+"""VolumePro 1000's per-slice beam skipping (rule 6), compiled (numba).
 
 # Ref: docs/cycle.md "Timing rules (VolumePro family)" rule 6 (clock groups of live rays,
 #      mini-blocks of live cells); docs/transaction.md (the VolumePro 1000 event model).
 
-:func:`plan_step_cells` is the loop body of
-:func:`models.machines.volumepro.vp1000_transaction.beam_skips` for one sample slice: it
-forms each planned sample's position from the shear-image plan's ray terms itself (the
-compiled walker's floats, :func:`models.fused_steps.plan_positions`, without per-sample
-position arrays), then which cells hold a live sample (each beam's clock groups:
-:func:`count_groups`), the live samples and the busiest pipeline (each sample's lane is
-the module ``(q + a + b) mod P`` of its nearest voxel,
+:func:`frame_skips` is the compiled loop of
+:func:`models.machines.volumepro.vp1000_transaction.beam_skips`, every sample slice in one
+call: :func:`plan_step_cells` forms each planned sample's position from the shear-image
+plan's ray terms itself (the compiled walker's floats,
+:func:`models.fused_steps.plan_positions`, without per-sample position arrays; all the
+active rays' in one branch-free, vectorised loop), then which cells hold a live sample
+(each beam's clock groups holding one), the live samples and the busiest pipeline (each
+sample's lane is the module ``(q + a + b) mod P`` of its nearest voxel,
 :func:`~models.machines.volumepro.lanes.sample_lanes`' rule), and the cells the memory
-sequencer reads for (alive ``lag`` slices earlier).  The same floating-point operations
-as the NumPy form (``floor``, a subtraction, a comparison with 1/2), so the same
-integers; the NumPy form stays as the reference (``beam_skips(..., compiled=False)``,
-compared by ``tests/models/test_transaction_vp1000.py``).
+sequencer reads for (alive ``lag`` slices earlier); each slab's cells are OR-ed over the
+slices whose window holds it and its mini-blocks read once (:func:`union_blocks`,
+:func:`~models.machines.volumepro.timing.mini_blocks_read`'s rule).  The same
+floating-point operations as the NumPy form (``floor``, a subtraction, a comparison with
+1/2), so the same integers; the NumPy form stays as the reference (``beam_skips(...,
+compiled=False)``, compared by ``tests/models/test_transaction_vp1000.py``).
 
 The cycle machine's side: :func:`slice_cells` (rule 6 at one sample slice of
 :meth:`SlabMachine._live_cells`: clock groups and the mini-blocks read) and
@@ -30,7 +33,15 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["beam_needs", "cell_blocks", "count_groups", "plan_step_cells", "slice_cells"]
+__all__ = [
+    "beam_needs",
+    "cell_blocks",
+    "active_rays",
+    "frame_skips",
+    "plan_step_cells",
+    "slice_cells",
+    "union_blocks",
+]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -48,9 +59,7 @@ def _nearest(p: float, n: int) -> int:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def plan_step_cells(
-    j, ss, terms, j_lo, j_hi, last, axes, shape, P, lag, active, cursor, cells, held
-):
+def plan_step_cells(j, ss, terms, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost_row):
     """One sample slice ``j`` of rule 6, straight from a shear-image plan's rays.
 
     Parameters
@@ -66,18 +75,20 @@ def plan_step_cells(
         int64 per ray (join order): its first and last step.
     last : ndarray
         int64 per ray (join order), its last live step; empty: no ray stops.
-    axes, shape : ndarray
-        int64 ``(k, a, b)`` axes and the volume's shape ``(z, y, x)``.
+    dims : tuple
+        ``(n_k, n_a, n_b)``: the volume's extent along the principal axis, the beams
+        and along a beam.
     P, lag : int
         Pipelines (cells per clock group); the sequencer's lag in slices.
-    active, cursor : ndarray
-        int64 scratch kept between slices (zeros before the first): the active rays
-        (ascending), and their count and the next ray to join.
+    rays : ActiveRays
+        The rays joined so far and not yet compacted away, kept between slices
+        (:func:`active_rays` before the first).
     cells : ndarray
-        bool ``(n_a, C P)``: overwritten with the cells the memory reads for.
-    held : ndarray
-        bool ``(n_a, C P)``: overwritten with the cells holding a live sample (each
-        beam's clock groups holding one are its clocks: :func:`count_groups`).
+        uint8 ``n_a n_b`` (flat, zero on entry): 1 at the cells the memory reads for.
+    groups : ndarray
+        uint8 ``n_a ceil(n_b / P) P`` (flat, zero on entry): 1 at the cells holding a
+        live sample, each beam's clock groups holding one counted into ``cost_row`` (its
+        clocks).
 
     Returns
     -------
@@ -85,70 +96,186 @@ def plan_step_cells(
         Planned samples, live samples, and the busiest pipeline's.
 
     Each sample's position is :func:`models.fused_steps.plan_positions`' (the walker's
-    ``_step``, shear-image: the same terms, operations and ray order, so the same floats
-    and the same first live sample), its cells, clock groups and lane those of the
-    NumPy form (``floor``, a subtraction, a comparison with 1/2; positions are finite,
-    so clamping the integer is clamping the float), so the same integers, without
-    per-sample position arrays.
+    ``_step``, shear-image: the same terms and operations, so the same floats), its
+    cell and nearest voxel those of the NumPy form (``floor``, a subtraction, a
+    comparison with 1/2, clamped: integers exact in float64), so the same integers.  The
+    positions of all active rays are formed in one branch-free loop (vectorised), then
+    marked.  A sample's pipeline is ``(q + a + b) mod P`` for the slice's voxel slice
+    ``q`` (:func:`~models.machines.volumepro.lanes.sample_lanes`): counting ``(a + b)
+    mod P`` instead permutes the lanes, so the busiest holds as many samples.
     """
-    kp, a_ax, b_ax = axes[0], axes[1], axes[2]
-    n_k, n_a, n_b = shape[kp], shape[a_ax], shape[b_ax]
-    stops = last.shape[0] > 0
+    at, ints, cursor = rays
+    n_a, n_b = dims[1], dims[2]
+    C = -(-n_b // P)
+    CP = C * P
     count, nxt = cursor[0], cursor[1]
     while nxt < j_lo.shape[0] and j_lo[nxt] <= j:
-        active[count] = nxt
+        at[:, count] = terms[:8, nxt]
+        ints[0, count] = j_hi[nxt]
+        ints[1, count] = last[nxt] if last.shape[0] > 0 else j_hi[nxt]
         count += 1
         nxt += 1
-    cells[:] = False
-    held[:] = False
-    lanes = np.zeros(P, dtype=np.int64)
-    mask = P - 1 if P & (P - 1) == 0 else -1  # a power of two: the lane by a mask
     j_ss = np.float64(j) / ss
-    m, live, q, dead = 0, 0, -1, 0
+    mask = P - 1 if P & (P - 1) == 0 else -1  # a power of two: the lane by a mask
+    fa_hi, fb_hi = n_a - 1.0, n_b - 1.0
+    for k in range(count):  # every active ray's cell and lane (dead ones discarded below)
+        pk = at[0, k] + at[1, k] * j_ss
+        along = (pk - at[2, k]) / at[3, k]
+        pa = at[4, k] + along * at[5, k]
+        pb = at[6, k] + along * at[7, k]
+        fa, fb = np.floor(pa), np.floor(pb)
+        ints[2, k] = int(min(max(fa, 0.0), fa_hi))
+        ints[3, k] = int(min(max(fb, 0.0), fb_hi))
+        na = min(max(fa + (1.0 if pa - fa >= 0.5 else 0.0), 0.0), fa_hi)
+        nb = min(max(fb + (1.0 if pb - fb >= 0.5 else 0.0), 0.0), fb_hi)
+        ints[4, k] = int(na + nb)
+    lanes = np.zeros(P, dtype=np.int64)
+    m, live, dead = 0, 0, 0
     for k in range(count):
-        r = active[k]
-        if j_hi[r] < j:
+        if ints[0, k] < j:
             dead += 1
             continue
-        pk = terms[0, r] + terms[1, r] * j_ss
-        along = (pk - terms[2, r]) / terms[3, r]
-        pa = terms[4, r] + along * terms[5, r]
-        pb = terms[6, r] + along * terms[7, r]
         m += 1
-        fa, fb = math.floor(pa), math.floor(pb)
-        ca = min(max(fa, 0), n_a - 1)
-        cb = min(max(fb, 0), n_b - 1)
-        lst = last[r] if stops else j
+        a, cell = ints[2, k], ints[2, k] * n_b + ints[3, k]
+        lst = ints[1, k]
         if lst >= j:
-            if q < 0:  # every sample of a slice lies on its sample slice
-                q = _cell(pk + 0.5, n_k)
-            cells[ca, cb] = True
-            held[ca, cb] = True
+            cells[cell] = 1
+            groups[a * CP + ints[3, k]] = 1
             live += 1
-            na = min(max(fa + (1 if pa - fa >= 0.5 else 0), 0), n_a - 1)
-            nb = min(max(fb + (1 if pb - fb >= 0.5 else 0), 0), n_b - 1)
-            lane = q + na + nb
-            lanes[lane & mask if mask >= 0 else lane % P] += 1
+            s = ints[4, k]
+            lanes[s & mask if mask >= 0 else s % P] += 1
         elif j < lag or lst > j - lag:  # the sequencer read for rays alive lag slices earlier
-            cells[ca, cb] = True
+            cells[cell] = 1
     if 8 * dead > count:  # compact, keeping the order
         kept = 0
-        for t in range(count):
-            if j_hi[active[t]] >= j:
-                active[kept] = active[t]
+        for i in range(count):
+            if ints[0, i] >= j:
+                at[:, kept] = at[:, i]
+                ints[:2, kept] = ints[:2, i]
                 kept += 1
         count = kept
     cursor[0], cursor[1] = count, nxt
+    if live:
+        _count_groups(groups, n_a, C, P, cost_row)
     return m, live, lanes.max()
 
 
-def count_groups(held: np.ndarray, P: int) -> np.ndarray:
-    """Per beam (row of ``held``, ``(n_a, C P)`` bool), its clock groups of ``P`` cells
-    holding a marked cell: a group is one machine word when ``P`` is 1, 2, 4 or 8."""
-    word = {1: np.uint8, 2: np.uint16, 4: np.uint32, 8: np.uint64}.get(P)
-    if word is not None:
-        return np.count_nonzero(held.view(word), axis=1)
-    return held.reshape(held.shape[0], -1, P).any(axis=2).sum(axis=1)
+@numba.njit(cache=True, nogil=True)
+def _count_groups(held, n_a, C, P, cost_row):
+    """Per beam ``a``, its clock groups of ``P`` cells holding a marked cell of ``held``
+    (uint8 ``n_a C P``, flat) into ``cost_row``: a group is one machine word when ``P``
+    is 8."""
+    if P == 8:
+        words = held.view(np.uint64)
+        for a in range(n_a):
+            n = 0
+            for c in range(a * C, a * C + C):
+                n += 1 if words[c] else 0
+            cost_row[a] = n
+        return
+    for a in range(n_a):
+        n = 0
+        for c in range(a * C, a * C + C):
+            for p in range(c * P, c * P + P):
+                if held[p]:
+                    n += 1
+                    break
+        cost_row[a] = n
+
+
+@numba.njit(cache=True, nogil=True)
+def active_rays(n):
+    """:func:`plan_step_cells`' state for ``n`` rays: their terms, per ray its last step,
+    last live step, cell ``a``, ``b`` and lane sum; the active count and next ray to
+    join."""
+    return (
+        np.zeros((8, max(n, 1))),
+        np.zeros((5, max(n, 1)), dtype=np.int64),
+        np.zeros(2, dtype=np.int64),
+    )
+
+
+@numba.njit(cache=True, nogil=True)
+def frame_skips(ss, terms, j_lo, j_hi, last, dims, P, lag, windows, cost, live, busiest, needed):
+    """Rule 6 at every sample slice of a shear-image plan (:func:`plan_step_cells` slice
+    after slice), and the mini-blocks read.
+
+    ``windows`` int64 ``(n_steps, 2)``: the slabs ``lo .. hi`` holding each slice's voxel
+    window; ``cost`` ``(n_steps, n_a)``, ``live`` and ``busiest`` ``(n_steps,)`` (zeros)
+    get each slice's per-beam clocks, live samples and busiest pipeline's samples;
+    ``needed`` ``(slabs, ceil(n_a / 2), ceil(n_b / 2))`` (False) the mini-blocks read.
+    The other arguments are :func:`plan_step_cells`'.  Each slab's cells are OR-ed over
+    the slices with planned samples whose window holds it, and its mini-blocks read once
+    (:func:`union_blocks`) when the windows have moved past it: the mini-blocks of a
+    union of cells are the union of theirs.
+    """
+    n_steps = cost.shape[0]
+    n_a, n_b = dims[1], dims[2]
+    cells = np.zeros(n_a * n_b, dtype=np.uint8)
+    groups = np.zeros(n_a * -(-n_b // P) * P, dtype=np.uint8)
+    rays = active_rays(j_lo.shape[0])
+    span = 1
+    for j in range(n_steps):
+        span = max(span, windows[j, 1] - windows[j, 0] + 1)
+    unions = np.zeros((span + 1, n_a * n_b), dtype=np.uint8)
+    slab_of = np.full(span + 1, -1, dtype=np.int64)  # the open slab in each union
+    for j in range(n_steps):
+        m, live[j], busiest[j] = plan_step_cells(
+            j, ss, terms, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost[j]
+        )
+        if m == 0:
+            continue
+        lo, hi = windows[j, 0], windows[j, 1]
+        for i in range(span + 1):  # read the slabs the windows have moved past
+            if slab_of[i] >= 0 and not lo <= slab_of[i] <= hi:
+                union_blocks(unions[i].reshape(n_a, n_b), needed[slab_of[i]])
+                slab_of[i] = -1
+        for s in range(lo, hi + 1):
+            i = 0
+            while i <= span and slab_of[i] != s:
+                i += 1
+            if i > span:  # a free union
+                i = 0
+                while slab_of[i] >= 0:
+                    i += 1
+                slab_of[i] = s
+                unions[i][:] = 0
+            union = unions[i]
+            for x in range(cells.shape[0]):  # a flat loop: LLVM vectorises it
+                union[x] |= cells[x]
+        cells[:] = 0
+        groups[:] = 0
+    for i in range(span + 1):  # the slabs still open
+        if slab_of[i] >= 0:
+            union_blocks(unions[i].reshape(n_a, n_b), needed[slab_of[i]])
+
+
+@numba.njit(cache=True, nogil=True)
+def union_blocks(cells, blocks):
+    """OR into ``blocks`` ``(ceil(n_a / 2), ceil(n_b / 2))`` the mini-blocks holding a
+    voxel that a marked cell of ``cells`` ``(n_a, n_b)`` reads:
+    :func:`~models.machines.volumepro.timing.mini_blocks_read`'s rule (cell ``(a, b)``
+    reads voxel rows ``a - 1 .. a + 2`` and columns ``b - 1 .. b + 2``), as rows then
+    columns: mini-block ``(u, v)`` is read when a cell of rows ``2u - 2 .. 2u + 2`` and
+    columns ``2v - 2 .. 2v + 2`` (clamped) is marked."""
+    n_a, n_b = cells.shape
+    flat = cells.reshape(-1)  # flat loops: LLVM vectorises them
+    rows = np.zeros(n_b, dtype=np.uint8)
+    pairs = np.zeros(blocks.shape[1], dtype=np.uint8)
+    for u in range(blocks.shape[0]):
+        rows[:] = 0
+        for a in range(max(2 * u - 2, 0), min(2 * u + 2, n_a - 1) + 1):
+            row = flat[a * n_b : (a + 1) * n_b]
+            for b in range(n_b):
+                rows[b] |= row[b]
+        for v in range(n_b // 2):  # columns 2v, 2v + 1
+            pairs[v] = rows[2 * v] | rows[2 * v + 1]
+        if n_b % 2:
+            pairs[n_b // 2] = rows[n_b - 1]
+        for v in range(blocks.shape[1]):  # columns 2v - 2 .. 2v + 2
+            hit = pairs[v] | (pairs[v - 1] if v else 0)
+            if hit or (2 * v + 2 < n_b and rows[2 * v + 2]):
+                blocks[u, v] = True
 
 
 @numba.njit(cache=True, nogil=True)

@@ -37,31 +37,30 @@ def split_streams(module, bank, row, spans, needed, wpv, modules):
 
     Returns
     -------
-    (ndarray, ndarray, ndarray)
+    (ndarray, ndarray, ndarray, int)
         ``per`` int64 ``(modules, chunks)``: each chunk's bursts on each module; ``banks``
-        and ``rows`` int64 ``(total,)``: module 0's stream, then module 1's, ..., each in
-        read order.
+        and ``rows`` int64 ``(modules total,)`` and ``total``: module ``k``'s stream in
+        read order from ``k total`` on (``per[k].sum()`` bursts; ``total`` bounds any
+        module's, the rest is not written).  One pass over the bursts: every module's
+        region is as long as all the bursts read (allocated, not written, beyond its own).
     """
     n_mb = module.shape[2] // wpv
     skips = needed.shape[0] > 0
     nc = spans.shape[0]
-    per = np.zeros((modules, nc), dtype=np.int64)
-    for c in range(nc):  # pass 1: how many bursts of each chunk go to each module
+    total = 0
+    for c in range(nc):  # the bursts read
         s = spans[c, 0]
         for u in range(spans[c, 1], spans[c, 2]):
-            for m in range(n_mb):
-                if skips and not needed[s, u, m]:
-                    continue
-                for w in range(m * wpv, m * wpv + wpv):
-                    per[module[s, u, w], c] += 1
-    start = np.zeros(modules, dtype=np.int64)
-    for k in range(1, modules):
-        start[k] = start[k - 1] + per[k - 1].sum()
-    total = start[modules - 1] + per[modules - 1].sum()
-    banks = np.empty(total, dtype=np.int64)
-    rows = np.empty(total, dtype=np.int64)
-    at = start.copy()
-    for c in range(nc):  # pass 2: the bursts into their module's stream, in order
+            if skips:
+                for m in range(n_mb):
+                    total += wpv if needed[s, u, m] else 0
+            else:
+                total += n_mb * wpv
+    per = np.zeros((modules, nc), dtype=np.int64)
+    banks = np.empty(modules * total, dtype=np.int64)
+    rows = np.empty(modules * total, dtype=np.int64)
+    at = np.arange(modules) * total
+    for c in range(nc):  # the bursts into their module's stream, in order
         s = spans[c, 0]
         for u in range(spans[c, 1], spans[c, 2]):
             for m in range(n_mb):
@@ -72,4 +71,5 @@ def split_streams(module, bank, row, spans, needed, wpv, modules):
                     banks[at[k]] = bank[s, u, w]
                     rows[at[k]] = row[s, u, w]
                     at[k] += 1
-    return per, banks, rows
+                    per[k, c] += 1
+    return per, banks, rows, total

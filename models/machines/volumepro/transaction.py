@@ -289,7 +289,8 @@ class SlabTransaction:
         else:
             latency = pipeline_latency(self.C)
             cycles = max(stats["pipe_end"], bus.end) + latency
-        sdram = SdramStats.combine([p.schedule().stats for p in ports])
+        # Views of the controllers' logs, not copies: nothing is issued after this.
+        sdram = SdramStats.combine([p.controller.schedule(copy=False).stats for p in ports])
         counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
         counters.update(
             {

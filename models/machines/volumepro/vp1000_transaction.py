@@ -122,7 +122,7 @@ def beam_skips(
         ``window(j) -> (lo, hi)``: the slabs holding sample slice ``j``'s voxel window.
     compiled : bool
         Each slice's cells, clocks and lanes by the compiled loop
-        (:func:`models.machines.volumepro.skips_kernel.plan_step_cells`); False: the NumPy
+        (:func:`models.machines.volumepro.skips_kernel.frame_skips`); False: the NumPy
         form, its reference (the same results).
     """
     kp = plan.principal_axis
@@ -135,29 +135,12 @@ def beam_skips(
     needed = np.zeros((-(-shape[kp] // 2), n_u, n_mb), dtype=bool)
     live_count = np.zeros(plan.n_steps, dtype=np.int64)
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
-    cells = np.zeros((n_a, C * P), dtype=bool)
-    from models import fused_steps  # imports numba: only for the frames that need it
-
-    # Per slab of the current windows, the cells read for it so far, OR-ed: the
-    # mini-blocks of a union of cells are the union of theirs, so one mini_blocks_read
-    # per slab (when the windows have moved past it) instead of one per slice; on such
-    # dense unions its whole-plane shifts beat the compiled per-cell loop.
-    unions: dict[int, np.ndarray] = {}
-
-    def read_unions(lo: int, hi: int) -> None:
-        for s in [s for s in unions if not lo <= s <= hi]:
-            needed[s] |= mini_blocks_read(unions.pop(s)[:, :n_b])
-
     compiled = compiled and plan.kind == "shear-image"  # the compiled loop's positions
     if compiled:
-        for j in _compiled_slices(plan, P, stopped, lag, cells, cost, live_count, busiest):
-            lo, hi = window(j)
-            read_unions(lo, hi)
-            for s in range(lo, hi + 1):
-                if s in unions:
-                    unions[s] |= cells
-                else:
-                    unions[s] = cells.copy()
+        _compiled_skips(plan, P, stopped, lag, window, (cost, live_count, busiest, needed))
+    from models import fused_steps  # imports numba: only for the frames that need it
+
+    cells = np.zeros((n_a, C * P), dtype=bool)
     # The NumPy form: every planned sample's position, step by step (the compiled
     # walker; the plan's own floats).
     for j, zyx, rays in () if compiled else fused_steps.plan_positions(plan):
@@ -187,46 +170,39 @@ def beam_skips(
             cells[ra if known is None else ra[known], rb if known is None else rb[known]] = True
         lo, hi = window(j)
         needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
-    read_unions(0, -1)  # the slabs still open
     stops = 0
     if stopped is not None and plan.ray_ids.size:
         stops = int(np.sum(stopped[plan.ray_ids] < plan.j_hi))
     return BeamSkips(cost, needed, live_count, busiest, stops)
 
 
-def _compiled_slices(plan, P, stopped, lag, cells, cost, live_count, busiest):
-    """:func:`beam_skips`' compiled loop: each sample slice ``j`` with planned samples,
-    after :func:`~models.machines.volumepro.skips_kernel.plan_step_cells` has filled
-    ``cells`` (read) and ``cost[j]``, ``live_count[j]``, ``busiest[j]``."""
+def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
+    """:func:`beam_skips`' compiled loop over every sample slice
+    (:func:`~models.machines.volumepro.skips_kernel.frame_skips`), filling ``out``:
+    ``(cost, live_count, busiest, needed)``."""
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import count_groups, plan_step_cells
+    from models.machines.volumepro.skips_kernel import frame_skips
 
     kp = plan.principal_axis
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
+    shape = plan.volume.shape
     join, terms = fused_steps.position_terms(plan)  # in join order from here on
     last = np.zeros(0, dtype=np.int64)
     if stopped is not None:
         last = stopped[plan.ray_ids[join]].astype(np.int64)
-    walk = (
+    windows = np.array([window(j) for j in range(plan.n_steps)], dtype=np.int64)
+    frame_skips(
         float(plan.scene.render.supersampling),
         np.ascontiguousarray(terms[:, join]),
         plan.j_lo[join].astype(np.int64),
         plan.j_hi[join].astype(np.int64),
         last,
-        np.array([kp, a_ax, b_ax], dtype=np.int64),
-        np.array(plan.volume.shape, dtype=np.int64),
+        (int(shape[kp]), int(shape[a_ax]), int(shape[b_ax])),
         P,
         lag,
-        np.zeros(max(join.size, 1), dtype=np.int64),  # active rays
-        np.zeros(2, dtype=np.int64),  # cursor
-        cells,
-        held := np.zeros_like(cells),
+        windows.reshape(-1, 2),
+        *out,
     )
-    for j in range(plan.n_steps):
-        m, live_count[j], busiest[j] = plan_step_cells(j, *walk)
-        if m:
-            cost[j] = count_groups(held, P)
-            yield j
 
 
 class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
