@@ -129,11 +129,14 @@ def _page_run(bank, row, k, arrive, pa, st):
         # The run's bursts up to one admitted (the READ queue_depth - 1 back) at or after
         # a refresh's due cycle; closed page: one burst per ACTIVATE.
         take = k if is_open else 1
-        if pa[_REFI] > 0:
-            for m in range(qd - 1, take):
-                if rd + (m - qd + 1) * bc >= st[_DUE]:
-                    take = max(m, 1)
-                    break
+        if pa[_REFI] > 0 and take > qd - 1:
+            # READ m is admitted at the READ ``qd - 1`` back, ``u = m - qd + 1`` bursts
+            # after the first: the first at or after the due cycle has the least ``u``
+            # with ``rd + u bc >= due`` (found by division, not a loop over the run).
+            late = st[_DUE] - rd
+            u = 0 if late <= 0 else (-(-late // bc) if bc > 0 else take)
+            if u + qd - 1 < take:
+                take = max(u + qd - 1, 1)
         last = rd + (take - 1) * bc
         st[_HIT] += take
         st[_BUS] = last + bc
@@ -178,7 +181,7 @@ def _runs_of(base, bursts, pa, banks_of, rows_of, counts, nk):
     return nk
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(inline="always")  # inlined: a call took reference counts on six arrays
 def _fill(blocks, n, arrive, pa, st, banks_of, rows_of, counts):
     """Rule 2 for one lookup group's ``n`` fills (``blocks``): their bursts as page runs,
     sorted (bank, then row) and timed a run at a time; returns the cycle the issue

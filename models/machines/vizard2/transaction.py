@@ -41,13 +41,14 @@ from __future__ import annotations
 
 import copy
 import functools
+import hashlib
 import time
 from typing import Any
 
 import numpy as np
 import simpy
 
-from hwsim.golden.occupancy import occupancy_from_ranges
+from hwsim.golden.occupancy import Occupancy, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import SdramTransactionPort
 from models.backend import Backend
@@ -73,6 +74,27 @@ from models.machines.vizard2.packet_timing import PacketTiming
 from models.units import interp as interp_unit
 
 __all__ = ["VizardTransaction"]
+
+#: Distance fields of the last few occupancies, by their blocks' bits: an occupancy is the
+#: volume's and the transfer function's (never the view's), so the frames of a turntable
+#: or a sweep leap through one field without a distance transform each.
+_DISTANCES: dict[tuple, Occupancy] = {}
+_DISTANCES_KEPT = 4
+
+
+def _occupancy(occupied: np.ndarray) -> Occupancy:
+    """``occupancy_from_ranges(occupied, BLOCK)``, kept by the occupied blocks' shape and
+    bits (a digest of every bit: any change of volume, transfer function or datapath
+    that moves a block gives another key)."""
+    bits = np.packbits(np.ascontiguousarray(occupied, dtype=bool))
+    key = (occupied.shape, hashlib.blake2b(bits.tobytes(), digest_size=16).digest())
+    found = _DISTANCES.pop(key, None)
+    if found is None:
+        found = occupancy_from_ranges(occupied, BLOCK)
+        while len(_DISTANCES) >= _DISTANCES_KEPT:
+            _DISTANCES.pop(next(iter(_DISTANCES)))
+    _DISTANCES[key] = found  # the most recent last
+    return found
 
 
 class VizardTransaction(ReadsTheFrame):
@@ -135,7 +157,7 @@ class VizardTransaction(ReadsTheFrame):
         if occupied is None:
             return plan
         leaped = copy.copy(plan)
-        leaped.leap(occupancy_from_ranges(occupied, BLOCK))
+        leaped.leap(_occupancy(occupied))
         return leaped
 
     def _packets(self) -> list[np.ndarray]:
