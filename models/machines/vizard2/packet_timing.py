@@ -330,9 +330,8 @@ class PacketTiming:
         """The frame's cycles and counters."""
         txn, plan = self.txn, self.txn.plan
         lay, sd = txn.layout, txn.memory.sdram
-        packets = txn._packets()
-        cuts = np.concatenate([[0], np.cumsum([p.size for p in packets])]).astype(np.int64)
-        order = np.concatenate(packets).astype(np.int64) if packets else np.zeros(0, np.int64)
+        order, cuts = txn._packet_order()
+        packets = range(cuts.size - 1)
         geo = (
             plan.ray_ids.astype(np.int64),
             np.ascontiguousarray(plan._o, dtype=np.float64),

@@ -163,6 +163,12 @@ class VizardTransaction(ReadsTheFrame):
     def _packets(self) -> list[np.ndarray]:
         """Plan-ray indices per packet: image tiles row-major, rays row-major inside a
         tile, ``ray_queue_entries`` at a time (the ray generator's order)."""
+        order, cuts = self._packet_order()
+        return [order[lo:hi] for lo, hi in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True)]
+
+    def _packet_order(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_packets` as one array: plan-ray indices in issue order (int64) and the
+        packets' bounds in it (int64, ``packets + 1``)."""
         plan, (th, tw) = self.plan, self.buffers.ray_tile
         depth = self.buffers.ray_queue_entries
         if plan.ray_ids.size and depth <= 0:
@@ -175,9 +181,14 @@ class VizardTransaction(ReadsTheFrame):
         width = plan.shape[1]
         rows, cols = plan.ray_ids // width, plan.ray_ids % width
         tile = (rows // th) * (-(-width // tw)) + cols // tw
-        order = np.lexsort((plan.ray_ids, tile))
-        cuts = np.flatnonzero(np.diff(tile[order])) + 1
-        return [t[i : i + depth] for t in np.split(order, cuts) for i in range(0, t.size, depth)]
+        order = np.lexsort((plan.ray_ids, tile)).astype(np.int64)
+        if not order.size:
+            return order, np.zeros(1, np.int64)
+        tiles = np.concatenate([[0], np.flatnonzero(np.diff(tile[order])) + 1, [order.size]])
+        # Each tile's packets start every ``depth`` rays from the tile's first.
+        in_tile = np.arange(order.size) - np.repeat(tiles[:-1], np.diff(tiles))
+        cuts = np.concatenate([np.flatnonzero(in_tile % depth == 0), [order.size]])
+        return order, cuts.astype(np.int64)
 
     # ------------------------------------------------------------------ one packet
 
