@@ -225,7 +225,7 @@ class SamplePlan:
                     sel = np.flatnonzero(sel)
                 pos = np.empty((sel.size, 3))
                 _shear_image_rows(
-                    self._q0, self._sign, self._o, self._d, float(j),
+                    self._shear_image_rays(), float(j),
                     float(self.scene.render.supersampling), kp, sel.ravel(), pos,
                 )  # fmt: skip
                 return pos
@@ -238,6 +238,18 @@ class SamplePlan:
         pos[:, a_ax] = ids // self.shape[1] + self.base_origin[0] + off[..., 0]
         pos[:, b_ax] = ids % self.shape[1] + self.base_origin[1] + off[..., 1]
         return pos
+
+    def _shear_image_rays(self) -> np.ndarray:
+        """``(rays, 8)``: each plan ray's ``q0``, ``sign``, origin and direction in one row
+        (one cache line a ray for :func:`_shear_image_rows`); rebuilt when any of those
+        arrays is replaced (:meth:`_keep`, :meth:`_reverse`, :meth:`subset`)."""
+        arrays = (self._q0, self._sign, self._o, self._d)
+        packed = self.__dict__.get("_packed")
+        if packed is None or any(a is not b for a, b in zip(packed[0], arrays, strict=True)):
+            rays = np.empty((self._o.shape[0], 8))
+            rays[:, 0], rays[:, 1], rays[:, 2:5], rays[:, 5:8] = arrays
+            self._packed = packed = (arrays, rays)
+        return packed[1]
 
     def _shear_image_numpy(self, j: int | np.ndarray, sel: np.ndarray) -> np.ndarray:
         """The ``shear-image`` positions in NumPy (any ``j``): the reference
@@ -391,17 +403,18 @@ class SamplePlan:
 
 
 @numba.njit(cache=True, nogil=True)
-def _shear_image_rows(q0, sign, o, d, j, ss, kp, sel, out):  # pragma: no cover - compiled
-    """:meth:`SamplePlan._shear_image_numpy` at one step ``j``, one ray at a time: the same
-    float64 operations in the same order (``q = q0 + sign (j / ss)``, ``o + ((q - o_kp) /
-    d_kp) d``, no fused multiply-adds), so the same bits, without the gathered copies."""
+def _shear_image_rows(rays, j, ss, kp, sel, out):  # pragma: no cover - compiled
+    """:meth:`SamplePlan._shear_image_numpy` at one step ``j``, one ray at a time (``rays``:
+    :meth:`SamplePlan._shear_image_rays`): the same float64 operations in the same order
+    (``q = q0 + sign (j / ss)``, ``o + ((q - o_kp) / d_kp) d``, no fused multiply-adds),
+    so the same bits, without the gathered copies."""
     step = j / ss
     for i in range(sel.size):
         r = sel[i]
-        q = q0[r] + sign[r] * step
-        t = (q - o[r, kp]) / d[r, kp]
+        q = rays[r, 0] + rays[r, 1] * step
+        t = (q - rays[r, 2 + kp]) / rays[r, 5 + kp]
         for ax in range(3):
-            out[i, ax] = o[r, ax] + t * d[r, ax]
+            out[i, ax] = rays[r, 2 + ax] + t * rays[r, 5 + ax]
         out[i, kp] = q  # exactly on the slice
 
 
