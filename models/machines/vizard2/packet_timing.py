@@ -237,6 +237,7 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
     banks_of, rows_of = np.empty(runs, np.int64), np.empty(runs, np.int64)
     ending, live = np.empty(P, np.int64), np.empty(max(np.diff(cuts).max(), 1), np.int64)
     per_dir, per_dt = dirs.shape[0] > 1, dts.shape[0] > 1
+    cells = np.empty((6, live.size), np.int64)  # the round's blocks: low, high by axis
     occupancy, retired = st[_OCC], st[_RETIRED]
     for p in range(first, end):
         packet = order[cuts[p] : cuts[p + 1]]
@@ -248,6 +249,13 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
                     n += 1
             waited = n_miss = n_end = lane = g = lookups = fills = 0
             t_round = (k_first + k_dir * j) * dts[0]
+            for i in range(n):  # the round's cells first: a short loop of arithmetic only
+                r = live[i]
+                t = (k_first + k_dir * j) * dts[r] if per_dt else t_round
+                d = r if per_dir else 0
+                cells[0, i], cells[1, i] = _cell_blocks(orig[r, 0] + t * dirs[d, 0], h0)
+                cells[2, i], cells[3, i] = _cell_blocks(orig[r, 1] + t * dirs[d, 1], h1)
+                cells[4, i], cells[5, i] = _cell_blocks(orig[r, 2] + t * dirs[d, 2], h2)
             for i in range(n + 1 if n else 0):
                 if i == n or lane == P:  # lookup group g complete
                     if n_miss:
@@ -262,11 +270,8 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
                         break
                 lane += 1
                 r = live[i]
-                t = (k_first + k_dir * j) * dts[r] if per_dt else t_round
-                d = r if per_dir else 0
-                z0, z1 = _cell_blocks(orig[r, 0] + t * dirs[d, 0], h0)
-                y0, y1 = _cell_blocks(orig[r, 1] + t * dirs[d, 1], h1)
-                x0, x1 = _cell_blocks(orig[r, 2] + t * dirs[d, 2], h2)
+                z0, z1, y0, y1 = cells[0, i], cells[1, i], cells[2, i], cells[3, i]
+                x0, x1 = cells[4, i], cells[5, i]
                 for bz in range(z0, z1 + 1):
                     for by in range(y0, y1 + 1):
                         ly = set_of[0, bz] * s1 + set_of[1, by]
