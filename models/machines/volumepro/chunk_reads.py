@@ -82,7 +82,7 @@ def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkS
     ``(band, slab, u_lo, u_hi)`` in read order.  The split is compiled
     (:func:`~models.machines.volumepro.streams_kernel.split_streams`) over the slab
     layouts (:func:`slab_layouts`)."""
-    from models.machines.volumepro.streams_kernel import split_streams  # imports numba
+    from models.machines.volumepro.streams_kernel import bursts_read, split_streams  # numba
 
     M, cfg, nc = model.memory.modules, model.memory.sdram, len(chunks)
     if not nc:
@@ -92,13 +92,13 @@ def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkS
     sk = model.skips
     needed = np.zeros((0, 0, 0), dtype=bool) if sk is None else sk.needed
     module, bank, row = slab_layouts(model)
-    per, banks, rows, total = split_streams(
-        module, bank, row, spans, needed, model.words_per_voxel, M
-    )
+    wpv = model.words_per_voxel
+    total = bursts_read(spans, needed, module.shape[2] // wpv, wpv)
+    banks, rows = np.empty((M, total), np.int64), np.empty((M, total), np.int64)
+    per = split_streams(module, bank, row, spans, needed, wpv, banks, rows)
     bounds = np.zeros((M, nc + 1), dtype=np.int64)
     np.cumsum(per, axis=1, out=bounds[:, 1:])
-    # Module k's stream: its bursts from k total on.
-    used = [(banks[k * total :][:n], rows[k * total :][:n]) for k, n in enumerate(bounds[:, -1])]
+    used = [(banks[k, :n], rows[k, :n]) for k, n in enumerate(bounds[:, -1])]
     for i, (name, limit) in enumerate((("bank", cfg.banks), ("row", cfg.rows))):
         if any(v.size and (v.min() < 0 or v.max() >= limit) for v in (u[i] for u in used)):
             raise ValueError(f"{name} out of range 0 .. {limit - 1}")

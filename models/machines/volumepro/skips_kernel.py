@@ -183,11 +183,11 @@ def _count_groups(held, n_a, C, P, cost_row):
         cost_row[a] = n
 
 
-@numba.njit(cache=True, nogil=True)
-def active_rays(n):
+def active_rays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`plan_step_cells`' state for ``n`` rays: their terms, per ray its last step,
     last live step, cell ``a``, ``b`` and lane sum; the active count and next ray to
-    join."""
+    join.  Allocated by NumPy, which asks for huge pages (the first touch of a fresh
+    array allocated in numba costs about four times as much, on 4 KiB pages)."""
     return (
         np.zeros((8, max(n, 1))),
         np.zeros((5, max(n, 1)), dtype=np.int64),
@@ -196,7 +196,9 @@ def active_rays(n):
 
 
 @numba.njit(cache=True, nogil=True)
-def frame_skips(ss, terms, j_lo, j_hi, last, dims, P, lag, windows, cost, live, busiest, needed):
+def frame_skips(
+    ss, terms, j_lo, j_hi, last, dims, P, lag, windows, rays, cost, live, busiest, needed
+):
     """Rule 6 at every sample slice of a shear-image plan (:func:`plan_step_cells` slice
     after slice), and the mini-blocks read.
 
@@ -204,7 +206,8 @@ def frame_skips(ss, terms, j_lo, j_hi, last, dims, P, lag, windows, cost, live, 
     window; ``cost`` ``(n_steps, n_a)``, ``live`` and ``busiest`` ``(n_steps,)`` (zeros)
     get each slice's per-beam clocks, live samples and busiest pipeline's samples;
     ``needed`` ``(slabs, ceil(n_a / 2), ceil(n_b / 2))`` (False) the mini-blocks read.
-    The other arguments are :func:`plan_step_cells`'.  Each slab's cells are OR-ed over
+    ``rays``: :func:`active_rays` of the plan's rays.  The other arguments are
+    :func:`plan_step_cells`'.  Each slab's cells are OR-ed over
     the slices with planned samples whose window holds it, and its mini-blocks read once
     (:func:`union_blocks`) when the windows have moved past it: the mini-blocks of a
     union of cells are the union of theirs.
@@ -213,7 +216,6 @@ def frame_skips(ss, terms, j_lo, j_hi, last, dims, P, lag, windows, cost, live, 
     n_a, n_b = dims[1], dims[2]
     cells = np.zeros(n_a * n_b, dtype=np.uint8)
     groups = np.zeros(n_a * -(-n_b // P) * P, dtype=np.uint8)
-    rays = active_rays(j_lo.shape[0])
     span = 1
     for j in range(n_steps):
         span = max(span, windows[j, 1] - windows[j, 0] + 1)

@@ -15,11 +15,26 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["split_streams"]
+__all__ = ["bursts_read", "split_streams"]
 
 
 @numba.njit(cache=True, nogil=True)
-def split_streams(module, bank, row, spans, needed, wpv, modules):
+def bursts_read(spans, needed, n_mb, wpv):
+    """The bursts of the chunks ``spans`` (:func:`split_streams`) that are read."""
+    total = 0
+    for c in range(spans.shape[0]):
+        s = spans[c, 0]
+        for u in range(spans[c, 1], spans[c, 2]):
+            if needed.shape[0] > 0:
+                for m in range(n_mb):
+                    total += wpv if needed[s, u, m] else 0
+            else:
+                total += n_mb * wpv
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
+def split_streams(module, bank, row, spans, needed, wpv, banks, rows):
     """Every chunk's bursts, split by module.
 
     Parameters
@@ -32,35 +47,26 @@ def split_streams(module, bank, row, spans, needed, wpv, modules):
         (exclusive), in read order.
     needed : ndarray
         bool ``(slabs, n_u, n_mb)``: the mini-blocks read; empty: all of them.
-    wpv, modules : int
-        Bursts per mini-block; memory modules.
+    wpv : int
+        Bursts per mini-block.
+    banks, rows : ndarray
+        int64 ``(modules, total)``, ``total`` the bursts read (:func:`bursts_read`):
+        row ``k`` gets module ``k``'s stream in read order (its first ``per[k].sum()``
+        entries; the rest is not written).  Allocated by the caller: NumPy asks the
+        kernel for huge pages, which the first touch of a fresh array costs far less
+        on than on 4 KiB ones (numba's own allocation).
 
     Returns
     -------
-    (ndarray, ndarray, ndarray, int)
-        ``per`` int64 ``(modules, chunks)``: each chunk's bursts on each module; ``banks``
-        and ``rows`` int64 ``(modules total,)`` and ``total``: module ``k``'s stream in
-        read order from ``k total`` on (``per[k].sum()`` bursts; ``total`` bounds any
-        module's, the rest is not written).  One pass over the bursts: every module's
-        region is as long as all the bursts read (allocated, not written, beyond its own).
+    ndarray
+        ``per`` int64 ``(modules, chunks)``: each chunk's bursts on each module.
     """
     n_mb = module.shape[2] // wpv
     skips = needed.shape[0] > 0
-    nc = spans.shape[0]
-    total = 0
-    for c in range(nc):  # the bursts read
-        s = spans[c, 0]
-        for u in range(spans[c, 1], spans[c, 2]):
-            if skips:
-                for m in range(n_mb):
-                    total += wpv if needed[s, u, m] else 0
-            else:
-                total += n_mb * wpv
+    nc, modules = spans.shape[0], banks.shape[0]
     per = np.zeros((modules, nc), dtype=np.int64)
-    banks = np.empty(modules * total, dtype=np.int64)
-    rows = np.empty(modules * total, dtype=np.int64)
-    at = np.arange(modules) * total
-    for c in range(nc):  # the bursts into their module's stream, in order
+    at = np.zeros(modules, dtype=np.int64)
+    for c in range(nc):  # one pass: the bursts into their module's stream, in order
         s = spans[c, 0]
         for u in range(spans[c, 1], spans[c, 2]):
             for m in range(n_mb):
@@ -68,8 +74,12 @@ def split_streams(module, bank, row, spans, needed, wpv, modules):
                     continue
                 for w in range(m * wpv, m * wpv + wpv):
                     k = module[s, u, w]
-                    banks[at[k]] = bank[s, u, w]
-                    rows[at[k]] = row[s, u, w]
+                    banks[k, at[k]] = bank[s, u, w]
+                    rows[k, at[k]] = row[s, u, w]
                     at[k] += 1
-                    per[k, c] += 1
-    return per, banks, rows, total
+        for k in range(modules):
+            per[k, c] = at[k]
+    for c in range(nc - 1, 0, -1):
+        for k in range(modules):
+            per[k, c] -= per[k, c - 1]
+    return per

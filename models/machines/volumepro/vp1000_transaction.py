@@ -181,7 +181,7 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
     (:func:`~models.machines.volumepro.skips_kernel.frame_skips`), filling ``out``:
     ``(cost, live_count, busiest, needed)``."""
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import frame_skips
+    from models.machines.volumepro.skips_kernel import active_rays, frame_skips
 
     kp = plan.principal_axis
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
@@ -201,6 +201,7 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
         P,
         lag,
         windows.reshape(-1, 2),
+        active_rays(join.size),
         *out,
     )
 
