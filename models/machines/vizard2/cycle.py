@@ -148,22 +148,24 @@ class VizardMachine:
         leaped.leap(occupancy_from_ranges(occupied, BLOCK))
         return leaped
 
-    def _generator_order(self) -> np.ndarray:
-        """Plan-ray indices in the order the ray generator emits them: image tiles
-        (``[buffers] ray_tile``) in row-major order, rays row-major inside a tile."""
-        order = np.lexsort((self.plan.ray_ids, self._tile_of()))
-        return order
-
-    def _tile_of(self) -> np.ndarray:
+    def _packets(self, queue_depth: int) -> tuple[np.ndarray, np.ndarray]:
+        """The ray generator's packets: plan-ray indices in the order it emits them
+        (image tiles, ``[buffers] ray_tile``, in row-major order, rays row-major inside a
+        tile) and where each packet starts (packet ``k`` is ``order[starts[k] :
+        starts[k + 1]]``): each tile cut ``queue_depth`` rays at a time."""
         plan, (th, tw) = self.plan, self.buffers.ray_tile
         width = plan.shape[1]
         rows, cols = plan.ray_ids // width, plan.ray_ids % width
-        return (rows // th) * (-(-width // tw)) + cols // tw
-
-    def _tiles(self, order: np.ndarray) -> list[np.ndarray]:
-        """``order`` (generator order) cut where the tile changes."""
-        tile = self._tile_of()[order]
-        return np.split(order, np.flatnonzero(np.diff(tile)) + 1) if order.size else []
+        tile_of = (rows // th) * (-(-width // tw)) + cols // tw
+        order = np.lexsort((plan.ray_ids, tile_of))
+        if not order.size:
+            return order, np.zeros(1, dtype=np.int64)
+        edges = np.flatnonzero(np.diff(tile_of[order])) + 1
+        tiles = np.concatenate([[0], edges, [order.size]])  # where each tile starts
+        per_tile = -(-np.diff(tiles) // queue_depth)  # packets in each tile
+        first = np.repeat(np.cumsum(per_tile) - per_tile, per_tile)  # a tile's first packet
+        starts = np.repeat(tiles[:-1], per_tile) + queue_depth * (np.arange(first.size) - first)
+        return order, np.append(starts, order.size)
 
     # ------------------------------------------------------------------ frame
 
@@ -210,26 +212,22 @@ class VizardMachine:
         self.sdram = SdramController(self.memory_cfg.sdram)
         self.clock = Clock(self.arch.clock_hz)
         self.issued = 0
-        generator = self._generator_order()
-        if generator.size and queue_depth <= 0:
+        if plan.ray_ids.size and queue_depth <= 0:
             raise DeadlockError(
                 f"ray_queue: depth {queue_depth} can never accept a ray; the ray generator "
-                f"waits forever with {generator.size} rays pending at cycle 0"
+                f"waits forever with {plan.ray_ids.size} rays pending at cycle 0"
             )
         self._where = np.zeros(plan.ray_ids.size, dtype=np.int64)
         self.terminated_at = np.full(plan.ray_ids.size, np.iinfo(np.int64).max // 2)
         self.speculative = 0
-        packets = [
-            tile[i : i + queue_depth]
-            for tile in self._tiles(generator)
-            for i in range(0, tile.size, queue_depth)
-        ]
-        return state, bus, pixel_fifo, packets
+        return state, bus, pixel_fifo, self._packets(queue_depth)
 
     def _run_rounds(self, packets, state, bus, pixel_fifo, progress) -> tuple:
         """The reference ray loop: each round a chain of unit calls (:meth:`_round`).
         Returns the stage totals (busy per lane, cycles, stalled cycles)."""
         plan, P = self.plan, self.P
+        order, starts = packets
+        packets = [order[a:b] for a, b in zip(starts[:-1], starts[1:], strict=True)]
         blocks: list[tuple[np.ndarray, int, int]] = [(np.zeros(P, np.int64), 0, 0)]
         retired = 0  # cycle of the last retirement
         for k, packet in enumerate(packets):

@@ -133,6 +133,55 @@ def _live_rays(packet, j, j_lo, j_hi, ert_on, alive, ray_ids, clock, terminated_
 
 
 @numba.njit(inline="always")
+def _visible_samples(n, live, ray_ids, before, w, v, mip, values, grads, world, modulates,
+                     touched, acc, rgba, g, vis_rays, regs, rgb12, alpha12, w_ratio, gm_scale,
+                     gm_entries, gm_table, s_bits, w_bits, w_code, lut_shift, entries):  # fmt: skip
+    """The datapath of a round's ``n`` samples (weights ``w``, corners ``v`` as
+    :func:`~models.machines.vizard2.ray_memory.gather_round` left them): for each live
+    ray's sample (or every one, MIP) the trilinear value; MIP keeps the maximum, composite
+    classifies and keeps the visible ones (``rgba``, ``g``, ``vis_rays``: colours,
+    gradients interpolated from the table, modulated) for the round's blend.  Returns the
+    visible count.  Called once a round: an array handed over is reference counted."""
+    m = 0
+    for i in range(n):
+        if not (mip or before[i]):
+            continue  # a dead ray's sample: fetched, not processed
+        regs[_SAMPLES] += 1
+        if not values:
+            continue  # timing only, no ray ends early: no clock waits on a value
+        ray = ray_ids[live[i]]
+        touched[ray] = True
+        wz, wy, wx = w[i, 0], w[i, 1], w[i, 2]
+        value = _trilinear(v[i, 0], v[i, 1], v[i, 2], v[i, 3], v[i, 4], v[i, 5], v[i, 6],
+                           v[i, 7], wz, wy, wx, s_bits, w_bits, w_code)  # fmt: skip
+        if mip:
+            acc[ray, 0] = max(acc[ray, 0], value)
+            continue
+        idx = classify_unit.lut_index_raw(value, lut_shift, entries)
+        alpha = alpha12[idx]
+        if alpha <= 0:
+            continue  # transparent: changes nothing (Backend._composite's `vis`)
+        gx = gy = gz = np.int64(0)
+        if grads:
+            gx = _trilinear(v[i, 8], v[i, 9], v[i, 10], v[i, 11], v[i, 12], v[i, 13], v[i, 14],
+                            v[i, 15], wz, wy, wx, s_bits, w_bits, w_code)  # fmt: skip
+            gy = _trilinear(v[i, 16], v[i, 17], v[i, 18], v[i, 19], v[i, 20], v[i, 21],
+                            v[i, 22], v[i, 23], wz, wy, wx, s_bits, w_bits, w_code)  # fmt: skip
+            gz = _trilinear(v[i, 24], v[i, 25], v[i, 26], v[i, 27], v[i, 28], v[i, 29],
+                            v[i, 30], v[i, 31], wz, wy, wx, s_bits, w_bits, w_code)  # fmt: skip
+            if world or modulates:  # a call hands two arrays over: counted
+                gx, gy, gz, alpha = world_and_modulate(
+                    gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale, gm_entries,
+                    gm_table,
+                )  # fmt: skip
+        g[0, m], g[1, m], g[2, m] = gx, gy, gz
+        rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
+        rgba[3, m], vis_rays[m] = alpha, ray
+        m += 1
+    return m
+
+
+@numba.njit(inline="always")
 def _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one, acc_code):
     """The opacity channel of :func:`~models.fused_stage.shade_and_blend`'s blend and its
     termination (timing only): a ray's accumulated opacity reads only its own samples'
@@ -208,97 +257,11 @@ def _make_kernel(stage_hash: str, constants: tuple[int, ...] | None):
                     cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, values, mip, faults, miss_s,
                     miss_b, regs, alive, before, w, v, w_bits, w_code,
                 )  # fmt: skip
-                m = 0
-                for i in range(n):
-                    if not (mip or before[i]):
-                        continue  # a dead ray's sample: fetched, not processed
-                    regs[_SAMPLES] += 1
-                    if not values:
-                        continue  # timing only, no ray ends early: no clock waits on a value
-                    ray = ray_ids[live[i]]
-                    touched[ray] = True
-                    wz, wy, wx = w[i, 0], w[i, 1], w[i, 2]
-                    value = _trilinear(
-                        v[i, 0],
-                        v[i, 1],
-                        v[i, 2],
-                        v[i, 3],
-                        v[i, 4],
-                        v[i, 5],
-                        v[i, 6],
-                        v[i, 7],
-                        wz,
-                        wy,
-                        wx,
-                        s_bits,
-                        w_bits,
-                        w_code,
-                    )
-                    if mip:
-                        acc[ray, 0] = max(acc[ray, 0], value)
-                        continue
-                    idx = classify_unit.lut_index_raw(value, lut_shift, entries)
-                    alpha = alpha12[idx]
-                    if alpha <= 0:
-                        continue  # transparent: changes nothing (Backend._composite's `vis`)
-                    gx = gy = gz = np.int64(0)
-                    if grads:
-                        gx = _trilinear(
-                            v[i, 8],
-                            v[i, 9],
-                            v[i, 10],
-                            v[i, 11],
-                            v[i, 12],
-                            v[i, 13],
-                            v[i, 14],
-                            v[i, 15],
-                            wz,
-                            wy,
-                            wx,
-                            s_bits,
-                            w_bits,
-                            w_code,
-                        )
-                        gy = _trilinear(
-                            v[i, 16],
-                            v[i, 17],
-                            v[i, 18],
-                            v[i, 19],
-                            v[i, 20],
-                            v[i, 21],
-                            v[i, 22],
-                            v[i, 23],
-                            wz,
-                            wy,
-                            wx,
-                            s_bits,
-                            w_bits,
-                            w_code,
-                        )
-                        gz = _trilinear(
-                            v[i, 24],
-                            v[i, 25],
-                            v[i, 26],
-                            v[i, 27],
-                            v[i, 28],
-                            v[i, 29],
-                            v[i, 30],
-                            v[i, 31],
-                            wz,
-                            wy,
-                            wx,
-                            s_bits,
-                            w_bits,
-                            w_code,
-                        )
-                        gx, gy, gz, alpha = world_and_modulate(
-                            gx, gy, gz, alpha, world, modulates, w_ratio, gm_scale,
-                            gm_entries, gm_table,
-                        )  # fmt: skip
-                    g[0, m], g[1, m], g[2, m] = gx, gy, gz
-                    rgba[0, m], rgba[1, m], rgba[2, m] = rgb12[idx, 0], rgb12[idx, 1], rgb12[idx, 2]
-                    rgba[3, m], vis_rays[m] = alpha, ray
-                    m += 1
+                m = _visible_samples(
+                    n, live, ray_ids, before, w, v, mip, values, grads, world, modulates,
+                    touched, acc, rgba, g, vis_rays, regs, rgb12, alpha12, w_ratio, gm_scale,
+                    gm_entries, gm_table, s_bits, w_bits, w_code, lut_shift, entries,
+                )  # fmt: skip
                 if timing and values:
                     _blend_opacity(rgba, vis_rays, m, grad_p, table, acc, ert_thr, alive, one,
                                    acc_code)  # fmt: skip
@@ -396,8 +359,10 @@ class RayKernel(StageConstants):
         return cache.values, *cache.gradients, image.values, *image.gradients
 
     def run_frame(self, packets, state, bus, pixel_fifo, progress) -> tuple[np.ndarray, int, int]:
-        """Every packet through the kernel, its pixels then through the pixel FIFO (rule
-        5); returns the stage totals (busy per lane, cycles, stalled cycles)."""
+        """Every packet (``packets``: the generator's order and each packet's start,
+        :meth:`VizardMachine._packets`) through the kernel, its pixels then through the
+        pixel FIFO (rule 5); returns the stage totals (busy per lane, cycles, stalled
+        cycles)."""
         m, be, plan = self.m, self.backend, self.m.plan
         sd, sdc = m.sdram, m.memory_cfg.sdram
         lay = m.image.layout
@@ -431,11 +396,10 @@ class RayKernel(StageConstants):
         compiled_fifo = progress is None and pixel_fifo.depth > 0
         fifo = np.array([getattr(pixel_fifo, f) for f in FIFO], dtype=np.int64)
         fifo[0] = fifo[0] if compiled_fifo else 0
-        sizes = np.array([p.size for p in packets], dtype=np.int64)
-        starts = np.concatenate([[0], np.cumsum(sizes)])
-        flat = np.concatenate(packets) if packets else np.zeros(0, dtype=np.int64)
+        flat, starts = packets
+        n_packets = starts.size - 1
         bus_acc = bus.acc.reshape(-1, 1) if mip else bus.acc
-        chunks = [(0, len(packets))] if compiled_fifo else [(k, k + 1) for k in range(len(packets))]
+        chunks = [(0, n_packets)] if compiled_fifo else [(k, k + 1) for k in range(n_packets)]
         for k0, k1 in chunks:
             arrays = self.kernel(
                 flat, starts, k0, k1, fifo, bus_acc, bus.touched, plan.ray_ids, plan.j_lo,
@@ -450,7 +414,7 @@ class RayKernel(StageConstants):
                 rays = plan.ray_ids[flat[starts[k0] : starts[k1]]]
                 self._retire(rays, state, bus, pixel_fifo, regs)
                 if progress is not None:
-                    progress(k1, len(packets))
+                    progress(k1, n_packets)
         if compiled_fifo:
             for name, value in zip(FIFO[2:], fifo[2:], strict=True):
                 setattr(pixel_fifo, name, int(value))

@@ -51,20 +51,26 @@ REGS = (
 FIFO = ("depth", "rate", "occupancy", "max_occupancy", "pushed", "popped", "busy_cycles")
 
 
-@numba.njit(cache=True, nogil=True)
-def _fill_line(line, block, k, cvals, cgx, cgy, cgz, ivals, igx, igy, igz, grads, faults):
-    """Fill number ``k``: ``line`` gets ``block`` from the memory image, the value XORed
-    with the mask if it is the corrupted line; the dropped fill writes nothing."""
-    if k == faults[2]:
-        return
-    xor = faults[1] if line == faults[0] else 0
-    for o in range(64):
-        cvals[line, o] = ivals[block, o] ^ xor
-    if grads:
-        for o in range(64):
-            cgx[line, o] = igx[block, o]
-            cgy[line, o] = igy[block, o]
-            cgz[line, o] = igz[block, o]
+# Divisions by the frame's geometry (cache sets, page columns, banks, rows, pipelines):
+# a shift or a mask where the divisor is a power of two, as it mostly is, instead of a
+# 64-bit division (tens of clocks) per lookup and per burst.  Non-negative operands only.
+@numba.njit(inline="always")
+def _log2(d):
+    """``log2(d)`` when ``d`` is a power of two, else -1."""
+    k = 0
+    while (np.int64(1) << k) < d:
+        k += 1
+    return k if (np.int64(1) << k) == d else -1
+
+
+@numba.njit(inline="always")
+def _div(a, d, shift):
+    return a >> shift if shift >= 0 else a // d
+
+
+@numba.njit(inline="always")
+def _mod(a, d, shift):
+    return a & (d - 1) if shift >= 0 else a % d
 
 
 @numba.njit(cache=True, nogil=True)
@@ -112,30 +118,33 @@ def fills_timed(miss_s, miss_b, n_miss, start, stall, P, lay, ratio, sd_out, sd_
     scratch, 3 rows of at least ``n_miss`` times a block's bursts (page keys, their
     banks and rows)."""
     vw, gw, gbase, vb, gb, bl, cols, banks, nrows, data_lat, fill_write = lay
+    p_sh, c_sh, b_sh, r_sh = _log2(P), _log2(cols), _log2(banks), _log2(nrows)
     waited = 0
     s = 0
     while s < n_miss:
-        g = miss_s[s] // P
+        g = _div(miss_s[s], P, p_sh)
         e = s
         nk = 0
-        while e < n_miss and miss_s[e] // P == g:
+        while e < n_miss and _div(miss_s[e], P, p_sh) == g:
             for k in range(vb + gb):
                 if k < vb:
                     addr = miss_b[e] * vw + k * bl
                 else:
                     addr = gbase + miss_b[e] * gw + (k - vb) * bl
-                page = addr // cols
-                keys[0, nk] = (page % banks) * nrows + page // banks
+                page = _div(addr, cols, c_sh)
+                keys[0, nk] = _mod(page, banks, b_sh) * nrows + _div(page, banks, b_sh)
                 nk += 1
             e += 1
         arrive = start + g + waited
         _sort_keys(keys, nk)  # lexsort((rows, banks)): bank, then row
         for q in range(nk):
-            keys[1, q], keys[2, q] = keys[0, q] // nrows, keys[0, q] % nrows
+            keys[1, q] = _div(keys[0, q], nrows, r_sh)
+            keys[2, q] = _mod(keys[0, q], nrows, r_sh)
         earliest = np.int64(np.ceil(arrive * ratio))
         first = regs[_SD_N]
         need = first + nk
-        sd_out, sd_arr = _grown(sd_out, need), _grown1(sd_arr, need)
+        if need > sd_out.shape[1] or need > sd_arr.shape[0]:  # a call only to grow
+            sd_out, sd_arr = _grown(sd_out, need), _grown1(sd_arr, need)
         for q in range(first, need):
             sd_arr[q] = earliest
         sd_booked, sd_log = schedule_requests(
@@ -172,6 +181,10 @@ def gather_round(n, live, ray_ids, orig, dirs, t, shape, nb, sets, tag, cvals, c
     n_miss = 0
     per_ray_dir = dirs.shape[0] > 1
     s0, s1, s2 = sets[0], sets[1], sets[2]
+    h0, h1, h2 = _log2(s0), _log2(s1), _log2(s2)
+    # The line stores flat (views): a corner's word is one index (lines of 64 words).
+    flat_v, flat_x = cvals.reshape(-1), cgx.reshape(-1)
+    flat_y, flat_z = cgy.reshape(-1), cgz.reshape(-1)
     for i in range(n):
         r = live[i]
         dr = r if per_ray_dir else 0
@@ -188,8 +201,8 @@ def gather_round(n, live, ray_ids, orig, dirs, t, shape, nb, sets, tag, cvals, c
         # order (a corner's block is a lower corner's unless all its set axes cross).
         bz0, by0, bx0 = z0 >> 2, y0 >> 2, x0 >> 2
         bz1, by1, bx1 = z1 >> 2, y1 >> 2, x1 >> 2
-        sz0, sy0, sx0 = bz0 % s0, by0 % s1, bx0 % s2
-        sz1, sy1, sx1 = bz1 % s0, by1 % s1, bx1 % s2
+        sz0, sy0, sx0 = _mod(bz0, s0, h0), _mod(by0, s1, h1), _mod(bx0, s2, h2)
+        sz1, sy1, sx1 = _mod(bz1, s0, h0), _mod(by1, s1, h1), _mod(bx1, s2, h2)
         for dz in range(2 if bz1 != bz0 else 1):
             bz, sz = (bz1, sz1) if dz else (bz0, sz0)
             for dy in range(2 if by1 != by0 else 1):
@@ -203,11 +216,17 @@ def gather_round(n, live, ray_ids, orig, dirs, t, shape, nb, sets, tag, cvals, c
                         regs[_HITS] += 1
                         continue
                     tag[at] = block
-                    if values:
-                        _fill_line(
-                            at, block, regs[_FILLS], cvals, cgx, cgy, cgz, ivals, igx, igy,
-                            igz, grads, faults,
-                        )  # fmt: skip
+                    # The fill: the line gets the block from the memory image, the value
+                    # XORed on the corrupted line, nothing on the dropped fill (written
+                    # here: a helper handed these arrays costs a reference count a fill).
+                    if values and regs[_FILLS] != faults[2]:
+                        xor = faults[1] if at == faults[0] else 0
+                        for o in range(64):
+                            cvals[at, o] = ivals[block, o] ^ xor
+                        for o in range(64 if grads else 0):
+                            cgx[at, o] = igx[block, o]
+                            cgy[at, o] = igy[block, o]
+                            cgz[at, o] = igz[block, o]
                     regs[_FILLS] += 1
                     miss_s[n_miss], miss_b[n_miss] = i, block
                     n_miss += 1
@@ -215,17 +234,20 @@ def gather_round(n, live, ray_ids, orig, dirs, t, shape, nb, sets, tag, cvals, c
         before[i] = live_ray
         if not values or not (live_ray or keep_dead):
             continue
-        for c in range(8):  # where the datapath reads each corner
-            z, sz = (z1, sz1) if c & 4 else (z0, sz0)
-            y, sy = (y1, sy1) if c & 2 else (y0, sy0)
-            x, sx = (x1, sx1) if c & 1 else (x0, sx0)
-            off = (((z & 3) << 2) | (y & 3)) << 2 | (x & 3)
-            line = (sz * s1 + sy) * s2 + sx
-            corners[i, c] = cvals[line, off]
-            if grads:
-                corners[i, 8 + c] = cgx[line, off]
-                corners[i, 16 + c] = cgy[line, off]
-                corners[i, 24 + c] = cgz[line, off]
+        # Where the datapath reads each corner: line ``(sz s1 + sy) s2 + sx``, word
+        # ``(z & 3) 16 + (y & 3) 4 + (x & 3)``, as one flat index summed per axis.
+        az0, az1 = (sz0 * s1 * s2 << 6) + ((z0 & 3) << 4), (sz1 * s1 * s2 << 6) + ((z1 & 3) << 4)
+        ay0, ay1 = (sy0 * s2 << 6) + ((y0 & 3) << 2), (sy1 * s2 << 6) + ((y1 & 3) << 2)
+        ax0, ax1 = (sx0 << 6) + (x0 & 3), (sx1 << 6) + (x1 & 3)
+        at8 = (az0 + ay0 + ax0, az0 + ay0 + ax1, az0 + ay1 + ax0, az0 + ay1 + ax1,
+               az1 + ay0 + ax0, az1 + ay0 + ax1, az1 + ay1 + ax0, az1 + ay1 + ax1)  # fmt: skip
+        for c in range(8):
+            corners[i, c] = flat_v[at8[c]]
+        if grads:
+            for c in range(8):
+                corners[i, 8 + c] = flat_x[at8[c]]
+                corners[i, 16 + c] = flat_y[at8[c]]
+                corners[i, 24 + c] = flat_z[at8[c]]
     return n_miss
 
 
@@ -236,11 +258,16 @@ def issue_round(n, P, stall, clock, busy, ert_on, before, alive, ray_ids, live, 
     (its group's, after the stalls so far), the lanes' busy counts, speculative samples
     and the issue cycle of each ray's terminating sample; the clock moves to the end."""
     waited = 0
+    group = lane = 0  # i // P and i % P, counted
     for i in range(n):
-        if i % P == 0:
-            waited += stall[i // P]
-        issue[i] = clock + i // P + waited
-        busy[i % P] += 1
+        if lane == 0:
+            waited += stall[group]
+        issue[i] = clock + group + waited
+        busy[lane] += 1
+        lane += 1
+        if lane == P:
+            lane = 0
+            group += 1
         if ert_on:
             if not before[i]:
                 regs[_SPEC] += 1
