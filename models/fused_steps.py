@@ -187,12 +187,13 @@ def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
         leap = np.full(n, (block - 1e-6) / np.max(np.abs(delta)))
     else:
         leap = (block - 1e-6) / np.max(np.abs(np.broadcast_to(delta, (n, 3))), axis=1)
-    if plan.kind == "shear-warp":
-        ids = plan.ray_ids
-        cols = [
-            ids // plan.shape[1] + plan.base_origin[0],
-            ids % plan.shape[1] + plan.base_origin[1],
-        ]
+    if plan.kind == "shear-warp":  # row + base_origin[0], column + base_origin[1]
+        terms = np.empty((3, n))
+        row, col = np.divmod(plan.ray_ids, plan.shape[1])
+        np.add(row, plan.base_origin[0], out=terms[0])
+        np.add(col, plan.base_origin[1], out=terms[1])
+        terms[2] = leap
+        return terms
     elif plan.kind == "ray":
         o, d = plan._o, np.broadcast_to(plan._d, (n, 3))
         cols = [o[:, 0], o[:, 1], o[:, 2], d[:, 0], d[:, 1], d[:, 2]]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from hwsim.spec.scene import ViewSpec
@@ -37,8 +38,35 @@ def world_to_index(p_xyz: np.ndarray, volume: Volume) -> np.ndarray:
     """World points ``(..., 3)`` in ``(x, y, z)`` to index coordinates ``(..., 3)`` in
     ``(z, y, x)``."""
     shape = np.asarray(volume.shape, dtype=np.float64)
-    spacing = np.asarray(volume.spacing)
+    spacing = np.asarray(volume.spacing, dtype=np.float64)
+    if p_xyz.ndim == 2 and p_xyz.shape[1] == 3 and p_xyz.dtype == np.float64:
+        out = np.empty(p_xyz.shape)  # one compiled pass, the same bits
+        _world_to_index_rows(p_xyz, spacing, (shape - 1.0) / 2.0, out)
+        return out
     return p_xyz[..., ::-1] / spacing + (shape - 1.0) / 2.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _world_to_index_rows(p_xyz, spacing, centre, out):  # pragma: no cover - compiled
+    """:func:`world_to_index` of ``(n, 3)`` points one at a time: ``p / spacing +
+    centre`` axis by axis, the array expression's operations, so the same bits."""
+    for i in range(p_xyz.shape[0]):
+        for c in range(3):
+            out[i, c] = p_xyz[i, 2 - c] / spacing[c] + centre[c]
+
+
+@numba.njit(cache=True, nogil=True)
+def _parallel_origins(px, py, s, r, u, out):  # pragma: no cover - compiled
+    """Parallel-view ray origins, pixel by pixel in row-major order: ``(x s) r + (y s)
+    u`` with ``x = px[col]``, ``y = py[row]`` (the meshgrid expression's operations in
+    its order, no fused multiply-adds), so the same bits without the temporaries."""
+    w = px.shape[0]
+    for row in range(py.shape[0]):
+        ys = py[row] * s
+        for col in range(w):
+            xs = px[col] * s
+            for c in range(3):
+                out[row * w + col, c] = xs * r[c] + ys * u[c]
 
 
 def index_to_world(i_zyx: np.ndarray, volume: Volume) -> np.ndarray:
@@ -77,12 +105,13 @@ class Camera:
         # Pixel-centre offsets in units of one pixel, x to the right, y up.
         px = (np.arange(w) + 0.5) - w / 2.0
         py = h / 2.0 - (np.arange(h) + 0.5)
-        gx, gy = np.meshgrid(px, py)  # (H, W)
-        gx, gy = gx.ravel(), gy.ravel()
         if view.projection == "parallel":
             s = 2.0 * radius / (view.zoom * min(w, h))
-            origins = (gx * s)[:, None] * r + (gy * s)[:, None] * u
+            origins = np.empty((w * h, 3))  # (gx s) r + (gy s) u over the pixel grid
+            _parallel_origins(px, py, float(s), r, u, origins)
             return cls(d, u, r, w, h, False, origins, d.copy(), radius)
+        gx, gy = np.meshgrid(px, py)  # (H, W)
+        gx, gy = gx.ravel(), gy.ravel()
         eye = -view.distance * radius * d
         half = np.tan(np.radians(view.fov) / 2.0) / view.zoom
         s = 2.0 * half / h  # image plane at distance 1 from the eye

@@ -187,7 +187,9 @@ class SamplePlan:
         self._delta[kp] = np.sign(d[kp]) / ss
         self._delta[list(self.other_axes)] = self.shear * self._delta[kp]
         self.ray_ids = np.arange(self.shape[0] * self.shape[1])
-        self._set_ranges(*linear_range(self._position_all(0), self._delta, self.lo, self.hi))
+        # Step 0 of every ray: position()'s terms with one offset row for all.
+        start = self.position(0, slice(None))
+        self._set_ranges(*linear_range(start, self._delta, self.lo, self.hi))
 
     def _reverse(self) -> None:
         """Walk every ray from its far end: step ``j`` becomes the front-to-back plan's
@@ -377,10 +379,11 @@ class SamplePlan:
         base = acc.reshape(self.shape + acc.shape[1:])
         if self.kind != "shear-warp":
             return base
-        kp, (a_ax, b_ax) = self.principal_axis, self.other_axes
-        t = (self.q_ref - self.origins[:, kp]) / self.dirs[kp]
-        a = self.origins[:, a_ax] + t * self.dirs[a_ax] - self.base_origin[0]
-        b = self.origins[:, b_ax] + t * self.dirs[b_ax] - self.base_origin[1]
+        a, b = np.empty(self.origins.shape[0]), np.empty(self.origins.shape[0])
+        _base_points(
+            self.origins, self.dirs, self.q_ref, self.principal_axis, *self.other_axes,
+            float(self.base_origin[0]), float(self.base_origin[1]), a, b,
+        )  # fmt: skip
         image = bilinear_2d(base, a, b, background)
         return image.reshape((self.camera.height, self.camera.width) + acc.shape[1:])
 
@@ -416,6 +419,17 @@ def _shear_image_rows(rays, j, ss, kp, sel, out):  # pragma: no cover - compiled
         for ax in range(3):
             out[i, ax] = rays[r, 2 + ax] + t * rays[r, 5 + ax]
         out[i, kp] = q  # exactly on the slice
+
+
+@numba.njit(cache=True, nogil=True)
+def _base_points(origins, dirs, q_ref, kp, a_ax, b_ax, a0, b0, a, b):  # pragma: no cover
+    """Where each final pixel's ray meets the base plane, in base-plane pixels:
+    ``t = (q_ref - o_kp) / d_kp``, ``a = o_a + t d_a - a0``, ``b = o_b + t d_b - b0``,
+    one ray at a time (the array expression's operations, no fused multiply-adds)."""
+    for i in range(origins.shape[0]):
+        t = (q_ref - origins[i, kp]) / dirs[kp]
+        a[i] = origins[i, a_ax] + t * dirs[a_ax] - a0
+        b[i] = origins[i, b_ax] + t * dirs[b_ax] - b0
 
 
 def make_plan(

@@ -91,18 +91,58 @@ def linear_range(
 
     ``start`` is ``(m, 3)``, ``delta`` ``(3,)`` or ``(m, 3)``; bounds are inclusive with a
     1e-9 tolerance.  Returns float ``(m,)`` arrays ``ceil`` / ``floor``-ed to integers
-    (``-inf`` / ``inf`` where unconstrained; ``j_lo > j_hi`` where the box is missed).
+    (``-inf`` / ``inf`` where unconstrained; ``j_lo > j_hi`` where the box is missed;
+    NaN where a position or step is NaN).  One compiled pass (:func:`_linear_range_rows`).
     """
-    delta = np.broadcast_to(delta, start.shape)
+    start = np.ascontiguousarray(start, dtype=np.float64).reshape(-1, 3)
+    delta = np.asarray(delta, dtype=np.float64)
+    if delta.ndim == 1:
+        delta = delta.reshape(1, 3)  # one step shared by every ray
+    elif delta.shape[0] > 1 and delta.strides[0] == 0:
+        delta = delta[:1]  # a broadcast row
+    delta = np.ascontiguousarray(np.broadcast_to(delta, (delta.shape[0], 3)))
     lo_b = np.broadcast_to(np.asarray(lo, dtype=np.float64), (3,)) - 1e-9
     hi_b = np.broadcast_to(np.asarray(hi, dtype=np.float64), (3,)) + 1e-9
-    flat = np.abs(delta) < _TINY
-    inside = (start >= lo_b) & (start <= hi_b)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e1, e2 = (lo_b - start) / delta, (hi_b - start) / delta
-    first = np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(e1, e2))
-    last = np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(e1, e2))
-    return np.ceil(first.max(axis=1)), np.floor(last.min(axis=1))
+    first, last = np.empty(start.shape[0]), np.empty(start.shape[0])
+    _linear_range_rows(start, delta, lo_b, hi_b, first, last)
+    return first, last
+
+
+@numba.njit(cache=True, nogil=True)
+def _nan_or(a, b, take_b):  # pragma: no cover - compiled
+    """NumPy's NaN-propagating ``maximum`` / ``minimum``: NaN if either is NaN, else
+    ``b`` where ``take_b``."""
+    if a != a:
+        return a
+    if b != b or take_b:
+        return b
+    return a
+
+
+@numba.njit(cache=True, nogil=True)
+def _linear_range_rows(start, delta, lo_b, hi_b, first, last):  # pragma: no cover
+    """:func:`linear_range`'s array expression one ray at a time, the same float64
+    operations (``(lo - start) / delta``, ``(hi - start) / delta``, a face parallel to
+    the step unconstrained inside and missed outside, max / min over the axes with NaN
+    propagated, ``ceil`` / ``floor``), so the same values (up to the sign of a zero,
+    which the callers' integer conversions do not see)."""
+    shared = delta.shape[0] == 1
+    for i in range(start.shape[0]):
+        row = 0 if shared else i
+        f, g = 0.0, 0.0
+        for c in range(3):
+            s, d = start[i, c], delta[row, c]
+            if abs(d) < _TINY:
+                inside = s >= lo_b[c] and s <= hi_b[c]
+                fc, gc = (-np.inf, np.inf) if inside else (np.inf, -np.inf)
+            else:
+                e1, e2 = (lo_b[c] - s) / d, (hi_b[c] - s) / d
+                fc, gc = _nan_or(e1, e2, e2 < e1), _nan_or(e1, e2, e2 > e1)
+            if c == 0:
+                f, g = fc, gc
+            else:
+                f, g = _nan_or(f, fc, fc > f), _nan_or(g, gc, gc < g)
+        first[i], last[i] = np.ceil(f), np.floor(g)
 
 
 def bilinear_2d(image: np.ndarray, a: np.ndarray, b: np.ndarray, background: float) -> np.ndarray:
@@ -113,24 +153,37 @@ def bilinear_2d(image: np.ndarray, a: np.ndarray, b: np.ndarray, background: flo
     rows, cols = image.shape[:2]
     pad = np.full((rows + 2, cols + 2) + image.shape[2:], background, dtype=np.float64)
     pad[1:-1, 1:-1] = image
-    a = np.clip(a + 1.0, 0.0, rows + 1.0)
-    b = np.clip(b + 1.0, 0.0, cols + 1.0)
     channels = pad.reshape(rows + 2, cols + 2, -1)
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
     out = np.empty((a.size, channels.shape[2]))
-    _bilinear_rows(channels, np.ascontiguousarray(a), np.ascontiguousarray(b), out)
+    _bilinear_rows(channels, a.ravel(), b.ravel(), out)
     return out.reshape(a.shape + image.shape[2:])
+
+
+@numba.njit(cache=True, nogil=True)
+def _clip(v, hi):  # pragma: no cover - compiled
+    """``np.clip(v, 0.0, hi)`` of one float (NaN stays NaN)."""
+    if v < 0.0:
+        return 0.0
+    if v > hi:
+        return hi
+    return v
 
 
 @numba.njit(cache=True, nogil=True)
 def _bilinear_rows(pad, a, b, out):  # pragma: no cover - compiled
     """``bilinear_2d``'s filter, one point at a time: the same float64 operations in the
-    same order as the array expression it replaced (``(1 - fa) ((1 - fb) p00 + fb p01)
-    + fa ((1 - fb) p10 + fb p11)``, no fused multiply-adds), so the same bits."""
+    same order as the array expression it replaced (``a + 1`` and ``b + 1`` clipped to
+    the padded image, then ``(1 - fa) ((1 - fb) p00 + fb p01) + fa ((1 - fb) p10 + fb
+    p11)``, no fused multiply-adds), so the same bits."""
     rows, cols = pad.shape[0] - 2, pad.shape[1] - 2
     for i in range(a.shape[0]):
-        a0 = min(np.int64(np.floor(a[i])), rows)
-        b0 = min(np.int64(np.floor(b[i])), cols)
-        fa, fb = a[i] - a0, b[i] - b0
+        ai = _clip(a[i] + 1.0, rows + 1.0)
+        bi = _clip(b[i] + 1.0, cols + 1.0)
+        a0 = min(np.int64(np.floor(ai)), rows)
+        b0 = min(np.int64(np.floor(bi)), cols)
+        fa, fb = ai - a0, bi - b0
         for c in range(pad.shape[2]):
             near = (1 - fb) * pad[a0, b0, c] + fb * pad[a0, b0 + 1, c]
             far = (1 - fb) * pad[a0 + 1, b0, c] + fb * pad[a0 + 1, b0 + 1, c]
