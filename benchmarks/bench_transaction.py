@@ -97,7 +97,8 @@ def measure(n: int, projection: str, repeats: int, arch_name: str = "cube4") -> 
         "transaction_seconds": txn_s,
         "timing_model_seconds": timing_s,
         "image_seconds": image_s,
-        "events": txn.counters["transaction.events"],
+        "events": txn.counters.get("transaction.events"),  # None: no events (a packet model)
+        "granularity": txn.counters.get("transaction.granularity"),
         "transaction_vs_cycle": cycle_s / txn_s,
         "timing_model_vs_cycle": cycle_s / timing_s,
         "goal": GOAL,

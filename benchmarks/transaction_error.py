@@ -329,7 +329,9 @@ def measure(case: dict[str, Any]) -> dict[str, Any]:
             "cycle_cycles": cycle.cycles,
             "error": (txn.cycles - cycle.cycles) / cycle.cycles,
             "cycle_seconds": time.perf_counter() - start,
-            "events": c["transaction.events"],
+            # None where the model has no events (VIZARD II's packet model: closed form).
+            "events": c.get("transaction.events"),
+            "granularity": c.get("transaction.granularity"),
             "stretch_cycles": c.get("pipelines.stretch_cycles"),
             "pipeline_stall_cycles": c.get("pipelines.stall_cycles"),
             "memory_stall_cycles": (
