@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import rungs
 
+from hwsim.core.threads import using
 from hwsim.engine import Counters, DeadlockError, DrainFifo
 from hwsim.volumes import make_phantom
 from models.machines.volumepro import cycle as slab_cycle
@@ -31,7 +32,8 @@ def head():
 
 
 def _inputs(monkeypatch, head, arch, scene):
-    """The frame's ``run_timing`` arguments (captured from a cycle render)."""
+    """The frame's ``run_timing`` arguments (captured from a cycle render on one thread:
+    on two a slice-FIFO frame plays its timing beside the data pass, timing_ahead.py)."""
     seen = {}
 
     def spy(memory, table, slices, **kw):
@@ -40,7 +42,8 @@ def _inputs(monkeypatch, head, arch, scene):
         return slab_timing.run_timing(memory, dataclasses.replace(table), slices, **kw)
 
     monkeypatch.setattr(slab_cycle, "run_timing", spy)
-    rungs.functional_and_cycle(scene, head, arch)
+    with using(1):
+        rungs.functional_and_cycle(scene, head, arch)
     return seen
 
 

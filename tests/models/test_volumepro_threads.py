@@ -1,6 +1,7 @@
 """The VolumePro family's cycle rung on two threads (``HWSIM_THREADS=2``): the steps'
 geometry ahead of the data pass and the compiled stage's second pass behind it
-(models/machines/volumepro/threads.py) give the bits of one thread, image, samples,
+(models/machines/volumepro/threads.py), and on a slice-FIFO machine the timing pass
+beside it (models/machines/volumepro/timing_ahead.py) give the bits of one thread, image, samples,
 cycles and every counter, on every machine of the family, with sections, supersampling,
 early termination, faults, perspective rays and the unit chain; the helper threads ran
 where they should."""
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 
 from hwsim.core.threads import using
+from hwsim.engine import DeadlockError
 from hwsim.golden import make_plan
 from hwsim.numerics import SATURATIONS
 from hwsim.run.fidelity import resolve_arch
@@ -26,7 +28,8 @@ from models.cycle import render_cycle
 from models.frame import frame_of
 from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.volumepro import threads as vp_threads
-from models.machines.volumepro.cycle import SlabFaults
+from models.machines.volumepro import timing_ahead as vp_timing
+from models.machines.volumepro.cycle import SlabFaults, SlabMachine
 from models.units.interp import InterpConfig
 
 pytestmark = pytest.mark.model
@@ -74,7 +77,19 @@ CASES = {
         VP500, _scene(), faults=SlabFaults(dropped_handoff=1), behind=False
     ),
     "vp500-lost-spill": _case(VP500, _scene(az=-40), SECTIONS, SlabFaults(lost_spill=0)),
+    # Faults that change the timing pass's inputs (read at the frame's start).
+    "vp500-small-buffer": _case(VP500, _scene(), faults=SlabFaults(slab_buffer_adjust=-2000)),
+    "vp500-small-pixel-fifo": _case(
+        VP500, _scene(az=-40), SECTIONS, SlabFaults(pixel_fifo_depth=2)
+    ),
+    "em-cube-sections-supersampled": _case("em-cube", _scene(-40, 20, supersampling=1.5), SECTIONS),
 }
+
+
+def _timed_ahead(case) -> bool:
+    """Whether a case's timing pass runs beside the data pass: a slice-FIFO machine
+    (no skipping) on the compiled stage."""
+    return case[0] != VP1000 and case[4]
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +122,11 @@ def test_two_threads_give_the_bits_of_one(name, volumes, monkeypatch):
         return launch(self, fn, args, after)
 
     monkeypatch.setattr(vp_threads.FinishBehind, "launch", counted)
+    played = []  # slices the timing thread had played when the frame joined it
+    join = vp_timing.TimingAhead.join
+    monkeypatch.setattr(
+        vp_timing.TimingAhead, "join", lambda self: played.append(self.played) or join(self)
+    )
     ahead = []
     monkeypatch.setattr(
         vp_threads,
@@ -115,7 +135,7 @@ def test_two_threads_give_the_bits_of_one(name, volumes, monkeypatch):
     )
     with using(1):
         one, sat_one = _render(case, volumes)
-    assert launches[True] == 0 and not ahead
+    assert launches[True] == 0 and not ahead and not played
     with using(2):
         two, sat_two = _render(case, volumes)
     np.testing.assert_array_equal(two.image, one.image)
@@ -126,6 +146,54 @@ def test_two_threads_give_the_bits_of_one(name, volumes, monkeypatch):
     assert ahead, "the steps were not computed ahead"
     behind = case[5]
     assert (launches[True] > 0) == behind, launches
+    # The timing pass ran beside the data pass where it may (slices played before the
+    # join), and only there.
+    assert (len(played) == 1 and played[0] > 0) == _timed_ahead(case), played
+    assert not [t for t in threading.enumerate() if t.name == "hwsim-timing"]
+
+
+def test_a_frame_that_outgrows_the_guessed_log_room_is_played_again(volumes, monkeypatch):
+    """Log room too small for the timing loop beside the data pass: the frame is played
+    again at the join, the bits of one thread."""
+    guessed = []
+    monkeypatch.setattr(vp_timing, "_room", lambda *a: guessed.append(a) or (1, 1))
+    case = CASES["vp500-sections"]
+    with using(1):
+        one, _ = _render(case, volumes)
+    with using(2):
+        two, _ = _render(case, volumes)
+    assert guessed  # the pass ran beside the data pass, on the small room
+    np.testing.assert_array_equal(two.image, one.image)
+    assert two.cycles == one.cycles and two.counters == one.counters
+
+
+def test_a_timing_error_is_raised_at_the_frames_end_as_on_one_thread(volumes):
+    """An input buffer too small for the sample window: the same error on two threads
+    (raised by the timing thread, at the join) as on one."""
+    case = dataclasses.replace(SlabFaults(), slab_buffer_adjust=-(10**6))
+    arch, changes, scene, _, compiled, behind, phantom = CASES["vp500"]
+    broken = (arch, changes, scene, case, compiled, behind, phantom)
+    errors = []
+    for threads in (1, 2):
+        with using(threads), pytest.raises(DeadlockError) as info:
+            _render(broken, volumes)
+        errors.append(str(info.value))
+    assert errors[0] == errors[1] and "input buffer" in errors[0]
+
+
+def test_an_error_in_the_data_pass_ends_the_timing_thread(volumes, monkeypatch):
+    calls = []
+
+    def evict(self, lo, f=SlabMachine._evict):
+        calls.append(lo)
+        if len(calls) == 5:
+            raise ValueError("data pass broke")
+        return f(self, lo)
+
+    monkeypatch.setattr(SlabMachine, "_evict", evict)
+    with using(2), pytest.raises(ValueError, match="data pass broke"):
+        _render(CASES["vp500"], volumes)
+    assert not [t for t in threading.enumerate() if t.name == "hwsim-timing"]
 
 
 def test_an_error_in_the_geometry_thread_is_raised_in_the_frame(volumes, monkeypatch):
@@ -168,7 +236,7 @@ def test_passes_behind_run_in_order_and_join_waits_for_them():
 @pytest.mark.parametrize("hand", [True, False], ids=["hand-offs-ahead", "hand-offs-by-frame"])
 @pytest.mark.parametrize("keep", [True, False])
 def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
-    """Marks, finished rays and, unless a fault makes them on the frame's thread, the
+    """Lanes, marks, finished rays and, unless a fault makes them on the frame's thread, the
     ring hand-offs (pipelines and moves counted) of the compiled loop and the NumPy
     form (``SliceOrderMachine._hand_off``), step after step."""
     rng = np.random.default_rng(7)
@@ -177,6 +245,7 @@ def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
 
     def book(compiled):
         machine = types.SimpleNamespace(
+            P=P,
             be=types.SimpleNamespace(compiled=compiled),
             faults=types.SimpleNamespace(dropped_handoff=None if hand else 0),
         )
@@ -189,9 +258,11 @@ def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
     for j in range(6):
         rays = np.sort(rng.choice(n, size=rng.integers(0, n), replace=False))
         a, b = rng.integers(0, 40, (2, rays.size))
-        lanes = rng.integers(0, P, rays.size)
-        want, want_tally = numpy_book.step(j, rays, a, b, lanes)
-        got, got_tally = compiled_book.step(j, rays, a, b, lanes)
+        q = int(rng.integers(0, 40))
+        want_lanes, want, want_tally = numpy_book.step(j, rays, a, b, q)
+        got_lanes, got, got_tally = compiled_book.step(j, rays, a, b, q)
+        np.testing.assert_array_equal(got_lanes, want_lanes)
+        np.testing.assert_array_equal(want_lanes, (q + a + b) % P)
         np.testing.assert_array_equal(got, want)
         assert got.dtype == want.dtype
         assert (got_tally is None) == (want_tally is None) == (not hand)

@@ -61,6 +61,7 @@ from models.machines.volumepro.timing import (
     record_trace,
     timing_inputs,
 )
+from models.machines.volumepro.timing_ahead import timing_ahead
 from models.machines.volumepro.trilinear import TrilinearSource
 from models.units.voxel import converted_planes
 
@@ -307,71 +308,84 @@ class SlabMachine(SliceOrderMachine):
         total = plan.n_steps * len(sections)
         threads = frame_threads()  # helper threads: models/machines/volumepro/threads.py
         behind = finish_behind(self, threads)
-        for si, (a0, a1) in enumerate(sections):
-            if parked.size:  # reload the partial rays this section continues
-                state.acc[parked] = sram_acc[parked]
-                if sram_dt is not None:
-                    state.dt_sum[parked] = sram_dt[parked]
-            book = SectionBook(self, last_j, prev_lane, last_seen if fifo else None, len(records))
-            # Termination masks of the last slices: the memory reads a slab while the
-            # pipelines are up to ``lag`` sample slices behind (rule 6).
-            history: deque[np.ndarray] = deque(maxlen=self.read_lag)
-            seen, done = book.seen, book.done  # kept with the steps (threads.py)
-            self._planes.clear()
-            self._voxels.clear()
-            self._diffed.clear()
-            ahead = steps_ahead(self, (a0, a1), len(sections) > 1, threads, book)
-            for j, (step, (lo, hi), slots) in enumerate(ahead):
-                self._evict(lo if self.forward else hi)
-                busy = np.zeros(P, dtype=np.int64)
-                cost = None
-                fin = np.zeros(0, dtype=np.int64)
-                if step.rays.size:
-                    source, a, b, lanes, fin, handoffs = slots
-                    live = np.ones(step.rays.size, dtype=bool)
+        # The timing pass on a thread too where samples decide no reads (timing_ahead.py).
+        timed = timing_ahead(self, sections, needed, threads, self._timing_buffers())
+        try:
+            for si, (a0, a1) in enumerate(sections):
+                if parked.size:  # reload the partial rays this section continues
+                    state.acc[parked] = sram_acc[parked]
+                    if sram_dt is not None:
+                        state.dt_sum[parked] = sram_dt[parked]
+                book = SectionBook(
+                    self, last_j, prev_lane, last_seen if fifo else None, len(records)
+                )
+                # Termination masks of the last slices: the memory reads a slab while the
+                # pipelines are up to ``lag`` sample slices behind (rule 6).
+                history: deque[np.ndarray] = deque(maxlen=self.read_lag)
+                seen, done = book.seen, book.done  # kept with the steps (threads.py)
+                self._planes.clear()
+                self._voxels.clear()
+                self._diffed.clear()
+                ahead = steps_ahead(self, (a0, a1), len(sections) > 1, threads, book)
+                for j, (step, (lo, hi), slots) in enumerate(ahead):
+                    self._evict(lo if self.forward else hi)
+                    busy = np.zeros(P, dtype=np.int64)
+                    cost = None
+                    fin = np.zeros(0, dtype=np.int64)
+                    if step.rays.size:
+                        source, a, b, lanes, fin, handoffs = slots
+                        live = np.ones(step.rays.size, dtype=bool)
+                        if ert_hardware:
+                            live = state.alive[step.rays]
+                        busy = np.bincount(lanes[live] if self.skipping else lanes, minlength=P)
+                        if self.skipping:
+                            known = np.ones(step.rays.size, dtype=bool)
+                            if ert_hardware and len(history) == history.maxlen:
+                                known = history[0][step.rays]
+                            cost = self._live_cells(source, live, known, si, (lo, hi), needed)
+                        book.hand_off(handoffs, step.rays, lanes, state)
+                        be.process(
+                            step,
+                            lambda s, src=source, full=step: (
+                                src if s is full else TrilinearSource(self, s)
+                            ),
+                            state,
+                        )
+                    elif self.skipping:
+                        cost = np.zeros(self.n_a, dtype=np.int64)
+                    reach = fifo_reach(self, j) if fifo else -1
+                    records.append(SliceRecord(si, (lo, hi), cost, busy, int(fin.size), reach))
+                    if timed is not None:
+                        timed.record(records[-1])
                     if ert_hardware:
-                        live = state.alive[step.rays]
-                    busy = np.bincount(lanes[live] if self.skipping else lanes, minlength=P)
-                    if self.skipping:
-                        known = np.ones(step.rays.size, dtype=bool)
-                        if ert_hardware and len(history) == history.maxlen:
-                            known = history[0][step.rays]
-                        cost = self._live_cells(source, live, known, si, (lo, hi), needed)
-                    book.hand_off(handoffs, step.rays, lanes, state)
-                    be.process(
-                        step,
-                        lambda s, src=source, full=step: (
-                            src if s is full else TrilinearSource(self, s)
-                        ),
-                        state,
-                    )
-                elif self.skipping:
-                    cost = np.zeros(self.n_a, dtype=np.int64)
-                reach = fifo_reach(self, j) if fifo else -1
-                records.append(SliceRecord(si, (lo, hi), cost, busy, int(fin.size), reach))
-                if ert_hardware:
-                    history.append(state.alive.copy())
-                if progress is not None:
-                    progress(si * plan.n_steps + j + 1, total)
-            behind.join()  # the section's blends, then its finished rays to the pixel bus
-            fin = np.flatnonzero(done)
-            for key, value in bus.items():
-                if value is not None:
-                    value[fin] = getattr(state, key)[fin]
-            parked = np.flatnonzero(seen & ~done)
-            parked_counts.append(int(parked.size))
-            if fifo:
-                pushes.append(last_seen[:, seen])
-            if parked.size:  # park the partial rays in the section SRAM
-                lost = self.faults.lost_spill == si
-                fresh = be.new_state(1)
-                sram_acc[parked] = fresh.acc[0] if lost else state.acc[parked]
-                state.acc[parked] = fresh.acc[0]
-                if sram_dt is not None:
-                    sram_dt[parked] = 0 if lost else state.dt_sum[parked]
-                    state.dt_sum[parked] = 0
-                if records:
-                    records[-1].arrivals += int(parked.size)
+                        history.append(state.alive.copy())
+                    if progress is not None:
+                        progress(si * plan.n_steps + j + 1, total)
+                behind.join()  # the section's blends, then its finished rays to the pixel bus
+                fin = np.flatnonzero(done)
+                for key, value in bus.items():
+                    if value is not None:
+                        value[fin] = getattr(state, key)[fin]
+                parked = np.flatnonzero(seen & ~done)
+                parked_counts.append(int(parked.size))
+                if timed is not None:
+                    timed.parked(parked_counts[-1])
+                if fifo:
+                    pushes.append(last_seen[:, seen])
+                if parked.size:  # park the partial rays in the section SRAM
+                    lost = self.faults.lost_spill == si
+                    fresh = be.new_state(1)
+                    sram_acc[parked] = fresh.acc[0] if lost else state.acc[parked]
+                    state.acc[parked] = fresh.acc[0]
+                    if sram_dt is not None:
+                        sram_dt[parked] = 0 if lost else state.dt_sum[parked]
+                        state.dt_sum[parked] = 0
+                    if records:
+                        records[-1].arrivals += int(parked.size)
+        except BaseException:
+            if timed is not None:
+                timed.close()
+            raise
         behind.close()
         # The last slices' corner planes, the SDRAM words and the ring's routes are not
         # read again: dropped before the timing pass (at 512^3 a slice's planes are ~8 MB
@@ -384,7 +398,7 @@ class SlabMachine(SliceOrderMachine):
         self.datapath.clear_caches()
         _return_freed_memory()
         pushed = np.concatenate(pushes, axis=1) if pushes else np.zeros((3, 0), np.int64)
-        return self._finish(state, bus, records, sections, parked_counts, needed, pushed)
+        return self._finish(state, bus, records, sections, parked_counts, needed, pushed, timed)
 
     def _live_cells(self, source, live, known, si, window, needed) -> np.ndarray:
         """Rule 6 at one sample slice: the clocks each beam costs (clock groups of P cells
@@ -411,16 +425,24 @@ class SlabMachine(SliceOrderMachine):
         needed[si, window[0] // 2 : window[1] // 2 + 1] |= mini_blocks_read(cells[:, : self.n_b])
         return cost
 
-    def _finish(self, state, bus, records, sections, parked_counts, needed, pushed):
-        be, c, P = self.be, self.counters, self.P
-        deliveries, slices, plan = timing_inputs(self, records, sections, parked_counts, needed)
+    def _timing_buffers(self) -> tuple[DrainFifo, int, int]:
+        """The pixel FIFO, the input buffer's entries and its capacity in deliveries."""
         depth = self.faults.pixel_fifo_depth
         pixel_fifo = DrainFifo(
             "pixel_bus.fifo", self.capacity["pixel_fifo_entries"] if depth is None else depth
         )
-        c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
         entries = self.capacity["slab_buffer_entries"] + self.faults.slab_buffer_adjust
-        capacity = max(entries, 0) // (4 * self.C)
+        return pixel_fifo, entries, max(entries, 0) // (4 * self.C)
+
+    def _finish(self, state, bus, records, sections, parked_counts, needed, pushed, timed):
+        be, c, P = self.be, self.counters, self.P
+        if timed is None:
+            deliveries, slices, plan = timing_inputs(self, records, sections, parked_counts, needed)
+            pixel_fifo, entries, capacity = self._timing_buffers()
+        else:  # played on its thread as the slices came (timing_ahead.py)
+            deliveries, slices, plan, timing = timed.join()
+            pixel_fifo, entries, capacity = timed.buffers
+        c.set("pixel_bus.fifo_depth", pixel_fifo.depth)
         c.set("memory.slab_buffer_entries", max(entries, 0))
         c.set("memory.slab_buffer_mbbs", capacity)
         # The two-frame replay first: the frame's own timing then drops the bursts.
@@ -428,18 +450,20 @@ class SlabMachine(SliceOrderMachine):
         period = 0
         if self.steady_state:
             period = frame_period(self, deliveries, slices, capacity, fifo)
-        timing = self.timing = run_timing(
-            self.memory_cfg,
-            deliveries,
-            slices,
-            capacity=capacity,
-            pixel_fifo=pixel_fifo,
-            counters=c,
-            keep_schedules=self.trace is not None,
-            compiled=be.compiled,
-            keep_bursts=self.trace is not None,
-            deskew=0 if fifo is None else DESKEW_WRITE,
-        )
+        if timed is None:
+            timing = run_timing(
+                self.memory_cfg,
+                deliveries,
+                slices,
+                capacity=capacity,
+                pixel_fifo=pixel_fifo,
+                counters=c,
+                keep_schedules=self.trace is not None,
+                compiled=be.compiled,
+                keep_bursts=self.trace is not None,
+                deskew=0 if fifo is None else DESKEW_WRITE,
+            )
+        self.timing = timing
         stages = {
             u: Stage(u, UNITS[u].LATENCY, UNITS[u].II, P, c) for u in UNITS if u in self.elaborated
         }

@@ -42,6 +42,7 @@ __all__ = [
     "pipeline_latency",
     "run_timing",
     "slab_buffers",
+    "summarise_timing",
 ]
 
 
@@ -210,6 +211,14 @@ def run_timing(
         )
     if not keep_bursts:
         table.banks = table.rows = None
+    return summarise_timing(out, controllers, ends[:n_beams], slices, keep_schedules)
+
+
+def summarise_timing(
+    out: FrameTiming, controllers: list, beam_ends: np.ndarray, slices, keep_schedules: bool
+) -> FrameTiming:
+    """``out`` once the loop has played: each module's schedule statistics (and, with
+    ``keep_schedules``, the schedules), the beams' ends and clocks."""
     # One module's schedule at a time, each controller dropped once read: at 512^3 a
     # schedule holds ~40 bytes per burst and the frame ~17 M bursts.  The per-burst
     # arrays are kept only for a waveform.
@@ -220,8 +229,8 @@ def run_timing(
         if keep_schedules:
             out.schedules.append(sched)
         del sched, ctl
-    out.beam_ends = ends[:n_beams]
-    out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else ends[:0]
+    out.beam_ends = beam_ends
+    out.beam_cycles = np.concatenate([s.cycles for s in slices]) if slices else beam_ends[:0]
     return out
 
 

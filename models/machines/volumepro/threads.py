@@ -79,8 +79,7 @@ def _geometry(machine, band: tuple[int, int], cut: bool, book: SectionBook) -> I
         if step.rays.size:
             source = TrilinearSource(m, step)
             a, b = m._slots(source)
-            lanes = (source.q + a + b) % m.P
-            slots = source, a, b, lanes, *book.step(j, step.rays, a, b, lanes)
+            slots = source, a, b, *book.step(j, step.rays, a, b, source.q)
         yield step, window, slots
 
 
@@ -122,11 +121,13 @@ class SectionBook:
         self.seen, self.done = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         self.ahead = machine.faults.dropped_handoff is None
 
-    def step(self, j: int, rays, a, b, lanes) -> tuple[np.ndarray, _Tally | None]:
-        """Step ``j``'s rays seen (their record and slot), those it finishes, and its
+    def step(self, j: int, rays, a, b, q: int) -> tuple[np.ndarray, np.ndarray, _Tally | None]:
+        """Step ``j``'s rays seen (their record and slot ``(a, b)``), their lanes (the
+        pipeline ``(q + a + b) % P`` of voxel slice ``q``), the rays it finishes, and its
         hand-offs' counts (None: made by the frame)."""
         if self.m.be.compiled:  # one compiled loop, the GIL released (_book_step)
             keep = self.last_seen is not None
+            lanes = np.empty(rays.size, dtype=np.int64)
             fin, moved = _book_step(
                 j,
                 self.first_record + j,
@@ -138,15 +139,18 @@ class SectionBook:
                 self.done,
                 self.last_seen if keep else _NO_SEEN,
                 keep,
-                lanes if self.ahead else _NO_LANES,
+                q,
+                self.m.P,
+                lanes,
                 self.prev_lane if self.ahead else _NO_LANES,
                 self.ahead,
             )
             if not self.ahead:
-                return fin, None
+                return lanes, fin, None
             tally = _Tally()
             tally.add("composite.handoffs", moved)
-            return fin, tally
+            return lanes, fin, tally
+        lanes = (q + a + b) % self.m.P
         self.seen[rays] = True
         if self.last_seen is not None:
             self.last_seen[0, rays] = self.first_record + j
@@ -154,10 +158,10 @@ class SectionBook:
         fin = rays[self.last_j[rays] == j]
         self.done[fin] = True
         if not self.ahead:
-            return fin, None
+            return lanes, fin, None
         tally = _Tally()
         self.m._hand_off(rays, lanes, self.prev_lane, None, tally)
-        return fin, tally
+        return lanes, fin, tally
 
     def hand_off(self, handoffs: _Tally | None, rays, lanes, state) -> None:
         """The step's ring hand-offs on the frame's thread: counted, or made."""
@@ -172,11 +176,14 @@ _NO_LANES = np.zeros(0, dtype=np.int64)
 
 
 @numba.njit(cache=True, nogil=True)
-def _book_step(j, record, rays, a, b, last_j, seen, done, last_seen, keep, lanes, prev_lane, hand):
+def _book_step(
+    j, record, rays, a, b, last_j, seen, done, last_seen, keep, q, P, lanes, prev_lane, hand
+):
     """:meth:`SectionBook.step`'s marks in one loop over the step's rays (each at most
-    once in a step, so the same arrays as its NumPy form): ``seen``, rule 8''s record and
-    slot (when ``keep``), the rays finished (``last_j == j``, in ``rays``' order), marked
-    ``done``, and (when ``hand``) the ring hand-offs of
+    once in a step, so the same arrays as its NumPy form): each ray's lane ``(q + a +
+    b) % P`` into ``lanes``, ``seen``, rule 8''s record and slot (when ``keep``), the
+    rays finished (``last_j == j``, in ``rays``' order), marked ``done``, and (when
+    ``hand``) the ring hand-offs of
     :meth:`~models.machines.common.slice_order.SliceOrderMachine._hand_off` with no fault:
     each ray's pipeline ``prev_lane`` set to its lane, the moves counted.  Returns the
     rays finished and the moves."""
@@ -185,6 +192,7 @@ def _book_step(j, record, rays, a, b, last_j, seen, done, last_seen, keep, lanes
     moved = 0
     for i in range(rays.size):
         r = rays[i]
+        lanes[i] = (q + a[i] + b[i]) % P
         seen[r] = True
         if keep:
             last_seen[0, r] = record

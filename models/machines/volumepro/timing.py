@@ -34,7 +34,14 @@ from models.machines.volumepro.slab_timing import DeliveryTable, SliceWork, run_
 if TYPE_CHECKING:
     from models.machines.volumepro.cycle import SlabMachine
 
-__all__ = ["SliceRecord", "timing_inputs", "frame_period", "mini_blocks_read", "record_trace"]
+__all__ = [
+    "SliceRecord",
+    "deliveries_read",
+    "timing_inputs",
+    "frame_period",
+    "mini_blocks_read",
+    "record_trace",
+]
 
 
 @dataclass
@@ -53,44 +60,8 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
     """Deliveries (mini-block beams to read, in order: a :class:`DeliveryTable`) and the
     pipelines' slices (and, on a slice-FIFO machine, the :class:`FifoPlan` of its periods,
     else None)."""
-    n_slabs = needed.shape[1]
-    slab_order = range(n_slabs) if m.forward else range(n_slabs - 1, -1, -1)
-    index = np.full(needed.shape[:3], -1, dtype=np.int64)
-    M = m.memory_cfg.modules
-    chunks: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in range(M)]
-    counts: list[np.ndarray] = []  # per slab: (M, beams) bursts of each beam per module
-    n_deliveries = 0
-    for si in range(len(sections)):
-        for slab in slab_order:
-            us = np.flatnonzero(needed[si, slab].any(axis=1))
-            if not us.size:
-                continue
-            module, bank, row = m.memory.slab_bursts(m.kp, slab)
-            per_block = m.memory.words_per_voxel  # bursts per mini-block
-            keep = np.repeat(needed[si, slab, us], per_block, axis=1)
-            module, bank, row = module[us], bank[us], row[us]
-            # Each module's kept bursts of every beam u at once, in the beams' order.
-            count = np.zeros((M, us.size), dtype=np.int64)
-            if m.be.compiled:  # one compiled pass (_module_bursts), the same arrays
-                banks, rows, ends = _module_bursts(module, bank, row, keep, count)
-                for k in range(M):
-                    chunks[k].append((banks[ends[k] : ends[k + 1]], rows[ends[k] : ends[k + 1]]))
-            else:
-                for k in range(M):
-                    sel = (module == k) & keep
-                    count[k] = sel.sum(axis=1)
-                    chunks[k].append((bank[sel].astype(np.int32), row[sel].astype(np.int32)))
-            counts.append(count)
-            index[si, slab, us] = n_deliveries + np.arange(us.size)
-            n_deliveries += us.size
-    per = np.concatenate(counts, axis=1) if counts else np.zeros((M, 0), dtype=np.int64)
-    sizes = per.sum(axis=1)
-    starts = np.zeros((M, n_deliveries + 1), dtype=np.int64)
-    np.cumsum(per, axis=1, out=starts[:, 1:])
-    starts += np.concatenate([[0], np.cumsum(sizes)[:-1]])[:, None]
-    empty = np.zeros(0, dtype=np.int32)
-    burst_banks = np.concatenate([b for k in range(M) for b, _ in chunks[k]] or [empty])
-    burst_rows = np.concatenate([r for k in range(M) for _, r in chunks[k]] or [empty])
+    burst_banks, burst_rows, starts, index = deliveries_read(m, sections, needed)
+    n_deliveries = starts.shape[1] - 1
     if uses_slice_fifos(m.arch):  # rules 3', 5'
         slices, free_after, plan = fifo_work(
             m, records, sections, parked_counts, index, n_deliveries
@@ -131,6 +102,53 @@ def timing_inputs(m: SlabMachine, records, sections, parked_counts, needed):
             )
         )
     return DeliveryTable(burst_banks, burst_rows, starts, free_after), slices, None
+
+
+def deliveries_read(m: SlabMachine, sections, needed):
+    """The frame's deliveries in read order (section by section, slab by slab in
+    processing order, the beams of a slab whose mini-blocks ``needed`` marks): each
+    module's bursts' banks and rows (int32, module after module), the :class:`DeliveryTable`
+    ``starts`` and ``index[s, slab, u]``, the delivery of mini-block beam ``u`` of a slab
+    in section ``s`` (-1: not read).  Reads ``needed`` and the layout only."""
+    n_slabs = needed.shape[1]
+    slab_order = range(n_slabs) if m.forward else range(n_slabs - 1, -1, -1)
+    index = np.full(needed.shape[:3], -1, dtype=np.int64)
+    M = m.memory_cfg.modules
+    chunks: list[list[tuple[np.ndarray, np.ndarray]]] = [[] for _ in range(M)]
+    counts: list[np.ndarray] = []  # per slab: (M, beams) bursts of each beam per module
+    n_deliveries = 0
+    for si in range(len(sections)):
+        for slab in slab_order:
+            us = np.flatnonzero(needed[si, slab].any(axis=1))
+            if not us.size:
+                continue
+            module, bank, row = m.memory.slab_bursts(m.kp, slab)
+            per_block = m.memory.words_per_voxel  # bursts per mini-block
+            keep = np.repeat(needed[si, slab, us], per_block, axis=1)
+            module, bank, row = module[us], bank[us], row[us]
+            # Each module's kept bursts of every beam u at once, in the beams' order.
+            count = np.zeros((M, us.size), dtype=np.int64)
+            if m.be.compiled:  # one compiled pass (_module_bursts), the same arrays
+                banks, rows, ends = _module_bursts(module, bank, row, keep, count)
+                for k in range(M):
+                    chunks[k].append((banks[ends[k] : ends[k + 1]], rows[ends[k] : ends[k + 1]]))
+            else:
+                for k in range(M):
+                    sel = (module == k) & keep
+                    count[k] = sel.sum(axis=1)
+                    chunks[k].append((bank[sel].astype(np.int32), row[sel].astype(np.int32)))
+            counts.append(count)
+            index[si, slab, us] = n_deliveries + np.arange(us.size)
+            n_deliveries += us.size
+    per = np.concatenate(counts, axis=1) if counts else np.zeros((M, 0), dtype=np.int64)
+    sizes = per.sum(axis=1)
+    starts = np.zeros((M, n_deliveries + 1), dtype=np.int64)
+    np.cumsum(per, axis=1, out=starts[:, 1:])
+    starts += np.concatenate([[0], np.cumsum(sizes)[:-1]])[:, None]
+    empty = np.zeros(0, dtype=np.int32)
+    burst_banks = np.concatenate([b for k in range(M) for b, _ in chunks[k]] or [empty])
+    burst_rows = np.concatenate([r for k in range(M) for _, r in chunks[k]] or [empty])
+    return burst_banks, burst_rows, starts, index
 
 
 @numba.njit(cache=True, nogil=True)

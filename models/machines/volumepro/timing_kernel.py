@@ -17,13 +17,15 @@ test_cycle_fused.py compares whole frames both ways).
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numba
 import numpy as np
 
 from hwsim.engine import DeadlockError
 from hwsim.memory.sdram_kernel import REGS, schedule_requests
 
-__all__ = ["play"]
+__all__ = ["play", "play_once"]
 
 # Registers of the loop state ``st``.
 T, G, BI, STALL, STATUS, INFO = range(6)
@@ -172,6 +174,20 @@ def play(
         vars(pixel_fifo).update(fifo)
 
 
+def play_once(
+    table, slices, controllers, room, *, capacity, pixel_fifo, out, ends, ready, tail, ratio,
+    deskew=0,
+) -> bool:  # fmt: skip
+    """One attempt of :func:`play` with ``room`` given, on ``slices`` as they come (an
+    iterable: each is played once taken, so a thread can play a frame's slices while the
+    frame makes the later ones): False when the logs ran out of room or a cycle outgrew
+    int32 (then :func:`play` on fresh controllers and state gives the frame)."""
+    narrow = table.bursts(0) > NARROW_FROM
+    done = _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready,
+                 tail, ratio, narrow, deskew)  # fmt: skip
+    return done and not (narrow and _wrapped(controllers))
+
+
 #: Bursts on module 0 from which a frame's per-request cycles are held as int32 (a
 #: 512^3 frame's ~4 M per module: 0.34 GB less at its memory peak); below, int64.
 NARROW_FROM = 1 << 20
@@ -198,13 +214,14 @@ def first_room(table, slices, cfg, ratio: float) -> tuple[int, int]:
 
 def _play(table, slices, controllers, room, capacity, pixel_fifo, out, ends, ready, tail, ratio,
           narrow, deskew):  # fmt: skip
-    """One attempt of :func:`play`: False when the logs ran out of room."""
+    """One attempt of :func:`play`: False when the logs ran out of room (``slices``: any
+    iterable)."""
     scratch = np.zeros(max(int(np.diff(table.starts, axis=1).max(initial=0)), 1), np.int64)
     requests = [table.bursts(k) for k in range(len(controllers))]
     ctl = (*_stacked(controllers, room, requests, narrow), scratch)
     tab = (table.banks, table.rows, table.starts, table.free_after)
     st = np.zeros(6, dtype=np.int64)
-    for work in [*slices, None]:
+    for work in chain(slices, (None,)):
         flush = work is None
         start_block = int(st[T])
         st[T] += 0 if flush else work.pre
