@@ -26,6 +26,9 @@ two helper threads, and keeps on its own thread everything else, in the same ord
   chain for a step (``SlabKernel.table`` is None) joins first, and a fault that clears
   accumulators on a hand-off (``dropped_handoff``) turns it off.
 
+On a slice-FIFO machine a third helper plays the memory timing beside the data pass
+(:mod:`models.machines.volumepro.timing_ahead`).
+
 Slice loads, counters and the saturation log stay on the frame's thread, so images,
 cycles and counters are the same bits for any thread count
 (``tests/models/test_volumepro_threads.py``).
