@@ -258,7 +258,9 @@ def clear_cells(kernel) -> tuple[np.ndarray, np.ndarray] | None:
     ``i`` holds the samples with ``floor(p) = i`` (position clamped to the volume, as
     the walker clamps it): ``interp.cell_weight`` reads voxels ``i`` and ``i + 1``, or at
     the last voxel ``i - 1`` and ``i`` with weight 1.0, which gives voxel ``i`` exactly.
-    Kept per volume, layout and classification (successive frames of a turntable)."""
+    Kept per volume, layout and classification (successive frames of a turntable); a
+    layout whose classification another layout of the volume holds copies that map
+    (:func:`_relaid`: the principal axis moved) instead of a pass over the voxels."""
     be, vox = kernel.backend, kernel.vox
     if vox.size > _CELL_MAP_VOXELS or vox.size == 0:
         return None
@@ -268,6 +270,13 @@ def clear_cells(kernel) -> tuple[np.ndarray, np.ndarray] | None:
     key = (s_bits, lut_shift, entries, hashlib.sha256(next_visible.tobytes()).hexdigest())
     maps = _CELLS.setdefault(be.volume, {})  # per layout: (classification, map)
     if maps.get(layout, (None,))[0] != key:
+        for (bits, dtype, _), (their_key, (cells, strides)) in list(maps.items()):
+            if (bits, dtype, their_key) == (layout[0], layout[1], key):
+                # The same cells in another memory order (the principal axis moved):
+                # the map is a function of each cell's voxels, so it is laid out anew.
+                out = _relaid(cells, strides, kernel.shape, kernel.strides)
+                maps[layout] = (key, (out, kernel.strides.copy()))
+                return maps[layout][1]
         v_min, v_max = int(vox.min()), int(vox.max())
         # Each raw value's LUT index, by the unit's own arithmetic (promoted as read).
         values = np.arange(v_min, v_max + 1, dtype=np.int64)
@@ -277,6 +286,17 @@ def clear_cells(kernel) -> tuple[np.ndarray, np.ndarray] | None:
         _clear_cell_map(vox, kernel.shape, kernel.strides, order, v_min, index, next_visible, out)
         maps[layout] = (key, (out, kernel.strides.copy()))  # one classification a layout
     return maps[layout][1]
+
+
+def _relaid(cells: np.ndarray, strides: np.ndarray, shape, new_strides) -> np.ndarray:
+    """A byte per cell of a ``shape`` volume laid out with element ``strides`` (z, y,
+    x), copied into the layout of ``new_strides``."""
+    shape = tuple(int(n) for n in shape)
+    source = np.lib.stride_tricks.as_strided(cells, shape, tuple(int(s) for s in strides))
+    out = np.empty(cells.size, dtype=np.uint8)
+    target = np.lib.stride_tricks.as_strided(out, shape, tuple(int(s) for s in new_strides))
+    target[...] = source
+    return out
 
 
 class _Walker:

@@ -349,6 +349,36 @@ def test_clear_cells_are_those_whose_samples_are_all_transparent(head21, volume,
     assert want.any() and not want.all()
 
 
+def test_a_clear_cell_map_in_a_new_layout_is_laid_out_from_another(monkeypatch):
+    """A turntable whose principal axis moves gets the next layout's clear-cell map from
+    the one it holds (no second pass over the voxels), the same bytes as a fresh map."""
+    from models.backend import Backend
+    from models.functional import _Functional
+
+    vol = make_phantom("head", size=21)  # this test's own: no maps from other tests
+    machine = resolve_arch("volumepro500")
+
+    def kernel_at(az):
+        scene = _scene(az=az, el=0)
+        tf = resolve_transfer(scene.transfer, vol)
+        plan = make_plan(scene, vol, machine.order)
+        return _Functional(Backend(frame_of(scene, vol, tf, machine, plan))).kernel
+
+    z_kernel, x_kernel = kernel_at(30), kernel_at(95)
+    assert not np.array_equal(z_kernel.strides, x_kernel.strides)  # two layouts
+    passes = []
+    compute = fused_steps._clear_cell_map
+    monkeypatch.setattr(fused_steps, "_clear_cell_map", lambda *a: passes.append(1) or compute(*a))
+    fused_steps.clear_cells(z_kernel)
+    relaid, strides = fused_steps.clear_cells(x_kernel)
+    assert len(passes) == 1
+    fused_steps._CELLS.pop(vol)
+    fresh, fresh_strides = fused_steps.clear_cells(x_kernel)
+    assert len(passes) == 2
+    np.testing.assert_array_equal(strides, fresh_strides)
+    assert relaid.tobytes() == fresh.tobytes() and 0 < fresh.sum() < fresh.size
+
+
 def test_the_walker_skips_clear_cells_and_nothing_changes(head21, monkeypatch):
     scene = CASES["post"][1]
     fast = _render(scene, head21)
