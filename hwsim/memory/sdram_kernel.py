@@ -133,17 +133,16 @@ def schedule_requests(params, regs, bank_state, banks, rows, arrive, out, start,
     t_rcd, t_rp, t_ras, t_rc, t_rrd = params[0], params[1], params[2], params[3], params[4]
     bc, rtp, t_rfc, t_refi = params[5], params[6], params[7], params[8]
     closed, depth, command_bus = params[9] != 0, params[10], params[11] != 0
-    open_row, act_at = bank_state[0], bank_state[1]
-    act_ready, read_at = bank_state[2], bank_state[3]
     last_act, prev_read, last_ref, refresh_end = regs[0], regs[1], regs[2], regs[3]
     due, floor, n_booked, n_ref = regs[4], regs[5], regs[6], regs[7]
-    reads, acts, pres, refreshed = out[0], out[1], out[2], out[3]
+    # ``bank_state`` and ``out`` indexed in two dimensions, no row views: a view costs
+    # two reference counts (atomic) a call, and a call is a dozen requests (VIZARD II).
     for j in range(banks.shape[0]):
         i = start + j
         b, r = banks[j], rows[j]
         # Admitted in order, on arrival, once the request ``depth`` ahead has left the queue.
-        floor = max(floor, arrive[j], reads[i - depth] + 1 if i >= depth else floor)
-        refreshed[i] = 1 if floor >= due else 0
+        floor = max(floor, arrive[j], out[0, i - depth] + 1 if i >= depth else floor)
+        out[3, i] = 1 if floor >= due else 0
         while floor >= due:
             if n_ref == log.shape[0]:
                 log = _grown(log)
@@ -159,26 +158,28 @@ def schedule_requests(params, regs, bank_state, banks, rows, arrive, out, start,
             floor = max(floor, refresh_end)
         if n_booked + 3 > booked.shape[0]:
             booked = _grown(booked)
-        acts[i] = pres[i] = -1
-        if open_row[b] == r:  # row hit: READ only
-            t = max(act_at[b] + t_rcd, floor, prev_read + bc)
+        out[1, i] = out[2, i] = -1
+        act_at = bank_state[1, b]
+        if bank_state[0, b] == r:  # row hit: READ only
+            t = max(act_at + t_rcd, floor, prev_read + bc)
         else:
-            if open_row[b] < 0:  # row miss
-                t = max(act_ready[b], floor)
+            if bank_state[0, b] < 0:  # row miss
+                t = max(bank_state[2, b], floor)
             else:  # row conflict: PRECHARGE first
-                t = max(act_at[b] + t_ras, floor, read_at[b] + rtp)
-                pres[i], n_booked = _issue(booked, n_booked, t, command_bus)
-                t = pres[i] + t_rp
-            t = max(t, act_at[b] + t_rc, last_act + t_rrd)
-            acts[i], n_booked = _issue(booked, n_booked, t, command_bus)
-            act_at[b] = last_act = acts[i]
+                t = max(act_at + t_ras, floor, bank_state[3, b] + rtp)
+                t, n_booked = _issue(booked, n_booked, t, command_bus)
+                out[2, i] = t
+                t += t_rp
+            t = max(t, act_at + t_rc, last_act + t_rrd)
+            last_act, n_booked = _issue(booked, n_booked, t, command_bus)
+            out[1, i] = bank_state[1, b] = act_at = last_act
             t = max(last_act + t_rcd, prev_read + bc)
-        reads[i], n_booked = _issue(booked, n_booked, t, command_bus)
-        read_at[b] = prev_read = reads[i]
+        prev_read, n_booked = _issue(booked, n_booked, t, command_bus)
+        out[0, i] = bank_state[3, b] = prev_read
         if closed:
-            act_ready[b] = max(prev_read + rtp, act_at[b] + t_ras) + t_rp
+            bank_state[2, b] = max(prev_read + rtp, act_at + t_ras) + t_rp
         else:
-            open_row[b] = r
+            bank_state[0, b] = r
         kept = 0  # drop booked cycles before this admission: none can matter again
         for q in range(n_booked):
             if booked[q] >= floor:
