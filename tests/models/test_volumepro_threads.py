@@ -235,34 +235,45 @@ def test_passes_behind_run_in_order_and_join_waits_for_them():
 
 @pytest.mark.parametrize("hand", [True, False], ids=["hand-offs-ahead", "hand-offs-by-frame"])
 @pytest.mark.parametrize("keep", [True, False])
-def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
-    """Lanes, marks, finished rays and, unless a fault makes them on the frame's thread, the
+@pytest.mark.parametrize("P", [3, 4])
+def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand, P):
+    """Slots, lanes, marks, finished rays and, unless a fault makes them on the frame's thread, the
     ring hand-offs (pipelines and moves counted) of the compiled loop and the NumPy
     form (``SliceOrderMachine._hand_off``), step after step."""
     rng = np.random.default_rng(7)
-    n, P = 500, 3
+    n, n_a, n_b = 500, 40, 30
     last_j = rng.integers(-1, 6, n)
 
     def book(compiled):
         machine = types.SimpleNamespace(
             P=P,
+            n_a=n_a,
+            n_b=n_b,
             be=types.SimpleNamespace(compiled=compiled),
             faults=types.SimpleNamespace(dropped_handoff=None if hand else 0),
         )
         machine._hand_off = types.MethodType(SliceOrderMachine._hand_off, machine)
+        machine._slots = types.MethodType(SlabMachine._slots, machine)
         seen = np.zeros((3, n), dtype=np.int64) if keep else None
         return vp_threads.SectionBook(machine, last_j, np.full(n, -1, np.int64), seen, 11)
 
     numpy_book, compiled_book = book(False), book(True)
-    moves = 0
+    moves, clipped = 0, set()
     for j in range(6):
         rays = np.sort(rng.choice(n, size=rng.integers(0, n), replace=False))
-        a, b = rng.integers(0, 40, (2, rays.size))
-        q = int(rng.integers(0, 40))
-        want_lanes, want, want_tally = numpy_book.step(j, rays, a, b, q)
-        got_lanes, got, got_tally = compiled_book.step(j, rays, a, b, q)
-        np.testing.assert_array_equal(got_lanes, want_lanes)
-        np.testing.assert_array_equal(want_lanes, (q + a + b) % P)
+        # Cells from -1 to past the edge, fractions either side of a half: clipped slots.
+        ca, cb = rng.integers(-1, n_a + 1, rays.size), rng.integers(-1, n_b + 1, rays.size)
+        fa, fb = rng.random((2, rays.size))
+        source = types.SimpleNamespace(
+            _cells=((ca, None, fa), (cb, None, fb)), q=int(rng.integers(0, 40))
+        )
+        *want_slots, want, want_tally = numpy_book.step(j, rays, source)
+        *got_slots, got, got_tally = compiled_book.step(j, rays, source)
+        for g, w in zip(got_slots, want_slots, strict=True):
+            np.testing.assert_array_equal(g, w)
+        a, b, lanes = want_slots
+        np.testing.assert_array_equal(lanes, (source.q + a + b) % P)
+        clipped.update(a[(a == 0) | (a == n_a - 1)].tolist())
         np.testing.assert_array_equal(got, want)
         assert got.dtype == want.dtype
         assert (got_tally is None) == (want_tally is None) == (not hand)
@@ -270,6 +281,7 @@ def test_the_compiled_book_step_marks_what_the_numpy_form_does(keep, hand):
             assert list(got_tally) == list(want_tally)
             moves += want_tally[0][1]
     assert numpy_book.done.any() and numpy_book.seen.any()
+    assert clipped == {0, n_a - 1}  # slots clipped at both edges
     assert not hand or moves > 0  # rays changed pipelines: the counts compared mean something
     keys = ["seen", "done", "last_seen"] + (["prev_lane"] if hand else [])
     for key in keys:

@@ -81,8 +81,7 @@ def _geometry(machine, band: tuple[int, int], cut: bool, book: SectionBook) -> I
         slots = None
         if step.rays.size:
             source = TrilinearSource(m, step)
-            a, b = m._slots(source)
-            slots = source, a, b, *book.step(j, step.rays, a, b, source.q)
+            slots = source, *book.step(j, step.rays, source)
         yield step, window, slots
 
 
@@ -124,17 +123,22 @@ class SectionBook:
         self.seen, self.done = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
         self.ahead = machine.faults.dropped_handoff is None
 
-    def step(self, j: int, rays, a, b, q: int) -> tuple[np.ndarray, np.ndarray, _Tally | None]:
-        """Step ``j``'s rays seen (their record and slot ``(a, b)``), their lanes (the
-        pipeline ``(q + a + b) % P`` of voxel slice ``q``), the rays it finishes, and its
-        hand-offs' counts (None: made by the frame)."""
-        if self.m.be.compiled:  # one compiled loop, the GIL released (_book_step)
+    def step(self, j: int, rays, source) -> tuple:
+        """Step ``j``'s rays (samples of ``source``, a trilinear source) seen: their slots
+        ``(a, b)`` (:meth:`SlabMachine._slots <models.machines.volumepro.cycle.SlabMachine.
+        _slots>`) and lanes (the pipeline ``(q + a + b) % P`` of voxel slice ``q``), the
+        record and slot of each, the rays the step finishes, and its hand-offs' counts
+        (None: made by the frame).  Returns ``(a, b, lanes, fin, handoffs)``."""
+        m, q = self.m, source.q
+        if m.be.compiled:  # one compiled loop, the GIL released (_book_step)
             keep = self.last_seen is not None
-            lanes = np.empty(rays.size, dtype=np.int64)
+            (ca, _, fa), (cb, _, fb) = source._cells
+            a, b, lanes = (np.empty(rays.size, dtype=np.int64) for _ in range(3))
             fin, moved = _book_step(
                 j,
                 self.first_record + j,
                 rays,
+                (ca, fa, cb, fb, m.n_a, m.n_b),
                 a,
                 b,
                 self.last_j,
@@ -149,11 +153,12 @@ class SectionBook:
                 self.ahead,
             )
             if not self.ahead:
-                return lanes, fin, None
+                return a, b, lanes, fin, None
             tally = _Tally()
             tally.add("composite.handoffs", moved)
-            return lanes, fin, tally
-        lanes = (q + a + b) % self.m.P
+            return a, b, lanes, fin, tally
+        a, b = m._slots(source)
+        lanes = (q + a + b) % m.P
         self.seen[rays] = True
         if self.last_seen is not None:
             self.last_seen[0, rays] = self.first_record + j
@@ -161,10 +166,10 @@ class SectionBook:
         fin = rays[self.last_j[rays] == j]
         self.done[fin] = True
         if not self.ahead:
-            return lanes, fin, None
+            return a, b, lanes, fin, None
         tally = _Tally()
-        self.m._hand_off(rays, lanes, self.prev_lane, None, tally)
-        return lanes, fin, tally
+        m._hand_off(rays, lanes, self.prev_lane, None, tally)
+        return a, b, lanes, fin, tally
 
     def hand_off(self, handoffs: _Tally | None, rays, lanes, state) -> None:
         """The step's ring hand-offs on the frame's thread: counted, or made."""
@@ -180,22 +185,29 @@ _NO_LANES = np.zeros(0, dtype=np.int64)
 
 @numba.njit(cache=True, nogil=True)
 def _book_step(
-    j, record, rays, a, b, last_j, seen, done, last_seen, keep, q, P, lanes, prev_lane, hand
+    j, record, rays, cells, a, b, last_j, seen, done, last_seen, keep, q, P, lanes, prev_lane, hand
 ):
     """:meth:`SectionBook.step`'s marks in one loop over the step's rays (each at most
-    once in a step, so the same arrays as its NumPy form): each ray's lane ``(q + a +
-    b) % P`` into ``lanes``, ``seen``, rule 8''s record and slot (when ``keep``), the
-    rays finished (``last_j == j``, in ``rays``' order), marked ``done``, and (when
-    ``hand``) the ring hand-offs of
+    once in a step, so the same arrays as its NumPy form): each sample's slot into ``a``
+    and ``b`` (the nearest voxel to its cell ``cells = (ca, fa, cb, fb, n_a, n_b)``, as
+    ``SlabMachine._slots``), its lane ``(q + a + b) % P`` into ``lanes`` (a mask when
+    ``P`` is a power of two: the slots are not negative), ``seen``, rule 8''s record and
+    slot (when ``keep``), the rays finished (``last_j == j``, in ``rays``' order), marked
+    ``done``, and (when ``hand``) the ring hand-offs of
     :meth:`~models.machines.common.slice_order.SliceOrderMachine._hand_off` with no fault:
     each ray's pipeline ``prev_lane`` set to its lane, the moves counted.  Returns the
     rays finished and the moves."""
+    ca, fa, cb, fb, n_a, n_b = cells
+    mask = P - 1 if P & (P - 1) == 0 else -1
     fin = np.empty(rays.size, dtype=np.int64)
     n = 0
     moved = 0
     for i in range(rays.size):
         r = rays[i]
-        lanes[i] = (q + a[i] + b[i]) % P
+        a[i] = min(max(ca[i] + (1 if fa[i] >= 0.5 else 0), 0), n_a - 1)
+        b[i] = min(max(cb[i] + (1 if fb[i] >= 0.5 else 0), 0), n_b - 1)
+        slot = q + a[i] + b[i]
+        lanes[i] = slot & mask if mask >= 0 else slot % P
         seen[r] = True
         if keep:
             last_seen[0, r] = record
