@@ -38,7 +38,7 @@ from hwsim.core.threads import frame_threads
 from hwsim.engine import Counters, DrainFifo, Stage, VcdTrace
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import make_plan
-from hwsim.memory import SdramStats, parse_memory
+from hwsim.memory import parse_memory
 from models.backend import Backend
 from models.machines.common.results import UNITS, CycleResult, frame_result, publish_pixel_bus
 from models.machines.common.slice_order import SliceFaults, SliceOrderMachine, slice_position
@@ -56,6 +56,7 @@ from models.machines.volumepro.slice_loads import SliceLoads, differences_numpy,
 from models.machines.volumepro.threads import SectionBook, finish_behind, steps_ahead
 from models.machines.volumepro.timing import (
     SliceRecord,
+    count_timing,
     frame_period,
     mini_blocks_read,
     record_trace,
@@ -493,32 +494,8 @@ class SlabMachine(SliceOrderMachine):
             stage.account(idle, cycles - timing.end)
             stage.publish()
         self.memory.publish()
-        sdram = SdramStats.combine(timing.stats)
-        for key, value in sdram.to_counters("memory.sdram").items():
-            c.set(key, int(value))
-        for m, stats in enumerate(timing.stats):
-            c.set(f"memory.module[{m}].bursts", stats.bursts)
-            c.set(f"memory.module[{m}].busy_cycles", stats.data_busy_cycles)
-        n_beams = sum(s.needs.size for s in slices)
-        all_beams = sum(sections[r.section][1] - sections[r.section][0] for r in records)
-        if plan is not None:  # rule 3': every period's beams run (and the halo rows')
-            all_beams = n_beams
-        c.set("memory.mbb_reads", len(deliveries))
-        c.set("memory.bursts_skipped", int(needed.size - needed.sum()))
-        c.set("memory.bursts", sdram.bursts)
-        c.set("memory.stall_cycles", timing.memory_stall)
-        c.set("memory.buffer_full_cycles", sdram.stall_arrival_cycles)
-        c.set("pipeline.beams_processed", n_beams)
-        c.set("pipeline.beams_skipped", all_beams - n_beams)
-        c.set("pipeline.beam_cycles", int(sum(int(s.cycles.sum()) for s in slices)))
-        c.set(
-            "pipeline.slice_stretch_cycles",
-            sum(s.extra for s in slices) - len(slices) * self.arch.slice_overhead_cycles,
-        )
-        c.set("section.count", len(sections))
-        c.set("section.parked_rays", sum(parked_counts))
-        c.set("section.reload_cycles", sum(parked_counts[:-1]))
-        c.set("section.overhead_cycles", (len(sections) - 1) * self.arch.section_overhead_cycles)
+        frame = records, sections, parked_counts
+        count_timing(self, timing, deliveries, slices, frame, needed, plan is not None)
         publish_pixel_bus(c, pixel_fifo, drain)
         c.set("pixel_bus.stall_cycles", timing.pixel_stall)
         c.set("simulation.transparent_samples_skipped", state.extra.get("skipped", 0))

@@ -21,6 +21,7 @@ import numba
 import numpy as np
 
 from hwsim.engine import Counters, DrainFifo
+from hwsim.memory import SdramStats
 from hwsim.memory.sdram_trace import command_trace, record_commands
 from models.machines.volumepro.fifo_timing import (
     DESKEW_WRITE,
@@ -36,6 +37,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "SliceRecord",
+    "count_timing",
     "deliveries_read",
     "timing_inputs",
     "frame_period",
@@ -149,6 +151,38 @@ def deliveries_read(m: SlabMachine, sections, needed):
     burst_banks = np.concatenate([b for k in range(M) for b, _ in chunks[k]] or [empty])
     burst_rows = np.concatenate([r for k in range(M) for _, r in chunks[k]] or [empty])
     return burst_banks, burst_rows, starts, index
+
+
+def count_timing(m: SlabMachine, timing, deliveries, slices, frame, needed, fifo: bool) -> None:
+    """The frame's memory, pipeline and section counters from its timing pass: ``frame =
+    (records, sections, parked_counts)`` of the data pass, ``fifo``: slice-FIFO periods."""
+    c, (records, sections, parked_counts) = m.counters, frame
+    sdram = SdramStats.combine(timing.stats)
+    for key, value in sdram.to_counters("memory.sdram").items():
+        c.set(key, int(value))
+    for k, stats in enumerate(timing.stats):
+        c.set(f"memory.module[{k}].bursts", stats.bursts)
+        c.set(f"memory.module[{k}].busy_cycles", stats.data_busy_cycles)
+    n_beams = sum(s.needs.size for s in slices)
+    all_beams = sum(sections[r.section][1] - sections[r.section][0] for r in records)
+    if fifo:  # rule 3': every period's beams run (and the halo rows')
+        all_beams = n_beams
+    c.set("memory.mbb_reads", len(deliveries))
+    c.set("memory.bursts_skipped", int(needed.size - needed.sum()))
+    c.set("memory.bursts", sdram.bursts)
+    c.set("memory.stall_cycles", timing.memory_stall)
+    c.set("memory.buffer_full_cycles", sdram.stall_arrival_cycles)
+    c.set("pipeline.beams_processed", n_beams)
+    c.set("pipeline.beams_skipped", all_beams - n_beams)
+    c.set("pipeline.beam_cycles", int(sum(int(s.cycles.sum()) for s in slices)))
+    c.set(
+        "pipeline.slice_stretch_cycles",
+        sum(s.extra for s in slices) - len(slices) * m.arch.slice_overhead_cycles,
+    )
+    c.set("section.count", len(sections))
+    c.set("section.parked_rays", sum(parked_counts))
+    c.set("section.reload_cycles", sum(parked_counts[:-1]))
+    c.set("section.overhead_cycles", (len(sections) - 1) * m.arch.section_overhead_cycles)
 
 
 @numba.njit(cache=True, nogil=True)
