@@ -47,6 +47,8 @@ from models.machines.volumepro.timing import SliceRecord, deliveries_read
 __all__ = ["TimingAhead", "timing_ahead"]
 
 _END, _CANCEL = object(), object()
+#: Slices handed to the thread at once.
+BATCH = 16
 
 
 def timing_ahead(m, sections, needed, threads: int, buffers: tuple):
@@ -75,6 +77,8 @@ class TimingAhead:
         self.m, self.buffers = m, buffers  # (pixel FIFO, buffer entries, capacity)
         self.pixel_fifo, self.capacity = buffers[0], buffers[2]
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self._batch: list = []  # records and parked counts not yet handed over
+        self._taken: list = []  # handed over, not yet taken by the thread
         self._result: tuple | None = None
         self.played = 0  # slices played so far (read by the tests)
         self._error: BaseException | None = None
@@ -88,17 +92,27 @@ class TimingAhead:
 
     def record(self, rec: SliceRecord) -> None:
         """A sample slice recorded (final: the frame changes only its ``arrivals``,
-        which the slice-FIFO periods do not read)."""
-        self._inbox.put(rec)
+        which the slice-FIFO periods do not read); handed over :data:`BATCH` at a time
+        (a wake-up of the thread per slice would cost GIL hand-offs)."""
+        self._batch.append(rec)
+        if len(self._batch) >= BATCH:
+            self._flush()
 
     def parked(self, count: int) -> None:
         """The rays parked at the end of the section whose slices were recorded."""
-        self._inbox.put(count)
+        self._batch.append(count)
+        self._flush()
+
+    def _flush(self) -> None:
+        if self._batch:
+            self._inbox.put(self._batch)
+            self._batch = []
 
     def join(self) -> tuple[DeliveryTable, list, object, FrameTiming]:
         """Wait for the pass (every slice recorded): ``(deliveries, slices, plan,
         timing)`` as ``timing_inputs`` and ``run_timing`` give them; its error raised
         here."""
+        self._flush()
         self._inbox.put(_END)
         self._thread.join()
         if self._error is not None:
@@ -188,7 +202,10 @@ class TimingAhead:
     def _take(self, parked: list[int]) -> SliceRecord:
         """The next record, parked counts taken on the way into ``parked``."""
         while True:
-            got = self._inbox.get()
+            if not self._taken:
+                batch = self._inbox.get()
+                self._taken = batch[::-1] if isinstance(batch, list) else [batch]
+            got = self._taken.pop()
             if got is _CANCEL:
                 raise _Cancelled
             if got is _END:
