@@ -13,16 +13,16 @@ geometry alone: the sections, each sample slice's window and its reach (rule 3')
 two things come from the data pass: a slice's samples per lane (``busy``: its stretch,
 ``extra``) and the rays parked at a section's end (the next section's ``pre``).
 
-:class:`TimingAhead` (``threads > 1``, compiled, no waveform, no steady state) builds the
-deliveries and the periods on a worker thread (``hwsim-timing``) at the frame's start
-with those two left out, then plays each period through the memory loop
+:class:`TimingAhead` (``threads > 1``, compiled, no waveform, no steady state) builds
+the deliveries and the periods on a worker thread (``hwsim-timing``) at the frame's
+start with those two left out, then plays each period through the memory loop
 (:func:`~models.machines.volumepro.timing_kernel.play_once`, the GIL released per slice)
-as soon as the data pass has recorded its slice (:meth:`TimingAhead.record`) and the
-parked rays before it (:meth:`TimingAhead.parked`).  Every period is completed before it
-is played, and they are played in order, so the controllers, the pixel FIFO and the
-frame's timing are the serial pass's bits; a frame whose loop needs more log room than
-the sizing guessed is played again from the start at the join (:func:`~models.machines.
-volumepro.timing_kernel.play`).
+once the data pass has recorded its slice (:meth:`TimingAhead.record`, handed over
+:data:`BATCH` at a time) and the parked rays before it (:meth:`TimingAhead.parked`).
+Every period is completed before it is played, and they are played in order, so the
+controllers, the pixel FIFO and the frame's timing are the serial pass's bits; a frame
+whose loop needs more log room than the sizing guessed is played again from the start at
+the join (:func:`~models.machines.volumepro.timing_kernel.play`).
 """
 
 from __future__ import annotations
