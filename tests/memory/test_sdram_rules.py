@@ -187,3 +187,29 @@ def test_fifo_backpressure_through_the_incremental_controller():
     assert s.stats.stall_arrival_cycles > 0 and s.stats.stall_bank_cycles == 0
     with pytest.raises(ValueError, match="bank 9"):
         ctl.issue(9, 0)
+
+
+def test_adopted_request_logs_give_the_schedule_of_fresh_ones():
+    """Logs handed in by :meth:`SdramController.adopt_logs` (scratch another stream left
+    full of its own cycles) are only written, never read before: the same schedule as a
+    controller's own logs; refused once a request is in, or of the wrong shape."""
+    rng = np.random.default_rng(5)
+    cfg = SdramConfig(t_refi=60)
+    bank, row = rng.integers(0, 4, 300), rng.integers(0, 3, 300)
+    arrive = np.sort(rng.integers(0, 2000, 300))
+    fresh = schedule_bursts(cfg, bank, row, arrive)
+    ctl = SdramController(cfg)
+    out, arrivals = np.full((4, 320), 7, dtype=np.int64), np.full(320, 9, dtype=np.int64)
+    ctl.adopt_logs(out, arrivals)
+    ctl.issue_many(bank, row, arrive)
+    reused = ctl.schedule()
+    for name in ("read", "activate", "precharge", "outcome", "refresh"):
+        assert np.array_equal(getattr(reused, name), getattr(fresh, name)), name
+    assert reused.stats == fresh.stats
+    assert ctl.logs()[0] is out and np.array_equal(out[0, :300], fresh.read)
+    with pytest.raises(RuntimeError, match="before the first request"):
+        ctl.adopt_logs(out, arrivals)
+    with pytest.raises(ValueError, match="columns"):
+        SdramController(cfg).adopt_logs(out, arrivals[:10])
+    with pytest.raises(ValueError, match="int64"):
+        SdramController(cfg).adopt_logs(out.astype(np.int32), arrivals)

@@ -34,8 +34,8 @@ from hwsim.volumes.volume import Volume
 from models import cycle as cycle_module
 from models.frame import frame_of
 from models.functional import NEVER, render_functional
+from models.machines.volumepro import chunk_reads, vp1000_transaction
 from models.machines.volumepro import cycle as volumepro_module
-from models.machines.volumepro import vp1000_transaction
 from models.machines.volumepro.vp1000_transaction import Vp1000Transaction
 from models.transaction import render_transaction, timing_only, transaction_timing
 
@@ -315,6 +315,42 @@ def test_the_event_model_never_runs_the_cycle_machine(phantoms, monkeypatch):
         scene_of(ert=0.95), fidelity="transaction", arch="volumepro1000", volume=phantoms["head"]
     )
     assert run.cycles > 0 and run.counters["transaction.events"] > 0
+
+
+def test_reused_request_logs_leak_nothing_between_frames(phantoms):
+    """The SDRAM request logs a frame hands back (``chunk_reads.return_logs``) are the next
+    frame's scratch: two different frames alternated, each with logs the other (larger
+    or smaller) left filled, count and time exactly as each does with fresh logs."""
+    volume, arch = phantoms["head"], machine(False)
+
+    def frame(az, el, image):
+        scene = scene_of(az=az, el=el, image=image, ert=0.9)
+        return frame_of(
+            scene,
+            volume,
+            resolve_transfer(scene.transfer, volume),
+            arch,
+            make_plan(scene, volume, arch.order),
+        )
+
+    frames = [frame(30, 20, 40), frame(150, -30, 24)]
+
+    def counters(f, **options):
+        timing = transaction_timing(f, **options)
+        return timing.cycles, {k: v for k, v in timing.counters.items() if "seconds" not in k}
+
+    chunk_reads._pool.clear()
+    fresh = []
+    for f in frames:
+        fresh.append(counters(f))
+        chunk_reads._pool.clear()
+    pairs = list(zip(frames, fresh, strict=True))
+    for f, expected in (pairs + pairs[::-1]) * 2:
+        assert counters(f) == expected
+        assert chunk_reads._pool, "a finished frame keeps its logs"
+    steady = counters(frames[0], steady_state=True)
+    chunk_reads._pool.clear()
+    assert counters(frames[0], steady_state=True) == steady
 
 
 def test_what_the_model_refuses(phantoms):

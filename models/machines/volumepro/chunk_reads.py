@@ -14,6 +14,7 @@ when each buffer slot is freed.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,13 +24,26 @@ import simpy
 from models.machines.volumepro.lanes import miniblock_layout
 from models.machines.volumepro.memory import mini_block_bursts
 
-__all__ = ["ChunkLink", "ChunkStreams", "DeferredReads", "chunk_streams", "memory_process"]
+__all__ = [
+    "ChunkLink",
+    "ChunkStreams",
+    "DeferredReads",
+    "chunk_streams",
+    "lend_logs",
+    "memory_process",
+    "return_logs",
+]
 
 #: Bursts of the slab layouts kept for the next frame (a 256^3 volume's 2 Mi with one
 #: word a voxel); larger volumes are laid out again each frame.
 _KEEP = 1 << 22
 #: The last slab layouts, by voxel layout and view axes (:func:`slab_layouts`).
 _layouts: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+#: Requests of the SDRAM request logs kept for later frames, in all (:func:`lend_logs`).
+_POOL_REQUESTS = 1 << 21
+#: Request logs (``out``, ``arrivals``) of finished frames' controllers, free to reuse.
+_pool: list[tuple[np.ndarray, np.ndarray]] = []
+_pool_lock = threading.Lock()
 
 
 @dataclass
@@ -119,7 +133,7 @@ class DeferredReads:
         self.issue_at: list[int] = []  # cycle each chunk issued, in read order
         self.ready: list[int] = []  # cycle each flushed chunk is ready
         for port, (bank, _, _, _) in zip(ports, streams.modules, strict=True):
-            _reserve(port.controller, frames * bank.size)
+            lend_logs(port.controller, frames * bank.size)
 
     @property
     def issued_count(self) -> int:
@@ -168,17 +182,31 @@ class DeferredReads:
             a = b
 
 
-def _reserve(controller, n: int) -> None:
-    """``controller.reserve(n)`` in steps of at most 32 times from its first 64 requests:
-    each step widens its arrays by ``np.resize``, which concatenates as many copies of the
-    old array as fit (one step from 64 to a 256^3 frame's half million was 8,000 copies,
-    ~10 ms a module); the zeroed request log is allocated lazily, so a step costs little
-    else."""
-    room = 64 * 32
-    while room < n:
-        controller.reserve(room)
-        room *= 32
-    controller.reserve(n)
+def lend_logs(controller, n: int) -> None:
+    """Give ``controller`` request logs for ``n`` requests: the smallest kept ones that
+    fit (:func:`return_logs`), else new ones of exactly ``n``.  A kept log's pages are
+    already mapped: fresh ones cost a page fault every 4 KiB on their first write (~2,000
+    faults, a sixth of a 128^3 VolumePro 1000 frame's timing-only CPU time); the
+    controller overwrites every entry it later reads, so nothing of another frame leaks."""
+    with _pool_lock:
+        fits = [k for k, (_, a) in enumerate(_pool) if a.shape[0] >= n]
+        logs = _pool.pop(min(fits, key=lambda k: _pool[k][1].shape[0])) if fits else None
+    if logs is None:
+        m, rows = max(int(n), 1), controller.logs()[0].shape[0]
+        logs = np.empty((rows, m), dtype=np.int64), np.empty(m, dtype=np.int64)
+    controller.adopt_logs(*logs)
+
+
+def return_logs(ports) -> None:
+    """Keep the request logs of ``ports``' controllers for later frames (up to
+    :data:`_POOL_REQUESTS` requests in all): call only once their schedules are read."""
+    with _pool_lock:
+        kept = sum(a.shape[0] for _, a in _pool)
+        for port in ports:
+            out, arrivals = port.controller.logs()
+            if kept + arrivals.shape[0] <= _POOL_REQUESTS:
+                _pool.append((out, arrivals))
+                kept += arrivals.shape[0]
 
 
 class ChunkLink:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["bursts_read", "split_streams"]
+__all__ = ["beam_groups", "bursts_read", "split_streams"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -83,3 +83,64 @@ def split_streams(module, bank, row, spans, needed, wpv, banks, rows):
         for k in range(modules):
             per[k, c] -= per[k, c - 1]
     return per
+
+
+@numba.njit(cache=True, nogil=True)
+def beam_groups(index, windows, spans, dims, band, first, groups, last):
+    """One band's beam groups of every sample slice, in processing order, and each
+    chunk's last reader (:meth:`~models.machines.volumepro.transaction.SlabTransaction.
+    _schedule`'s loop).
+
+    Parameters
+    ----------
+    index : ndarray
+        int64 ``(slabs, chunks of a slab)``: the chunk number of each slab's ``k``-th
+        chunk of the band (-1: not read).
+    windows : ndarray
+        int64 ``(n_steps, 2)``: the slabs ``lo .. hi`` holding each slice's voxel window.
+    spans : tuple of ndarray
+        ``(clocks, lo, hi)``, each int64 ``(n_steps, spans)``: each span of rows' clocks
+        (0: every row skipped, no group) and its first and last row needing a chunk.
+    dims : tuple
+        ``(n_a, u0, U)``: the beams, the band's first mbb and the mbbs a chunk.
+    band, first : int
+        The band's number and its first group's.
+    groups : ndarray
+        int64 ``(>= n_steps (spans + 1), 4)``: gets ``(band, j, clocks, last chunk
+        needed or -1)`` per group; a slice whose every span is skipped keeps one empty
+        group.
+    last : ndarray
+        int64 per chunk: raised to the last group needing it.
+
+    Returns
+    -------
+    int
+        The next group's number.
+    """
+    clocks, span_lo, span_hi = spans
+    n_a, u0, U = dims
+    n_k = index.shape[1]
+    g = first
+    for j in range(clocks.shape[0]):
+        s_lo, s_hi = windows[j, 0], windows[j, 1]
+        start = g
+        for si in range(clocks.shape[1]):
+            if clocks[j, si] == 0:
+                continue
+            k_lo = (max(span_lo[j, si] - 1, 0) // 2 - u0) // U
+            k_hi = min((min(span_hi[j, si] + 2, n_a - 1) // 2 - u0) // U, n_k - 1)
+            need = -1
+            for s in range(s_lo, s_hi + 1):
+                for k in range(k_lo, k_hi + 1):
+                    c = index[s, k]
+                    if c >= 0:
+                        need = max(need, c)
+                        last[c] = g
+            row = groups[g - first]
+            row[0], row[1], row[2], row[3] = band, j, clocks[j, si], need
+            g += 1
+        if g == start:  # every beam of the slice skipped
+            row = groups[g - first]
+            row[0], row[1], row[2], row[3] = band, j, 0, -1
+            g += 1
+    return g

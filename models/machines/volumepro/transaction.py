@@ -84,6 +84,7 @@ from models.machines.volumepro.chunk_reads import (
     DeferredReads,
     chunk_streams,
     memory_process,
+    return_logs,
 )
 from models.machines.volumepro.fifo_timing import (
     DESKEW_WRITE,
@@ -174,15 +175,20 @@ class SlabTransaction:
         self.forward = slice_direction(plan)
         self.row_pixels = max(1, plan.shape[1])
         self.slice_fifo = uses_slice_fifos(arch)
+        self._windows: dict[int, tuple[int, int]] = {}  # _window_slabs' of this frame
 
     # ------------------------------------------------------------------ geometry
 
     def _window_slabs(self, j: int) -> tuple[int, int]:
-        """Slabs holding voxel slices ``i0 - 1 .. i0 + 2`` of sample slice ``j``."""
+        """Slabs holding voxel slices ``i0 - 1 .. i0 + 2`` of sample slice ``j`` (kept for
+        the frame: rule 6's skips and the schedule both ask)."""
+        if j in self._windows:
+            return self._windows[j]
         n = self.n_k
         p = min(max(slice_position(self.plan, j, self.forward), 0.0), n - 1.0)
         i0 = int(min(np.floor(p), max(n - 2, 0)))
-        return max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2
+        self._windows[j] = window = (max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2)
+        return window
 
     def _schedule(self, n_steps: int):
         """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
@@ -198,56 +204,46 @@ class SlabTransaction:
         slab_order = list(range(self.n_slabs))
         if not self.forward:
             slab_order.reverse()
-        chunks, index = [], {}
+        chunks, index, grids = [], {}, []
         # Per slab and mbb, whether a mini-block of it is read (lists: a chunk's test is
         # a slice of 2 U flags, cheaper in Python than a NumPy call per chunk).
         read = None if sk is None else sk.needed.any(axis=2).tolist()
         for bi, (a0, a1) in enumerate(self.bands):
             u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
+            # The band's chunk numbers by slab and chunk of a slab (-1: not read).
+            grids.append(np.full((self.n_slabs, len(range(u0, u1 + 1, U))), -1, np.int64))
             for slab in slab_order:
                 for k, u in enumerate(range(u0, u1 + 1, U)):
                     hi = min(u + U - 1, u1)
                     if read is not None and not any(read[slab][u : hi + 1]):
                         continue  # no mini-block of these mbbs is read
-                    index[bi, slab, k] = len(chunks)
+                    index[bi, slab, k] = grids[bi][slab, k] = len(chunks)
                     chunks.append((bi, slab, u, hi))
         if self.slice_fifo:  # rules 3', 5'
             return (chunks, *fifo_schedule(self, n_steps, chunks, index))
-        groups, needs = [], []
+        from models.machines.volumepro.streams_kernel import beam_groups  # numba
+
+        windows = np.array([self._window_slabs(j) for j in range(n_steps)], dtype=np.int64)
+        parts, g = [], 0
+        last = np.full(len(chunks), -1, dtype=np.int64)
         for bi, (a0, a1) in enumerate(self.bands):
+            r0 = np.arange(a0, a1, 2 * U, dtype=np.int64)
+            r1 = np.minimum(r0 + 2 * U, a1)
+            if sk is None:  # every row: its span's clocks, rows r0 .. r1 - 1
+                spans = tuple(
+                    np.ascontiguousarray(np.broadcast_to(v, (n_steps, r0.size)))
+                    for v in ((r1 - r0) * self.C, r0, r1 - 1)
+                )
+            else:  # per slice and span: clocks, first and last live row
+                spans = _live_spans(sk.cost[:n_steps], r0, r1)
+            out = np.empty((n_steps * (r0.size + 1), 4), dtype=np.int64)
             u0 = max(a0 - 1, 0) // 2
-            spans = [(r0, min(r0 + 2 * U, a1)) for r0 in range(a0, a1, 2 * U)]
-            if sk is not None:  # per slice and span: clocks, first and last live row
-                span_clocks, live_lo, live_hi = _live_spans(sk.cost, spans)
-            for j in range(n_steps):
-                s_lo, s_hi = self._window_slabs(j)
-                first = len(groups)
-                for si, (r0, r1) in enumerate(spans):
-                    if sk is None:
-                        clocks, lo, hi = (r1 - r0) * self.C, r0, r1 - 1
-                    else:
-                        clocks = span_clocks[j][si]
-                        if not clocks:
-                            continue
-                        lo, hi = live_lo[j][si], live_hi[j][si]
-                    k_lo = (max(lo - 1, 0) // 2 - u0) // U
-                    k_hi = (min(hi + 2, n_a - 1) // 2 - u0) // U
-                    ids = [
-                        index[bi, s, k]
-                        for s in range(s_lo, s_hi + 1)
-                        for k in range(k_lo, k_hi + 1)
-                        if (bi, s, k) in index
-                    ]
-                    groups.append((bi, j, clocks, max(ids, default=-1)))
-                    needs.append(ids)
-                if len(groups) == first:  # every beam of the slice skipped
-                    groups.append((bi, j, 0, -1))
-                    needs.append([])
-        last = [-1] * len(chunks)
-        for g, ids in enumerate(needs):
-            for c in ids:
-                last[c] = g  # groups are numbered in processing order
-        return chunks, groups, np.array(last, dtype=np.int64)
+            dims = (n_a, u0, U)
+            end = beam_groups(grids[bi], windows.reshape(-1, 2), spans, dims, bi, g, out, last)
+            parts.append(out[: end - g])
+            g = end
+        groups = list(map(tuple, np.concatenate(parts).tolist()))
+        return chunks, groups, last
 
     # ------------------------------------------------------------------ frame
 
@@ -291,6 +287,7 @@ class SlabTransaction:
             cycles = max(stats["pipe_end"], bus.end) + latency
         # Views of the controllers' logs, not copies: nothing is issued after this.
         sdram = SdramStats.combine([p.controller.schedule(copy=False).stats for p in ports])
+        return_logs(ports)  # read: the next frame may reuse them
         counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
         counters.update(
             {
@@ -319,9 +316,10 @@ class SlabTransaction:
             }
         )
         if self.steady_state:  # rule 9: the cycles between two back-to-back frames' ends
-            twice, _, _ = self._simulate(
+            twice, _, ports = self._simulate(
                 chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=2
             )
+            return_logs(ports)
             counters["frame.period_cycles"] = twice["pipe_ends"][1] - twice["pipe_ends"][0]
             counters["transaction.timing_seconds"] = time.perf_counter() - start
         return TxnTiming(int(cycles), counters)
@@ -475,19 +473,19 @@ class SlabTransaction:
         }
 
 
-def _live_spans(cost: np.ndarray, spans: list[tuple[int, int]]):
-    """Per sample slice and span ``(r0, r1)`` of rows: the span's clocks (``cost`` summed)
-    and its first and last row of nonzero cost (meaningful where the clocks are not 0),
-    as nested lists."""
-    starts = [r0 for r0, _ in spans]
-    part = cost[:, starts[0] : spans[-1][1]]
-    rows = np.arange(starts[0], spans[-1][1])
-    local = [r0 - starts[0] for r0 in starts]
+def _live_spans(cost: np.ndarray, r0: np.ndarray, r1: np.ndarray):
+    """Per sample slice and span ``r0[i] .. r1[i] - 1`` of rows (consecutive spans): the
+    span's clocks (``cost`` summed) and its first and last row of nonzero cost
+    (meaningful where the clocks are not 0), int64 ``(slices, spans)`` each."""
+    start = int(r0[0])
+    part = cost[:, start : int(r1[-1])]
+    rows = np.arange(start, int(r1[-1]))
+    local = r0 - start
     live = part > 0
     clocks = np.add.reduceat(part, local, axis=1)
     lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
     hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
-    return clocks.tolist(), lo.tolist(), hi.tolist()
+    return tuple(np.ascontiguousarray(v, dtype=np.int64) for v in (clocks, lo, hi))
 
 
 def _other_axes(plan: SamplePlan) -> tuple[int, int]:
