@@ -66,7 +66,10 @@ def test_compiled_loads_equal_the_numpy_form(case):
         assert planes.keys() == expected.keys()
         for key, plane in planes.items():
             np.testing.assert_array_equal(plane, expected[key], err_msg=f"{key} of slice {q}")
-            assert plane.dtype == expected[key].dtype
+            if key in ("lo", "hi"):  # LUT entries, kept narrow for the visibility pass
+                assert plane.dtype == fast.loads.entry_type
+            else:
+                assert plane.dtype == expected[key].dtype
         np.testing.assert_array_equal(voxels, ref._voxels[q])
     for q in range(fast.n_kp):
         got, expected = fast._differences(q), slice_loads.differences_numpy(ref, q)
@@ -113,3 +116,51 @@ def test_compiled_rule6_cells_equal_the_numpy_form(seed):
     cells[ra[known], rb[known]] = True
     np.testing.assert_array_equal(blocks, mini_blocks_read(cells[:, :n_b]))
     assert blocks.any()
+
+
+def test_routes_kept_per_ring_are_the_numpy_forms():
+    """The routes kept across frames (``slice_loads._ROUTES``) are keyed by the ring's
+    faults: a healthy frame, then one with a dropped link and one with a short beam FIFO
+    of the same shape, each still loads the NumPy form's corner planes."""
+    slice_loads._ROUTES.clear()
+    for faults in (None, SlabFaults(dropped_link=1), SlabFaults(beam_fifo_adjust=-1), None):
+        fast, ref = _machines(("volumepro1000", 30, 20, faults, {}))
+        for q in range(fast.P + 1):
+            planes, _ = fast.loads.load(q)
+            np.testing.assert_array_equal(planes["value"], slice_loads.load_numpy(ref, q)["value"])
+            assert not fast.loads.routes(q).flags.writeable
+    assert len(slice_loads._ROUTES) == 3 * fast.P  # one set per ring, the healthy one reused
+
+
+def test_specialised_passes_equal_the_generic_ones(monkeypatch):
+    """The slab kernel's passes compiled for the machine's own formats (the closure's
+    constants) give the generic passes' image, cycles and counters."""
+    from models.cycle import render_cycle
+    from models.machines.volumepro import slab_kernel
+
+    def frame_of_case(arch_name):
+        arch = resolve_arch(arch_name)
+        volume = make_phantom("head", size=19)
+        scene = Scene(
+            transfer=TransferSpec(preset="ct"),
+            view=ViewSpec(azimuth=-20, elevation=60, width=16, height=16),
+        )
+        tf = resolve_transfer(scene.transfer, volume)
+        return frame_of(scene, volume, tf, arch, make_plan(scene, volume, arch.order))
+
+    for arch_name in ("volumepro1000", "volumepro500"):
+        frame = frame_of_case(arch_name)
+        own = render_cycle(frame)
+        kernels, asked = slab_kernel._kernels, []
+
+        def generic_kernels(constants=None, kernels=kernels, asked=asked):
+            asked.append(constants)
+            return kernels(None)
+
+        with monkeypatch.context() as patch:
+            patch.setattr(slab_kernel, "_kernels", generic_kernels)
+            generic = render_cycle(frame)
+        assert asked and asked[0] is not None  # the machine's own formats: specialised
+        np.testing.assert_array_equal(own.image, generic.image)
+        assert own.cycles == generic.cycles and own.counters == generic.counters
+        assert own.counters["simulation.transparent_samples_skipped"] > 0

@@ -130,14 +130,14 @@ class SlabMachine(SliceOrderMachine):
         self.datapath = self._slice_datapath()
         self.weight_one = 1 << self.dp.interp.weight_bits
         self.skip_transparent = backend.mode == "composite" and not self.elaborate_all
+        self.loads = SliceLoads(self)
         self.kernel = None
         if backend.compiled:
             from models.machines.volumepro.slab_kernel import SlabKernel  # imports numba
 
             self.kernel = SlabKernel.for_backend(backend, self)
-        self.loads = SliceLoads(self)
         if backend.mode == "composite":
-            self.next_visible = backend.transparent_ranges()
+            self.next_visible = np.ascontiguousarray(backend.transparent_ranges())
         self._planes: dict[int, dict[str, np.ndarray]] = {}
         self._voxels: dict[int, np.ndarray] = {}
         self._diffed: set[int] = set()  # slices whose gradient planes are in _planes

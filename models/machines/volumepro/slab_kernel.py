@@ -92,13 +92,22 @@ def _tri8(n0, n1, n2, n3, f0, f1, f2, f3, wk, wa, wb, kp, w_bits, w_code):
     return np.int64(lerp(y0, y1, wa, w_bits, w_code))
 
 
-def _make_kernels(stage_hash: str):
+def _make_kernels(stage_hash: str, constants: tuple[int, ...] | None):
+    """The two passes, compiled for one configuration (``constants``: the
+    :class:`StageConstants` ``config`` tuple, taken from the closure, which numba
+    compiles as constants: the lerps' shifts and rounding branches resolved, as
+    :func:`models.fused._make_kernel` does) or for any (None: ``config`` read at run
+    time).  numba's on-disk cache keys each by its closure values."""
+    specialised = constants is not None
+    fixed = constants if constants is not None else (0,) * 9
+
     def values(v0, v1, wk, pw, ca, wa, cb, wb, factor, alpha12, config, axes, keep, idx_out,
                alpha_out, sat):  # fmt: skip
         """Pass 1: value, LUT and factor of every sample; the visible ones kept."""
         if len(stage_hash) == 0:  # never: keeps the hash in the cache key
             return 0
-        w_bits, w_code, lut_shift, entries = config[1], config[2], config[3], config[4]
+        cfg = fixed if specialised else config
+        w_bits, w_code, lut_shift, entries = cfg[1], cfg[2], cfg[3], cfg[4]
         rows = v0.shape[0]
         cut = factor.shape[0] > 0
         m = 0
@@ -129,8 +138,9 @@ def _make_kernels(stage_hash: str):
         ``p - 1`` along the principal axis."""
         if len(stage_hash) == 0:
             return
-        w_bits, w_code = config[1], config[2]
-        f_bits, spec_entries, one, acc_code = config[5], config[6], config[7], config[8]
+        cfg = fixed if specialised else config
+        w_bits, w_code = cfg[1], cfg[2]
+        f_bits, spec_entries, one, acc_code = cfg[5], cfg[6], cfg[7], cfg[8]
         kp, a_ax, b_ax = axes[0], axes[1], axes[2]
         rows = v0.shape[0]
         world, modulates = grad_p[GRAD_FLAGS[0]] != 0, grad_p[GRAD_FLAGS[1]] != 0
@@ -161,8 +171,10 @@ def _make_kernels(stage_hash: str):
                     for col in range(3):
                         c = 2 - col
                         g[col, j] = _tri8(
-                            diff0[n0, c], diff0[n1, c], diff0[n2, c], diff0[n3, c],
-                            diff1[f0, c], diff1[f1, c], diff1[f2, c], diff1[f3, c],
+                            np.int64(diff0[n0, c]), np.int64(diff0[n1, c]),
+                            np.int64(diff0[n2, c]), np.int64(diff0[n3, c]),
+                            np.int64(diff1[f0, c]), np.int64(diff1[f1, c]),
+                            np.int64(diff1[f2, c]), np.int64(diff1[f3, c]),
                             gk, wa[i], wb[i], kp, w_bits, w_code,
                         )  # fmt: skip
                 else:
@@ -202,9 +214,10 @@ def _make_kernels(stage_hash: str):
 
 
 @functools.cache
-def _kernels():
-    """The compiled kernel(s), made once per process on first use."""
-    return _make_kernels(STAGE_HASH)
+def _kernels(constants: tuple[int, ...] | None = None):
+    """The compiled passes for ``constants`` (None: the generic ones), made once per
+    process on first use."""
+    return _make_kernels(STAGE_HASH, constants)
 
 
 class SlabKernel(StageConstants):
@@ -218,14 +231,15 @@ class SlabKernel(StageConstants):
 
     def __init__(self, backend, machine) -> None:
         super().__init__(backend)
-        self.values, self.finish = _kernels()
+        # Specialised for the machine's own formats (a width sweep shares the generic).
+        self.values, self.finish = _kernels(self.config if self.own_formats else None)
         self.machine = machine
         self.axes = np.array([machine.kp, machine.a_ax, machine.b_ax], dtype=np.int64)
-        self.config_arr = np.asarray(self.config, dtype=np.int64)
         self.need_grad = bool(backend.need_grad)
         self._no_factor = np.zeros(0, dtype=np.int64)
-        self._no_diff = np.zeros((1, 3), dtype=np.int64)
-        self._no_routes = np.zeros((1, 4), dtype=np.int64)
+        self._no_diff = np.zeros((1, 3), dtype=machine.loads.diff_type)
+        self._no_routes = np.zeros((1, 4), dtype=machine.loads.index_type)
+        self._no_routes.setflags(write=False)  # typed as the routes (read-only, shared)
         #: Where the second pass runs: at once, or behind the data pass on a worker
         #: thread (the frame's :class:`~models.machines.volumepro.threads.FinishBehind`).
         self.behind = FinishBehind(1)
@@ -257,7 +271,7 @@ class SlabKernel(StageConstants):
         idx, alpha = np.empty(n, np.int64), np.empty(n, np.int64)
         sat = np.zeros(3, dtype=np.int64)
         k = self.values(v0, v1, wk, m.plane_width, ca, wa, cb, wb, factor, self.alpha12,
-                        self.config_arr, self.axes, keep, idx, alpha, sat)  # fmt: skip
+                        self.config, self.axes, keep, idx, alpha, sat)  # fmt: skip
         if sat[_OUTSIDE]:
             raise IndexError("a sample's cell lies outside the delivered corner planes")
         if k == 0:
@@ -282,7 +296,7 @@ class SlabKernel(StageConstants):
             np.asarray(step.rays, dtype=np.int64), voxel, self.need_grad, self.rgb12,
             self.grad_p, self.ratio, self.gm_table, self.light, self.half, self.intensity,
             self.spec, self.maps, table, state.acc, self.ert_thr, state.alive, sat,
-            self.config_arr, self.axes,
+            self.config, self.axes,
         )  # fmt: skip
         self.behind.launch(self.finish, args, functools.partial(self._finished, sat))
 

@@ -12,6 +12,8 @@ from nothing (:meth:`SliceDatapath.corners`, which moves any stream along the sa
 So the routes are found once per ``q mod P`` by sending the stream of voxel numbers
 (``1 + a n_b + b``, 0 in idle slots) through :meth:`SliceDatapath.corners`: a cell
 corner then reads voxel ``number - 1`` of the slice or 0, whatever the stream carries.
+They depend on the ring (its depths and faults), the slice shape and ``q mod P`` alone,
+so they are kept across frames (:data:`_ROUTES`, read-only, bounded).
 Each slice is then three compiled, GIL-free passes instead of the NumPy chain
 (stream read, de-skew, ring gather, shift, per channel): :func:`read_plane`
 (the words at the layout's addresses, the stuck module and bank), :func:`_value_rows`
@@ -25,6 +27,8 @@ NumPy form (kept: pre-classified frames, and the reference) on every fault that 
 """
 
 from __future__ import annotations
+
+import threading
 
 import numba
 import numpy as np
@@ -45,18 +49,35 @@ class SliceLoads:
         cfg = machine.dp.classify
         self.lut_shift = machine.dp.voxel_bits + self.S - int(np.log2(cfg.entries))
         self.entries = int(cfg.entries)
+        # Narrow where they fit (half the bytes the compiled passes stream per sample):
+        # the routes' voxel numbers, and the differences (at most twice a voxel's range,
+        # shifted by the fraction bits).
+        mem = machine.memory
+        stuck = [*(mem.stuck_module or (0, 0))[1:], *(mem.stuck_bank or (0, 0, 0))[2:]]
+        word = max(16, *(abs(int(v)).bit_length() for v in stuck))  # uint16 words
+        self.index_type = _fits(int(machine.n_a * machine.n_b + 1).bit_length())
+        self.diff_type = _fits(word + 2 + self.S)
+        # The LUT entries of each cell's corners (``visible`` reads two slices' per sample).
+        self.entry_type = np.int16 if self.entries <= 1 << 15 else np.int64
 
     def routes(self, q: int) -> np.ndarray:
-        """``(cells, 4)`` int64: the voxel number (``1 + a n_b + b``, 0: nothing) each
-        corner of each cell of slice ``q`` receives (depends on ``q mod P`` alone)."""
+        """``(cells, 4)``, int32 where it fits: the voxel number (``1 + a n_b + b``, 0:
+        nothing) each corner of each cell of slice ``q`` receives (depends on ``q mod P``
+        alone)."""
         m = self.m
-        key = q % m.P
-        routes = self._routes.get(key)
+        routes = self._routes.get(q % m.P)
         if routes is None:
-            sched = m.memory.schedule(m.kp, q)
-            numbers = np.where(sched.valid, sched.a * m.n_b + sched.b + 1, 0).astype(np.int64)
-            corners = m.datapath.corners(numbers, q)
-            routes = self._routes[key] = np.ascontiguousarray(corners.reshape(4, -1).T)
+            key = (m.datapath.path, m.P, m.n_a, m.n_b, q % m.P, np.dtype(self.index_type).str)
+            with _ROUTES_LOCK:
+                routes = _ROUTES.get(key)
+            if routes is None:
+                sched = m.memory.schedule(m.kp, q)
+                numbers = np.where(sched.valid, sched.a * m.n_b + sched.b + 1, 0)
+                corners = m.datapath.corners(numbers.astype(np.int64), q).reshape(4, -1).T
+                routes = np.ascontiguousarray(corners, dtype=self.index_type)
+                routes.setflags(write=False)
+                _keep_routes(key, routes)
+            self._routes[q % m.P] = routes
         return routes
 
     def load(self, q: int) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -68,7 +89,7 @@ class SliceLoads:
         n = routes.shape[0]
         rows = np.empty((n, 4), dtype=np.int64)
         want = m.skip_transparent
-        lo = np.empty(n if want else 0, dtype=np.int64)
+        lo = np.empty(n if want else 0, dtype=self.entry_type)
         hi = np.empty_like(lo)
         voxels = np.empty((m.n_a, m.n_b), dtype=np.int64)
         _value_rows(
@@ -90,12 +111,35 @@ class SliceLoads:
         when asked for (:meth:`CornerPlanes.__missing__`)."""
         m = self.m
         n_a, n_b = cur.shape
-        diff = np.empty((n_a * n_b + 1, 3), dtype=np.int64)
+        diff = np.empty((n_a * n_b + 1, 3), dtype=self.diff_type)
         _voxel_differences(
             np.ascontiguousarray(lo), np.ascontiguousarray(hi), factor,
             np.ascontiguousarray(cur), self.S, m.kp, m.a_ax, m.b_ax, diff,
         )  # fmt: skip
         return CornerPlanes(diff=diff, routes=self.routes(q))
+
+
+#: The routes of this process's frames by ring (its depths and faults: ``SlicePath``),
+#: pipelines, slice shape and ``q mod P``: a property of the layout and the ring alone,
+#: never of the data or the view (like the memory's skew conflicts,
+#: ``memory._slice_conflicts``), so a turntable's frames find them once.  Read-only, at
+#: most :data:`_ROUTES_BYTES` in all (the oldest dropped first).
+_ROUTES: dict[tuple, np.ndarray] = {}
+_ROUTES_BYTES = 64 << 20
+_ROUTES_LOCK = threading.Lock()
+
+
+def _keep_routes(key: tuple, routes: np.ndarray) -> None:
+    """Keep ``routes`` in :data:`_ROUTES`, dropping the oldest beyond its budget."""
+    with _ROUTES_LOCK:
+        _ROUTES[key] = routes
+        while sum(r.nbytes for r in _ROUTES.values()) > _ROUTES_BYTES and len(_ROUTES) > 1:
+            _ROUTES.pop(next(iter(_ROUTES)))
+
+
+def _fits(bits: int) -> type:
+    """int32 for values of at most ``bits`` bits and a sign, else int64."""
+    return np.int32 if bits < 32 else np.int64
 
 
 class CornerPlanes(dict):
@@ -108,7 +152,8 @@ class CornerPlanes(dict):
     def __missing__(self, key: str) -> np.ndarray:
         if key not in self._COLUMNS or "diff" not in self:
             raise KeyError(key)
-        rows = self[key] = np.ascontiguousarray(self["diff"][:, self._COLUMNS[key]][self["routes"]])
+        column = self["diff"][:, self._COLUMNS[key]].astype(np.int64)
+        rows = self[key] = np.ascontiguousarray(column[self["routes"]])
         return rows
 
 
