@@ -44,6 +44,7 @@ causal).
 
 from __future__ import annotations
 
+import numpy as np
 import simpy
 
 from hwsim.memory.sdram import SdramConfig
@@ -309,7 +310,7 @@ class SdramTransactionPort:
         end = ctl.data_end(first + count - 1)
         return self.env.timeout(end - self.env.now, value=(first, first + count - 1))
 
-    def read_runs(self, bank, row, arrive, ends) -> list[int]:
+    def read_runs(self, bank, row, arrive, ends) -> np.ndarray:
         """Queue, in one call, consecutive batches the caller has already checked against
         the device (banks ``0 .. banks-1``, rows ``0 .. rows-1``), each burst from its own
         arrival cycle: the same schedule as one :meth:`read` per batch at that cycle (the
@@ -320,24 +321,25 @@ class SdramTransactionPort:
         ----------
         bank, row, arrive : numpy.ndarray
             int64, every batch's bursts concatenated in read order; ``arrive`` ascending.
-        ends : list of int
+        ends : array of int
             Ascending: batch ``i`` is bursts ``ends[i - 1] .. ends[i] - 1`` (from 0).
 
         Returns
         -------
-        list of int
-            Per batch, the cycle after its last data beat (0 for an empty batch); the
-            caller times its own events from these.
+        numpy.ndarray
+            int64 per batch, the cycle after its last data beat (0 for an empty batch);
+            the caller times its own events from these.
         """
         ctl = self.controller
         first = len(ctl)
         if len(bank):
             ctl._run(bank, row, arrive)
-        reads, tail = ctl.reads, ctl.cfg.cas_latency + ctl.cfg.burst_cycles
-        out, start = [], 0
-        for end in ends:
-            out.append(int(reads[first + end - 1]) + tail if end > start else 0)
-            start = end
+        ends = np.asarray(ends, dtype=np.int64)
+        out = np.zeros(ends.shape[0], dtype=np.int64)
+        full = ends > np.concatenate(([0], ends[:-1]))
+        if full.any():
+            out[full] = ctl.reads[first + ends[full] - 1] + ctl.cfg.cas_latency
+            out[full] += ctl.cfg.burst_cycles
         return out
 
     def schedule(self) -> BurstSchedule:

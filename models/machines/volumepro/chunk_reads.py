@@ -167,18 +167,18 @@ class DeferredReads:
             f = a // nc
             b = min(upto, (f + 1) * nc)
             c0, c1 = a - f * nc, b - f * nc
-            at = self.issue_at[a:b]
-            ready = list(at)
+            at = np.asarray(self.issue_at[a:b], dtype=np.int64)
+            ready = at.copy()
             for port, (bank, row, bounds, per) in zip(
                 self.ports, self.streams.modules, strict=True
             ):
                 lo, hi = bounds[c0], bounds[c1]
                 if hi > lo:
-                    arrive = np.repeat(np.asarray(at, dtype=np.int64), per[c0:c1])
-                    ends = [e - lo for e in bounds[c0 + 1 : c1 + 1]]
+                    arrive = np.repeat(at, per[c0:c1])
+                    ends = np.cumsum(per[c0:c1])  # bounds[c0 + 1 .. c1] - lo
                     done = port.read_runs(bank[lo:hi], row[lo:hi], arrive, ends)
-                    ready = [max(x, y) for x, y in zip(ready, done, strict=True)]
-            self.ready.extend(ready)
+                    np.maximum(ready, done, out=ready)
+            self.ready.extend(ready.tolist())
             a = b
 
 

@@ -380,22 +380,35 @@ class SlabTransaction:
         syncing SimPy's to it only to wait for a chunk not ready by then and to push
         pixels (the pixel bus runs on SimPy's clock)."""
         busiest, beam_clocks, by_band, parked = loads
-        env, reads = link.env, link.reads
+        env, reads, ready_at = link.env, link.reads, link.reads.ready
         n_steps, nc, ng = len(busiest), link.total // frames, len(groups)
-        single = len(self.bands) == 1
         deskew = DESKEW_WRITE if self.slice_fifo else 0  # rule 3': usable a clock later
-        t = 0
+        firsts, mores = _slice_bounds(groups)
+        # Sections are parallel-only, where a slice never has more samples than voxels:
+        # the perspective stretch applies to the unsectioned frame.
+        single = len(self.bands) == 1
+        stretches = np.maximum(busiest - beam_clocks, 0).tolist() if single else [0] * n_steps
+        leaving = by_band.tolist()  # rays leaving after each slice of each band
+        for bi, rays in enumerate(parked.tolist()):
+            if n_steps:
+                leaving[bi][n_steps - 1] += rays  # and the rays the band parked
+        t = events = 0
         for k, (f, (bi, j, clocks, need)) in enumerate(
             (f, group) for f in range(frames) for group in groups
         ):
             need = need + f * nc if need >= 0 else need
-            first = k % ng == 0 or groups[k % ng - 1][:2] != (bi, j)
+            first = firsts[k % ng]
             if bi and first and groups[k % ng - 1][0] != bi:
                 # Section change: overhead, then reload the rays parked by the last band.
                 pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
                 stats["section"] += pre
                 t += pre
-            if need >= 0 and not reads.ready_by(need, t - deskew):
+            # (ready_at[need]: flushed already; else ask, which flushes the reads issued)
+            if need >= 0 and not (
+                ready_at[need] <= t - deskew
+                if need < len(ready_at)
+                else reads.ready_by(need, t - deskew)
+            ):
                 yield from link.sync(t)
                 if not reads.ready_by(need, t - deskew):
                     if need - cap >= 0 and free_after[need - cap] >= k:
@@ -414,35 +427,26 @@ class SlabTransaction:
                     t = ready
             if self.slice_fifo and first and j >= 0:  # rule 8': from the period's start
                 yield from link.sync(t)
-                yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
+                yield from bus.push(leaving[bi][j])
                 t = int(env.now)
             t += clocks
-            stats["events"] += 2
+            events += 2
             for c in frees_at.get(k, ()):
                 link.free(c, t)
-            if k % ng + 1 < ng and groups[k % ng + 1][:2] == (bi, j):
-                continue  # more beam groups of this slice
-            if j < 0:  # a read-only period (rule 3'): no samples, no pixels
-                continue
-            # Sections are parallel-only, where a slice never has more samples than
-            # voxels: the perspective stretch applies to the unsectioned frame.
-            stretch = max(0, int(busiest[j]) - int(beam_clocks[j])) if single else 0
-            stats["stretch"] += stretch
-            t += self.arch.slice_overhead_cycles + stretch
+            if mores[k % ng] or j < 0:
+                continue  # more beam groups of this slice; a read-only period (rule 3')
+            stats["stretch"] += stretches[j]
+            t += self.arch.slice_overhead_cycles + stretches[j]
             if not self.slice_fifo:  # rule 8: the slice's pixels at its end
                 yield from link.sync(t)
-                yield from bus.push(self._leaving(by_band, parked, bi, j, n_steps))
+                yield from bus.push(leaving[bi][j])
                 t = int(env.now)
             self._slices_done[0] += 1
             report_progress(self, *self._slices_done)
             if k % ng == ng - 1:
                 stats["pipe_ends"].append(t)
+        stats["events"] += events
         stats["pipe_end"] = t
-
-    @staticmethod
-    def _leaving(by_band, parked, bi: int, j: int, n_steps: int) -> int:
-        """Rays leaving over the pixel bus after sample slice ``j`` of band ``bi``."""
-        return int(by_band[bi, j]) + (int(parked[bi]) if j == n_steps - 1 else 0)
 
     def _mbb_reads(self, chunks) -> int:
         """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
@@ -486,6 +490,14 @@ def _live_spans(cost: np.ndarray, r0: np.ndarray, r1: np.ndarray):
     lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
     hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
     return tuple(np.ascontiguousarray(v, dtype=np.int64) for v in (clocks, lo, hi))
+
+
+def _slice_bounds(groups) -> tuple[list[bool], list[bool]]:
+    """Per beam group ``(band, j, ...)``: whether it is its slice's first, and whether
+    another group of its slice follows."""
+    keys = [g[:2] for g in groups]
+    firsts = [k == 0 or keys[k - 1] != key for k, key in enumerate(keys)]
+    return firsts, [not f for f in firsts[1:]] + [False]
 
 
 def _other_axes(plan: SamplePlan) -> tuple[int, int]:
