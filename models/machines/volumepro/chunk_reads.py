@@ -44,6 +44,9 @@ _POOL_REQUESTS = 1 << 21
 #: Request logs (``out``, ``arrivals``) of finished frames' controllers, free to reuse.
 _pool: list[tuple[np.ndarray, np.ndarray]] = []
 _pool_lock = threading.Lock()
+#: The module streams (``banks``, ``rows``) of a finished frame, free to reuse (up to
+#: :data:`_KEEP` entries each).
+_streams_kept: list[tuple[np.ndarray, np.ndarray]] = []
 
 
 @dataclass
@@ -54,6 +57,8 @@ class ChunkStreams:
 
     modules: list[tuple[np.ndarray, np.ndarray, list[int], np.ndarray]]
     batches: list[int]
+    #: The ``(modules, >= bursts)`` arrays the streams are rows of (kept for later frames).
+    scratch: tuple[np.ndarray, ...] = ()
 
 
 def slab_layouts(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -108,7 +113,7 @@ def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkS
     module, bank, row = slab_layouts(model)
     wpv = model.words_per_voxel
     total = bursts_read(spans, needed, module.shape[2] // wpv, wpv)
-    banks, rows = np.empty((M, total), np.int64), np.empty((M, total), np.int64)
+    banks, rows = _stream_arrays(M, total)
     per = split_streams(module, bank, row, spans, needed, wpv, banks, rows)
     bounds = np.zeros((M, nc + 1), dtype=np.int64)
     np.cumsum(per, axis=1, out=bounds[:, 1:])
@@ -117,7 +122,17 @@ def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkS
         if any(v.size and (v.min() < 0 or v.max() >= limit) for v in (u[i] for u in used)):
             raise ValueError(f"{name} out of range 0 .. {limit - 1}")
     modules = [(b, r, bounds[k].tolist(), per[k]) for k, (b, r) in enumerate(used)]
-    return ChunkStreams(modules, (per > 0).sum(axis=0).tolist())
+    return ChunkStreams(modules, (per > 0).sum(axis=0).tolist(), (banks, rows))
+
+
+def _stream_arrays(modules: int, total: int) -> tuple[np.ndarray, np.ndarray]:
+    """``banks`` and ``rows`` for :func:`split_streams`: a finished frame's if they fit
+    (their pages mapped already; every entry read is written first), else new."""
+    with _pool_lock:
+        for i, (banks, _) in enumerate(_streams_kept):
+            if banks.shape[0] == modules and banks.shape[1] >= total:
+                return _streams_kept.pop(i)
+    return np.empty((modules, total), np.int64), np.empty((modules, total), np.int64)
 
 
 class DeferredReads:
@@ -134,6 +149,15 @@ class DeferredReads:
         self.ready: list[int] = []  # cycle each flushed chunk is ready
         for port, (bank, _, _, _) in zip(ports, streams.modules, strict=True):
             lend_logs(port.controller, frames * bank.size)
+
+    def release(self) -> None:
+        """Keep the ports' request logs and the streams' arrays for later frames (call
+        once the schedules are read: the next frame overwrites them)."""
+        return_logs(self.ports)
+        scratch = self.streams.scratch
+        if scratch and scratch[0].size <= _KEEP:
+            with _pool_lock:
+                _streams_kept[:] = [scratch]
 
     @property
     def issued_count(self) -> int:

@@ -84,7 +84,6 @@ from models.machines.volumepro.chunk_reads import (
     DeferredReads,
     chunk_streams,
     memory_process,
-    return_logs,
 )
 from models.machines.volumepro.fifo_timing import (
     DESKEW_WRITE,
@@ -275,7 +274,7 @@ class SlabTransaction:
             )
         # Progress: slices simulated, of one frame (and two more back to back, steady state).
         self._slices_done = [0, n_steps * (3 if self.steady_state else 1)]
-        stats, bus, ports = self._simulate(
+        stats, bus, reads = self._simulate(
             chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=1
         )
         M = self.memory.modules
@@ -286,8 +285,8 @@ class SlabTransaction:
             latency = pipeline_latency(self.C)
             cycles = max(stats["pipe_end"], bus.end) + latency
         # Views of the controllers' logs, not copies: nothing is issued after this.
-        sdram = SdramStats.combine([p.controller.schedule(copy=False).stats for p in ports])
-        return_logs(ports)  # read: the next frame may reuse them
+        sdram = SdramStats.combine([p.controller.schedule(copy=False).stats for p in reads.ports])
+        reads.release()  # read: the next frame may reuse its arrays
         counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
         counters.update(
             {
@@ -316,10 +315,10 @@ class SlabTransaction:
             }
         )
         if self.steady_state:  # rule 9: the cycles between two back-to-back frames' ends
-            twice, _, ports = self._simulate(
+            twice, _, reads = self._simulate(
                 chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, frames=2
             )
-            return_logs(ports)
+            reads.release()
             counters["frame.period_cycles"] = twice["pipe_ends"][1] - twice["pipe_ends"][0]
             counters["transaction.timing_seconds"] = time.perf_counter() - start
         return TxnTiming(int(cycles), counters)
@@ -330,7 +329,7 @@ class SlabTransaction:
         """Run the memory and the pipelines over ``frames`` identical frames back to back
         (the same controllers, buffer and pixel FIFO carry on); returns the statistics
         (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
-        SDRAM ports.
+        deferred reads (their SDRAM ``ports``).
 
         Both processes keep their own clock ahead of SimPy's and yield only where they
         wait on each other or on the pixel bus (:meth:`_pipelines`,
@@ -373,7 +372,7 @@ class SlabTransaction:
         link.reads.flush(link.reads.issued_count)  # bursts of chunks no group waited on
         if stats["pipe_end"] == 0 and groups:
             raise DeadlockError("the pipelines never finished: the input buffer is too small")
-        return stats, bus, ports
+        return stats, bus, link.reads
 
     def _pipelines(self, link, groups, free_after, frees_at, cap, frames, bus, stats, loads):
         """The pipelines process: beam group after beam group on its own clock ``t``,

@@ -42,6 +42,7 @@ on magnified frames (head 40^3 in an 80 x 80 perspective view: -2.1 %).
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, replace
 from typing import Any
@@ -62,6 +63,10 @@ __all__ = ["BeamSkips", "Vp1000Transaction", "beam_skips", "leaping_plan", "stop
 
 #: Modes whose rays stop on a machine with ERT hardware (opacity threshold, iso's hit).
 stopping_modes = ("composite", "iso")
+#: Rays whose rule 6 loop state (:func:`_ray_state`) is kept for later frames, at most.
+_KEEP_RAYS = 1 << 20
+_rays_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+_rays_lock = threading.Lock()
 
 
 @dataclass
@@ -181,7 +186,7 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
     (:func:`~models.machines.volumepro.skips_kernel.frame_skips`), filling ``out``:
     ``(cost, live_count, busiest, needed)``."""
     from models import fused_steps  # imports numba: only for the frames that need it
-    from models.machines.volumepro.skips_kernel import active_rays, frame_skips
+    from models.machines.volumepro.skips_kernel import frame_skips
 
     kp = plan.principal_axis
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
@@ -191,6 +196,7 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
     if stopped is not None:
         last = stopped[plan.ray_ids[join]].astype(np.int64)
     windows = np.array([window(j) for j in range(plan.n_steps)], dtype=np.int64)
+    rays = _ray_state(join.size)
     frame_skips(
         float(plan.scene.render.supersampling),
         np.ascontiguousarray(terms[:, join]),
@@ -201,9 +207,27 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
         P,
         lag,
         windows.reshape(-1, 2),
-        active_rays(join.size),
+        rays,
         *out,
     )
+    if rays[0].shape[1] <= _KEEP_RAYS:
+        with _rays_lock:
+            _rays_kept[:] = [rays]
+
+
+def _ray_state(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~models.machines.volumepro.skips_kernel.active_rays` for ``n`` rays: a
+    finished frame's arrays if they fit (mapped already: fresh ones page-fault on their
+    first writes; the loop writes a ray's entries when it joins before reading them), its
+    cursor zeroed; else new ones."""
+    from models.machines.volumepro.skips_kernel import active_rays  # numba
+
+    with _rays_lock:
+        if _rays_kept and _rays_kept[0][0].shape[1] >= n:
+            at, ints, cursor = _rays_kept.pop()
+            cursor[:] = 0
+            return at, ints, cursor
+    return active_rays(n)
 
 
 class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
