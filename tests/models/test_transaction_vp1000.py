@@ -426,3 +426,35 @@ def test_back_to_back_frames_are_refused_where_the_model_times_single_frames(nam
     tf = resolve_transfer(scene.transfer, volume)
     with pytest.raises(InputError, match="steady_state"):
         render_transaction(frame_of(scene, volume, tf, arch, plan), steady_state=True)
+
+
+@pytest.mark.parametrize("modules", [2, 4, 8])
+@pytest.mark.parametrize("skipping", [False, True])
+def test_split_streams_keep_each_modules_bursts_in_read_order(modules, skipping):
+    """``streams_kernel.split_streams`` (its four-module pass and its general loop) against
+    a NumPy reference: each module's stream is the bursts of the mini-blocks read with
+    that module, in read order (chunk, mbb, mini-block, word)."""
+    from models.machines.volumepro.streams_kernel import split_streams
+
+    rng = np.random.default_rng(modules)
+    slabs, n_u, n_mb, wpv = 4, 6, 5, 2
+    module, bank = (rng.integers(0, k, (slabs, n_u, n_mb * wpv)) for k in (modules, 4))
+    row = rng.integers(0, 100, (slabs, n_u, n_mb * wpv))
+    spans = np.array([(s, u, min(u + 3, n_u)) for s in (2, 0, 3) for u in (0, 3)])
+    needed = rng.random((slabs, n_u, n_mb)) < 0.5 if skipping else np.zeros((0, 0, 0), bool)
+    total = slabs * n_u * n_mb * wpv
+    banks, rows = np.full((modules, total), -1), np.full((modules, total), -1)
+    per = split_streams(
+        module.astype(np.int16), bank.astype(np.int16), row, spans, needed, wpv, banks, rows
+    )
+    keep = np.ones((slabs, n_u, n_mb), bool) if not skipping else needed
+    for k in range(modules):
+        want_b, want_r, want_per = [], [], []
+        for s, u0, u1 in spans:
+            words = np.repeat(keep[s, u0:u1], wpv, axis=1) & (module[s, u0:u1] == k)
+            want_b += bank[s, u0:u1][words].tolist()
+            want_r += row[s, u0:u1][words].tolist()
+            want_per.append(int(words.sum()))
+        assert per[k].tolist() == want_per
+        assert banks[k, : len(want_b)].tolist() == want_b
+        assert rows[k, : len(want_r)].tolist() == want_r
