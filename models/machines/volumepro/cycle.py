@@ -49,6 +49,7 @@ from models.machines.volumepro.fifo_timing import (
     uses_slice_fifos,
 )
 from models.machines.volumepro.fifo_timing import reach as fifo_reach
+from models.machines.volumepro.lanes import live_lanes
 from models.machines.volumepro.memory import SdramVolume, words_per_voxel
 from models.machines.volumepro.skips_kernel import slice_cells
 from models.machines.volumepro.slab_timing import pipeline_latency, run_timing, slab_buffers
@@ -67,6 +68,8 @@ from models.machines.volumepro.trilinear import TrilinearSource
 from models.units.voxel import converted_planes
 
 __all__ = ["SlabFaults", "SlabMachine", "TrilinearSource"]
+
+_NONE = np.zeros(0, dtype=bool)  # no termination history yet (live_lanes)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -335,14 +338,15 @@ class SlabMachine(SliceOrderMachine):
                     fin = np.zeros(0, dtype=np.int64)
                     if step.rays.size:
                         source, a, b, lanes, fin, handoffs = slots
-                        live = np.ones(step.rays.size, dtype=bool)
-                        if ert_hardware:
-                            live = state.alive[step.rays]
-                        busy = np.bincount(lanes[live] if self.skipping else lanes, minlength=P)
+                        # live, known (rule 6) and samples per lane in one compiled pass
+                        full = ert_hardware and len(history) == history.maxlen
+                        live, known = np.empty((2, step.rays.size), dtype=bool)
+                        if not live_lanes(
+                            step.rays, state.alive, ert_hardware, history[0] if full else _NONE,
+                            lanes, self.skipping, live, known, busy,
+                        ):  # fmt: skip
+                            raise AssertionError("a sample's lane lies outside the pipelines")
                         if self.skipping:
-                            known = np.ones(step.rays.size, dtype=bool)
-                            if ert_hardware and len(history) == history.maxlen:
-                                known = history[0][step.rays]
                             cost = self._live_cells(source, live, known, si, (lo, hi), needed)
                         book.hand_off(handoffs, step.rays, lanes, state)
                         be.process(

@@ -5,6 +5,7 @@ the plan's positions; the mini-block layout refused for other skews).
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from hwsim.core.errors import NotAvailableError
@@ -12,7 +13,7 @@ from hwsim.golden.positions import SamplePlan
 from hwsim.memory import MemoryConfig
 from models.machines.volumepro.memory import layout
 
-__all__ = ["busiest_lanes", "miniblock_layout", "sample_lanes"]
+__all__ = ["busiest_lanes", "live_lanes", "miniblock_layout", "sample_lanes"]
 
 
 def miniblock_layout(memory: MemoryConfig, n: int, x, y, z):
@@ -61,3 +62,25 @@ def busiest_lanes(plan: SamplePlan, pipelines: int) -> np.ndarray:
     return fused_steps.busiest_lanes(
         plan, pipelines, lambda zyx: sample_lanes(zyx, axes, plan.volume.shape, pipelines)
     )
+
+
+@numba.njit(cache=True, nogil=True)
+def live_lanes(rays, alive, ert, history, lanes, skipping, live, known, busy):  # pragma: no cover
+    """The cycle rung's per-step lane counts (``SlabMachine.run``) in one pass over a
+    step's samples: ``live`` (``alive[rays]`` with ``ert``, else True), ``known``
+    (``history[rays]`` when ``history`` has rays, else True) and ``busy``, the samples
+    per lane (``bincount(lanes[live] if skipping else lanes, minlength=P)``, P =
+    ``busy.size``).  Returns False, counting nothing more, at a lane outside ``[0, P)``."""
+    busy[:] = 0
+    use_known = history.size > 0
+    for i in range(rays.size):
+        r = rays[i]
+        on = alive[r] if ert else True
+        live[i] = on
+        known[i] = history[r] if use_known else True
+        lane = lanes[i]
+        if lane < 0 or lane >= busy.size:
+            return False
+        if on or not skipping:
+            busy[lane] += 1
+    return True
