@@ -164,3 +164,29 @@ def test_specialised_passes_equal_the_generic_ones(monkeypatch):
         np.testing.assert_array_equal(own.image, generic.image)
         assert own.cycles == generic.cycles and own.counters == generic.counters
         assert own.counters["simulation.transparent_samples_skipped"] > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_live_lanes_equal_the_numpy_form(seed):
+    """lanes.live_lanes: the live and known samples and the samples per lane of a step,
+    as cycle.py's NumPy form computed them (termination on and off, with and without a
+    history, skipping on and off); a lane outside the pipelines is refused."""
+    from models.machines.volumepro.lanes import live_lanes
+
+    rng = np.random.default_rng(seed)
+    n_rays, P = int(rng.integers(5, 300)), int(rng.integers(1, 9))
+    rays = np.sort(rng.choice(n_rays, int(rng.integers(1, n_rays)), replace=False))
+    alive, history = rng.random(n_rays) < 0.6, rng.random(n_rays) < 0.8
+    lanes = rng.integers(0, P, rays.size)
+    for ert, past, skipping in [(e, h, s) for e in (0, 1) for h in (0, 1) for s in (0, 1)]:
+        live, known = np.empty((2, rays.size), dtype=bool)
+        busy = np.full(P, 99, dtype=np.int64)
+        hist = history if past else np.zeros(0, dtype=bool)
+        assert live_lanes(rays, alive, bool(ert), hist, lanes, bool(skipping), live, known, busy)
+        want_live = alive[rays] if ert else np.ones(rays.size, dtype=bool)
+        np.testing.assert_array_equal(live, want_live)
+        np.testing.assert_array_equal(known, history[rays] if past else True)
+        counted = lanes[want_live] if skipping else lanes
+        np.testing.assert_array_equal(busy, np.bincount(counted, minlength=P))
+    lanes[-1] = P
+    assert not live_lanes(rays, alive, True, history, lanes, True, live, known, busy)
