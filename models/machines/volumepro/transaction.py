@@ -200,26 +200,29 @@ class SlabTransaction:
         skipped keeps one empty group (its overhead and pixels still happen).
         """
         U, n_a, sk = self.U, self.n_a, self.skips
-        slab_order = list(range(self.n_slabs))
-        if not self.forward:
-            slab_order.reverse()
-        chunks, index, grids = [], {}, []
-        # Per slab and mbb, whether a mini-block of it is read (lists: a chunk's test is
-        # a slice of 2 U flags, cheaper in Python than a NumPy call per chunk).
-        read = None if sk is None else sk.needed.any(axis=2).tolist()
+        slab_order = np.arange(self.n_slabs)[:: 1 if self.forward else -1]
+        chunks, grids = [], []
+        # Per slab and mbb, whether a mini-block of it is read.
+        read = None if sk is None else sk.needed.any(axis=2)
         for bi, (a0, a1) in enumerate(self.bands):
             u0, u1 = max(a0 - 1, 0) // 2, min(a1 + 1, n_a - 1) // 2
+            u_lo = np.arange(u0, u1 + 1, U)
+            u_hi = np.minimum(u_lo + U - 1, u1)
+            # Per slab and chunk of a slab, whether a mini-block of its mbbs is read.
+            if read is None:
+                kept = np.ones((self.n_slabs, u_lo.size), dtype=bool)
+            else:
+                kept = np.logical_or.reduceat(read[:, u0 : u1 + 1], u_lo - u0, axis=1)
+            at, k = np.nonzero(kept[slab_order])  # in read order: slab after slab
+            slabs = slab_order[at]
             # The band's chunk numbers by slab and chunk of a slab (-1: not read).
-            grids.append(np.full((self.n_slabs, len(range(u0, u1 + 1, U))), -1, np.int64))
-            for slab in slab_order:
-                for k, u in enumerate(range(u0, u1 + 1, U)):
-                    hi = min(u + U - 1, u1)
-                    if read is not None and not any(read[slab][u : hi + 1]):
-                        continue  # no mini-block of these mbbs is read
-                    index[bi, slab, k] = grids[bi][slab, k] = len(chunks)
-                    chunks.append((bi, slab, u, hi))
+            grids.append(np.full(kept.shape, -1, np.int64))
+            grids[bi][slabs, k] = np.arange(len(chunks), len(chunks) + k.size)
+            chunks += zip(
+                [bi] * k.size, slabs.tolist(), u_lo[k].tolist(), u_hi[k].tolist(), strict=True
+            )
         if self.slice_fifo:  # rules 3', 5'
-            return (chunks, *fifo_schedule(self, n_steps, chunks, index))
+            return (chunks, *fifo_schedule(self, n_steps, chunks, _chunk_index(grids)))
         from models.machines.volumepro.streams_kernel import beam_groups  # numba
 
         windows = np.array([self._window_slabs(j) for j in range(n_steps)], dtype=np.int64)
@@ -489,6 +492,16 @@ def _live_spans(cost: np.ndarray, r0: np.ndarray, r1: np.ndarray):
     lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
     hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
     return tuple(np.ascontiguousarray(v, dtype=np.int64) for v in (clocks, lo, hi))
+
+
+def _chunk_index(grids: list[np.ndarray]) -> dict[tuple[int, int, int], int]:
+    """Chunk number by ``(band, slab, k)`` from the bands' grids (-1: not read)."""
+    index = {}
+    for bi, grid in enumerate(grids):
+        slab, k = np.nonzero(grid >= 0)
+        for s, q, c in zip(slab.tolist(), k.tolist(), grid[slab, k].tolist(), strict=True):
+            index[bi, s, q] = c
+    return index
 
 
 def _slice_bounds(groups) -> tuple[list[bool], list[bool]]:
