@@ -19,6 +19,7 @@ import pytest
 from hwsim.core.threads import using
 from hwsim.engine import DeadlockError
 from hwsim.golden import make_plan
+from hwsim.golden.positions import Step
 from hwsim.numerics import SATURATIONS
 from hwsim.run.fidelity import resolve_arch
 from hwsim.spec.scene import RenderSpec, Scene, TransferSpec, ViewSpec
@@ -29,7 +30,9 @@ from models.frame import frame_of
 from models.machines.common.slice_order import SliceOrderMachine
 from models.machines.volumepro import threads as vp_threads
 from models.machines.volumepro import timing_ahead as vp_timing
+from models.machines.volumepro import trilinear as vp_trilinear
 from models.machines.volumepro.cycle import SlabFaults, SlabMachine
+from models.machines.volumepro.trilinear import TrilinearSource
 from models.units.interp import InterpConfig
 
 pytestmark = pytest.mark.model
@@ -336,3 +339,131 @@ def test_the_compiled_cells_are_the_numpy_cells(case):
     )
     with pytest.raises(ValueError, match="NaN"):
         SliceOrderMachine.cell(machine, np.array([1.5, np.nan]), like)
+
+
+def _geometry_machine(rounding="nearest-up", weight_bits=8):
+    machine = types.SimpleNamespace(
+        dp=types.SimpleNamespace(interp=InterpConfig(rounding=rounding, weight_bits=weight_bits)),
+        a_ax=0,
+        b_ax=2,
+        kp=1,
+        n_kp=90,
+    )
+    machine.cell = types.MethodType(SliceOrderMachine.cell, machine)
+    machine.nearest_slice = types.MethodType(SlabMachine.nearest_slice, machine)
+    return machine
+
+
+@pytest.mark.parametrize(
+    "case", ["one-fraction", "many-fractions", "half-ways", "strided", "empty", "one-row"]
+)
+@pytest.mark.parametrize("rounding", ["nearest-up", "nearest-even", "floor", "truncate"])
+def test_a_sources_compiled_cells_are_the_geometry_units(case, rounding):
+    """``TrilinearSource``'s positions and in-slice cells (one compiled pass on the steps
+    thread): those of ``SliceOrderMachine.cell`` on the step's contiguous columns, for
+    every rounding, one fraction per slice or many, halfway fractions; a position that
+    is not finite or a weight outside its format takes the geometry unit (its error)."""
+    machine = _geometry_machine(rounding, weight_bits=3)
+    rng = np.random.default_rng(5)
+    zyx = np.full((300, 3), 17.25)
+    zyx[:, 0] = np.arange(300) * 0.5 - 3.0 + 0.375
+    zyx[:, 2] = np.arange(300) * 0.25 + 0.125
+    if case == "many-fractions":
+        zyx[:, [0, 2]] = rng.uniform(-3, 60, (300, 2))
+    elif case == "half-ways":  # exact ties at the weight's resolution (1/16 for 3 bits)
+        zyx[:, [0, 2]] = rng.integers(-48, 960, (300, 2)) / 16.0
+    elif case == "strided":
+        zyx = np.stack([zyx, zyx], axis=1)[:, 0]
+    elif case == "empty":
+        zyx = zyx[:0]
+    elif case == "one-row":
+        zyx = zyx[:1]
+    got = TrilinearSource(machine, Step(np.arange(zyx.shape[0]), zyx, 1.0))
+    columns = [np.ascontiguousarray(zyx[:, ax]) for ax in (0, 2, 1)]
+    for g, w in zip((got.pa, got.pb, got.pk), columns, strict=True):
+        np.testing.assert_array_equal(g, w)
+        assert g.flags.c_contiguous and g.dtype == np.float64
+    want = machine.cell(columns[0]), machine.cell(columns[1])
+    for got_cell, want_cell in zip(got._cells, want, strict=True):
+        for g, w in zip(got_cell, want_cell, strict=True):
+            np.testing.assert_array_equal(g, w)
+            assert g.dtype == w.dtype and g.shape == w.shape
+    if case == "many-fractions":
+        assert np.unique(got._cells[0][1]).size > 4  # many weights compared
+    assert got.q == machine.nearest_slice(columns[2])
+    assert vp_trilinear._compiled_cells(types.SimpleNamespace(m=machine), zyx)
+    broken = zyx.copy()
+    if broken.size:
+        broken[-1, 2] = np.nan
+        assert not vp_trilinear._compiled_cells(types.SimpleNamespace(m=machine), broken)
+        with pytest.raises(ValueError, match="NaN"):
+            TrilinearSource(machine, Step(np.arange(broken.shape[0]), broken, 1.0))
+
+
+def test_a_weight_outside_its_format_takes_the_geometry_unit(monkeypatch):
+    """The compiled cells refuse a weight the format cannot hold (a narrower format than
+    the fractions need): the geometry unit then quantises, saturating and counting."""
+    machine = _geometry_machine()
+    zyx = np.column_stack([np.linspace(0.0, 5.0, 40), np.full(40, 2.0), np.linspace(1, 2, 40)])
+    assert vp_trilinear._compiled_cells(types.SimpleNamespace(m=machine), zyx)
+    narrow = types.SimpleNamespace(frac_bits=8, rounding="nearest-up", raw_min=0, raw_max=100)
+    weight = types.SimpleNamespace(interp=types.SimpleNamespace(weight=narrow))
+    assert not vp_trilinear._compiled_cells(
+        types.SimpleNamespace(m=types.SimpleNamespace(dp=weight, a_ax=0, b_ax=2, kp=1)), zyx
+    )
+
+
+@pytest.mark.parametrize("sel", ["indices", "negative", "mask", "none", "all", "int32"])
+def test_a_subset_source_gathers_what_numpy_indexing_does(sel):
+    """``TrilinearSource.subset`` (one compiled gather of its nine arrays for int64
+    indices): NumPy's gathers for indices, negative indices, a mask, none, all and other
+    index types; an index out of range is NumPy's IndexError."""
+    machine = _geometry_machine()
+    rng = np.random.default_rng(9)
+    zyx = rng.uniform(0, 40, (200, 3))
+    source = TrilinearSource(machine, Step(np.arange(200), zyx, 1.0))
+    picks = {
+        "indices": np.sort(rng.choice(200, 70, replace=False)),
+        "negative": -rng.integers(1, 201, 50),
+        "mask": rng.random(200) < 0.4,
+        "none": np.zeros(0, dtype=np.int64),
+        "all": np.arange(200),
+        "int32": rng.integers(0, 200, 30).astype(np.int32),
+    }[sel]
+    got = source.subset(picks)
+    for name in ("pa", "pb", "pk"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(source, name)[picks])
+    for got_cell, cell in zip(got._cells, source._cells, strict=True):
+        for g, w in zip(got_cell, cell, strict=True):
+            np.testing.assert_array_equal(g, w[picks])
+            assert g.dtype == w.dtype
+    assert got.q == source.q and got.m is machine
+    for bad in (np.array([3, 200]), np.array([-201])):
+        with pytest.raises(IndexError):
+            source.subset(bad)
+
+
+def test_the_timing_thread_computes_the_windows(volumes, monkeypatch):
+    """On two threads the frame's thread asks one slice window (which fills the taps of
+    every step) before the timing thread starts; that thread computes every slice's
+    window itself, beside the data pass; one thread asks them all on the frame's."""
+    calls = []
+    window = SlabMachine.window
+    monkeypatch.setattr(
+        SlabMachine,
+        "window",
+        lambda self, j: (
+            calls.append(threading.current_thread().name.split("_")[0]) or window(self, j)
+        ),
+    )
+    for threads in (1, 2):
+        calls.clear()
+        with using(threads):
+            run, _ = _render(CASES["vp500"], volumes)
+        by = {name: calls.count(name) for name in set(calls)}
+        if threads == 1:
+            assert set(by) == {"MainThread"}
+            n_steps = by["MainThread"]
+        else:
+            assert by["MainThread"] == 1 and by["hwsim-timing"] == n_steps
+            assert by["hwsim-steps"] == n_steps

@@ -14,8 +14,9 @@ two things come from the data pass: a slice's samples per lane (``busy``: its st
 ``extra``) and the rays parked at a section's end (the next section's ``pre``).
 
 :class:`TimingAhead` (``threads > 1``, compiled, no waveform, no steady state) builds
-the deliveries and the periods on a worker thread (``hwsim-timing``) at the frame's
-start with those two left out, then plays each period through the memory loop
+each sample slice's window and reach, the deliveries and the periods on a worker thread
+(``hwsim-timing``) at the frame's start with those two left out (the frame's thread only
+fills the principal-axis taps first, one call), then plays each period through the memory loop
 (:func:`~models.machines.volumepro.timing_kernel.play_once`, the GIL released per slice)
 once the data pass has recorded its slice (:meth:`TimingAhead.record`, handed over
 :data:`BATCH` at a time) and the parked rays before it (:meth:`TimingAhead.parked`).
@@ -70,10 +71,8 @@ class TimingAhead:
     """One frame's timing pass on the ``hwsim-timing`` thread (see the module)."""
 
     def __init__(self, m, sections, needed, buffers: tuple[DrainFifo, int, int]) -> None:
-        n = m.plan.n_steps
-        # Computed here, on the frame's thread (``k_taps`` fills the machine's cache).
-        windows = [m.window(j) for j in range(n)]
-        reaches = [fifo_reach(m, j) for j in range(n)]
+        if m.plan.n_steps:  # the first window fills the taps of every step (``k_taps``)
+            m.window(0)  # here: the threads then only read them
         self.m, self.buffers = m, buffers  # (pixel FIFO, buffer entries, capacity)
         self.pixel_fifo, self.capacity = buffers[0], buffers[2]
         self._inbox: queue.SimpleQueue = queue.SimpleQueue()
@@ -82,7 +81,7 @@ class TimingAhead:
         self._result: tuple | None = None
         self.played = 0  # slices played so far (read by the tests)
         self._error: BaseException | None = None
-        args = (sections, needed, windows, reaches)
+        args = (sections, needed)
         self._thread = threading.Thread(
             target=self._work, args=args, name="hwsim-timing", daemon=True
         )
@@ -127,8 +126,11 @@ class TimingAhead:
 
     # ---------------------------------------------------------------- worker thread
 
-    def _work(self, sections, needed, windows, reaches) -> None:
+    def _work(self, sections, needed) -> None:
         try:
+            m = self.m  # each slice's window and reach (rule 3'): read from the taps
+            windows = [m.window(j) for j in range(m.plan.n_steps)]
+            reaches = [fifo_reach(m, j) for j in range(m.plan.n_steps)]
             self._result = self._play(sections, needed, windows, reaches)
         except _Cancelled:
             pass
