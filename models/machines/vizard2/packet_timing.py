@@ -223,6 +223,23 @@ def _cell_blocks(p, hi):
     return z >> 2, (z + (1 if hi > 0 else 0)) >> 2
 
 
+@numba.njit(inline="always")
+def _keys(set_of, nb, pa):
+    """Per axis and block, its term of the block index shifted past the line plus its term
+    of the line: a lookup's block and line are one sum of three, exact (the line is below
+    ``2**shift``, the block below ``2**(63 - shift)``).  Returns the three and ``shift``."""
+    s1, s2, shift = pa[_S1], pa[_S2], 1
+    while (np.int64(1) << shift) < pa[_LINES]:
+        shift += 1
+    n = set_of.shape[1]
+    key_z, key_y, key_x = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
+    for b in range(n):
+        key_z[b] = ((b * nb[1] * nb[2]) << shift) + set_of[0, b] * s1 * s2
+        key_y[b] = ((b * nb[2]) << shift) + set_of[1, b] * s2
+        key_x[b] = (b << shift) + set_of[2, b]
+    return key_z, key_y, key_x, shift
+
+
 @numba.njit(cache=True, nogil=True)
 def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_first, k_dir, hi,
              nb, set_of, pa, st, tag, term, stopped, ert_on):  # fmt: skip
@@ -231,7 +248,6 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
     fills), then the packet's pixels into the FIFO; counters and state in ``st``, the
     cache's tags in ``tag``, the rays' terminating issue clocks in ``term``."""
     P, h0, h1, h2 = pa[_P], hi[0], hi[1], hi[2]
-    s1, s2, nb1, nb2 = pa[_S1], pa[_S2], nb[1], nb[2]
     runs = 8 * P * 2 * (pa[_VB] + pa[_GB])  # at most two page runs a fill's region
     miss, counts = np.empty(8 * P, np.int64), np.empty(runs, np.int64)
     banks_of, rows_of = np.empty(runs, np.int64), np.empty(runs, np.int64)
@@ -239,6 +255,8 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
     per_dir, per_dt = dirs.shape[0] > 1, dts.shape[0] > 1
     cells = np.empty((6, live.size), np.int64)  # the round's blocks: low, high by axis
     occupancy, retired = st[_OCC], st[_RETIRED]
+    key_z, key_y, key_x, shift = _keys(set_of, nb, pa)  # a lookup's block and line
+    mask = (np.int64(1) << shift) - 1
     for p in range(first, end):
         packet = order[cuts[p] : cuts[p + 1]]
         for j in range(j_lo[packet].min(), j_hi[packet].max() + 1):
@@ -274,9 +292,10 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
                 x0, x1 = cells[4, i], cells[5, i]
                 for bz in range(z0, z1 + 1):
                     for by in range(y0, y1 + 1):
-                        ly = set_of[0, bz] * s1 + set_of[1, by]
+                        key_zy = key_z[bz] + key_y[by]
                         for bx in range(x0, x1 + 1):
-                            line, block = ly * s2 + set_of[2, bx], (bz * nb1 + by) * nb2 + bx
+                            key = key_zy + key_x[bx]
+                            line, block = key & mask, key >> shift
                             lookups += 1
                             if tag[line] != block:
                                 tag[line], miss[n_miss] = block, block
