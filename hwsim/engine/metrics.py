@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["derive"]
+__all__ = ["derive", "issued_samples"]
 
 
 def derive(
@@ -38,3 +38,11 @@ def derive(
         if path.endswith(".hits") and counters.get(path[: -len("hits")] + "lookups")
     }
     return out
+
+
+def issued_samples(counters: dict[str, int], samples: int) -> int:
+    """The samples the machine issued: ``frame.issued_samples`` where it leaps empty space
+    or ends rays early (VIZARD II), else ``samples`` (every sample of the frame).  A
+    simulator's samples per second are counted on these: a frame's ``samples`` are its
+    planned samples on every rung, and a leaped sample costs the simulator nothing."""
+    return int(counters.get("frame.issued_samples", samples))

@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 
+from hwsim.engine.metrics import issued_samples
+
 __all__ = [
     "GOALS",
     "TABLE_GOALS",
@@ -239,14 +241,16 @@ def rung_speeds(
 def _timed(runs) -> dict[str, Any]:
     seconds = statistics.median(r.wall_seconds for r in runs)
     last = runs[-1]
+    issued = issued_samples(last.counters or {}, last.samples)
     return {
         "status": "ok",
         "arch": last.arch,
         "sampling": last.sampling,
         "samples": last.samples,
+        "issued_samples": issued,
         "seconds": seconds,
         "seconds_all": [r.wall_seconds for r in runs],
-        "samples_per_second": last.samples / seconds,
+        "samples_per_second": issued / seconds,
         "cycles": last.cycles,
         "simulated_cycles_per_second": last.cycles / seconds if last.cycles else None,
     }

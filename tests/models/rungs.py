@@ -183,13 +183,12 @@ def within_contract(scene, volume, arch):
     return exact, approx
 
 
-def assert_identical(fixed, cycle, *, samples=True):
-    """The cycle image is the functional image, bit for bit (and so are the sample counts
-    where the machine counts samples the same way)."""
+def assert_identical(fixed, cycle):
+    """The cycle image is the functional image, bit for bit, and the frame's sample
+    counts are equal (a frame's ``samples`` are its planned samples on every rung)."""
     assert cycle.image.dtype == fixed.image.dtype and cycle.image.shape == fixed.image.shape
     assert np.array_equal(cycle.image, fixed.image), "cycle image differs from functional"
-    if samples:
-        assert cycle.samples == fixed.samples
+    assert cycle.samples == fixed.samples
 
 
 def assert_within_contract(exact_cycles: int, approx_cycles: int, contract=CONTRACT):

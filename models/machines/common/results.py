@@ -105,26 +105,31 @@ def frame_result(
     cycles: int,
     *,
     latency: int,
+    samples: int | None = None,
     derive_samples: int | None = None,
 ) -> CycleResult:
     """A frame's :class:`CycleResult` from a machine (``counters``, ``P``, ``arch``,
     ``elaborated``, ``elided``) and its back end's final state, with the counters every
-    machine publishes (``pipeline.latency_cycles``, ``frame.cycles``, ``frame.samples``);
-    derived metrics per ``derive_samples`` samples (default: the composited samples)."""
+    machine publishes (``pipeline.latency_cycles``, ``frame.cycles``, ``frame.samples``).
+    ``samples`` is the frame's sample count when the back end composited fewer (VIZARD
+    II: leaped and terminated samples are the frame's too, as on the other rungs; default:
+    the composited samples); derived metrics per ``derive_samples`` samples (default:
+    ``samples``)."""
+    samples = state.samples if samples is None else int(samples)
     machine.counters.set("pipeline.latency_cycles", latency)
     machine.counters.set("frame.cycles", cycles)
-    machine.counters.set("frame.samples", state.samples)
+    machine.counters.set("frame.samples", samples)
     raw = machine.counters.as_dict()
     derived = derive(
         raw,
         cycles=cycles,
-        samples=state.samples if derive_samples is None else derive_samples,
+        samples=samples if derive_samples is None else derive_samples,
         pipelines=machine.P,
         clock_hz=machine.arch.clock_hz,
     )
     return CycleResult(
         image=image,
-        samples=state.samples,
+        samples=samples,
         rays=int(state.touched.sum()),
         cycles=int(cycles),
         counters=raw,

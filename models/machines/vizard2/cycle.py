@@ -50,7 +50,7 @@ from hwsim.engine import Clock, Counters, DeadlockError, DrainFifo, Stage, VcdTr
 from hwsim.golden.occupancy import occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan, Step
 from hwsim.memory import SdramController
-from models.backend import Backend
+from models.backend import Backend, subset_step
 from models.machines.common.results import UNITS, CycleResult, elaborate_units, frame_result
 from models.machines.vizard2.config import (
     BLOCK,
@@ -366,9 +366,39 @@ class VizardMachine:
         if self.trace is not None:
             self._trace_memory(schedule, cycles)
         image = self.be.finish(bus.acc, bus.touched, bus.dt_sum)
+        # ``samples`` is the frame's planned count on every rung (the functional and
+        # transaction rungs report it too); what the machine issued and composited are
+        # counters.
+        self.counters.set("frame.composited_samples", state.samples)
         return frame_result(
-            self, image, state, cycles, latency=FEEDBACK, derive_samples=self.issued
+            self, image, state, cycles, latency=FEEDBACK, samples=self._frame_samples(state)
         )
+
+    def _frame_samples(self, state) -> int:
+        """The frame's samples as every rung counts them (the functional rung's recount,
+        :func:`models.leap.visits`): the samples composited, plus those space leaping
+        skipped that a live ray passes (a ray's leading empty steps, its trailing ones if
+        it never ended, every step of a ray left without samples), as
+        :meth:`Backend.process` counts them through the crop box, cut planes and depth
+        test."""
+        full, plan = self.full_plan, self.plan
+        if plan is full:
+            return state.samples
+        lo, hi = full.j_hi + 1, full.j_hi.copy()  # a ray left without samples: all leading
+        where = np.searchsorted(full.ray_ids, plan.ray_ids)
+        lo[where], hi[where] = plan.j_lo, plan.j_hi
+        alive = state.alive[full.ray_ids]
+        be = self.be
+        if be.scene.crop is None and not be.scene.cut_planes and be.depth is None:
+            lead = int(np.sum(lo - full.j_lo))
+            return state.samples + lead + int(np.sum((full.j_hi - hi)[alive]))
+        skipped = 0
+        for j, step in enumerate(full.steps()):
+            at = np.searchsorted(full.ray_ids, step.rays)
+            step, _ = be.masks(subset_step(step, (j < lo[at]) | ((j > hi[at]) & alive[at])))
+            skipped += step.rays.size
+        be.stopped = None  # the depth test's record of rays it ends: this recount's only
+        return state.samples + skipped
 
     def _set_counters(self, pixel_fifo: DrainFifo, drain: int):
         """The memory's, cache's, pixel bus's and frame's counters; returns the SDRAM
