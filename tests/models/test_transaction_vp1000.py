@@ -458,3 +458,89 @@ def test_split_streams_keep_each_modules_bursts_in_read_order(modules, skipping)
         assert per[k].tolist() == want_per
         assert banks[k, : len(want_b)].tolist() == want_b
         assert rows[k, : len(want_r)].tolist() == want_r
+
+
+class _ContainerBus:
+    """The pixel bus on a :class:`simpy.Container` (its form before issue 36's round 8):
+    the reference ``PixelBus``'s hand-written FIFO must time exactly like."""
+
+    def __init__(self, env, depth, row_pixels):
+        import simpy
+
+        self.env, self.depth = env, depth
+        self.fifo = simpy.Container(env, capacity=max(depth, 1), init=0)
+        self.batch = max(1, min(row_pixels, -(-depth // 8)))
+        self.pushed = self.sent = self.max_occupancy = self.stall_cycles = self.events = 0
+        self.end = 0
+        self._work = env.event()
+        env.process(self._drain())
+
+    @property
+    def level(self):
+        return self.fifo.level
+
+    def push(self, count):
+        waited, left = self.env.now, count
+        while left:
+            chunk = min(left, self.batch)
+            yield self.fifo.put(chunk)
+            self.events += 1
+            self.pushed += chunk
+            self.max_occupancy = max(self.max_occupancy, self.fifo.level)
+            left -= chunk
+            if not self._work.triggered:
+                self._work.succeed()
+        self.stall_cycles += int(self.env.now - waited)
+
+    def _drain(self):
+        while True:
+            if self.fifo.level == 0:
+                self._work = self.env.event()
+                yield self._work
+                continue
+            chunk = min(self.fifo.level, self.batch)
+            yield self.env.timeout(chunk)
+            yield self.fifo.get(chunk)
+            self.events += 2
+            self.sent += chunk
+            self.end = int(self.env.now)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_pixel_bus_times_as_the_simpy_container_did(seed):
+    """``PixelBus`` (one producer, one consumer, its FIFO written out) against the
+    container form: random pushes, some at the same cycle as the bus frees a batch, into
+    deep and shallow FIFOs (pushes that wait), with another process's events interleaved:
+    every push's resume cycle and the FIFO's level then, and the bus's counters, equal."""
+    import simpy
+
+    from models.machines.common.pixel_bus import PixelBus
+
+    rng = np.random.default_rng(seed)
+    depth, row = int(rng.integers(1, 60)), int(rng.integers(1, 20))
+    pushes = [(int(rng.integers(0, 6)), int(rng.integers(0, 3 * depth))) for _ in range(80)]
+
+    def play(kind):
+        env = simpy.Environment()
+        bus, resumed = kind(env, depth, row), []
+
+        def pipelines():
+            for gap, count in pushes:
+                if gap:
+                    yield env.timeout(gap)
+                yield from bus.push(count)
+                resumed.append((env.now, bus.level))
+
+        def ticker():  # events of another process at the same cycles
+            while env.now < 2000:
+                yield env.timeout(int(rng_tick.integers(1, 4)))
+
+        rng_tick = np.random.default_rng(seed + 100)
+        env.process(ticker())
+        env.process(pipelines())
+        env.run()
+        names = ("pushed", "sent", "max_occupancy", "stall_cycles", "events", "end")
+        return resumed, [getattr(bus, n) for n in names]
+
+    assert play(PixelBus) == play(_ContainerBus)
+    assert play(PixelBus)[1][3] > 0 or depth > 40  # shallow FIFOs made pushes wait
