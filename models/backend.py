@@ -30,6 +30,7 @@ from hwsim.core.errors import InputError
 from hwsim.golden import geometry, occupancy
 from hwsim.golden.camera import index_to_world
 from hwsim.golden.positions import Step
+from hwsim.golden.steps import all_alive
 from hwsim.spec.scene_features import VALUE_FIELD, check_machine
 from models.datapath import units_needed
 from models.frame import Frame
@@ -264,7 +265,7 @@ class Backend:
     ) -> Step:
         """Run one step's samples through the back end; returns the samples processed."""
         mode, dp = self.mode, self.dp
-        if mode in ("composite", "iso"):
+        if mode in ("composite", "iso") and not all_alive(state.alive, step.rays):
             step = subset_step(step, state.alive[step.rays])
         step, factor = self.masks(step)
         if self.stopped is not None:  # embedded geometry ends these rays

@@ -290,6 +290,14 @@ class SamplePlan:
         part._keep(np.asarray(keep, dtype=bool))
         return part
 
+    def reordered(self, order: np.ndarray) -> SamplePlan:
+        """The same plan with its rays in ``order`` (a permutation of the plan rays'
+        indices): ray ``i`` of it is ray ``order[i]`` of this one, with the same
+        positions (every position is a function of its own ray)."""
+        part = copy.copy(self)
+        part._keep(np.asarray(order, dtype=np.int64))
+        return part
+
     def leap(self, occupancy: Occupancy) -> None:
         """Shorten every ray's step range past blocks that ``occupancy`` marks empty.
 

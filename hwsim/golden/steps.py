@@ -21,7 +21,7 @@ import numpy as np
 if TYPE_CHECKING:
     from hwsim.golden.positions import SamplePlan
 
-__all__ = ["Step", "run_steps", "linear_range", "bilinear_2d"]
+__all__ = ["Step", "all_alive", "run_steps", "linear_range", "bilinear_2d"]
 
 _TINY = 1e-12
 
@@ -45,26 +45,39 @@ class Step:
 
 def run_steps(plan: SamplePlan, alive: np.ndarray | None) -> Iterator[Step]:
     """Yield ``plan.n_steps`` steps; rays whose ``alive`` entry is False are dropped."""
-    order = np.argsort(plan.j_lo, kind="stable")
-    joins = np.searchsorted(plan.j_lo[order], np.arange(plan.n_steps + 1), side="left")
-    per_ray_dt = isinstance(plan._dt, np.ndarray)
-    per_ray_view = plan._view.ndim == 2
+    # The plan's rays in the order they join (``plan.reordered``): the active set is then
+    # a rising run of positions into its arrays, read front to back at every step (not
+    # scattered over them), and each step holds the same rays, positions and order.
+    walk = plan.reordered(np.argsort(plan.j_lo, kind="stable"))
+    joins = np.searchsorted(walk.j_lo, np.arange(plan.n_steps + 1), side="left")
+    per_ray_dt = isinstance(walk._dt, np.ndarray)
+    per_ray_view = walk._view.ndim == 2
     active = np.empty(0, dtype=np.int64)
     check = alive is not None
     flags = alive if check else _NO_ALIVE
     for j in range(plan.n_steps):
         if joins[j + 1] > joins[j]:
-            active = np.concatenate([active, order[joins[j] : joins[j + 1]]])
-        active, rays = _advance(active, j, plan.j_hi, plan.ray_ids, flags, check)
+            active = np.concatenate([active, np.arange(joins[j], joins[j + 1])])
+        active, rays = _advance(active, j, walk.j_hi, walk.ray_ids, flags, check)
         yield Step(
             rays,
-            plan.position(j, active),
-            plan._dt[active] if per_ray_dt else plan._dt,
-            plan._view[active] if per_ray_view else plan._view,
+            walk.position(j, active),
+            walk._dt[active] if per_ray_dt else walk._dt,
+            walk._view[active] if per_ray_view else walk._view,
         )
 
 
 _NO_ALIVE = np.ones(0, dtype=bool)
+
+
+@numba.njit(cache=True, nogil=True)
+def all_alive(alive, rays):  # pragma: no cover - compiled
+    """``alive[rays].all()`` without the gathered copy, stopping at the first dead ray
+    (a back end checks every step's rays; mostly all alive)."""
+    for i in range(rays.size):
+        if not alive[rays[i]]:
+            return False
+    return True
 
 
 @numba.njit(cache=True, nogil=True)

@@ -190,3 +190,41 @@ def test_shear_image_positions_compiled_match_their_numpy_form(projection, order
     # A subset made after the whole plan's positions: its packed rays are its own.
     assert steps_equal(whole) > 10
     assert steps_equal(whole.subset(np.arange(whole.ray_ids.size) % 3 == 1)) > 10
+
+
+@pytest.mark.parametrize("sampling", ["ray", "shear-warp", "shear-image"])
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+def test_steps_walk_the_rays_in_joining_order(sampling, projection):
+    """``run_steps`` walks a copy of the plan whose rays are in the order they join
+    (``SamplePlan.reordered``): every step holds the rays, positions, lengths and views
+    of the plain walk, in its order (rays by first step, then index), dead rays dropped."""
+    volume = Volume(data=np.zeros((9, 10, 11)), spacing=(1.0, 0.8, 1.1))
+    scene = make_scene("composite", 37, 21, size=12, supersampling=2.0, projection=projection)
+    if sampling == "shear-warp" and projection == "perspective":
+        sampling = "shear-image"  # shear-warp is parallel only
+    plan = make_plan(scene, volume, sampling)
+    alive = np.ones(plan.n_rays, dtype=bool)
+    order, steps = np.argsort(plan.j_lo, kind="stable"), 0
+    for j, step in enumerate(plan.steps(alive)):
+        sel = order[(plan.j_lo[order] <= j) & (plan.j_hi[order] >= j)]
+        sel = sel[alive[plan.ray_ids[sel]]]
+        np.testing.assert_array_equal(step.rays, plan.ray_ids[sel])
+        assert step.zyx.tobytes() == plan.position(j, sel).tobytes()
+        dt = plan._dt[sel] if isinstance(plan._dt, np.ndarray) else plan._dt
+        np.testing.assert_array_equal(step.dt, dt)
+        view = plan._view[sel] if plan._view.ndim == 2 else plan._view
+        np.testing.assert_array_equal(step.view, view)
+        alive[step.rays[::7]] = False  # early termination: dropped from the next step on
+        steps += sel.size > 1
+    assert steps > 5
+
+
+def test_all_alive_is_the_gathered_test(rng):
+    """``steps.all_alive(alive, rays)`` is ``alive[rays].all()`` (empty: True)."""
+    from hwsim.golden.steps import all_alive
+
+    for _ in range(50):
+        alive = rng.random(40) < rng.uniform(0.8, 1.0)
+        rays = rng.choice(40, int(rng.integers(0, 40)), replace=False)
+        assert all_alive(alive, rays) == alive[rays].all()
+    assert all_alive(np.zeros(3, dtype=bool), np.zeros(0, dtype=np.int64))
