@@ -240,7 +240,9 @@ def _keys(set_of, nb, pa):
     return key_z, key_y, key_x, shift
 
 
-@numba.njit(cache=True, nogil=True)
+# error_model="numpy": no zero test before each integer division (none of its divisors
+# can be 0: pipelines, page and burst sizes, banks, rows >= 1, queue depth >= 2).
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_first, k_dir, hi,
              nb, set_of, pa, st, tag, term, stopped, ert_on):  # fmt: skip
     """Rules 1-5 for packets ``first`` to ``end``: each packet's rounds, each round's
