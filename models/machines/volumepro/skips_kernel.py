@@ -59,7 +59,9 @@ def _nearest(p: float, n: int) -> int:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def plan_step_cells(j, ss, terms, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost_row):
+def plan_step_cells(
+    j, ss, terms, join, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost_row
+):
     """One sample slice ``j`` of rule 6, straight from a shear-image plan's rays.
 
     Parameters
@@ -68,9 +70,10 @@ def plan_step_cells(j, ss, terms, j_lo, j_hi, last, dims, P, lag, rays, cells, g
         The slice.
     ss : float
         The plan's supersampling.
-    terms : ndarray
-        float64 ``(9, n)``: the plan rays with samples in join order (ascending
-        ``j_lo``), their position terms (:func:`models.fused_steps.position_terms`).
+    terms, join : ndarray
+        float64 ``(9, rays)``: the plan rays' position terms, and int64 the rays with
+        samples in join order (ascending ``j_lo``), both
+        :func:`models.fused_steps.position_terms`' (no reordered copy of the terms).
     j_lo, j_hi : ndarray
         int64 per ray (join order): its first and last step.
     last : ndarray
@@ -111,7 +114,7 @@ def plan_step_cells(j, ss, terms, j_lo, j_hi, last, dims, P, lag, rays, cells, g
     count, nxt = cursor[0], cursor[1]
     while nxt < j_lo.shape[0] and j_lo[nxt] <= j:
         for r in range(8):  # element by element, not a column view a ray
-            at[r, count] = terms[r, nxt]
+            at[r, count] = terms[r, join[nxt]]
         ints[0, count] = j_hi[nxt]
         ints[1, count] = last[nxt] if last.shape[0] > 0 else j_hi[nxt]
         count += 1
@@ -199,7 +202,7 @@ def active_rays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True, nogil=True)
 def frame_skips(
-    ss, terms, j_lo, j_hi, last, dims, P, lag, windows, rays, cost, live, busiest, needed
+    ss, terms, join, j_lo, j_hi, last, dims, P, lag, windows, rays, cost, live, busiest, needed
 ):
     """Rule 6 at every sample slice of a shear-image plan (:func:`plan_step_cells` slice
     after slice), and the mini-blocks read.
@@ -225,7 +228,7 @@ def frame_skips(
     slab_of = np.full(span + 1, -1, dtype=np.int64)  # the open slab in each union
     for j in range(n_steps):
         m, live[j], busiest[j] = plan_step_cells(
-            j, ss, terms, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost[j]
+            j, ss, terms, join, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost[j]
         )
         if m == 0:
             continue

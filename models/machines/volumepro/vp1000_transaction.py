@@ -191,7 +191,7 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
     kp = plan.principal_axis
     a_ax, b_ax = (ax for ax in range(3) if ax != kp)
     shape = plan.volume.shape
-    join, terms = fused_steps.position_terms(plan)  # in join order from here on
+    join, terms = fused_steps.position_terms(plan)  # rays' terms, and the join order
     last = np.zeros(0, dtype=np.int64)
     if stopped is not None:
         last = stopped[plan.ray_ids[join]].astype(np.int64)
@@ -199,7 +199,8 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
     rays = _ray_state(join.size)
     frame_skips(
         float(plan.scene.render.supersampling),
-        np.ascontiguousarray(terms[:, join]),
+        terms,
+        join.astype(np.int64),
         plan.j_lo[join].astype(np.int64),
         plan.j_hi[join].astype(np.int64),
         last,
