@@ -292,15 +292,16 @@ def _packets(order, cuts, first, end, j_lo, j_hi, ray_ids, orig, dirs, dts, k_fi
                 r = live[i]
                 z0, z1, y0, y1 = cells[0, i], cells[1, i], cells[2, i], cells[3, i]
                 x0, x1 = cells[4, i], cells[5, i]
+                # Unsigned indices (all >= 0): no negative-index wrap on each read.
                 for bz in range(z0, z1 + 1):
                     for by in range(y0, y1 + 1):
-                        key_zy = key_z[bz] + key_y[by]
+                        key_zy = key_z[np.uint64(bz)] + key_y[np.uint64(by)]
                         for bx in range(x0, x1 + 1):
-                            key = key_zy + key_x[bx]
-                            line, block = key & mask, key >> shift
+                            key = key_zy + key_x[np.uint64(bx)]
+                            line, block = np.uint64(key & mask), key >> shift
                             lookups += 1
                             if tag[line] != block:
-                                tag[line], miss[n_miss] = block, block
+                                tag[line], miss[np.uint64(n_miss)] = block, block
                                 n_miss += 1
                                 fills += 1
                 if ert_on:
