@@ -17,7 +17,7 @@ import numpy as np
 
 from models.machines.common.slice_order import slice_position
 
-__all__ = ["fifo_schedule", "reach_of"]
+__all__ = ["chunk_index", "fifo_schedule", "reach_of"]
 
 
 def reach_of(txn, j: int) -> int:
@@ -69,3 +69,13 @@ def fifo_schedule(txn, n_steps: int, chunks, index):
     for g, ids in enumerate(needs):
         free_after[ids] = g
     return groups, free_after
+
+
+def chunk_index(grids: list[np.ndarray]) -> dict[tuple[int, int, int], int]:
+    """Chunk number by ``(band, slab, k)`` from the bands' grids (-1: not read)."""
+    index = {}
+    for bi, grid in enumerate(grids):
+        slab, k = np.nonzero(grid >= 0)
+        for s, q, c in zip(slab.tolist(), k.tolist(), grid[slab, k].tolist(), strict=True):
+            index[bi, s, q] = c
+    return index

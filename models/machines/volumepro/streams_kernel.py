@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["beam_groups", "bursts_read", "split_streams"]
+__all__ = ["beam_groups", "bursts_read", "live_spans", "split_streams"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -178,3 +178,18 @@ def beam_groups(index, windows, spans, dims, band, first, groups, last):
             row[0], row[1], row[2], row[3] = band, j, 0, -1
             g += 1
     return g
+
+
+def live_spans(cost: np.ndarray, r0: np.ndarray, r1: np.ndarray):
+    """Per sample slice and span ``r0[i] .. r1[i] - 1`` of rows (consecutive spans): the
+    span's clocks (``cost`` summed) and its first and last row of nonzero cost
+    (meaningful where the clocks are not 0), int64 ``(slices, spans)`` each."""
+    start = int(r0[0])
+    part = cost[:, start : int(r1[-1])]
+    rows = np.arange(start, int(r1[-1]))
+    local = r0 - start
+    live = part > 0
+    clocks = np.add.reduceat(part, local, axis=1)
+    lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
+    hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
+    return tuple(np.ascontiguousarray(v, dtype=np.int64) for v in (clocks, lo, hi))

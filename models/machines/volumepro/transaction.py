@@ -90,7 +90,7 @@ from models.machines.volumepro.fifo_timing import (
     stream_latency,
     uses_slice_fifos,
 )
-from models.machines.volumepro.fifo_transaction import fifo_schedule
+from models.machines.volumepro.fifo_transaction import chunk_index, fifo_schedule
 from models.machines.volumepro.lanes import busiest_lanes, miniblock_layout, sample_lanes
 from models.machines.volumepro.memory import words_per_voxel
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
@@ -222,8 +222,8 @@ class SlabTransaction:
                 [bi] * k.size, slabs.tolist(), u_lo[k].tolist(), u_hi[k].tolist(), strict=True
             )
         if self.slice_fifo:  # rules 3', 5'
-            return (chunks, *fifo_schedule(self, n_steps, chunks, _chunk_index(grids)))
-        from models.machines.volumepro.streams_kernel import beam_groups  # numba
+            return (chunks, *fifo_schedule(self, n_steps, chunks, chunk_index(grids)))
+        from models.machines.volumepro.streams_kernel import beam_groups, live_spans  # numba
 
         windows = np.array([self._window_slabs(j) for j in range(n_steps)], dtype=np.int64)
         parts, g = [], 0
@@ -237,7 +237,7 @@ class SlabTransaction:
                     for v in ((r1 - r0) * self.C, r0, r1 - 1)
                 )
             else:  # per slice and span: clocks, first and last live row
-                spans = _live_spans(sk.cost[:n_steps], r0, r1)
+                spans = live_spans(sk.cost[:n_steps], r0, r1)
             out = np.empty((n_steps * (r0.size + 1), 4), dtype=np.int64)
             u0 = max(a0 - 1, 0) // 2
             dims = (n_a, u0, U)
@@ -455,13 +455,14 @@ class SlabTransaction:
         mini-block that is read."""
         if self.skips is None:
             return sum(u_hi - u_lo + 1 for _, _, u_lo, u_hi in chunks)
-        if not chunks:
-            return 0
+        # Each band's chunks partition its mbbs slab by slab, and a chunk is dropped only
+        # when none of its mbbs is read: the band's mbbs read, counted at once.
         read = self.skips.needed.any(axis=2)  # (slab, mbb): some mini-block of it is read
-        upto = np.zeros((read.shape[0], read.shape[1] + 1), dtype=np.int64)
-        np.cumsum(read, axis=1, out=upto[:, 1:])  # mbbs read before each mbb of a slab
-        s, lo, hi = np.array([c[1:] for c in chunks], dtype=np.int64).T
-        return int((upto[s, hi + 1] - upto[s, lo]).sum())
+        n_a = self.n_a
+        return sum(
+            int(read[:, max(a0 - 1, 0) // 2 : min(a1 + 1, n_a - 1) // 2 + 1].sum())
+            for a0, a1 in self.bands
+        )
 
     def _skip_counters(self) -> dict[str, int]:
         """Rule 6's counters (beams and bursts skipped) when the machine skips."""
@@ -477,31 +478,6 @@ class SlabTransaction:
             "ert.stopped_rays": sk.stopped_rays,
             "space_leaping.samples_leaped": sk.leaped,
         }
-
-
-def _live_spans(cost: np.ndarray, r0: np.ndarray, r1: np.ndarray):
-    """Per sample slice and span ``r0[i] .. r1[i] - 1`` of rows (consecutive spans): the
-    span's clocks (``cost`` summed) and its first and last row of nonzero cost
-    (meaningful where the clocks are not 0), int64 ``(slices, spans)`` each."""
-    start = int(r0[0])
-    part = cost[:, start : int(r1[-1])]
-    rows = np.arange(start, int(r1[-1]))
-    local = r0 - start
-    live = part > 0
-    clocks = np.add.reduceat(part, local, axis=1)
-    lo = np.minimum.reduceat(np.where(live, rows, rows[-1] + 1), local, axis=1)
-    hi = np.maximum.reduceat(np.where(live, rows, -1), local, axis=1)
-    return tuple(np.ascontiguousarray(v, dtype=np.int64) for v in (clocks, lo, hi))
-
-
-def _chunk_index(grids: list[np.ndarray]) -> dict[tuple[int, int, int], int]:
-    """Chunk number by ``(band, slab, k)`` from the bands' grids (-1: not read)."""
-    index = {}
-    for bi, grid in enumerate(grids):
-        slab, k = np.nonzero(grid >= 0)
-        for s, q, c in zip(slab.tolist(), k.tolist(), grid[slab, k].tolist(), strict=True):
-            index[bi, s, q] = c
-    return index
 
 
 def _slice_bounds(groups) -> tuple[list[bool], list[bool]]:
