@@ -64,7 +64,7 @@ __all__ = ["BeamSkips", "Vp1000Transaction", "beam_skips", "leaping_plan", "stop
 #: Modes whose rays stop on a machine with ERT hardware (opacity threshold, iso's hit).
 stopping_modes = ("composite", "iso")
 #: Rays whose rule 6 loop state (:func:`_ray_state`) is kept for later frames, at most.
-_KEEP_RAYS = 1 << 20
+_KEEP_RAYS = 1 << 18  # 27 MB of terms and steps
 _rays_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 _rays_lock = threading.Lock()
 
