@@ -174,14 +174,19 @@ def _axes(plan: SamplePlan) -> tuple[int, int, int]:
     return (kp, *(a for a in range(3) if a != kp))
 
 
-def _ray_terms(plan: SamplePlan, block: int) -> np.ndarray:
+def _ray_terms(plan: SamplePlan, block: int, *, leap: bool = True) -> np.ndarray:
     """Per plan ray, the terms of its positions that do not depend on the step (formed
     as :meth:`SamplePlan.position <hwsim.golden.positions.SamplePlan.position>` forms
     them), then the steps it may leap per block of chessboard distance:
     ``(c - 1) (block - 1e-6) / |delta|_inf``, never beyond the plan leap's
-    ``floor(((c - 1) block - 1e-6) / |delta|_inf)`` for any ``c >= 1``."""
+    ``floor(((c - 1) block - 1e-6) / |delta|_inf)`` for any ``c >= 1``.  ``leap``
+    False: a shear-image plan's eight position terms alone, without the leap row."""
     kp, a_ax, b_ax = _axes(plan)
     n = plan.ray_ids.size
+    if not leap and plan.kind == "shear-image":
+        o, d = plan._o, plan._d
+        cols = [plan._q0, plan._sign, o[:, kp], d[:, kp], o[:, a_ax], d[:, a_ax]]
+        return np.ascontiguousarray(np.stack([*cols, o[:, b_ax], d[:, b_ax]]), dtype=np.float64)
     delta = np.asarray(plan._delta, dtype=np.float64)
     if delta.ndim == 1:  # one step for every ray (a parallel view): one quotient
         leap = np.full(n, (block - 1e-6) / np.max(np.abs(delta)))
@@ -438,12 +443,12 @@ def plan_positions(plan: SamplePlan) -> Iterator[tuple[int, np.ndarray, np.ndarr
 
 def position_terms(plan: SamplePlan) -> tuple[np.ndarray, np.ndarray]:
     """The plan rays with samples by ascending ``j_lo`` (the walker's join order) and
-    their position terms (:func:`_ray_terms`, the last row the leap's): for loops that
+    their eight position terms (:func:`_ray_terms` without the leap row): for loops that
     form :func:`plan_positions`' floats themselves
     (:func:`models.machines.volumepro.skips_kernel.plan_step_cells`)."""
     has_samples = plan.j_lo <= plan.j_hi
     join = np.flatnonzero(has_samples)[np.argsort(plan.j_lo[has_samples], kind="stable")]
-    return join, _ray_terms(plan, 1 << 62)
+    return join, _ray_terms(plan, 1 << 62, leap=False)
 
 
 def busiest_lanes(plan: SamplePlan, pipelines: int, lanes_of) -> np.ndarray:

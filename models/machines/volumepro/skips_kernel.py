@@ -71,7 +71,7 @@ def plan_step_cells(
     ss : float
         The plan's supersampling.
     terms, join : ndarray
-        float64 ``(9, rays)``: the plan rays' position terms, and int64 the rays with
+        float64 ``(8, rays)``: the plan rays' position terms, and int64 the rays with
         samples in join order (ascending ``j_lo``), both
         :func:`models.fused_steps.position_terms`' (no reordered copy of the terms).
     j_lo, j_hi : ndarray
@@ -135,19 +135,27 @@ def plan_step_cells(
         ints[4, k] = int(na + nb)
     lanes = np.zeros(P, dtype=np.int64)
     m, live, dead = 0, 0, 0
+    # Row views and unsigned cell indices: numba emits no negative-index wrap a read.
+    hi_, last_, ca, cb, sums = ints[0], ints[1], ints[2], ints[3], ints[4]
+    ub, ucp = np.uint64(n_b), np.uint64(CP)
+    umask = np.uint64(mask if mask >= 0 else 0)
     for k in range(count):
-        if ints[0, k] < j:
+        if hi_[k] < j:
             dead += 1
             continue
         m += 1
-        a, cell = ints[2, k], ints[2, k] * n_b + ints[3, k]
-        lst = ints[1, k]
+        a, b = np.uint64(ca[k]), np.uint64(cb[k])
+        cell = a * ub + b
+        lst = last_[k]
         if lst >= j:
             cells[cell] = 1
-            groups[a * CP + ints[3, k]] = 1
+            groups[a * ucp + b] = 1
             live += 1
-            s = ints[4, k]
-            lanes[s & mask if mask >= 0 else s % P] += 1
+            s = sums[k]
+            if mask >= 0:
+                lanes[np.uint64(s) & umask] += 1
+            else:
+                lanes[s % P] += 1
         elif j < lag or lst > j - lag:  # the sequencer read for rays alive lag slices earlier
             cells[cell] = 1
     if 8 * dead > count:  # compact, keeping the order
