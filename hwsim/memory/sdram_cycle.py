@@ -42,11 +42,21 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 from typing import Any
 
-import numba
 import numpy as np
 
 from hwsim.memory.sdram import SdramConfig
-from hwsim.memory.sdram_kernel import BANK_ROWS, REGS, empty_out, schedule_requests
+from hwsim.memory.sdram_kernel import (
+    BANK_ROWS,
+    CONFLICT,
+    HIT,
+    MISS,
+    REGS,
+    empty_out,
+    log_counts,
+    outcomes,
+    outcomes_and_gaps,
+    schedule_requests,
+)
 
 __all__ = [
     "HIT",
@@ -59,8 +69,6 @@ __all__ = [
     "summarize",
 ]
 
-#: Row outcome codes of :attr:`BurstSchedule.outcome`.
-HIT, MISS, CONFLICT = 0, 1, 2
 _NEVER = -(1 << 40)
 REFRESHES = REGS.index("refreshes")
 
@@ -290,11 +298,22 @@ class SdramController:
             read=read,
             activate=act_arr,
             precharge=pre_arr,
-            outcome=_outcomes(act_arr, pre_arr),
+            outcome=outcomes(act_arr, pre_arr),
             earliest=self._arrivals[:n].astype(np.int64) if copy else self._arrivals[:n],
             refreshed_before=self._out[3, :n] != 0,
             refresh_log=self._log[: self._regs[REFRESHES]].copy(),
         )
+
+    def stats(self) -> SdramStats:
+        """:meth:`schedule`'s ``stats`` alone (no command arrays): one compiled pass over
+        the logs for the outcomes and gaps, the rest as :func:`summarize` counts them."""
+        n, out, cfg = self._n, self._out, self.cfg
+        counts, stalls = log_counts(
+            out, self._arrivals, n, cfg.burst_cycles, cfg.t_rcd, cfg.t_rp + cfg.t_rcd
+        )
+        refresh = self._log[: self._regs[REFRESHES]]
+        reads = (int(out[0, 0]), int(out[0, n - 1])) if n else None
+        return _stats(cfg, n, counts, stalls, reads, refresh)
 
     def reserve(self, n: int) -> None:
         """Make room for ``n`` more requests at once (a caller that knows its request
@@ -389,31 +408,10 @@ def summarize(
     data_end = data_first + bc
     if earliest.size != n or refreshed.size != n:
         raise ValueError(f"earliest and refreshed_before need {n} entries, one a request")
-    counts, stalls = _outcomes_and_gaps(
+    counts, stalls = outcomes_and_gaps(
         read, outcome, earliest, refreshed, bc, cfg.t_rcd, cfg.t_rp + cfg.t_rcd
     )
-    elapsed = int(data_end[-1]) if n else 0
-    busy = n * bc
-    prea = refresh[:, 0]
-    stats = SdramStats(
-        bursts=n,
-        row_hits=int(counts[HIT]),
-        row_misses=int(counts[MISS]),
-        row_conflicts=int(counts[CONFLICT]),
-        activates=int(counts[MISS] + counts[CONFLICT]),
-        precharges=int(counts[CONFLICT] + np.count_nonzero(prea >= 0)),
-        refreshes=int(refresh.shape[0]),
-        refresh_cycles=int(
-            np.sum(refresh[:, 1] + cfg.t_rfc - np.where(prea >= 0, prea, refresh[:, 1]))
-        ),
-        data_busy_cycles=busy,
-        idle_cycles=elapsed - busy,
-        elapsed_cycles=elapsed,
-        first_access_cycles=int(data_first[0]) if n else 0,
-        stall_arrival_cycles=int(stalls[0]),
-        stall_bank_cycles=int(stalls[1]),
-        stall_refresh_cycles=int(stalls[2]),
-    )
+    stats = _stats(cfg, n, counts, stalls, (int(read[0]), int(read[-1])) if n else None, refresh)
     return BurstSchedule(
         read=read,
         # As given when already integer arrays: a frame's narrow (int32) controller
@@ -428,50 +426,33 @@ def summarize(
     )
 
 
-@numba.njit(cache=True, nogil=True)
-def _outcomes(activate, precharge):
-    """Each request's outcome code from its ACTIVATE and PRECHARGE cycles (-1: none):
-    :data:`HIT` without an ACTIVATE, :data:`CONFLICT` with both, else :data:`MISS`.  One
-    compiled pass: NumPy's three masked writes cost ~8 ns a request (2 ms a VIZARD II
-    frame at 128^3)."""
-    outcome = np.empty(activate.shape[0], np.int8)
-    for i in range(activate.shape[0]):
-        if activate[i] < 0:
-            outcome[i] = HIT
-        elif precharge[i] >= 0:
-            outcome[i] = CONFLICT
-        else:
-            outcome[i] = MISS
-    return outcome
-
-
-@numba.njit(cache=True, nogil=True)
-def _outcomes_and_gaps(read, outcome, earliest, refreshed, bc, miss_lat, conflict_lat):
-    """One pass of :func:`summarize` over the requests: the count of each outcome and the
-    data-bus gaps before bursts ``i > 0`` (``read[i] - read[i-1] - bc`` when positive)
-    summed by cause: arrival (the READ could not issue earlier even with its bank ready:
-    ``earliest + row latency >= read``), else refresh (a refresh came just before it),
-    else bank.  Compiled: in NumPy these were a dozen passes and temporaries a request."""
-    counts = np.zeros(3, np.int64)
-    stalls = np.zeros(3, np.int64)  # arrival, bank, refresh
-    for i in range(read.shape[0]):
-        o = outcome[i]
-        if o < 0 or o > 2:
-            raise ValueError("outcome codes are HIT, MISS or CONFLICT (0, 1, 2)")
-        counts[o] += 1
-        if i == 0:
-            continue
-        gap = read[i] - read[i - 1] - bc
-        if gap <= 0:
-            continue
-        could = np.int64(earliest[i]) + (0 if o == HIT else miss_lat if o == MISS else conflict_lat)
-        if could >= read[i]:
-            stalls[0] += gap
-        elif refreshed[i]:
-            stalls[2] += gap
-        else:
-            stalls[1] += gap
-    return counts, stalls
+def _stats(cfg: SdramConfig, n: int, counts, stalls, reads, refresh) -> SdramStats:
+    """:class:`SdramStats` of ``n`` requests from their outcome ``counts``, gap
+    ``stalls`` (arrival, bank, refresh), first and last READ cycles ``reads`` (None: no
+    request) and refresh log."""
+    bc = cfg.burst_cycles
+    elapsed = reads[1] + cfg.cas_latency + bc if n else 0
+    busy = n * bc
+    prea = refresh[:, 0]
+    return SdramStats(
+        bursts=n,
+        row_hits=int(counts[HIT]),
+        row_misses=int(counts[MISS]),
+        row_conflicts=int(counts[CONFLICT]),
+        activates=int(counts[MISS] + counts[CONFLICT]),
+        precharges=int(counts[CONFLICT] + np.count_nonzero(prea >= 0)),
+        refreshes=int(refresh.shape[0]),
+        refresh_cycles=int(
+            np.sum(refresh[:, 1] + cfg.t_rfc - np.where(prea >= 0, prea, refresh[:, 1]))
+        ),
+        data_busy_cycles=busy,
+        idle_cycles=elapsed - busy,
+        elapsed_cycles=elapsed,
+        first_access_cycles=reads[0] + cfg.cas_latency if n else 0,
+        stall_arrival_cycles=int(stalls[0]),
+        stall_bank_cycles=int(stalls[1]),
+        stall_refresh_cycles=int(stalls[2]),
+    )
 
 
 def _integers(values) -> np.ndarray:

@@ -125,6 +125,7 @@ def test_incremental_controller_equals_batch(case, data):
     for name in ("read", "activate", "precharge", "outcome", "refresh"):
         assert np.array_equal(getattr(batch, name), getattr(inc, name)), name
     assert batch.stats == inc.stats
+    assert ctl.stats() == batch.stats  # counted straight from the logs: the same
 
 
 @given(streams())

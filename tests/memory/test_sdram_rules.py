@@ -205,7 +205,7 @@ def test_adopted_request_logs_give_the_schedule_of_fresh_ones():
     reused = ctl.schedule()
     for name in ("read", "activate", "precharge", "outcome", "refresh"):
         assert np.array_equal(getattr(reused, name), getattr(fresh, name)), name
-    assert reused.stats == fresh.stats
+    assert reused.stats == fresh.stats == ctl.stats()
     assert ctl.logs()[0] is out and np.array_equal(out[0, :300], fresh.read)
     with pytest.raises(RuntimeError, match="before the first request"):
         ctl.adopt_logs(out, arrivals)
