@@ -282,6 +282,24 @@ def test_compiled_skips_equal_the_numpy_reference(phantoms, projection):
     assert a.live.sum() > b.live.sum() and a.cost.sum() > b.cost.sum()
 
 
+@pytest.mark.parametrize("projection", ["parallel", "perspective"])
+@pytest.mark.parametrize("supersampling", [1.0, 1.7])
+def test_all_windows_at_once_equal_the_slice_by_slice_rule(phantoms, projection, supersampling):
+    """``_all_windows`` (every slice's slab window from one array of slice positions)
+    gives what ``_window_slabs`` gives slice by slice, in both slice directions."""
+    volume = phantoms["head"]
+    for az in (35, 215):
+        scene = scene_of(az=az, el=25, image=40, ert=0.9, projection=projection)
+        render = dataclasses.replace(scene.render, supersampling=supersampling)
+        scene = scene.replace(render=render)
+        tf = resolve_transfer(scene.transfer, volume)
+        one, every = (Vp1000Transaction(frame_of(scene, volume, tf, machine(True))) for _ in "ab")
+        n = one.plan.n_steps
+        every._all_windows(n)
+        assert len(every._windows) == n > 0
+        assert [every._windows[j] for j in range(n)] == [one._window_slabs(j) for j in range(n)]
+
+
 def test_termination_steps_come_from_the_functional_rung(phantoms):
     """The one hook in the functional rung: each ray's last live step, the same whether
     the simulation leaps invisible blocks or walks every sample, and equal to what

@@ -59,6 +59,9 @@ class refuses a skipping machine.
 
 from __future__ import annotations
 
+import itertools
+import math
+import operator
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -185,9 +188,18 @@ class SlabTransaction:
             return self._windows[j]
         n = self.n_k
         p = min(max(slice_position(self.plan, j, self.forward), 0.0), n - 1.0)
-        i0 = int(min(np.floor(p), max(n - 2, 0)))
+        i0 = min(math.floor(p), max(n - 2, 0))  # p finite, in 0 .. n - 1
         self._windows[j] = window = (max(i0 - 1, 0) // 2, min(i0 + 2, n - 1) // 2)
         return window
+
+    def _all_windows(self, n_steps: int) -> None:
+        """:meth:`_window_slabs` of every slice at once, kept: its rule on the plan's
+        slice formula applied to an array (the same floats); shear-warp plans left out."""
+        if self.plan.kind != "shear-warp" and n_steps > 0:
+            n, p = self.n_k, slice_position(self.plan, np.arange(n_steps), self.forward)
+            i0 = np.minimum(np.floor(np.clip(p, 0.0, n - 1.0)), max(n - 2, 0)).astype(np.int64)
+            lo, hi = np.maximum(i0 - 1, 0) // 2, np.minimum(i0 + 2, n - 1) // 2
+            self._windows.update(enumerate(zip(lo.tolist(), hi.tolist(), strict=True)))
 
     def _schedule(self, n_steps: int):
         """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
@@ -287,8 +299,8 @@ class SlabTransaction:
         else:
             latency = pipeline_latency(self.C)
             cycles = max(stats["pipe_end"], bus.end) + latency
-        # Views of the controllers' logs, not copies: nothing is issued after this.
-        sdram = SdramStats.combine([p.controller.schedule(copy=False).stats for p in reads.ports])
+        # Counted straight from the controllers' logs (no schedule arrays built).
+        sdram = SdramStats.combine([p.controller.stats() for p in reads.ports])
         reads.release()  # read: the next frame may reuse its arrays
         counters: dict[str, Any] = {k: int(v) for k, v in sdram.to_counters("memory.sdram").items()}
         counters.update(
@@ -394,13 +406,14 @@ class SlabTransaction:
         for bi, rays in enumerate(parked.tolist()):
             if n_steps:
                 leaving[bi][n_steps - 1] += rays  # and the rays the band parked
+        slice_fifo, overhead = self.slice_fifo, self.arch.slice_overhead_cycles
+        frees = frees_at.get
         t = events = 0
-        for k, (f, (bi, j, clocks, need)) in enumerate(
-            (f, group) for f in range(frames) for group in groups
-        ):
+        for k, (f, (bi, j, clocks, need)) in enumerate(itertools.product(range(frames), groups)):
+            kg = k - f * ng  # the group in its frame
             need = need + f * nc if need >= 0 else need
-            first = firsts[k % ng]
-            if bi and first and groups[k % ng - 1][0] != bi:
+            first = firsts[kg]
+            if bi and first and groups[kg - 1][0] != bi:
                 # Section change: overhead, then reload the rays parked by the last band.
                 pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
                 stats["section"] += pre
@@ -427,25 +440,25 @@ class SlabTransaction:
                     ready = max(t, reads.ready_at(need) + deskew)
                     stats["stall"] += ready - t
                     t = ready
-            if self.slice_fifo and first and j >= 0:  # rule 8': from the period's start
+            if slice_fifo and first and j >= 0:  # rule 8': from the period's start
                 yield from link.sync(t)
                 yield from bus.push(leaving[bi][j])
                 t = int(env.now)
             t += clocks
             events += 2
-            for c in frees_at.get(k, ()):
+            for c in frees(k, ()):
                 link.free(c, t)
-            if mores[k % ng] or j < 0:
+            if mores[kg] or j < 0:
                 continue  # more beam groups of this slice; a read-only period (rule 3')
             stats["stretch"] += stretches[j]
-            t += self.arch.slice_overhead_cycles + stretches[j]
-            if not self.slice_fifo:  # rule 8: the slice's pixels at its end
+            t += overhead + stretches[j]
+            if not slice_fifo:  # rule 8: the slice's pixels at its end
                 yield from link.sync(t)
                 yield from bus.push(leaving[bi][j])
                 t = int(env.now)
             self._slices_done[0] += 1
             report_progress(self, *self._slices_done)
-            if k % ng == ng - 1:
+            if kg == ng - 1:
                 stats["pipe_ends"].append(t)
         stats["events"] += events
         stats["pipe_end"] = t
@@ -484,7 +497,7 @@ def _slice_bounds(groups) -> tuple[list[bool], list[bool]]:
     """Per beam group ``(band, j, ...)``: whether it is its slice's first, and whether
     another group of its slice follows."""
     keys = [g[:2] for g in groups]
-    firsts = [k == 0 or keys[k - 1] != key for k, key in enumerate(keys)]
+    firsts = [True, *map(operator.ne, keys[1:], keys)] if keys else []
     return firsts, [not f for f in firsts[1:]] + [False]
 
 

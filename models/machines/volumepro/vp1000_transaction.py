@@ -272,6 +272,7 @@ class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
         start = time.perf_counter()
         stopped = self.termination_steps(self.unleaped) if self.rays_may_stop else None
         lag = int(np.ceil(4 * self.scene.render.supersampling))
+        self._all_windows(self.plan.n_steps)
         self.skips = beam_skips(self.plan, self.P, stopped, lag, self._window_slabs)
         self.skips.leaped = self.unleaped.plan.samples - self.plan.samples
         skips_seconds = time.perf_counter() - start
