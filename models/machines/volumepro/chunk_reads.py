@@ -39,6 +39,8 @@ __all__ = [
 _KEEP = 1 << 22
 #: The last slab layouts, by voxel layout and view axes (:func:`slab_layouts`).
 _layouts: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+#: The kept layout's bank and row ranges ``(min, max, min, max)``, by the same key.
+_layout_ranges: dict[tuple, tuple[int, int, int, int]] = {}
 #: Requests of the SDRAM request logs kept for later frames, in all (:func:`lend_logs`).
 _POOL_REQUESTS = 1 << 21
 #: Request logs (``out``, ``arrivals``) of finished frames' controllers, free to reuse.
@@ -70,8 +72,7 @@ def slab_layouts(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     volume's, not the view's: the last one (up to :data:`_KEEP` bursts) is kept for the
     next frame with the same memory, volume size and axes."""
     n_mb, wpv = -(-model.n_b // 2), model.words_per_voxel
-    axes = (model.kp, model.a_ax, model.b_ax)
-    key = (repr(model.memory), model.n_even, axes, model.n_slabs, model.n_u, n_mb, wpv)
+    key = _layout_key(model)
     if key in _layouts:
         return _layouts[key]
     shape = (model.n_slabs, model.n_u, n_mb * wpv)
@@ -90,7 +91,23 @@ def slab_layouts(model: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if out[0].size <= _KEEP:
         _layouts.clear()
         _layouts[key] = out
+        _layout_ranges.clear()
+        if out[1].size:
+            _layout_ranges[key] = (out[1].min(), out[1].max(), out[2].min(), out[2].max())
     return out
+
+
+def _layout_key(model: Any) -> tuple:
+    axes, n_mb = (model.kp, model.a_ax, model.b_ax), -(-model.n_b // 2)
+    wpv = model.words_per_voxel
+    return (repr(model.memory), model.n_even, axes, model.n_slabs, model.n_u, n_mb, wpv)
+
+
+def _layout_in_range(model: Any, banks: int, rows: int) -> bool:
+    """Whether the kept layout of ``model`` (:func:`slab_layouts`) has every bank in
+    ``0 .. banks - 1`` and row in ``0 .. rows - 1``: so has every burst read from it."""
+    b0, b1, r0, r1 = _layout_ranges.get(_layout_key(model), (-1, -1, -1, -1))
+    return b0 >= 0 and b1 < banks and r0 >= 0 and r1 < rows
 
 
 def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkStreams:
@@ -118,7 +135,8 @@ def chunk_streams(model: Any, chunks: list[tuple[int, int, int, int]]) -> ChunkS
     bounds = np.zeros((M, nc + 1), dtype=np.int64)
     np.cumsum(per, axis=1, out=bounds[:, 1:])
     used = [(banks[k, :n], rows[k, :n]) for k, n in enumerate(bounds[:, -1])]
-    for i, (name, limit) in enumerate((("bank", cfg.banks), ("row", cfg.rows))):
+    in_range = _layout_in_range(model, cfg.banks, cfg.rows)  # else the bursts read checked
+    for i, (name, limit) in enumerate(() if in_range else (("bank", cfg.banks), ("row", cfg.rows))):
         if any(v.size and (v.min() < 0 or v.max() >= limit) for v in (u[i] for u in used)):
             raise ValueError(f"{name} out of range 0 .. {limit - 1}")
     modules = [(b, r, bounds[k].tolist(), per[k]) for k, (b, r) in enumerate(used)]
