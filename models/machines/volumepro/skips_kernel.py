@@ -34,6 +34,7 @@ import numba
 import numpy as np
 
 __all__ = [
+    "PACK_LIMIT",
     "beam_needs",
     "cell_blocks",
     "active_rays",
@@ -42,6 +43,11 @@ __all__ = [
     "slice_cells",
     "union_blocks",
 ]
+
+
+#: Volume extent (voxels along an axis) below which :func:`plan_step_cells` packs a
+#: ray's cell and lane sum in one word (21 bits each); larger volumes take the NumPy form.
+PACK_LIMIT = 1 << 20
 
 
 @numba.njit(cache=True, nogil=True)
@@ -128,15 +134,18 @@ def plan_step_cells(
         pa = at[4, k] + along * at[5, k]
         pb = at[6, k] + along * at[7, k]
         fa, fb = np.floor(pa), np.floor(pb)
-        ints[2, k] = int(min(max(fa, 0.0), fa_hi))
-        ints[3, k] = int(min(max(fb, 0.0), fb_hi))
+        ca = int(min(max(fa, 0.0), fa_hi))
+        cb = int(min(max(fb, 0.0), fb_hi))
         na = min(max(fa + (1.0 if pa - fa >= 0.5 else 0.0), 0.0), fa_hi)
         nb = min(max(fb + (1.0 if pb - fb >= 0.5 else 0.0), 0.0), fb_hi)
-        ints[4, k] = int(na + nb)
+        ints[2, k] = (ca << 42) | (cb << 21) | int(na + nb)  # a, b, lane sum
     lanes = np.zeros(P, dtype=np.int64)
     m, live, dead = 0, 0, 0
     # Row views and unsigned cell indices: numba emits no negative-index wrap a read.
-    hi_, last_, ca, cb, sums = ints[0], ints[1], ints[2], ints[3], ints[4]
+    # Each ray's cell a, b and lane sum packed in one word (21 bits each, PACK_LIMIT):
+    # a third of the bytes the position loop writes and this one reads back.
+    hi_, last_, packed = ints[0], ints[1], ints[2]
+    low = np.uint64((1 << 21) - 1)
     ub, ucp = np.uint64(n_b), np.uint64(CP)
     umask = np.uint64(mask if mask >= 0 else 0)
     for k in range(count):
@@ -144,18 +153,19 @@ def plan_step_cells(
             dead += 1
             continue
         m += 1
-        a, b = np.uint64(ca[k]), np.uint64(cb[k])
+        v = np.uint64(packed[k])
+        a, b = v >> np.uint64(42), (v >> np.uint64(21)) & low
         cell = a * ub + b
         lst = last_[k]
         if lst >= j:
             cells[cell] = 1
             groups[a * ucp + b] = 1
             live += 1
-            s = sums[k]
+            s = v & low
             if mask >= 0:
-                lanes[np.uint64(s) & umask] += 1
+                lanes[s & umask] += 1
             else:
-                lanes[s % P] += 1
+                lanes[s % np.uint64(P)] += 1
         elif j < lag or lst > j - lag:  # the sequencer read for rays alive lag slices earlier
             cells[cell] = 1
     if 8 * dead > count:  # compact, keeping the order
@@ -198,12 +208,13 @@ def _count_groups(held, n_a, C, P, cost_row):
 
 def active_rays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`plan_step_cells`' state for ``n`` rays: their terms, per ray its last step,
-    last live step, cell ``a``, ``b`` and lane sum; the active count and next ray to
-    join.  Allocated by NumPy, which asks for huge pages (the first touch of a fresh
-    array allocated in numba costs about four times as much, on 4 KiB pages)."""
+    last live step, and cell ``a``, ``b`` and lane sum packed in one word; the active
+    count and next ray to join.  Allocated by NumPy, which asks for huge pages (the
+    first touch of a fresh array allocated in numba costs about four times as much, on
+    4 KiB pages)."""
     return (
         np.zeros((8, max(n, 1))),
-        np.zeros((5, max(n, 1)), dtype=np.int64),
+        np.zeros((3, max(n, 1)), dtype=np.int64),
         np.zeros(2, dtype=np.int64),
     )
 

@@ -64,7 +64,7 @@ __all__ = ["BeamSkips", "Vp1000Transaction", "beam_skips", "leaping_plan", "stop
 #: Modes whose rays stop on a machine with ERT hardware (opacity threshold, iso's hit).
 stopping_modes = ("composite", "iso")
 #: Rays whose rule 6 loop state (:func:`_ray_state`) is kept for later frames, at most.
-_KEEP_RAYS = 1 << 18  # 27 MB of terms and steps
+_KEEP_RAYS = 1 << 18  # 23 MB of terms, steps and cells
 _rays_kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 _rays_lock = threading.Lock()
 
@@ -141,6 +141,10 @@ def beam_skips(
     live_count = np.zeros(plan.n_steps, dtype=np.int64)
     busiest = np.zeros(plan.n_steps, dtype=np.int64)
     compiled = compiled and plan.kind == "shear-image"  # the compiled loop's positions
+    if compiled:
+        from models.machines.volumepro.skips_kernel import PACK_LIMIT  # numba
+
+        compiled = max(shape) < PACK_LIMIT  # its packed cells
     if compiled:
         _compiled_skips(plan, P, stopped, lag, window, (cost, live_count, busiest, needed))
     from models import fused_steps  # imports numba: only for the frames that need it
