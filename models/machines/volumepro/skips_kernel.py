@@ -64,9 +64,21 @@ def _nearest(p: float, n: int) -> int:
     return min(max(v, 0), n - 1)
 
 
+@numba.njit(cache=True, nogil=True)
+def _packed(pa, pb, fa_hi, fb_hi):
+    """A sample's cell ``a``, ``b`` and lane sum ``na + nb`` (nearest voxels) at in-slice
+    position ``pa``, ``pb``, packed in one word (21 bits each, :data:`PACK_LIMIT`)."""
+    fa, fb = np.floor(pa), np.floor(pb)
+    ca = int(min(max(fa, 0.0), fa_hi))
+    cb = int(min(max(fb, 0.0), fb_hi))
+    na = min(max(fa + (1.0 if pa - fa >= 0.5 else 0.0), 0.0), fa_hi)
+    nb = min(max(fb + (1.0 if pb - fb >= 0.5 else 0.0), 0.0), fb_hi)
+    return (ca << 42) | (cb << 21) | int(na + nb)
+
+
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def plan_step_cells(
-    j, ss, terms, join, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost_row
+    j, ss, terms, join, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost_row, uniform
 ):
     """One sample slice ``j`` of rule 6, straight from a shear-image plan's rays.
 
@@ -98,6 +110,10 @@ def plan_step_cells(
         uint8 ``n_a ceil(n_b / P) P`` (flat, zero on entry): 1 at the cells holding a
         live sample, each beam's clock groups holding one counted into ``cost_row`` (its
         clocks).
+    uniform : bool
+        Whether rows 0, 1, 3, 5 and 7 of ``terms`` (step origin, sign and the direction)
+        are the same for every ray (a parallel view): then only rows 2, 4 and 6 are read
+        a ray (the same floats).
 
     Returns
     -------
@@ -128,17 +144,14 @@ def plan_step_cells(
     j_ss = np.float64(j) / ss
     mask = P - 1 if P & (P - 1) == 0 else -1  # a power of two: the lane by a mask
     fa_hi, fb_hi = n_a - 1.0, n_b - 1.0
-    for k in range(count):  # every active ray's cell and lane (dead ones discarded below)
-        pk = at[0, k] + at[1, k] * j_ss
-        along = (pk - at[2, k]) / at[3, k]
-        pa = at[4, k] + along * at[5, k]
-        pb = at[6, k] + along * at[7, k]
-        fa, fb = np.floor(pa), np.floor(pb)
-        ca = int(min(max(fa, 0.0), fa_hi))
-        cb = int(min(max(fb, 0.0), fb_hi))
-        na = min(max(fa + (1.0 if pa - fa >= 0.5 else 0.0), 0.0), fa_hi)
-        nb = min(max(fb + (1.0 if pb - fb >= 0.5 else 0.0), 0.0), fb_hi)
-        ints[2, k] = (ca << 42) | (cb << 21) | int(na + nb)  # a, b, lane sum
+    if uniform and count:  # a parallel view: rows 0, 1, 3, 5, 7 the same for every ray
+        pk, dk, da, db = at[0, 0] + at[1, 0] * j_ss, at[3, 0], at[5, 0], at[7, 0]
+        for k in range(count):  # three rows read a ray, not eight (its rays stay in L2)
+            along = (pk - at[2, k]) / dk
+            ints[2, k] = _packed(at[4, k] + along * da, at[6, k] + along * db, fa_hi, fb_hi)
+    for k in range(0 if uniform else count):  # every active ray's cell and lane
+        along = (at[0, k] + at[1, k] * j_ss - at[2, k]) / at[3, k]
+        ints[2, k] = _packed(at[4, k] + along * at[5, k], at[6, k] + along * at[7, k], fa_hi, fb_hi)
     lanes = np.zeros(P, dtype=np.int64)
     m, live, dead = 0, 0, 0
     # Row views and unsigned cell indices: numba emits no negative-index wrap a read.
@@ -221,7 +234,22 @@ def active_rays(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(cache=True, nogil=True)
 def frame_skips(
-    ss, terms, join, j_lo, j_hi, last, dims, P, lag, windows, rays, cost, live, busiest, needed
+    ss,
+    terms,
+    join,
+    j_lo,
+    j_hi,
+    last,
+    dims,
+    P,
+    lag,
+    windows,
+    rays,
+    cost,
+    live,
+    busiest,
+    needed,
+    uniform,
 ):
     """Rule 6 at every sample slice of a shear-image plan (:func:`plan_step_cells` slice
     after slice), and the mini-blocks read.
@@ -247,7 +275,21 @@ def frame_skips(
     slab_of = np.full(span + 1, -1, dtype=np.int64)  # the open slab in each union
     for j in range(n_steps):
         m, live[j], busiest[j] = plan_step_cells(
-            j, ss, terms, join, j_lo, j_hi, last, dims, P, lag, rays, cells, groups, cost[j]
+            j,
+            ss,
+            terms,
+            join,
+            j_lo,
+            j_hi,
+            last,
+            dims,
+            P,
+            lag,
+            rays,
+            cells,
+            groups,
+            cost[j],
+            uniform,
         )
         if m == 0:
             continue

@@ -214,6 +214,7 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
         windows.reshape(-1, 2),
         rays,
         *out,
+        bool(terms.shape[1]) and all(np.all(terms[r] == terms[r, 0]) for r in (0, 1, 3, 5, 7)),
     )
     if rays[0].shape[1] <= _KEEP_RAYS:
         with _rays_lock:
