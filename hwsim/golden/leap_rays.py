@@ -17,6 +17,15 @@ distance's leap already reaches past it the other two are not needed).  A ray's 
 one serial chain of dependent float operations, so four rays march at once, a step each
 in turn (a lane whose ray is done takes the next): the processor overlaps their chains,
 about 1.4x faster, and every ray's own operations are the same.
+
+An *empty* ray (the forward march ran past ``j_hi``) comes back in one canonical form,
+``j_lo = j_hi + 1`` with ``j_hi`` unchanged, and takes no backward march: the NumPy
+march does the same, and :meth:`~hwsim.golden.positions.SamplePlan.leap` drops such rays
+at once (``j_lo > j_hi``), so no consumer ever reads their ends.  Other steps cost less
+with the same results: a block index is the float quotient's truncation (the same as its
+floor on a clipped, non-negative position), and a block at distance 1 leaps to the
+first sample out of the block without the distance's division (``(c - 1) block - 1e-6``
+is negative there, so that leap is below one step and the maximum ignores it).
 ``tests/golden/test_leap_rays.py`` checks the step ranges are the NumPy march's exactly.
 """
 
@@ -73,16 +82,6 @@ def _floor_divide(a, b):  # pragma: no cover - compiled
 
 
 @numba.njit(inline="always")
-def _block_of(p, top, fblock, inv_block, exact):  # pragma: no cover - compiled
-    """Block index (float) of position ``p`` clipped to ``[0, top]``: ``floor_divide``'s,
-    or for a power-of-two block the quotient by multiplying with its exact inverse."""
-    clipped = min(max(p, 0.0), top)
-    if exact:
-        return math.floor(clipped * inv_block)
-    return _floor_divide(clipped, fblock)
-
-
-@numba.njit(inline="always")
 def _face(step, p, blk, block):  # pragma: no cover - compiled
     """Steps of ``step`` from ``p`` to the face of block ``blk`` it moves towards."""
     if step > 0:
@@ -107,48 +106,73 @@ def _march(
     fblock = np.float64(block)
     # A power-of-two block: the quotient of a clipped (>= 0) position is exact, so its
     # floor is ``numpy.floor_divide``'s without the remainder (``fmod`` was half the
-    # march), and dividing by it is multiplying by its inverse, exactly.
+    # march), and dividing by it is multiplying by its inverse, exactly; the floor of a
+    # non-negative quotient is its truncation to an integer.
     exact = block > 0 and (block & (block - 1)) == 0
     inv_block = 1.0 / fblock if exact else 0.0
+    nb1, nb2 = distance.shape[1], distance.shape[2]
+    dist = distance.ravel()
+    top0, top1, top2 = top[0], top[1], top[2]
+    one_d = d.shape[0] == 1
+    one_e = delta.shape[0] == 1
     # Each ray's march is one serial chain of float operations: ``_LANES`` rays march at
     # once, a step each in turn, so the processor overlaps their chains; a lane whose ray
-    # is done takes the next.  Every ray's own operations are unchanged.
-    ray, at = np.full(_LANES, -1, np.int64), np.zeros(_LANES, np.int64)
+    # is done takes the next (backwards, the next ray the forward march left non-empty).
+    ray = np.full(_LANES, -1, np.int64)
+    at = np.zeros(_LANES, np.int64)
     for sign in (1, -1):
         nxt = 0
+        busy = 0
         for k in range(_LANES):
+            while nxt < n_rays and sign < 0 and j_lo[nxt] > j_hi[nxt]:
+                nxt += 1
             if nxt < n_rays:
                 ray[k], at[k] = nxt, j_lo[nxt] if sign > 0 else j_hi[nxt]
                 nxt += 1
-        busy = min(_LANES, n_rays)
+                busy += 1
+            else:
+                ray[k] = -1
         while busy:
             for k in range(_LANES):
                 r = ray[k]
                 if r < 0:
                     continue
-                dr = 0 if d.shape[0] == 1 else r
-                er = 0 if delta.shape[0] == 1 else r
+                dr = 0 if one_d else r
+                er = 0 if one_e else r
                 s0, s1, s2 = sign * delta[er, 0], sign * delta[er, 1], sign * delta[er, 2]
-                # The axis of the longest step: its face bounds the leap to the block's
-                # end from above (the minimum over the axes is at most its term).
-                a_max = _axis_max(s0, s1, s2)
-                s_max = (s0, s1, s2)[a_max]
                 j = at[k]
                 t = (k_first + k_dir * j) * dt
                 p0, p1, p2 = o[r, 0] + t * d[dr, 0], o[r, 1] + t * d[dr, 1], o[r, 2] + t * d[dr, 2]
-                b0 = _block_of(p0, top[0], fblock, inv_block, exact)
-                b1 = _block_of(p1, top[1], fblock, inv_block, exact)
-                b2 = _block_of(p2, top[2], fblock, inv_block, exact)
-                c = distance[np.int64(b0), np.int64(b1), np.int64(b2)]
+                if exact:
+                    i0 = np.int64(min(max(p0, 0.0), top0) * inv_block)
+                    i1 = np.int64(min(max(p1, 0.0), top1) * inv_block)
+                    i2 = np.int64(min(max(p2, 0.0), top2) * inv_block)
+                else:
+                    i0 = np.int64(_floor_divide(min(max(p0, 0.0), top0), fblock))
+                    i1 = np.int64(_floor_divide(min(max(p1, 0.0), top1), fblock))
+                    i2 = np.int64(_floor_divide(min(max(p2, 0.0), top2), fblock))
+                c = dist[(i0 * nb1 + i1) * nb2 + i2]
                 done = c <= 0
                 if not done:
-                    skip = math.floor(((c - 1) * block - 1e-6) / reach[r])
-                    bound = (
-                        _face(s_max, (p0, p1, p2)[a_max], (b0, b1, b2)[a_max], block)
-                        if abs(s_max) > _TINY
-                        else np.inf
-                    )
-                    if not (skip >= 1.0 and bound < np.inf and math.ceil(bound - 1e-6) <= skip):
+                    b0, b1, b2 = np.float64(i0), np.float64(i1), np.float64(i2)
+                    if c == 1:
+                        # ``(c - 1) block - 1e-6 < 0``: the distance's leap is below one
+                        # step, so the leap is to the first sample out of the block.
+                        skip = 1.0
+                        go = True
+                    else:
+                        a_max = _axis_max(s0, s1, s2)
+                        s_max = (s0, s1, s2)[a_max]
+                        skip = math.floor(((c - 1) * block - 1e-6) / reach[r])
+                        bound = (
+                            _face(s_max, (p0, p1, p2)[a_max], (b0, b1, b2)[a_max], block)
+                            if abs(s_max) > _TINY
+                            else np.inf
+                        )
+                        go = not (
+                            skip >= 1.0 and bound < np.inf and math.ceil(bound - 1e-6) <= skip
+                        )
+                    if go:
                         along = np.inf
                         if abs(s0) > _TINY:
                             along = min(along, _face(s0, p0, b0, block))
@@ -162,9 +186,11 @@ def _march(
                     done = not (j <= j_hi[r] and j >= j_lo[r])
                 if done:
                     if sign > 0:
-                        j_lo[r] = j
+                        j_lo[r] = j if j <= j_hi[r] else j_hi[r] + 1
                     else:
                         j_hi[r] = j
+                    while nxt < n_rays and sign < 0 and j_lo[nxt] > j_hi[nxt]:
+                        nxt += 1
                     if nxt < n_rays:
                         ray[k], at[k] = nxt, j_lo[nxt] if sign > 0 else j_hi[nxt]
                         nxt += 1

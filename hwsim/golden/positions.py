@@ -328,7 +328,8 @@ class SamplePlan:
         b = occupancy.block
         for sign in (1, -1):
             j = (self.j_lo if sign > 0 else self.j_hi).copy()
-            march = np.arange(self.ray_ids.size)
+            # Rays the forward march found empty take no backward march.
+            march = np.flatnonzero(self.j_lo <= self.j_hi)
             while march.size:
                 p = self.position(j[march], march)
                 block = np.clip(p, 0.0, self.n - 1.0) // b
@@ -345,7 +346,8 @@ class SamplePlan:
                 inside = (j[march] <= self.j_hi[march]) & (j[march] >= self.j_lo[march])
                 march = march[(c > 0) & inside]
             if sign > 0:
-                self.j_lo = j
+                # An empty ray's canonical form: ``j_lo = j_hi + 1``, ``j_hi`` unchanged.
+                self.j_lo = np.minimum(j, self.j_hi + 1)
             else:
                 self.j_hi = j
         out = self.j_lo, self.j_hi

@@ -44,6 +44,9 @@ def test_compiled_leap_equals_the_numpy_march(seed, kw):
     ref_lo, ref_hi = plan._march(occupancy)
     assert np.array_equal(lo, ref_lo) and np.array_equal(hi, ref_hi)
     assert (hi - lo).sum() < (plan.j_hi - plan.j_lo).sum()  # something was leapt
+    empty = lo > hi  # the canonical empty ray: j_lo = j_hi + 1, j_hi as planned
+    assert np.array_equal(lo[empty], plan.j_hi[empty] + 1)
+    assert np.array_equal(hi[empty], plan.j_hi[empty])
 
 
 def test_a_real_plan_is_leapt_the_same_on_the_phantom():
