@@ -32,6 +32,7 @@ is negative there, so that leap is below one step and the maximum ignores it).
 from __future__ import annotations
 
 import math
+import weakref
 
 import numba
 import numpy as np
@@ -43,26 +44,53 @@ _TINY = 1e-12
 
 def leap_ray_plan(plan, occupancy) -> tuple[np.ndarray, np.ndarray]:
     """New ``(j_lo, j_hi)`` of a ``ray`` ``plan`` leapt past ``occupancy``'s empty blocks
-    (rays left without samples have ``j_lo > j_hi``)."""
-    d = plan._d.reshape(-1, 3)
-    delta = np.broadcast_to(plan._delta, (plan.ray_ids.size, 3))
-    reach = np.maximum(np.maximum(np.abs(delta[:, 0]), np.abs(delta[:, 1])), np.abs(delta[:, 2]))
+    (rays left without samples have ``j_lo > j_hi``, canonically ``j_lo = j_hi + 1``)."""
+    delta = np.ascontiguousarray(np.reshape(plan._delta, (-1, 3)))
+    # ``|delta|_inf`` of each step vector (one row when the rays share it): the maximum
+    # of the three magnitudes, exactly the NumPy march's.
+    reach = np.abs(delta).max(axis=1)
     j_lo, j_hi = plan.j_lo.copy(), plan.j_hi.copy()
     _march(
         np.ascontiguousarray(plan._o),
-        np.ascontiguousarray(d),
+        np.ascontiguousarray(plan._d.reshape(-1, 3)),
         int(plan.k_first),
         int(plan.k_dir),
         float(plan._dt),
-        np.ascontiguousarray(np.reshape(plan._delta, (-1, 3))),
-        np.ascontiguousarray(reach),
+        delta,
+        reach,
         plan.n - 1.0,
         int(occupancy.block),
-        np.ascontiguousarray(occupancy.distance),
+        _compact(occupancy.distance),
         j_lo,
         j_hi,
     )
     return j_lo, j_hi
+
+
+#: The last few distance fields in their narrowest integer type, by the field's identity
+#: (a weak reference checks it is still the same array): an occupancy is the volume's
+#: and the transfer function's, so the frames of a turntable share one.
+_COMPACT: dict[int, tuple[weakref.ref, np.ndarray]] = {}
+
+
+def _compact(distance: np.ndarray) -> np.ndarray:
+    """``distance`` as int8 or int16 when its values fit (the same values, a quarter or
+    an eighth of the memory the march reads at random), else as it is."""
+    found = _COMPACT.get(id(distance))
+    if found is not None and found[0]() is distance:
+        return found[1]
+    top = int(distance.max(initial=0))
+    low = int(distance.min(initial=0))
+    narrow = distance
+    for kind in (np.int8, np.int16):
+        if np.iinfo(kind).min <= low and top <= np.iinfo(kind).max:
+            narrow = distance.astype(kind)
+            break
+    narrow = np.ascontiguousarray(narrow)
+    while len(_COMPACT) >= 4:
+        _COMPACT.pop(next(iter(_COMPACT)))
+    _COMPACT[id(distance)] = (weakref.ref(distance), narrow)
+    return narrow
 
 
 @numba.njit(cache=True, nogil=True)
@@ -163,7 +191,7 @@ def _march(
                     else:
                         a_max = _axis_max(s0, s1, s2)
                         s_max = (s0, s1, s2)[a_max]
-                        skip = math.floor(((c - 1) * block - 1e-6) / reach[r])
+                        skip = math.floor(((c - 1) * block - 1e-6) / reach[er])
                         bound = (
                             _face(s_max, (p0, p1, p2)[a_max], (b0, b1, b2)[a_max], block)
                             if abs(s_max) > _TINY

@@ -43,15 +43,19 @@ import copy
 import functools
 import hashlib
 import time
+import weakref
 from typing import Any
 
+import numba
 import numpy as np
 import simpy
 
 from hwsim.golden.occupancy import Occupancy, occupancy_from_ranges
 from hwsim.golden.positions import SamplePlan
 from hwsim.memory import SdramTransactionPort
+from hwsim.spec.transfer import TransferFunction
 from models.backend import Backend
+from models.datapath import units_needed
 from models.frame import Frame
 from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.transaction import (
@@ -82,6 +86,45 @@ _DISTANCES: dict[tuple, Occupancy] = {}
 _DISTANCES_KEPT = 4
 
 
+#: Per volume (weakly, as :data:`models.backend._RANGES`): the occupied blocks by what
+#: else decides them, the datapath, the render mode and iso value and the transfer
+#: function's control points (by their bytes): never the view.
+_OCCUPIED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _occupied_blocks(txn: VizardTransaction) -> np.ndarray | None:
+    """``Backend(frame).occupied_blocks(BLOCK)`` of ``txn``'s frame, kept per volume by
+    every other input of that rule: ``None`` (no leaping) unless the mode is composite
+    or iso; the datapath (voxel width, sample fraction bits, the LUT's shape), the iso
+    value and the transfer function's control values and RGBA (the LUT is built from
+    them alone).  Scenes with classification or geometry features (a multi-field LUT)
+    and transfer functions of another class ask the Backend each time."""
+    frame = txn.frame
+    scene, tf = frame.scene, frame.transfer
+    if scene.render.mode not in ("composite", "iso"):
+        return None
+    features = scene.classification is not None or scene.geometry is not None
+    if type(tf) is not TransferFunction or features:
+        return txn.backend.occupied_blocks(BLOCK)
+    try:
+        hash(frame.datapath)
+    except TypeError:
+        return txn.backend.occupied_blocks(BLOCK)
+    points = hashlib.blake2b(digest_size=16)
+    for a in (tf.values, tf.rgba):
+        points.update(repr((a.shape, a.dtype.str)).encode())
+        points.update(np.ascontiguousarray(a).tobytes())
+    key = (frame.datapath, scene.render.mode, scene.render.iso_value, points.digest())
+    kept = _OCCUPIED.setdefault(frame.volume, {})
+    if key not in kept:
+        while len(kept) >= _DISTANCES_KEPT:
+            kept.pop(next(iter(kept)))
+        occupied = txn.backend.occupied_blocks(BLOCK)
+        occupied.flags.writeable = False
+        kept[key] = occupied
+    return kept[key]
+
+
 def _occupancy(occupied: np.ndarray) -> Occupancy:
     """``occupancy_from_ranges(occupied, BLOCK)``, kept by the occupied blocks' shape and
     bits (a digest of every bit: any change of volume, transfer function or datapath
@@ -95,6 +138,81 @@ def _occupancy(occupied: np.ndarray) -> Occupancy:
             _DISTANCES.pop(next(iter(_DISTANCES)))
     _DISTANCES[key] = found  # the most recent last
     return found
+
+
+def packet_order(
+    ray_ids: np.ndarray, width: int, th: int, tw: int, depth: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`VizardTransaction._packet_order` of rays ``ray_ids`` (flat pixel indices,
+    image ``width``) in ``th x tw`` tiles, ``depth`` rays a packet: compiled, a stable
+    counting sort by tile of the rays in ``ray_ids`` order, the same order and cuts as
+    :func:`packet_order_reference` (``tests/models/test_packet_order_vizard2.py``)."""
+    ids = np.ascontiguousarray(ray_ids, dtype=np.int64)
+    if not ids.size:
+        return np.zeros(0, np.int64), np.zeros(1, np.int64)
+    sorted_ids = ids.size < 2 or bool(np.all(ids[1:] > ids[:-1]))
+    # Unsorted ids: the counting sort takes the rays in a stable id order, as lexsort.
+    perm = np.arange(0) if sorted_ids else np.argsort(ids, kind="stable")
+    return _packet_order(ids, perm, width, th, tw, -(-width // tw), depth)
+
+
+def packet_order_reference(
+    ray_ids: np.ndarray, width: int, th: int, tw: int, depth: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`packet_order` in NumPy (the form it replaced, the reference it is held to):
+    rays sorted by tile, then by id (``lexsort``), cut every ``depth`` rays of a tile."""
+    rows, cols = ray_ids // width, ray_ids % width
+    tile = (rows // th) * (-(-width // tw)) + cols // tw
+    order = np.lexsort((ray_ids, tile)).astype(np.int64)
+    if not order.size:
+        return order, np.zeros(1, np.int64)
+    tiles = np.concatenate([[0], np.flatnonzero(np.diff(tile[order])) + 1, [order.size]])
+    # Each tile's packets start every ``depth`` rays from the tile's first.
+    in_tile = np.arange(order.size) - np.repeat(tiles[:-1], np.diff(tiles))
+    cuts = np.concatenate([np.flatnonzero(in_tile % depth == 0), [order.size]])
+    return order, cuts.astype(np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _packet_order(ids, perm, width, th, tw, tiles_x, depth):  # pragma: no cover - compiled
+    n = ids.size
+    # Each pixel's tile, row by row (no division a ray: those were most of the time).
+    height = ids.max() // width + 1
+    of_pixel = np.empty(height * width, np.int64)
+    across = np.empty(width, np.int64)  # col // tw
+    for col in range(width):
+        across[col] = col // tw
+    for row in range(height):
+        base = (row // th) * tiles_x
+        for col in range(width):
+            of_pixel[row * width + col] = base + across[col]
+    tile = np.empty(n, np.int64)
+    top = 0
+    for i in range(n):
+        tile[i] = of_pixel[ids[i]]
+        top = max(top, tile[i])
+    start = np.zeros(top + 2, np.int64)
+    for i in range(n):
+        start[tile[i] + 1] += 1
+    for t in range(top + 1):
+        start[t + 1] += start[t]
+    # Packets: every ``depth`` rays from each tile's first.
+    n_cuts = 1
+    for t in range(top + 1):
+        n_cuts += -(-(start[t + 1] - start[t]) // depth)
+    cuts = np.empty(n_cuts, np.int64)
+    c = 0
+    for t in range(top + 1):
+        for at in range(start[t], start[t + 1], depth):
+            cuts[c] = at
+            c += 1
+    cuts[c] = n
+    order = np.empty(n, np.int64)
+    for k in range(n):
+        i = perm[k] if perm.size else k
+        order[start[tile[i]]] = i
+        start[tile[i]] += 1
+    return order, cuts
 
 
 class VizardTransaction(ReadsTheFrame):
@@ -131,17 +249,27 @@ class VizardTransaction(ReadsTheFrame):
         self.buffers = parse_buffers(arch)
         self.memory = require_pipeline_clock(memory_of(arch), arch)
         self.P = arch.pipelines
-        self.backend = be = Backend(frame)
-        stops = be.ert < 1.0 if be.mode == "composite" else be.mode == "iso"
+        # The Backend's ``mode``, ``ert`` and ``need_grad``, from the same fields and rule
+        # (the Backend itself is built only when a path needs it: :attr:`backend`).
+        render = scene.render
+        mode = render.mode
+        stops = render.early_termination < 1.0 if mode == "composite" else mode == "iso"
         self.ert = arch.early_termination and stops
+        need_grad = units_needed(scene, frame.transfer.modulates)["gradient"]
         self.event_model, self.shared_loop = event_model, shared_loop
         self.layout = BlockLayout.of(  # the cycle rung's memory image and capacity check
-            volume.shape, self.memory.sdram, self.datapath.voxel_bits, be.need_grad, arch.source
+            volume.shape, self.memory.sdram, self.datapath.voxel_bits, need_grad, arch.source
         )
         depth = self.buffers.pixel_fifo_entries
         self.pixel_fifo_depth = depth if pixel_fifo_depth is None else pixel_fifo_depth
 
     # ------------------------------------------------------------------ set-up
+
+    @functools.cached_property
+    def backend(self) -> Backend:
+        """The frame's :class:`~models.backend.Backend` (the cycle rung's ray loop, and
+        the occupied blocks of a scene :func:`_occupied_blocks` does not keep)."""
+        return Backend(self.frame)
 
     @functools.cached_property
     def plan(self) -> SamplePlan:
@@ -153,7 +281,7 @@ class VizardTransaction(ReadsTheFrame):
         """Rule 4: rays' first and last samples moved past blocks that cannot give a
         visible sample through this datapath's LUT (or reach the iso value): the cycle
         rung's host geometry, from the same shared helpers."""
-        occupied = self.backend.occupied_blocks(BLOCK)
+        occupied = _occupied_blocks(self)
         if occupied is None:
             return plan
         leaped = copy.copy(plan)
@@ -178,17 +306,7 @@ class VizardTransaction(ReadsTheFrame):
                 f"ray_queue: depth {depth} can never accept a ray; the ray generator waits "
                 f"forever with {plan.ray_ids.size} rays pending at cycle 0"
             )
-        width = plan.shape[1]
-        rows, cols = plan.ray_ids // width, plan.ray_ids % width
-        tile = (rows // th) * (-(-width // tw)) + cols // tw
-        order = np.lexsort((plan.ray_ids, tile)).astype(np.int64)
-        if not order.size:
-            return order, np.zeros(1, np.int64)
-        tiles = np.concatenate([[0], np.flatnonzero(np.diff(tile[order])) + 1, [order.size]])
-        # Each tile's packets start every ``depth`` rays from the tile's first.
-        in_tile = np.arange(order.size) - np.repeat(tiles[:-1], np.diff(tiles))
-        cuts = np.concatenate([np.flatnonzero(in_tile % depth == 0), [order.size]])
-        return order, cuts.astype(np.int64)
+        return packet_order(plan.ray_ids, plan.shape[1], th, tw, depth)
 
     # ------------------------------------------------------------------ one packet
 
