@@ -25,7 +25,10 @@ at once (``j_lo > j_hi``), so no consumer ever reads their ends.  Other steps co
 with the same results: a block index is the float quotient's truncation (the same as its
 floor on a clipped, non-negative position), and a block at distance 1 leaps to the
 first sample out of the block without the distance's division (``(c - 1) block - 1e-6``
-is negative there, so that leap is below one step and the maximum ignores it).
+is negative there, so that leap is below one step and the maximum ignores it); when the
+rays share one step vector (parallel views) the distance's leap of every distance is
+computed once, by the same operations, into a table; the distance field is read as int8
+or int16 when its values fit (a smaller footprint for the random reads).
 ``tests/golden/test_leap_rays.py`` checks the step ranges are the NumPy march's exactly.
 """
 
@@ -60,7 +63,7 @@ def leap_ray_plan(plan, occupancy) -> tuple[np.ndarray, np.ndarray]:
         reach,
         plan.n - 1.0,
         int(occupancy.block),
-        _compact(occupancy.distance),
+        *_compact(occupancy.distance),
         j_lo,
         j_hi,
     )
@@ -70,15 +73,16 @@ def leap_ray_plan(plan, occupancy) -> tuple[np.ndarray, np.ndarray]:
 #: The last few distance fields in their narrowest integer type, by the field's identity
 #: (a weak reference checks it is still the same array): an occupancy is the volume's
 #: and the transfer function's, so the frames of a turntable share one.
-_COMPACT: dict[int, tuple[weakref.ref, np.ndarray]] = {}
+_COMPACT: dict[int, tuple[weakref.ref, np.ndarray, int]] = {}
 
 
-def _compact(distance: np.ndarray) -> np.ndarray:
+def _compact(distance: np.ndarray) -> tuple[np.ndarray, int]:
     """``distance`` as int8 or int16 when its values fit (the same values, a quarter or
-    an eighth of the memory the march reads at random), else as it is."""
+    an eighth of the memory the march reads at random), else as it is; and its largest
+    value."""
     found = _COMPACT.get(id(distance))
     if found is not None and found[0]() is distance:
-        return found[1]
+        return found[1:]
     top = int(distance.max(initial=0))
     low = int(distance.min(initial=0))
     narrow = distance
@@ -89,8 +93,8 @@ def _compact(distance: np.ndarray) -> np.ndarray:
     narrow = np.ascontiguousarray(narrow)
     while len(_COMPACT) >= 4:
         _COMPACT.pop(next(iter(_COMPACT)))
-    _COMPACT[id(distance)] = (weakref.ref(distance), narrow)
-    return narrow
+    _COMPACT[id(distance)] = (weakref.ref(distance), narrow, top)
+    return narrow, top
 
 
 @numba.njit(cache=True, nogil=True)
@@ -128,7 +132,7 @@ def _axis_max(s0, s1, s2):  # pragma: no cover - compiled
 
 @numba.njit(cache=True, nogil=True)
 def _march(
-    o, d, k_first, k_dir, dt, delta, reach, top, block, distance, j_lo, j_hi
+    o, d, k_first, k_dir, dt, delta, reach, top, block, distance, dist_max, j_lo, j_hi
 ):  # pragma: no cover
     n_rays = o.shape[0]
     fblock = np.float64(block)
@@ -143,6 +147,12 @@ def _march(
     top0, top1, top2 = top[0], top[1], top[2]
     one_d = d.shape[0] == 1
     one_e = delta.shape[0] == 1
+    # One step vector for every ray: the distance's leap of each distance, once (the
+    # same float operations as a step's; a table lookup instead of a division).
+    n_c = dist_max + 1 if one_e else 0
+    leap_of = np.empty(n_c)
+    for c in range(n_c):
+        leap_of[c] = math.floor(((c - 1) * block - 1e-6) / reach[0])
     # Each ray's march is one serial chain of float operations: ``_LANES`` rays march at
     # once, a step each in turn, so the processor overlaps their chains; a lane whose ray
     # is done takes the next (backwards, the next ray the forward march left non-empty).
@@ -191,7 +201,10 @@ def _march(
                     else:
                         a_max = _axis_max(s0, s1, s2)
                         s_max = (s0, s1, s2)[a_max]
-                        skip = math.floor(((c - 1) * block - 1e-6) / reach[er])
+                        if one_e:
+                            skip = leap_of[c]
+                        else:
+                            skip = math.floor(((c - 1) * block - 1e-6) / reach[er])
                         bound = (
                             _face(s_max, (p0, p1, p2)[a_max], (b0, b1, b2)[a_max], block)
                             if abs(s_max) > _TINY

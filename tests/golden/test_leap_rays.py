@@ -60,3 +60,23 @@ def test_a_real_plan_is_leapt_the_same_on_the_phantom():
         opacity_can_be_positive(lo, hi, np.array([0.0, 500.0, 2000.0]), np.array([0.0, 0.0, 1.0]))
     )
     assert np.array_equal(np.stack(leap_ray_plan(plan, occ)), np.stack(plan._march(occ)))
+
+
+@pytest.mark.parametrize("perspective", [False, True])
+def test_the_narrow_distance_field_leaps_the_same(monkeypatch, perspective):
+    """int8 distances (and the per-distance leap table of a shared step) against the
+    int64 field, and a field too far for int16 kept as int64."""
+    from hwsim.golden import leap_rays
+
+    volume = gaussian_volume((30, 26, 34))
+    kw = {"projection": "perspective", "zoom": 1.3} if perspective else {}
+    plan = make_plan(make_scene(az=40, el=20, size=33, **kw), volume, "ray")
+    occupancy = _occupancy(volume.shape, 0.05, 3)
+    assert leap_rays._compact(occupancy.distance)[0].dtype == np.int8
+    narrow = leap_ray_plan(plan, occupancy)
+    monkeypatch.setattr(leap_rays, "_compact", lambda d: (d, int(d.max())))
+    assert np.array_equal(np.stack(narrow), np.stack(leap_ray_plan(plan, occupancy)))
+    far = np.full((3, 3, 3), 40000, dtype=np.int64)
+    assert leap_rays._COMPACT.get(id(far)) is None
+    monkeypatch.undo()
+    assert leap_rays._compact(far)[0].dtype == np.int64
