@@ -86,43 +86,43 @@ _DISTANCES: dict[tuple, Occupancy] = {}
 _DISTANCES_KEPT = 4
 
 
-#: Per volume (weakly, as :data:`models.backend._RANGES`): the occupied blocks by what
-#: else decides them, the datapath, the render mode and iso value and the transfer
-#: function's control points (by their bytes): never the view.
+#: Per volume (weakly, as :data:`models.backend._RANGES`): the leap's occupancy by what
+#: else decides the occupied blocks, the datapath, the render mode and iso value and the
+#: transfer function's control points (by their bytes): never the view.
 _OCCUPIED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _occupied_blocks(txn: VizardTransaction) -> np.ndarray | None:
-    """``Backend(frame).occupied_blocks(BLOCK)`` of ``txn``'s frame, kept per volume by
-    every other input of that rule: ``None`` (no leaping) unless the mode is composite
-    or iso; the datapath (voxel width, sample fraction bits, the LUT's shape), the iso
-    value and the transfer function's control values and RGBA (the LUT is built from
-    them alone).  Scenes with classification or geometry features (a multi-field LUT)
-    and transfer functions of another class ask the Backend each time."""
+def _leap_occupancy(txn: VizardTransaction) -> Occupancy | None:
+    """``_occupancy(Backend(frame).occupied_blocks(BLOCK))`` of ``txn``'s frame, or None
+    where leaping does not apply (MIP, MinIP, X-ray); kept per volume by every other
+    input of the occupied-block rule: the datapath (voxel width, sample fraction bits,
+    the LUT's shape), the render mode, the iso value and the transfer function's control
+    values and RGBA (the LUT is built from them alone).  Scenes with classification or
+    geometry features (a multi-field LUT) and transfer functions of another class ask
+    the Backend each time."""
     frame = txn.frame
     scene, tf = frame.scene, frame.transfer
     if scene.render.mode not in ("composite", "iso"):
         return None
     features = scene.classification is not None or scene.geometry is not None
-    if type(tf) is not TransferFunction or features:
-        return txn.backend.occupied_blocks(BLOCK)
     try:
         hash(frame.datapath)
     except TypeError:
-        return txn.backend.occupied_blocks(BLOCK)
+        features = True
+    if type(tf) is not TransferFunction or features:
+        return _occupancy(txn.backend.occupied_blocks(BLOCK))
     points = hashlib.blake2b(digest_size=16)
     for a in (tf.values, tf.rgba):
         points.update(repr((a.shape, a.dtype.str)).encode())
         points.update(np.ascontiguousarray(a).tobytes())
     key = (frame.datapath, scene.render.mode, scene.render.iso_value, points.digest())
     kept = _OCCUPIED.setdefault(frame.volume, {})
-    if key not in kept:
+    found = kept.get(key)
+    if found is None:
         while len(kept) >= _DISTANCES_KEPT:
             kept.pop(next(iter(kept)))
-        occupied = txn.backend.occupied_blocks(BLOCK)
-        occupied.flags.writeable = False
-        kept[key] = occupied
-    return kept[key]
+        kept[key] = found = _occupancy(txn.backend.occupied_blocks(BLOCK))
+    return found
 
 
 def _occupancy(occupied: np.ndarray) -> Occupancy:
@@ -268,7 +268,7 @@ class VizardTransaction(ReadsTheFrame):
     @functools.cached_property
     def backend(self) -> Backend:
         """The frame's :class:`~models.backend.Backend` (the cycle rung's ray loop, and
-        the occupied blocks of a scene :func:`_occupied_blocks` does not keep)."""
+        the occupied blocks :func:`_leap_occupancy` does not keep)."""
         return Backend(self.frame)
 
     @functools.cached_property
@@ -281,11 +281,11 @@ class VizardTransaction(ReadsTheFrame):
         """Rule 4: rays' first and last samples moved past blocks that cannot give a
         visible sample through this datapath's LUT (or reach the iso value): the cycle
         rung's host geometry, from the same shared helpers."""
-        occupied = _occupied_blocks(self)
-        if occupied is None:
+        occupancy = _leap_occupancy(self)
+        if occupancy is None:
             return plan
         leaped = copy.copy(plan)
-        leaped.leap(_occupancy(occupied))
+        leaped.leap(occupancy)
         return leaped
 
     def _packets(self) -> list[np.ndarray]:
