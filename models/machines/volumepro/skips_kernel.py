@@ -69,11 +69,14 @@ def _packed(pa, pb, fa_hi, fb_hi):
     """A sample's cell ``a``, ``b`` and lane sum ``na + nb`` (nearest voxels) at in-slice
     position ``pa``, ``pb``, packed in one word (21 bits each, :data:`PACK_LIMIT`)."""
     fa, fb = np.floor(pa), np.floor(pb)
-    ca = int(min(max(fa, 0.0), fa_hi))
-    cb = int(min(max(fb, 0.0), fb_hi))
+    # Converted through int32 (exact: every value is below PACK_LIMIT): the machine has
+    # no vector double -> int64 conversion without AVX-512, so ``int()`` kept the
+    # position loop scalar; double -> int32 vectorises (~15 % of frame_skips).
+    ca = np.int64(np.int32(min(max(fa, 0.0), fa_hi)))
+    cb = np.int64(np.int32(min(max(fb, 0.0), fb_hi)))
     na = min(max(fa + (1.0 if pa - fa >= 0.5 else 0.0), 0.0), fa_hi)
     nb = min(max(fb + (1.0 if pb - fb >= 0.5 else 0.0), 0.0), fb_hi)
-    return (ca << 42) | (cb << 21) | int(na + nb)
+    return (ca << 42) | (cb << 21) | np.int64(np.int32(na + nb))
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -152,7 +155,9 @@ def plan_step_cells(
     for k in range(0 if uniform else count):  # every active ray's cell and lane
         along = (at[0, k] + at[1, k] * j_ss - at[2, k]) / at[3, k]
         ints[2, k] = _packed(at[4, k] + along * at[5, k], at[6, k] + along * at[7, k], fa_hi, fb_hi)
-    lanes = np.zeros(P, dtype=np.int64)
+    # Four histograms of the lanes, ray k counted in histogram k mod 4: neighbouring
+    # rays often share a lane, and one histogram chained each increment on the last.
+    lanes4 = np.zeros(4 * P, dtype=np.int64)
     m, live, dead = 0, 0, 0
     # Row views and unsigned cell indices: numba emits no negative-index wrap a read.
     # Each ray's cell a, b and lane sum packed in one word (21 bits each, PACK_LIMIT):
@@ -175,10 +180,11 @@ def plan_step_cells(
             groups[a * ucp + b] = 1
             live += 1
             s = v & low
+            off = np.uint64(k & 3) * np.uint64(P)
             if mask >= 0:
-                lanes[s & umask] += 1
+                lanes4[off + (s & umask)] += 1
             else:
-                lanes[s % np.uint64(P)] += 1
+                lanes4[off + s % np.uint64(P)] += 1
         elif j < lag or lst > j - lag:  # the sequencer read for rays alive lag slices earlier
             cells[cell] = 1
     if 8 * dead > count:  # compact, keeping the order
@@ -193,6 +199,7 @@ def plan_step_cells(
     cursor[0], cursor[1] = count, nxt
     if live:
         _count_groups(groups, n_a, C, P, cost_row)
+    lanes = lanes4[:P] + lanes4[P : 2 * P] + lanes4[2 * P : 3 * P] + lanes4[3 * P :]
     return m, live, lanes.max()
 
 

@@ -88,6 +88,7 @@ from models.machines.volumepro.chunk_reads import (
     chunk_streams,
     memory_process,
 )
+from models.machines.volumepro.event_loop import EventLoop
 from models.machines.volumepro.fifo_timing import (
     DESKEW_WRITE,
     stream_latency,
@@ -122,6 +123,10 @@ class SlabTransaction:
     steady_state : bool
         Also play a second identical frame back to back and report the cycles between
         the two frames' ends (``frame.period_cycles``, the cycle rung's rule 9).
+    simpy_events : bool
+        Run the processes on ``simpy.Environment`` rather than the lean loop with its
+        order (:class:`~models.machines.volumepro.event_loop.EventLoop`): the reference,
+        the same results.
     """
 
     #: Whether the class models beam skipping (its subclass for VolumePro 1000 does).
@@ -136,8 +141,10 @@ class SlabTransaction:
         groups: int = 8,
         pixel_fifo_depth: int | None = None,
         steady_state: bool = False,
+        simpy_events: bool = False,
     ) -> None:
         self.scene, self.arch, self.plan = frame.scene, frame.arch, frame.plan
+        self.simpy_events = simpy_events
         arch, plan = frame.arch, frame.plan
         self.steady_state = steady_state
         skipping = arch.early_termination or arch.space_leaping
@@ -355,7 +362,7 @@ class SlabTransaction:
         free_after = np.concatenate(
             [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
         )
-        env = simpy.Environment()
+        env = simpy.Environment() if self.simpy_events else EventLoop()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
         link = ChunkLink(
             env, DeferredReads(ports, chunk_streams(self, chunks), nc, frames), nc * frames
