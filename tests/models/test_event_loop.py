@@ -1,7 +1,8 @@
 """The lean event loop (models/machines/volumepro/event_loop.py) keeps SimPy's order: the
 same traces as ``simpy.Environment`` on random process schedules (same-cycle ties
-included), and the VolumePro-family event model's cycles and counters the same on either
-(``simpy_events=True``, the reference)."""
+included); and the VolumePro-family event model's cycles and counters are the same on
+SimPy (``events="simpy"``, the reference), on the lean loop and compiled
+(models/machines/volumepro/pipeline_kernel.py)."""
 
 from __future__ import annotations
 
@@ -102,8 +103,8 @@ def _results(name, az, el, size, image, options, projection="parallel"):
     frame = frame_of(scene, volume, tf, resolve_arch(name), plan)
     stopped = termination_pass(frame).stopped if name == "volumepro1000" else None
     out = []
-    for simpy_events in (True, False):
-        model = transaction_model(frame, stopped=stopped, simpy_events=simpy_events, **options)
+    for events in ("simpy", "generators", "compiled"):
+        model = transaction_model(frame, stopped=stopped, events=events, **options)
         try:
             t = model.run()
         except Exception as e:  # the same error either way
@@ -114,7 +115,7 @@ def _results(name, az, el, size, image, options, projection="parallel"):
     return out
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(
     name=st.sampled_from(["volumepro1000", "volumepro500", "em-cube"]),
     az=st.floats(-180, 180),
@@ -132,5 +133,6 @@ def test_the_event_model_is_the_same_on_simpy(
     options = {"groups": groups, "steady_state": steady}
     if depth is not None:
         options["pixel_fifo_depth"] = depth
-    ref, lean = _results(name, az, el, size, image, options, projection)
+    ref, lean, compiled = _results(name, az, el, size, image, options, projection)
     assert lean == ref
+    assert compiled == ref

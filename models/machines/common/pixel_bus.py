@@ -48,6 +48,22 @@ class PixelBus:
         self._work = env.event()
         env.process(self._drain())
 
+    @classmethod
+    def totals(cls, depth: int, *, row_pixels: int, **counts: int) -> PixelBus:
+        """A finished bus's totals (``pushed``, ``sent``, ``max_occupancy``,
+        ``stall_cycles``, ``events``, ``end``) from a run of its rule elsewhere (the
+        compiled event loop, :mod:`models.machines.volumepro.pipeline_kernel`), for
+        :meth:`counters` and the caller's reads; no process."""
+        bus = cls.__new__(cls)
+        bus.env, bus.depth = None, int(depth)
+        bus.capacity, bus.level, bus._waiting = max(bus.depth, 1), 0, None
+        bus.batch = max(1, min(int(row_pixels), -(-bus.depth // 8)))
+        for name in ("pushed", "sent", "max_occupancy", "stall_cycles", "events", "end"):
+            setattr(bus, name, int(counts.pop(name)))
+        if counts:
+            raise TypeError(f"unknown totals {sorted(counts)}")
+        return bus
+
     def push(self, count: int) -> Generator:
         """Process step: put ``count`` finished rays, waiting while the FIFO is full."""
         env = self.env

@@ -25,7 +25,7 @@ order), failed events, interrupts, conditions and ``run(until=...)``.  An except
 process raises leaves :meth:`EventLoop.run` at once (SimPy processes the same cycle's
 earlier events first and raises a copy: the same exception type and message, as no
 process here raises otherwise).  ``tests/models/test_event_loop.py`` holds the model's
-results on random frames to SimPy's (``SlabTransaction(..., simpy_events=True)``).
+results on random frames to SimPy's (``SlabTransaction(..., events="simpy")``).
 """
 
 from __future__ import annotations

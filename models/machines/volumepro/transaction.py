@@ -59,7 +59,6 @@ class refuses a skipping machine.
 
 from __future__ import annotations
 
-import itertools
 import math
 import operator
 import time
@@ -78,7 +77,6 @@ from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction, slice_position
 from models.machines.common.transaction import (
     TxnTiming,
-    report_progress,
     require_pipeline_clock,
     slice_loads,
 )
@@ -123,10 +121,12 @@ class SlabTransaction:
     steady_state : bool
         Also play a second identical frame back to back and report the cycles between
         the two frames' ends (``frame.period_cycles``, the cycle rung's rule 9).
-    simpy_events : bool
-        Run the processes on ``simpy.Environment`` rather than the lean loop with its
-        order (:class:`~models.machines.volumepro.event_loop.EventLoop`): the reference,
-        the same results.
+    events : str
+        How the processes run: ``"compiled"`` (one band, no slice FIFOs and nobody
+        listening to progress: :mod:`models.machines.volumepro.pipeline_kernel`; else as
+        ``"generators"``), ``"generators"`` (the generator processes on the lean loop
+        with SimPy's order, :class:`~models.machines.volumepro.event_loop.EventLoop`) or
+        ``"simpy"`` (on ``simpy.Environment``: the reference).  The same results.
     """
 
     #: Whether the class models beam skipping (its subclass for VolumePro 1000 does).
@@ -141,10 +141,12 @@ class SlabTransaction:
         groups: int = 8,
         pixel_fifo_depth: int | None = None,
         steady_state: bool = False,
-        simpy_events: bool = False,
+        events: str = "compiled",
     ) -> None:
         self.scene, self.arch, self.plan = frame.scene, frame.arch, frame.plan
-        self.simpy_events = simpy_events
+        if events not in ("compiled", "generators", "simpy"):
+            raise ValueError(f"events: {events!r} (compiled, generators or simpy)")
+        self.events = events
         arch, plan = frame.arch, frame.plan
         self.steady_state = steady_state
         skipping = arch.early_termination or arch.space_leaping
@@ -357,12 +359,22 @@ class SlabTransaction:
         wait on each other or on the pixel bus (:meth:`_pipelines`,
         :func:`~models.machines.volumepro.chunk_reads.memory_process`): the same cycles as
         an event per beam group and per chunk, far fewer events."""
+        if (
+            self.events == "compiled"
+            and not self.slice_fifo
+            and len(self.bands) == 1
+            and getattr(self, "progress", None) is None
+        ):
+            from models.machines.volumepro.pipeline_kernel import simulate  # numba
+
+            loads = (busiest, beam_clocks, by_band, parked)
+            return simulate(self, chunks, groups, free_after, cap, *loads, frames=frames)
         nc, ng = len(chunks), len(groups)
         # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
         free_after = np.concatenate(
             [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
         )
-        env = simpy.Environment() if self.simpy_events else EventLoop()
+        env = simpy.Environment() if self.events == "simpy" else EventLoop()
         ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
         link = ChunkLink(
             env, DeferredReads(ports, chunk_streams(self, chunks), nc, frames), nc * frames
@@ -414,59 +426,69 @@ class SlabTransaction:
             if n_steps:
                 leaving[bi][n_steps - 1] += rays  # and the rays the band parked
         slice_fifo, overhead = self.slice_fifo, self.arch.slice_overhead_cycles
-        frees = frees_at.get
+        frees, free_at, done = frees_at.get, link.free_at, self._slices_done
+        progress = getattr(self, "progress", None)
+        section_overhead = self.arch.section_overhead_cycles
         t = events = 0
-        for k, (f, (bi, j, clocks, need)) in enumerate(itertools.product(range(frames), groups)):
-            kg = k - f * ng  # the group in its frame
-            need = need + f * nc if need >= 0 else need
-            first = firsts[kg]
-            if bi and first and groups[kg - 1][0] != bi:
-                # Section change: overhead, then reload the rays parked by the last band.
-                pre = self.arch.section_overhead_cycles + int(parked[bi - 1])
-                stats["section"] += pre
-                t += pre
-            # (ready_at[need]: flushed already; else ask, which flushes the reads issued)
-            if need >= 0 and not (
-                ready_at[need] <= t - deskew
-                if need < len(ready_at)
-                else reads.ready_by(need, t - deskew)
-            ):
-                yield from link.sync(t)
-                if not reads.ready_by(need, t - deskew):
-                    if need - cap >= 0 and free_after[need - cap] >= k:
-                        raise DeadlockError(
-                            f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
-                            f"hold the sample window of slice {j}"
-                        )
-                    if not reads.issued(need):
-                        link.waiting[:] = [need, env.event()]
-                        yield link.waiting[1]
-                    # The memory process may not have run since the slot it waited on
-                    # was freed: a chunk it issues now at an earlier cycle may be ready
-                    # by t (no stall).
-                    ready = max(t, reads.ready_at(need) + deskew)
-                    stats["stall"] += ready - t
-                    t = ready
-            if slice_fifo and first and j >= 0:  # rule 8': from the period's start
-                yield from link.sync(t)
-                yield from bus.push(leaving[bi][j])
-                t = int(env.now)
-            t += clocks
-            events += 2
-            for c in frees(k, ()):
-                link.free(c, t)
-            if mores[kg] or j < 0:
-                continue  # more beam groups of this slice; a read-only period (rule 3')
-            stats["stretch"] += stretches[j]
-            t += overhead + stretches[j]
-            if not slice_fifo:  # rule 8: the slice's pixels at its end
-                yield from link.sync(t)
-                yield from bus.push(leaving[bi][j])
-                t = int(env.now)
-            self._slices_done[0] += 1
-            report_progress(self, *self._slices_done)
-            if kg == ng - 1:
-                stats["pipe_ends"].append(t)
+        for f in range(frames):
+            k0, c0 = f * ng, f * nc  # the frame's first group and chunk
+            for kg, (bi, j, clocks, need) in enumerate(groups):
+                k = k0 + kg
+                if need >= 0:
+                    need += c0
+                first = firsts[kg]
+                if bi and first and groups[kg - 1][0] != bi:
+                    # Section change: overhead, then reload the rays parked by the last band.
+                    pre = section_overhead + int(parked[bi - 1])
+                    stats["section"] += pre
+                    t += pre
+                # (ready_at[need]: flushed already; else ask, which flushes the reads issued)
+                if need >= 0 and not (
+                    ready_at[need] <= t - deskew
+                    if need < len(ready_at)
+                    else reads.ready_by(need, t - deskew)
+                ):
+                    yield from link.sync(t)
+                    if not reads.ready_by(need, t - deskew):
+                        if need - cap >= 0 and free_after[need - cap] >= k:
+                            raise DeadlockError(
+                                f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
+                                f"hold the sample window of slice {j}"
+                            )
+                        if not reads.issued(need):
+                            link.waiting[:] = [need, env.event()]
+                            yield link.waiting[1]
+                        # The memory process may not have run since the slot it waited on
+                        # was freed: a chunk it issues now at an earlier cycle may be ready
+                        # by t (no stall).
+                        ready = max(t, reads.ready_at(need) + deskew)
+                        stats["stall"] += ready - t
+                        t = ready
+                if slice_fifo and first and j >= 0:  # rule 8': from the period's start
+                    yield from link.sync(t)
+                    yield from bus.push(leaving[bi][j])
+                    t = int(env.now)
+                t += clocks
+                events += 2
+                for c in frees(k, ()):  # ChunkLink.free, written out
+                    free_at[c] = t
+                    waits = link.memory_waits
+                    if waits[0] == c:
+                        waits[0] = -1
+                        waits[1].succeed()
+                if mores[kg] or j < 0:
+                    continue  # more beam groups of this slice; a read-only period (rule 3')
+                stats["stretch"] += stretches[j]
+                t += overhead + stretches[j]
+                if not slice_fifo:  # rule 8: the slice's pixels at its end
+                    yield from link.sync(t)
+                    yield from bus.push(leaving[bi][j])
+                    t = int(env.now)
+                done[0] += 1
+                if progress is not None:  # report_progress, written out
+                    progress(*done)
+                if kg == ng - 1:
+                    stats["pipe_ends"].append(t)
         stats["events"] += events
         stats["pipe_end"] = t
 
