@@ -361,7 +361,9 @@ def simulate(model, chunks, groups, free_after, cap, busiest, beam_clocks, by_ba
     frees = freed[np.argsort(every[freed], kind="stable")].astype(np.int64)
     free_ptr = np.zeros(ng * frames + 1, dtype=np.int64)
     np.cumsum(np.bincount(every[freed], minlength=ng * frames), out=free_ptr[1:])
-    group_array = np.array(groups, dtype=np.int64).reshape(-1, 4)
+    group_array = getattr(model, "_group_array", None)  # _schedule's, as an array
+    if group_array is None or group_array.shape[0] != ng:
+        group_array = np.array(groups, dtype=np.int64).reshape(-1, 4)
     mores = np.zeros(ng, dtype=np.bool_)
     if ng:
         # _slice_bounds' rule: the next group has the same (band, slice)

@@ -210,6 +210,16 @@ class SlabTransaction:
             lo, hi = np.maximum(i0 - 1, 0) // 2, np.minimum(i0 + 2, n - 1) // 2
             self._windows.update(enumerate(zip(lo.tolist(), hi.tolist(), strict=True)))
 
+    def _window_array(self, n_steps: int) -> np.ndarray:
+        """int64 ``(n_steps, 2)``: :meth:`_window_slabs` of slices ``0 .. n_steps - 1``
+        (those of :meth:`_all_windows` when it ran for them), kept for the frame."""
+        kept = getattr(self, "_windows_kept", None)
+        if kept is None or kept.shape[0] != n_steps:
+            windows = [self._window_slabs(j) for j in range(n_steps)]
+            kept = np.array(windows, dtype=np.int64).reshape(n_steps, 2)
+            self._windows_kept = kept
+        return kept
+
     def _schedule(self, n_steps: int):
         """Chunks in read order ``(band, slab, u_lo, u_hi)``; beam groups in processing
         order ``(band, j, clocks, last chunk needed)``; and for each chunk the last group
@@ -246,7 +256,7 @@ class SlabTransaction:
             return (chunks, *fifo_schedule(self, n_steps, chunks, chunk_index(grids)))
         from models.machines.volumepro.streams_kernel import beam_groups, live_spans  # numba
 
-        windows = np.array([self._window_slabs(j) for j in range(n_steps)], dtype=np.int64)
+        windows = self._window_array(n_steps)
         parts, g = [], 0
         last = np.full(len(chunks), -1, dtype=np.int64)
         for bi, (a0, a1) in enumerate(self.bands):
@@ -265,7 +275,8 @@ class SlabTransaction:
             end = beam_groups(grids[bi], windows.reshape(-1, 2), spans, dims, bi, g, out, last)
             parts.append(out[: end - g])
             g = end
-        groups = list(map(tuple, np.concatenate(parts).tolist()))
+        self._group_array = np.concatenate(parts)  # the compiled event loop's groups
+        groups = list(map(tuple, self._group_array.tolist()))
         return chunks, groups, last
 
     # ------------------------------------------------------------------ frame

@@ -123,8 +123,9 @@ def beam_skips(
     lag : int
         Sample slices between the termination mask the memory sequencer decides with
         and the slice being processed (``ceil(4 x supersampling)``).
-    window : callable
-        ``window(j) -> (lo, hi)``: the slabs holding sample slice ``j``'s voxel window.
+    window : callable or ndarray
+        ``window(j) -> (lo, hi)``: the slabs holding sample slice ``j``'s voxel window;
+        or int64 ``(n_steps, 2)``, row ``j`` those slabs.
     compiled : bool
         Each slice's cells, clocks and lanes by the compiled loop
         (:func:`models.machines.volumepro.skips_kernel.frame_skips`); False: the NumPy
@@ -177,7 +178,7 @@ def beam_skips(
         busiest[j] = np.bincount(lanes, minlength=P).max()
         if live is not None:
             cells[ra if known is None else ra[known], rb if known is None else rb[known]] = True
-        lo, hi = window(j)
+        lo, hi = window(j) if callable(window) else window[j]
         needed[lo : hi + 1] |= mini_blocks_read(cells[:, :n_b])
     stops = 0
     if stopped is not None and plan.ray_ids.size:
@@ -199,7 +200,9 @@ def _compiled_skips(plan, P, stopped, lag, window, out) -> None:
     last = np.zeros(0, dtype=np.int64)
     if stopped is not None:
         last = stopped[plan.ray_ids[join]].astype(np.int64)
-    windows = np.array([window(j) for j in range(plan.n_steps)], dtype=np.int64)
+    windows = window
+    if callable(window):
+        windows = np.array([window(j) for j in range(plan.n_steps)], dtype=np.int64)
     rays = _ray_state(join.size)
     frame_skips(
         float(plan.scene.render.supersampling),
@@ -278,7 +281,8 @@ class Vp1000Transaction(ReadsTheFrame, SlabTransaction):
         stopped = self.termination_steps(self.unleaped) if self.rays_may_stop else None
         lag = int(np.ceil(4 * self.scene.render.supersampling))
         self._all_windows(self.plan.n_steps)
-        self.skips = beam_skips(self.plan, self.P, stopped, lag, self._window_slabs)
+        windows = self._window_array(self.plan.n_steps)  # kept for _schedule too
+        self.skips = beam_skips(self.plan, self.P, stopped, lag, windows)
         self.skips.leaped = self.unleaped.plan.samples - self.plan.samples
         skips_seconds = time.perf_counter() - start
         timing = super().run()
