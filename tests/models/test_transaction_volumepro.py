@@ -319,7 +319,7 @@ def test_where_the_sdram_waits_for_freed_slots_only_the_stream_and_refreshes_are
 def _sdram_ports_with(monkeypatch, **change):
     """The transaction rung's SDRAM ports built with ``change`` applied to the machine's
     parameters (``change[key](value)``); the arch both rungs read is untouched."""
-    from models.machines.volumepro import transaction as model
+    from models.machines.volumepro import pipeline_events as model
 
     class Port(model.SdramTransactionPort):
         def __init__(self, env, cfg):

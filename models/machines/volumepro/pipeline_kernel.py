@@ -1,6 +1,6 @@
 """The VolumePro 1000 event model's three processes as one compiled event loop (numba).
 
-# Ref: models/machines/volumepro/transaction.py (SlabTransaction._pipelines),
+# Ref: models/machines/volumepro/pipeline_events.py (pipelines_process),
 #      chunk_reads.memory_process and models/machines/common/pixel_bus.py (PixelBus):
 #      the rules written again; event_loop.py (SimPy's order).
 
@@ -339,15 +339,18 @@ def run_processes(
 
 def simulate(model, chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, *,
              frames):  # fmt: skip
-    """:meth:`SlabTransaction._simulate
-    <models.machines.volumepro.transaction.SlabTransaction._simulate>` by
+    """:func:`pipeline_events.simulate
+    <models.machines.volumepro.pipeline_events.simulate>` by
     :func:`run_processes` (one band, no slice FIFOs): the same statistics, pixel-bus
     totals and deferred reads."""
     from hwsim.engine.fifo import DeadlockError
-    from hwsim.memory import SdramTransactionPort
     from models.machines.common.pixel_bus import PixelBus
     from models.machines.volumepro.chunk_reads import DeferredReads, chunk_streams
     from models.machines.volumepro.event_loop import EventLoop
+
+    # The ports' class as pipeline_events names it: one place to swap it (the tests that
+    # put the transaction rung's SDRAM a clock off patch it there).
+    from models.machines.volumepro.pipeline_events import SdramTransactionPort
 
     nc, ng, n_steps = len(chunks), len(groups), len(busiest)
     every = np.concatenate(

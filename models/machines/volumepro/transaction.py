@@ -60,19 +60,16 @@ class refuses a skipping machine.
 from __future__ import annotations
 
 import math
-import operator
 import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import simpy
 
 from hwsim.core.errors import NotAvailableError
 from hwsim.engine.fifo import DeadlockError
 from hwsim.golden.positions import SamplePlan
-from hwsim.memory import SdramStats, SdramTransactionPort, parse_memory
+from hwsim.memory import SdramStats, parse_memory
 from models.frame import Frame
-from models.machines.common.pixel_bus import PixelBus
 from models.machines.common.sections import band_loads, bands_of
 from models.machines.common.slice_order import slice_direction, slice_position
 from models.machines.common.transaction import (
@@ -80,21 +77,14 @@ from models.machines.common.transaction import (
     require_pipeline_clock,
     slice_loads,
 )
-from models.machines.volumepro.chunk_reads import (
-    ChunkLink,
-    DeferredReads,
-    chunk_streams,
-    memory_process,
-)
-from models.machines.volumepro.event_loop import EventLoop
 from models.machines.volumepro.fifo_timing import (
-    DESKEW_WRITE,
     stream_latency,
     uses_slice_fifos,
 )
 from models.machines.volumepro.fifo_transaction import chunk_index, fifo_schedule
 from models.machines.volumepro.lanes import busiest_lanes, miniblock_layout, sample_lanes
 from models.machines.volumepro.memory import words_per_voxel
+from models.machines.volumepro.pipeline_events import simulate
 from models.machines.volumepro.slab_timing import pipeline_latency, slab_buffers
 from models.units import classify, composite, crop, gradient, interp, shade
 
@@ -362,146 +352,10 @@ class SlabTransaction:
         self, chunks, groups, free_after, cap, busiest, beam_clocks, by_band, parked, *, frames
     ):
         """Run the memory and the pipelines over ``frames`` identical frames back to back
-        (the same controllers, buffer and pixel FIFO carry on); returns the statistics
-        (``pipe_ends``: when each frame's pipelines finished), the pixel bus and the
-        deferred reads (their SDRAM ``ports``).
-
-        Both processes keep their own clock ahead of SimPy's and yield only where they
-        wait on each other or on the pixel bus (:meth:`_pipelines`,
-        :func:`~models.machines.volumepro.chunk_reads.memory_process`): the same cycles as
-        an event per beam group and per chunk, far fewer events."""
-        if (
-            self.events == "compiled"
-            and not self.slice_fifo
-            and len(self.bands) == 1
-            and getattr(self, "progress", None) is None
-        ):
-            from models.machines.volumepro.pipeline_kernel import simulate  # numba
-
-            loads = (busiest, beam_clocks, by_band, parked)
-            return simulate(self, chunks, groups, free_after, cap, *loads, frames=frames)
-        nc, ng = len(chunks), len(groups)
-        # Frame f's chunk c is chunk f nc + c, its group k group f ng + k.
-        free_after = np.concatenate(
-            [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
-        )
-        env = simpy.Environment() if self.events == "simpy" else EventLoop()
-        ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]
-        link = ChunkLink(
-            env, DeferredReads(ports, chunk_streams(self, chunks), nc, frames), nc * frames
-        )
-        frees_at: dict[int, list[int]] = {}
-        for c, g in enumerate(free_after.tolist()):
-            frees_at.setdefault(g, []).append(c)
-        for c in frees_at.pop(-1, []):  # no group needs it: free from the start
-            link.free_at[c] = 0
-        bus = PixelBus(env, self.pixel_fifo_depth, self.row_pixels)
-        stats = {"events": 0, "stall": 0, "buffer_full": 0, "stretch": 0, "pipe_end": 0}
-        stats["section"] = 0
-        stats["pipe_ends"] = []
-        env.process(memory_process(link, cap, stats))
-        env.process(
-            self._pipelines(
-                link,
-                groups,
-                free_after,
-                frees_at,
-                cap,
-                frames,
-                bus,
-                stats,
-                (busiest, beam_clocks, by_band, parked),
-            )
-        )
-        env.run()
-        link.reads.flush(link.reads.issued_count)  # bursts of chunks no group waited on
-        if stats["pipe_end"] == 0 and groups:
-            raise DeadlockError("the pipelines never finished: the input buffer is too small")
-        return stats, bus, link.reads
-
-    def _pipelines(self, link, groups, free_after, frees_at, cap, frames, bus, stats, loads):
-        """The pipelines process: beam group after beam group on its own clock ``t``,
-        syncing SimPy's to it only to wait for a chunk not ready by then and to push
-        pixels (the pixel bus runs on SimPy's clock)."""
-        busiest, beam_clocks, by_band, parked = loads
-        env, reads, ready_at = link.env, link.reads, link.reads.ready
-        n_steps, nc, ng = len(busiest), link.total // frames, len(groups)
-        deskew = DESKEW_WRITE if self.slice_fifo else 0  # rule 3': usable a clock later
-        firsts, mores = _slice_bounds(groups)
-        # Sections are parallel-only, where a slice never has more samples than voxels:
-        # the perspective stretch applies to the unsectioned frame.
-        single = len(self.bands) == 1
-        stretches = np.maximum(busiest - beam_clocks, 0).tolist() if single else [0] * n_steps
-        leaving = by_band.tolist()  # rays leaving after each slice of each band
-        for bi, rays in enumerate(parked.tolist()):
-            if n_steps:
-                leaving[bi][n_steps - 1] += rays  # and the rays the band parked
-        slice_fifo, overhead = self.slice_fifo, self.arch.slice_overhead_cycles
-        frees, free_at, done = frees_at.get, link.free_at, self._slices_done
-        progress = getattr(self, "progress", None)
-        section_overhead = self.arch.section_overhead_cycles
-        t = events = 0
-        for f in range(frames):
-            k0, c0 = f * ng, f * nc  # the frame's first group and chunk
-            for kg, (bi, j, clocks, need) in enumerate(groups):
-                k = k0 + kg
-                if need >= 0:
-                    need += c0
-                first = firsts[kg]
-                if bi and first and groups[kg - 1][0] != bi:
-                    # Section change: overhead, then reload the rays parked by the last band.
-                    pre = section_overhead + int(parked[bi - 1])
-                    stats["section"] += pre
-                    t += pre
-                # (ready_at[need]: flushed already; else ask, which flushes the reads issued)
-                if need >= 0 and not (
-                    ready_at[need] <= t - deskew
-                    if need < len(ready_at)
-                    else reads.ready_by(need, t - deskew)
-                ):
-                    yield from link.sync(t)
-                    if not reads.ready_by(need, t - deskew):
-                        if need - cap >= 0 and free_after[need - cap] >= k:
-                            raise DeadlockError(
-                                f"input buffer: {self.capacity_mbbs} mini-block beams cannot "
-                                f"hold the sample window of slice {j}"
-                            )
-                        if not reads.issued(need):
-                            link.waiting[:] = [need, env.event()]
-                            yield link.waiting[1]
-                        # The memory process may not have run since the slot it waited on
-                        # was freed: a chunk it issues now at an earlier cycle may be ready
-                        # by t (no stall).
-                        ready = max(t, reads.ready_at(need) + deskew)
-                        stats["stall"] += ready - t
-                        t = ready
-                if slice_fifo and first and j >= 0:  # rule 8': from the period's start
-                    yield from link.sync(t)
-                    yield from bus.push(leaving[bi][j])
-                    t = int(env.now)
-                t += clocks
-                events += 2
-                for c in frees(k, ()):  # ChunkLink.free, written out
-                    free_at[c] = t
-                    waits = link.memory_waits
-                    if waits[0] == c:
-                        waits[0] = -1
-                        waits[1].succeed()
-                if mores[kg] or j < 0:
-                    continue  # more beam groups of this slice; a read-only period (rule 3')
-                stats["stretch"] += stretches[j]
-                t += overhead + stretches[j]
-                if not slice_fifo:  # rule 8: the slice's pixels at its end
-                    yield from link.sync(t)
-                    yield from bus.push(leaving[bi][j])
-                    t = int(env.now)
-                done[0] += 1
-                if progress is not None:  # report_progress, written out
-                    progress(*done)
-                if kg == ng - 1:
-                    stats["pipe_ends"].append(t)
-        stats["events"] += events
-        stats["pipe_end"] = t
+        (:func:`models.machines.volumepro.pipeline_events.simulate`); returns the
+        statistics, the pixel bus and the deferred reads."""
+        loads = (busiest, beam_clocks, by_band, parked)
+        return simulate(self, chunks, groups, free_after, cap, loads, frames=frames)
 
     def _mbb_reads(self, chunks) -> int:
         """Mini-block beams read: every mbb of a chunk, or with skipping those holding a
@@ -531,14 +385,6 @@ class SlabTransaction:
             "ert.stopped_rays": sk.stopped_rays,
             "space_leaping.samples_leaped": sk.leaped,
         }
-
-
-def _slice_bounds(groups) -> tuple[list[bool], list[bool]]:
-    """Per beam group ``(band, j, ...)``: whether it is its slice's first, and whether
-    another group of its slice follows."""
-    keys = [g[:2] for g in groups]
-    firsts = [True, *map(operator.ne, keys[1:], keys)] if keys else []
-    return firsts, [not f for f in firsts[1:]] + [False]
 
 
 def _other_axes(plan: SamplePlan) -> tuple[int, int]:
