@@ -130,46 +130,62 @@ def _axis_max(s0, s1, s2):  # pragma: no cover - compiled
     return 0 if abs(s0) >= abs(s1) and abs(s0) >= abs(s2) else (1 if abs(s1) >= abs(s2) else 2)
 
 
+@numba.njit(inline="always")
+def _block_rule(block):  # pragma: no cover - compiled
+    """The block as a float, whether it is a power of two, and its inverse then.  A
+    power-of-two block: the quotient of a clipped (>= 0) position is exact, so its floor
+    is ``numpy.floor_divide``'s without the remainder (``fmod`` was half the march), and
+    dividing by it is multiplying by its inverse, exactly; the floor of a non-negative
+    quotient is its truncation to an integer."""
+    fblock = np.float64(block)
+    exact = block > 0 and (block & (block - 1)) == 0
+    return fblock, exact, 1.0 / fblock if exact else 0.0
+
+
+@numba.njit(cache=True, nogil=True)
+def _leap_table(dist_max, block, reach):  # pragma: no cover - compiled
+    """One step vector for every ray: the distance's leap of each distance ``0 ..
+    dist_max``, once (the same float operations as a step's; a table lookup instead of a
+    division a step).  ``dist_max < 0``: no table (rays with their own step vectors)."""
+    leap_of = np.empty(max(dist_max + 1, 0))
+    for c in range(leap_of.size):
+        leap_of[c] = math.floor(((c - 1) * block - 1e-6) / reach)
+    return leap_of
+
+
+@numba.njit(inline="always")
+def _take_next(k, nxt, sign, ray, at, j_lo, j_hi):  # pragma: no cover - compiled
+    """Lane ``k`` takes ray ``nxt`` (backwards, the next the forward march left
+    non-empty) at its first (forwards) or last step, or ``-1`` when none is left;
+    returns the next ray to hand out."""
+    n_rays = j_lo.size
+    while nxt < n_rays and sign < 0 and j_lo[nxt] > j_hi[nxt]:
+        nxt += 1
+    if nxt < n_rays:
+        ray[k], at[k] = nxt, j_lo[nxt] if sign > 0 else j_hi[nxt]
+        return nxt + 1
+    ray[k] = -1
+    return nxt
+
+
 @numba.njit(cache=True, nogil=True)
 def _march(
     o, d, k_first, k_dir, dt, delta, reach, top, block, distance, dist_max, j_lo, j_hi
 ):  # pragma: no cover
-    n_rays = o.shape[0]
-    fblock = np.float64(block)
-    # A power-of-two block: the quotient of a clipped (>= 0) position is exact, so its
-    # floor is ``numpy.floor_divide``'s without the remainder (``fmod`` was half the
-    # march), and dividing by it is multiplying by its inverse, exactly; the floor of a
-    # non-negative quotient is its truncation to an integer.
-    exact = block > 0 and (block & (block - 1)) == 0
-    inv_block = 1.0 / fblock if exact else 0.0
-    nb1, nb2 = distance.shape[1], distance.shape[2]
-    dist = distance.ravel()
+    fblock, exact, inv_block = _block_rule(block)
+    nb1, nb2, dist = distance.shape[1], distance.shape[2], distance.ravel()
     top0, top1, top2 = top[0], top[1], top[2]
-    one_d = d.shape[0] == 1
-    one_e = delta.shape[0] == 1
-    # One step vector for every ray: the distance's leap of each distance, once (the
-    # same float operations as a step's; a table lookup instead of a division).
-    n_c = dist_max + 1 if one_e else 0
-    leap_of = np.empty(n_c)
-    for c in range(n_c):
-        leap_of[c] = math.floor(((c - 1) * block - 1e-6) / reach[0])
+    one_d, one_e = d.shape[0] == 1, delta.shape[0] == 1
+    leap_of = _leap_table(dist_max if one_e else -1, block, reach[0])
     # Each ray's march is one serial chain of float operations: ``_LANES`` rays march at
     # once, a step each in turn, so the processor overlaps their chains; a lane whose ray
     # is done takes the next (backwards, the next ray the forward march left non-empty).
-    ray = np.full(_LANES, -1, np.int64)
-    at = np.zeros(_LANES, np.int64)
+    ray, at = np.full(_LANES, -1, np.int64), np.zeros(_LANES, np.int64)
     for sign in (1, -1):
-        nxt = 0
-        busy = 0
+        nxt = busy = 0
         for k in range(_LANES):
-            while nxt < n_rays and sign < 0 and j_lo[nxt] > j_hi[nxt]:
-                nxt += 1
-            if nxt < n_rays:
-                ray[k], at[k] = nxt, j_lo[nxt] if sign > 0 else j_hi[nxt]
-                nxt += 1
-                busy += 1
-            else:
-                ray[k] = -1
+            nxt = _take_next(k, nxt, sign, ray, at, j_lo, j_hi)
+            busy += ray[k] >= 0
         while busy:
             for k in range(_LANES):
                 r = ray[k]
@@ -230,11 +246,5 @@ def _march(
                         j_lo[r] = j if j <= j_hi[r] else j_hi[r] + 1
                     else:
                         j_hi[r] = j
-                    while nxt < n_rays and sign < 0 and j_lo[nxt] > j_hi[nxt]:
-                        nxt += 1
-                    if nxt < n_rays:
-                        ray[k], at[k] = nxt, j_lo[nxt] if sign > 0 else j_hi[nxt]
-                        nxt += 1
-                    else:
-                        ray[k] = -1
-                        busy -= 1
+                    nxt = _take_next(k, nxt, sign, ray, at, j_lo, j_hi)
+                    busy -= ray[k] < 0

@@ -276,18 +276,18 @@ VP500 = {"arch": "volumepro500", "size": 32, "image": 32, "az": 30, "el": 20}
 CONTRACT = 0.02
 #: Where the transaction rung hands its SDRAM parameters to the (shared) controller: the
 #: one place a mutation changes the transaction rung's SDRAM and not the cycle rung's.
-PORTS = "ports = [SdramTransactionPort(env, self.memory.sdram) for _ in range(self.memory.modules)]"
+PORTS = "return [SdramTransactionPort(env, txn.memory.sdram) for _ in range(txn.memory.modules)]"
 
 
 def _sdram_edit(change: str) -> Edit:
     """The transaction rung's SDRAM ports built with ``change`` (``"field=expression"``
     over ``sdram``, the machine's parameters)."""
     return Edit(
-        "models/machines/volumepro/transaction.py",
+        "models/machines/volumepro/pipeline_events.py",
         PORTS,
-        "sdram = self.memory.sdram\n"
-        f"        sdram = __import__('dataclasses').replace(sdram, {change})\n"
-        "        ports = [SdramTransactionPort(env, sdram) for _ in range(self.memory.modules)]",
+        "sdram = txn.memory.sdram\n"
+        f"    sdram = __import__('dataclasses').replace(sdram, {change})\n"
+        "    return [SdramTransactionPort(env, sdram) for _ in range(txn.memory.modules)]",
     )
 
 

@@ -30,7 +30,14 @@ from models.machines.volumepro.chunk_reads import (
 from models.machines.volumepro.event_loop import EventLoop
 from models.machines.volumepro.fifo_timing import DESKEW_WRITE
 
-__all__ = ["pipelines_process", "simulate"]
+__all__ = ["pipelines_process", "sdram_ports", "simulate"]
+
+
+def sdram_ports(env, txn) -> list[SdramTransactionPort]:
+    """The rung's SDRAM ports, one a module: the one place it hands its SDRAM parameters
+    to the (shared) controller, for the generator processes and the compiled loop alike
+    (the evidence tests mutate the parameters here)."""
+    return [SdramTransactionPort(env, txn.memory.sdram) for _ in range(txn.memory.modules)]
 
 
 def simulate(txn, chunks, groups, free_after, cap, loads, *, frames):
@@ -58,7 +65,7 @@ def simulate(txn, chunks, groups, free_after, cap, loads, *, frames):
         [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
     )
     env = simpy.Environment() if txn.events == "simpy" else EventLoop()
-    ports = [SdramTransactionPort(env, txn.memory.sdram) for _ in range(txn.memory.modules)]
+    ports = sdram_ports(env, txn)
     link = ChunkLink(env, DeferredReads(ports, chunk_streams(txn, chunks), nc, frames), nc * frames)
     frees_at: dict[int, list[int]] = {}
     for c, g in enumerate(free_after.tolist()):

@@ -348,16 +348,16 @@ def simulate(model, chunks, groups, free_after, cap, busiest, beam_clocks, by_ba
     from models.machines.volumepro.chunk_reads import DeferredReads, chunk_streams
     from models.machines.volumepro.event_loop import EventLoop
 
-    # The ports' class as pipeline_events names it: one place to swap it (the tests that
-    # put the transaction rung's SDRAM a clock off patch it there).
-    from models.machines.volumepro.pipeline_events import SdramTransactionPort
+    # The ports as pipeline_events builds them: one place for both paths (the tests that
+    # put the transaction rung's SDRAM a clock off change it there).
+    from models.machines.volumepro.pipeline_events import sdram_ports
 
     nc, ng, n_steps = len(chunks), len(groups), len(busiest)
     every = np.concatenate(
         [np.where(free_after >= 0, free_after + f * ng, -1) for f in range(frames)]
     ).astype(np.int64)
     env = EventLoop()  # the ports' clock: read_runs never reads it
-    ports = [SdramTransactionPort(env, model.memory.sdram) for _ in range(model.memory.modules)]
+    ports = sdram_ports(env, model)
     reads = DeferredReads(ports, chunk_streams(model, chunks), nc, frames)
     free_at = np.where(every < 0, 0, -1).astype(np.int64)  # no group needs it: free at 0
     freed = np.flatnonzero(every >= 0)
